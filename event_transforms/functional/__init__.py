@@ -1,0 +1,16 @@
+"""Pure kernels: tensor first, options keyword-only, per-sample parameters as (B,) tensors.
+
+Every kernel accepts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` event frames, never modifies
+its input, and returns a tensor on the input's device.
+"""
+
+from __future__ import annotations
+
+from .spatial import *  # noqa: F401,F403
+from .spatial import __all__ as _spatial
+from .temporal import *  # noqa: F401,F403
+from .temporal import __all__ as _temporal
+from .noise import *  # noqa: F401,F403
+from .noise import __all__ as _noise
+
+__all__ = [*_spatial, *_temporal, *_noise]

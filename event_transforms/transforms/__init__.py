@@ -1,0 +1,15 @@
+"""Transform modules (settings + per-sample parameter draws) and containers."""
+
+from __future__ import annotations
+
+from .base import EventTransform, Params
+from .spatial import *  # noqa: F401,F403
+from .spatial import __all__ as _spatial
+from .temporal import *  # noqa: F401,F403
+from .temporal import __all__ as _temporal
+from .noise import *  # noqa: F401,F403
+from .noise import __all__ as _noise
+from .containers import *  # noqa: F401,F403
+from .containers import __all__ as _containers
+
+__all__ = ["EventTransform", "Params", *_spatial, *_temporal, *_noise, *_containers]
