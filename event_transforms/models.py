@@ -1,0 +1,387 @@
+"""Reference ConvLSTM force regressor (DESIGN.md §7).
+
+The paper's best regressor (its ref. [17]) is a ConvLSTM whose exact layer sizes are not
+public; this module gives a small, documented stand-in that trains in minutes on a CPU:
+
+``counts --avg-pool--> log1p --ConvLSTM--> (avg-pool --ConvLSTM)... --> mean+max over
+(H, W) --> linear --> force per frame``.
+
+Gate arithmetic: for input ``x_t`` and state ``(h_{t-1}, c_{t-1})``
+
+.. math::
+
+    [i, f, g, o] = W_x * x_t + W_h * h_{t-1} + b \\qquad (* = \\text{2-D convolution})
+
+    c_t = \\sigma(f) \\odot c_{t-1} + \\sigma(i) \\odot \\tanh(g), \\qquad
+    h_t = \\sigma(o) \\odot \\tanh(c_t)
+
+with the gate order **i, f, g, o** along the channel axis (PyTorch's ``nn.LSTM`` order,
+and Keras's ``i, f, c, o``). ``σ`` is the logistic sigmoid or, with
+``recurrent_activation="hard_sigmoid"``, Keras 2's ``clip(0.2 x + 0.5, 0, 1)``.
+The gates and the cell state are computed in float32 even under ``torch.autocast``, so a
+1,000-frame sequence in bfloat16 stays finite.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor, nn
+
+__all__ = ["ConvLSTMCell", "ConvLSTM", "ForceRegressor", "State"]
+
+#: Recurrent state of a stack of ConvLSTM layers: one ``(h, c)`` pair per layer.
+State = list[tuple[Tensor, Tensor]]
+
+_ACTIVATIONS = ("sigmoid", "hard_sigmoid")
+
+
+def _hard_sigmoid(x: Tensor) -> Tensor:
+    return torch.clamp(0.2 * x + 0.5, 0.0, 1.0)
+
+
+def _as_pair(value: int | Sequence[int], name: str) -> tuple[int, int]:
+    if isinstance(value, bool):
+        raise TypeError(f"{name} must be a positive int or a pair of them, got {value!r}")
+    if isinstance(value, int):
+        pair = (value, value)
+    elif isinstance(value, Sequence) and len(value) == 2 and all(
+        isinstance(v, int) and not isinstance(v, bool) for v in value
+    ):
+        pair = (int(value[0]), int(value[1]))
+    else:
+        raise TypeError(f"{name} must be a positive int or a pair of them, got {value!r}")
+    if min(pair) < 1:
+        raise ValueError(f"{name} must be positive, got {value!r}")
+    return pair
+
+
+def _check_positive_int(value: object, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise TypeError(f"{name} must be a positive int, got {value!r}")
+    if value < 1:
+        raise ValueError(f"{name} must be a positive int, got {value!r}")
+    return value
+
+
+class ConvLSTMCell(nn.Module):
+    """One ConvLSTM step: ``(x_t, (h, c)) -> (h', c')``.
+
+    The input and recurrent convolutions are separate (``input_conv`` with the bias,
+    ``recurrent_conv`` without), so a layer can convolve a whole sequence's inputs in one
+    call and only loop over the recurrent part. Padding is ``"same"``: ``h`` has the
+    input's (H, W).
+
+    Initialisation (:meth:`reset_parameters`, as Keras ``ConvLSTM2D``): input kernels
+    Glorot-uniform per gate, recurrent kernel orthogonal, bias zero except the forget
+    gate's, which is 1 (``unit_forget_bias``).
+
+    Args:
+        in_channels: channels of ``x``.
+        hidden_channels: channels of ``h`` and ``c``.
+        kernel_size: convolution kernel, int or (kH, kW); used for both convolutions.
+        bias: add a learnable bias to the gates.
+        recurrent_activation: ``"sigmoid"`` or ``"hard_sigmoid"`` (Keras 2's
+            ``clip(0.2 x + 0.5, 0, 1)``) for the gates i, f, o.
+
+    Shape:
+        - x: ``(B, C_in, H, W)``
+        - hx: ``None`` (zero state) or a pair ``(h, c)`` of ``(B, C_hidden, H, W)``
+        - output: ``(h', c')``, each ``(B, C_hidden, H, W)``, float32 (or float64 for a
+          float64 model)
+
+    Example:
+        >>> _ = torch.manual_seed(0)
+        >>> cell = ConvLSTMCell(2, 4, 3)
+        >>> h, c = cell(torch.rand(1, 2, 5, 6))
+        >>> h, c = cell(torch.rand(1, 2, 5, 6), (h, c))
+        >>> tuple(h.shape), bool(h.abs().max() < 1)
+        ((1, 4, 5, 6), True)
+    """
+
+    def __init__(
+        self,
+        in_channels: int,
+        hidden_channels: int,
+        kernel_size: int | Sequence[int] = 3,
+        bias: bool = True,
+        recurrent_activation: str = "sigmoid",
+    ) -> None:
+        super().__init__()
+        self.in_channels = _check_positive_int(in_channels, "in_channels")
+        self.hidden_channels = _check_positive_int(hidden_channels, "hidden_channels")
+        self.kernel_size = _as_pair(kernel_size, "kernel_size")
+        if recurrent_activation not in _ACTIVATIONS:
+            raise ValueError(
+                f"recurrent_activation must be one of {_ACTIVATIONS}, got {recurrent_activation!r}"
+            )
+        self.recurrent_activation = recurrent_activation
+        self.input_conv = nn.Conv2d(
+            in_channels, 4 * hidden_channels, self.kernel_size, padding="same", bias=bias
+        )
+        self.recurrent_conv = nn.Conv2d(
+            hidden_channels, 4 * hidden_channels, self.kernel_size, padding="same", bias=False
+        )
+        self.reset_parameters()
+
+    def reset_parameters(self) -> None:
+        """Glorot-uniform input kernels per gate, orthogonal recurrent kernel, forget bias 1."""
+        hidden = self.hidden_channels
+        kh, kw = self.kernel_size
+        with torch.no_grad():
+            for gate in range(4):
+                block = self.input_conv.weight[gate * hidden : (gate + 1) * hidden]
+                fan_in, fan_out = self.in_channels * kh * kw, hidden * kh * kw
+                bound = math.sqrt(6.0 / (fan_in + fan_out))
+                block.uniform_(-bound, bound)
+            recurrent = torch.empty(4 * hidden, hidden * kh * kw)
+            nn.init.orthogonal_(recurrent)
+            self.recurrent_conv.weight.copy_(recurrent.view_as(self.recurrent_conv.weight))
+            if self.input_conv.bias is not None:
+                self.input_conv.bias.zero_()
+                self.input_conv.bias[hidden : 2 * hidden].fill_(1.0)
+
+    def _gate(self, x: Tensor) -> Tensor:
+        return _hard_sigmoid(x) if self.recurrent_activation == "hard_sigmoid" else torch.sigmoid(x)
+
+    def zero_state(self, x: Tensor) -> tuple[Tensor, Tensor]:
+        """A zero ``(h, c)`` matching ``x`` ``(B, C_in, H, W)`` in batch, size and device."""
+        dtype = torch.promote_types(self.input_conv.weight.dtype, torch.float32)
+        shape = (x.shape[0], self.hidden_channels, x.shape[-2], x.shape[-1])
+        zeros = torch.zeros(shape, dtype=dtype, device=x.device)
+        return zeros, zeros
+
+    def step_gates(
+        self, input_gates: Tensor, hx: tuple[Tensor, Tensor]
+    ) -> tuple[Tensor, Tensor]:
+        """Advance one step from precomputed ``input_conv(x)`` (``(B, 4 C_hidden, H, W)``)."""
+        h, c = hx
+        gates = input_gates.to(c.dtype) + self.recurrent_conv(h).to(c.dtype)
+        i, f, g, o = gates.chunk(4, dim=1)
+        c = self._gate(f) * c + self._gate(i) * torch.tanh(g)
+        h = self._gate(o) * torch.tanh(c)
+        return h, c
+
+    def forward(
+        self, x: Tensor, hx: tuple[Tensor, Tensor] | None = None
+    ) -> tuple[Tensor, Tensor]:
+        """One step; ``hx=None`` starts from the zero state."""
+        if x.dim() != 4 or x.shape[1] != self.in_channels:
+            raise ValueError(
+                f"x: expected (B, {self.in_channels}, H, W), got {tuple(x.shape)}"
+            )
+        if hx is None:
+            hx = self.zero_state(x)
+        return self.step_gates(self.input_conv(x), hx)
+
+    def extra_repr(self) -> str:
+        return (
+            f"{self.in_channels}, {self.hidden_channels}, kernel_size={self.kernel_size}, "
+            f"recurrent_activation={self.recurrent_activation!r}"
+        )
+
+
+class ConvLSTM(nn.Module):
+    """Stacked ConvLSTM layers over a batch-first sequence ``(B, T, C, H, W)``.
+
+    Layer ``l`` reads the hidden sequence of layer ``l - 1``. Each layer convolves all
+    ``T`` inputs in one call and loops over time only for the recurrent convolution.
+
+    Args:
+        in_channels: channels of the input frames.
+        hidden_channels: channels per layer; an int means one layer.
+        kernel_size: kernel of every layer.
+        bias: gate bias in every layer.
+        recurrent_activation: ``"sigmoid"`` or ``"hard_sigmoid"``.
+
+    Shape:
+        - x: ``(B, T, C_in, H, W)``
+        - hx: ``None`` or a list of ``(h, c)`` per layer
+        - output: ``(sequence, state)``; ``sequence`` is the last layer's hidden states
+          ``(B, T, C_last, H, W)`` and ``state`` the list of final ``(h, c)`` per layer.
+
+    Example:
+        >>> _ = torch.manual_seed(0)
+        >>> lstm = ConvLSTM(2, [4, 3])
+        >>> out, state = lstm(torch.rand(2, 5, 2, 6, 7))
+        >>> tuple(out.shape), len(state), tuple(state[1][0].shape)
+        ((2, 5, 3, 6, 7), 2, (2, 3, 6, 7))
+    """
+
+    def __init__(
+        self,
+        in_channels: int,
+        hidden_channels: int | Sequence[int],
+        kernel_size: int | Sequence[int] = 3,
+        bias: bool = True,
+        recurrent_activation: str = "sigmoid",
+    ) -> None:
+        super().__init__()
+        hidden = [hidden_channels] if isinstance(hidden_channels, int) else list(hidden_channels)
+        if not hidden:
+            raise ValueError(f"hidden_channels must name at least one layer, got {hidden_channels!r}")
+        inputs = [in_channels, *hidden[:-1]]
+        self.cells = nn.ModuleList(
+            ConvLSTMCell(c_in, c_h, kernel_size, bias, recurrent_activation)
+            for c_in, c_h in zip(inputs, hidden)
+        )
+
+    @staticmethod
+    def run_layer(
+        cell: ConvLSTMCell, x: Tensor, hx: tuple[Tensor, Tensor] | None
+    ) -> tuple[Tensor, tuple[Tensor, Tensor]]:
+        """Run one cell over ``x`` ``(B, T, C, H, W)``; return hidden sequence and last state."""
+        batch, steps = x.shape[:2]
+        if hx is None:
+            hx = cell.zero_state(x[:, 0] if steps else x.new_zeros(batch, *x.shape[2:]))
+        input_gates = cell.input_conv(x.flatten(0, 1)).unflatten(0, (batch, steps))
+        outputs = []
+        for t in range(steps):
+            hx = cell.step_gates(input_gates[:, t], hx)
+            outputs.append(hx[0])
+        if not outputs:
+            return hx[0].unsqueeze(1)[:, :0], hx
+        return torch.stack(outputs, dim=1), hx
+
+    def forward(self, x: Tensor, hx: State | None = None) -> tuple[Tensor, State]:
+        """Run every layer over the sequence."""
+        if x.dim() != 5:
+            raise ValueError(f"x: expected (B, T, C, H, W), got {tuple(x.shape)}")
+        if hx is not None and len(hx) != len(self.cells):
+            raise ValueError(f"hx must hold one (h, c) per layer ({len(self.cells)}), got {len(hx)}")
+        state: State = []
+        for index, cell in enumerate(self.cells):
+            x, last = self.run_layer(cell, x, None if hx is None else hx[index])
+            state.append(last)
+        return x, state
+
+
+class ForceRegressor(nn.Module):
+    """Event frames ``(B, T, 2, H, W)`` to contact force per frame ``(B, T)`` in newtons.
+
+    Per frame: an ``input_pool`` x ``input_pool`` average pool of the counts, ``log1p`` of
+    the pooled counts (so 10^4 events per pixel are as tame as 10), then one ConvLSTM layer per entry of
+    ``hidden_channels`` with a 2x2 average pool between layers, then the mean and maximum of
+    the last hidden state over (H, W) and a linear layer. The output is
+    ``force_offset + force_scale * linear(...)``; the two buffers (default 0 and 1) let a
+    trainer standardise the targets while the model keeps answering in newtons
+    (:meth:`set_force_scaling`).
+
+    :meth:`step` runs the same network one 10 ms frame at a time, for online use, and gives
+    the same numbers as :meth:`forward` on the whole sequence.
+
+    Args:
+        in_channels: polarity channels of the frames (2).
+        hidden_channels: ConvLSTM channels per layer.
+        kernel_size: ConvLSTM kernel.
+        input_pool: average-pool factor applied to every frame first (1 = none).
+        recurrent_activation: ``"sigmoid"`` or ``"hard_sigmoid"`` (Keras 2 parity).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``, any real dtype, non-negative counts
+        - output: ``(B, T)`` float32 (float64 for a float64 model)
+
+    Example:
+        >>> _ = torch.manual_seed(0)
+        >>> model = ForceRegressor()
+        >>> frames = torch.poisson(torch.full((1, 4, 2, 70, 75), 0.5))
+        >>> force = model(frames)
+        >>> state = None
+        >>> steps = []
+        >>> for t in range(4):
+        ...     f, state = model.step(frames[:, t], state)
+        ...     steps.append(f)
+        >>> tuple(force.shape), torch.allclose(torch.stack(steps, 1), force, atol=1e-5)
+        ((1, 4), True)
+    """
+
+    def __init__(
+        self,
+        in_channels: int = 2,
+        hidden_channels: int | Sequence[int] = (8, 16),
+        kernel_size: int | Sequence[int] = 3,
+        input_pool: int = 4,
+        recurrent_activation: str = "sigmoid",
+    ) -> None:
+        super().__init__()
+        self.in_channels = _check_positive_int(in_channels, "in_channels")
+        self.input_pool = _check_positive_int(input_pool, "input_pool")
+        self.lstm = ConvLSTM(in_channels, hidden_channels, kernel_size, True, recurrent_activation)
+        last = self.lstm.cells[-1].hidden_channels
+        self.head = nn.Linear(2 * last, 1)
+        self.register_buffer("force_offset", torch.zeros(()))
+        self.register_buffer("force_scale", torch.ones(()))
+
+    def set_force_scaling(self, offset: float, scale: float) -> None:
+        """Set the affine map from the head's output to newtons (e.g. target mean and std)."""
+        if not (math.isfinite(offset) and math.isfinite(scale) and scale > 0):
+            raise ValueError(
+                f"offset must be finite and scale finite and positive, got {offset!r}, {scale!r}"
+            )
+        self.force_offset.fill_(offset)
+        self.force_scale.fill_(scale)
+
+    def _preprocess(self, frames: Tensor) -> Tensor:
+        """``(N, C, H, W)`` counts -> log1p of the pooled counts, in the model's dtype."""
+        x = frames.to(self.head.weight.dtype)
+        if self.input_pool > 1:
+            x = F.avg_pool2d(x, self.input_pool)
+        return torch.log1p(x)
+
+    def _check(self, frames: Tensor, rank: int, layout: str) -> None:
+        if not isinstance(frames, Tensor):
+            raise TypeError(f"frames must be a torch.Tensor, got {type(frames).__name__}")
+        if frames.dim() != rank or frames.shape[-3] != self.in_channels:
+            raise ValueError(f"frames: expected {layout}, got {tuple(frames.shape)}")
+        if min(frames.shape[-2:]) < self.input_pool:
+            raise ValueError(
+                f"frames: (H, W) = {tuple(frames.shape[-2:])} is smaller than "
+                f"input_pool={self.input_pool}"
+            )
+
+    def _readout(self, h: Tensor) -> Tensor:
+        """``(N, C, H, W)`` last hidden state -> force ``(N,)``."""
+        features = torch.cat([h.mean(dim=(-2, -1)), h.amax(dim=(-2, -1))], dim=-1)
+        out = self.head(features.to(self.head.weight.dtype)).squeeze(-1).float()
+        if self.head.weight.dtype == torch.float64:
+            out = out.double()
+        return self.force_offset.to(out.dtype) + self.force_scale.to(out.dtype) * out
+
+    def forward(self, frames: Tensor) -> Tensor:
+        """Force per frame for a batch of sequences."""
+        self._check(frames, 5, f"(B, T, {self.in_channels}, H, W)")
+        batch, steps = frames.shape[:2]
+        x = self._preprocess(frames.flatten(0, 1)).unflatten(0, (batch, steps))
+        for index, cell in enumerate(self.lstm.cells):
+            if index:
+                x = F.avg_pool2d(x.flatten(0, 1), 2).unflatten(0, (batch, steps))
+            x, _ = ConvLSTM.run_layer(cell, x, None)
+        return self._readout(x.flatten(0, 1)).unflatten(0, (batch, steps))
+
+    def step(self, frame: Tensor, state: State | None = None) -> tuple[Tensor, State]:
+        """One frame ``(B, 2, H, W)`` -> force ``(B,)`` and the new state.
+
+        ``state=None`` starts a new sequence. Feeding the frames of a sequence one by one
+        gives the numbers :meth:`forward` gives for the whole sequence.
+        """
+        self._check(frame, 4, f"(B, {self.in_channels}, H, W)")
+        if state is not None and len(state) != len(self.lstm.cells):
+            raise ValueError(
+                f"state must hold one (h, c) per layer ({len(self.lstm.cells)}), got {len(state)}"
+            )
+        x = self._preprocess(frame)
+        new_state: State = []
+        for index, cell in enumerate(self.lstm.cells):
+            if index:
+                x = F.avg_pool2d(x, 2)
+            hx = cell.zero_state(x) if state is None else state[index]
+            hx = cell.step_gates(cell.input_conv(x), hx)
+            new_state.append(hx)
+            x = hx[0]
+        return self._readout(x), new_state
+
+    def extra_repr(self) -> str:
+        return f"input_pool={self.input_pool}, log1p input, mean+max readout"

@@ -1,0 +1,304 @@
+"""Tests for the reference ConvLSTM force regressor."""
+
+from __future__ import annotations
+
+import pickle
+
+import pytest
+import torch
+import torch.nn.functional as F
+
+from event_transforms.models import ConvLSTM, ConvLSTMCell, ForceRegressor
+
+H, W = 17, 11
+
+
+def reference_cell_step(cell: ConvLSTMCell, x, h, c):
+    """The textbook ConvLSTM step, from one convolution over cat([x, h])."""
+    weight = torch.cat([cell.input_conv.weight, cell.recurrent_conv.weight], dim=1)
+    gates = F.conv2d(torch.cat([x, h], 1), weight, cell.input_conv.bias, padding="same")
+    hidden = cell.hidden_channels
+    act = (
+        (lambda v: torch.clamp(0.2 * v + 0.5, 0, 1))
+        if cell.recurrent_activation == "hard_sigmoid"
+        else torch.sigmoid
+    )
+    i, f, g, o = (gates[:, k * hidden : (k + 1) * hidden] for k in range(4))
+    c = act(f) * c + act(i) * torch.tanh(g)
+    return act(o) * torch.tanh(c), c
+
+
+def small_model(**kwargs) -> ForceRegressor:
+    torch.manual_seed(0)
+    kwargs.setdefault("hidden_channels", (4, 4))
+    kwargs.setdefault("input_pool", 2)
+    return ForceRegressor(**kwargs)
+
+
+def counts(*shape, rate=0.5, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    return torch.poisson(torch.full(shape, rate), generator=g)
+
+
+class TestConvLSTMCell:
+    @pytest.mark.parametrize("activation", ["sigmoid", "hard_sigmoid"])
+    def test_matches_reference(self, activation):
+        torch.manual_seed(0)
+        cell = ConvLSTMCell(3, 5, 3, recurrent_activation=activation).double()
+        x = torch.randn(2, 3, H, W, dtype=torch.float64)
+        h = torch.randn(2, 5, H, W, dtype=torch.float64)
+        c = torch.randn(2, 5, H, W, dtype=torch.float64)
+        got = cell(x, (h, c))
+        want = reference_cell_step(cell, x, h, c)
+        torch.testing.assert_close(got, want)
+
+    def test_zero_state_default(self):
+        torch.manual_seed(0)
+        cell = ConvLSTMCell(2, 4, (3, 5))
+        x = torch.rand(3, 2, H, W)
+        zeros = torch.zeros(3, 4, H, W)
+        torch.testing.assert_close(cell(x), cell(x, (zeros, zeros)))
+        assert cell(x)[0].shape == (3, 4, H, W)
+
+    def test_init(self):
+        torch.manual_seed(0)
+        cell = ConvLSTMCell(2, 4, 3)
+        bias = cell.input_conv.bias
+        assert torch.equal(bias[4:8], torch.ones(4))
+        assert torch.equal(bias[:4], torch.zeros(4)) and torch.equal(bias[8:], torch.zeros(8))
+        w = cell.recurrent_conv.weight.reshape(16, -1)  # (4 hidden, hidden k k)
+        torch.testing.assert_close(w @ w.T, torch.eye(16), atol=1e-5, rtol=0)
+        bound = (6 / (2 * 9 + 4 * 9)) ** 0.5
+        assert cell.input_conv.weight.abs().max() <= bound
+        assert cell.recurrent_conv.bias is None
+
+    def test_reset_parameters_reproducible(self):
+        a, b = ConvLSTMCell(2, 4), ConvLSTMCell(2, 4)
+        torch.manual_seed(3)
+        a.reset_parameters()
+        torch.manual_seed(3)
+        b.reset_parameters()
+        for p, q in zip(a.parameters(), b.parameters()):
+            assert torch.equal(p, q)
+
+    def test_hard_sigmoid_is_keras2(self):
+        cell = ConvLSTMCell(1, 1, recurrent_activation="hard_sigmoid")
+        v = torch.tensor([-10.0, -2.5, 0.0, 1.0, 2.5, 10.0])
+        torch.testing.assert_close(cell._gate(v), torch.tensor([0.0, 0.0, 0.5, 0.7, 1.0, 1.0]))
+
+    def test_bad_arguments(self):
+        with pytest.raises(ValueError, match="recurrent_activation"):
+            ConvLSTMCell(2, 4, recurrent_activation="relu")
+        with pytest.raises(ValueError, match="hidden_channels"):
+            ConvLSTMCell(2, 0)
+        with pytest.raises(TypeError, match="kernel_size"):
+            ConvLSTMCell(2, 4, kernel_size=(3, 3, 3))
+        with pytest.raises(ValueError, match=r"\(B, 2, H, W\)"):
+            ConvLSTMCell(2, 4)(torch.rand(1, 3, 5, 5))
+
+    def test_repr(self):
+        assert "hard_sigmoid" in repr(ConvLSTMCell(2, 4, recurrent_activation="hard_sigmoid"))
+
+
+class TestConvLSTM:
+    def test_shapes_and_state(self):
+        torch.manual_seed(0)
+        lstm = ConvLSTM(2, [4, 3], kernel_size=3)
+        out, state = lstm(torch.rand(2, 5, 2, H, W))
+        assert out.shape == (2, 5, 3, H, W)
+        assert [s[0].shape for s in state] == [(2, 4, H, W), (2, 3, H, W)]
+        torch.testing.assert_close(out[:, -1], state[-1][0])
+
+    def test_matches_loop_over_cells(self):
+        torch.manual_seed(0)
+        lstm = ConvLSTM(2, [4, 3]).double()
+        x = torch.rand(2, 6, 2, H, W, dtype=torch.float64)
+        out, _ = lstm(x)
+        seq = x
+        for cell in lstm.cells:
+            h = c = torch.zeros(2, cell.hidden_channels, H, W, dtype=torch.float64)
+            hs = []
+            for t in range(seq.shape[1]):
+                h, c = reference_cell_step(cell, seq[:, t], h, c)
+                hs.append(h)
+            seq = torch.stack(hs, 1)
+        torch.testing.assert_close(out, seq)
+
+    def test_state_continues_sequence(self):
+        torch.manual_seed(0)
+        lstm = ConvLSTM(2, [4, 3]).double()
+        x = torch.rand(1, 8, 2, H, W, dtype=torch.float64)
+        whole, _ = lstm(x)
+        first, state = lstm(x[:, :5])
+        second, _ = lstm(x[:, 5:], state)
+        torch.testing.assert_close(torch.cat([first, second], 1), whole)
+
+    def test_bad_input(self):
+        lstm = ConvLSTM(2, 4)
+        with pytest.raises(ValueError, match=r"\(B, T, C, H, W\)"):
+            lstm(torch.rand(5, 2, H, W))
+        with pytest.raises(ValueError, match="hidden_channels"):
+            ConvLSTM(2, [])
+
+
+class TestForceRegressor:
+    def test_shapes(self):
+        model = small_model()
+        assert model(counts(3, 7, 2, H, W)).shape == (3, 7)
+        assert model(counts(1, 1, 2, H, W)).shape == (1, 1)
+        default = ForceRegressor()
+        assert default(counts(2, 3, 2, 70, 75)).shape == (2, 3)
+
+    def test_default_model_is_small(self):
+        assert sum(p.numel() for p in ForceRegressor().parameters()) < 50_000
+
+    @pytest.mark.parametrize("dtype", [torch.uint8, torch.int16, torch.int64, torch.float16])
+    def test_accepts_count_dtypes(self, dtype):
+        model = small_model()
+        x = counts(2, 4, 2, H, W)
+        torch.testing.assert_close(model(x.to(dtype)), model(x))
+
+    def test_input_unchanged(self):
+        model = small_model()
+        x = counts(2, 4, 2, H, W)
+        before, version = x.clone(), x._version
+        model(x)
+        assert x._version == version and torch.equal(x, before)
+
+    @pytest.mark.parametrize("activation", ["sigmoid", "hard_sigmoid"])
+    def test_streaming_equals_full_forward(self, activation):
+        model = small_model(recurrent_activation=activation, hidden_channels=(4, 5, 3))
+        model.eval()
+        x = counts(2, 9, 2, H, W, rate=2.0)
+        full = model(x)
+        state, outs = None, []
+        for t in range(x.shape[1]):
+            force, state = model.step(x[:, t], state)
+            outs.append(force)
+        torch.testing.assert_close(torch.stack(outs, 1), full, atol=1e-5, rtol=1e-5)
+        assert len(state) == 3
+
+    def test_streaming_equals_full_forward_float64(self):
+        model = small_model().double()
+        x = counts(1, 6, 2, H, W, rate=2.0)
+        full = model(x)
+        assert full.dtype == torch.float64
+        state, outs = None, []
+        for t in range(6):
+            force, state = model.step(x[:, t], state)
+            outs.append(force)
+        torch.testing.assert_close(torch.stack(outs, 1), full, atol=1e-12, rtol=1e-12)
+
+    def test_gradients_reach_every_parameter(self):
+        model = small_model(hidden_channels=(4, 4, 4))
+        x = counts(2, 5, 2, H, W, rate=1.0)
+        loss = (model(x) - 3.0).square().mean()
+        loss.backward()
+        for name, p in model.named_parameters():
+            assert p.grad is not None, name
+            assert torch.isfinite(p.grad).all(), name
+            assert p.grad.abs().sum() > 0, name
+
+    def test_force_scaling(self):
+        model = small_model()
+        x = counts(2, 4, 2, H, W)
+        base = model(x)
+        model.set_force_scaling(10.0, 4.0)
+        torch.testing.assert_close(model(x), 10.0 + 4.0 * base)
+        state = model.state_dict()
+        assert float(state["force_offset"]) == 10.0 and float(state["force_scale"]) == 4.0
+        with pytest.raises(ValueError, match="scale"):
+            model.set_force_scaling(0.0, 0.0)
+
+    def test_overfits_tiny_batch(self):
+        model = small_model(hidden_channels=(6,))
+        x = counts(4, 6, 2, H, W, rate=0.3, seed=1)
+        x[:, :, :, 4:8, 3:7] += torch.arange(4).view(4, 1, 1, 1, 1) * 3.0
+        target = torch.linspace(0, 1, 6).expand(4, 6) * torch.tensor([2.0, 5.0, 9.0, 14.0])[:, None]
+        opt = torch.optim.Adam(model.parameters(), lr=2e-2)
+        first = None
+        for _ in range(250):
+            loss = F.mse_loss(model(x), target)
+            first = loss.item() if first is None else first
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+        assert loss.item() < 0.05 * first
+
+    def test_pickle_and_state_dict(self):
+        model = small_model()
+        x = counts(1, 3, 2, H, W)
+        clone = pickle.loads(pickle.dumps(model))
+        torch.testing.assert_close(clone(x), model(x))
+        other = small_model(hidden_channels=(4, 4))
+        torch.manual_seed(123)
+        other.lstm.cells[0].reset_parameters()
+        other.load_state_dict(model.state_dict())
+        torch.testing.assert_close(other(x), model(x))
+
+    def test_bad_input(self):
+        model = small_model()
+        with pytest.raises(ValueError, match=r"\(B, T, 2, H, W\)"):
+            model(counts(4, 2, H, W))
+        with pytest.raises(ValueError, match=r"\(B, T, 2, H, W\)"):
+            model(counts(1, 4, 3, H, W))
+        with pytest.raises(ValueError, match=r"\(B, 2, H, W\)"):
+            model.step(counts(1, 1, 2, H, W))
+        with pytest.raises(ValueError, match="input_pool"):
+            model(counts(1, 2, 2, 1, W))
+        with pytest.raises(TypeError, match="frames"):
+            model([[1.0]])
+        with pytest.raises(ValueError, match="state"):
+            model.step(counts(1, 2, H, W), [])
+
+
+class TestStability:
+    """Finite outputs and gradients in the regimes a trainer meets."""
+
+    @staticmethod
+    def check_finite(model, x):
+        out = model(x)
+        assert torch.isfinite(out).all()
+        out.float().square().mean().backward()
+        for name, p in model.named_parameters():
+            assert p.grad is not None and torch.isfinite(p.grad).all(), name
+        return out
+
+    def test_thousand_frames(self):
+        model = small_model(hidden_channels=(3,), input_pool=4)
+        x = counts(1, 1000, 2, 16, 12, rate=1.0)
+        self.check_finite(model, x)
+
+    def test_huge_counts(self):
+        model = small_model()
+        x = torch.full((2, 6, 2, H, W), 1e4)
+        x[0, :, :, :3] = 0
+        out = self.check_finite(model, x)
+        assert out.abs().max() < 1e3
+
+    def test_all_zero_input(self):
+        model = small_model()
+        out = self.check_finite(model, torch.zeros(2, 5, 2, H, W))
+        torch.testing.assert_close(out[0], out[1])
+
+    def test_autocast_bfloat16(self):
+        model = small_model(hidden_channels=(3, 3), input_pool=4)
+        x = counts(1, 1000, 2, 16, 12, rate=1.0)
+        x[..., 2:5, 2:5] = 1e4
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            out = model(x)
+        assert out.dtype == torch.float32 and torch.isfinite(out).all()
+        out.square().mean().backward()
+        for name, p in model.named_parameters():
+            assert torch.isfinite(p.grad).all(), name
+        with torch.no_grad():
+            ref = model(x)
+        assert (out - ref).abs().max() < 0.2 * ref.abs().max() + 0.1
+
+    def test_autocast_gates_stay_float32(self):
+        torch.manual_seed(0)
+        cell = ConvLSTMCell(2, 3)
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            h, c = cell(torch.rand(1, 2, H, W))
+            h, c = cell(torch.rand(1, 2, H, W), (h, c))
+        assert h.dtype == torch.float32 and c.dtype == torch.float32
