@@ -8,8 +8,10 @@ call, at the public boundary, never inside a loop.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Callable
 
 import torch
@@ -24,6 +26,22 @@ __all__ = [
     "check_fraction",
     "check_generator",
 ]
+
+# True while a module runs on frames whose values it has already checked: the kernels it
+# calls (and nested containers) then skip the value pass, so a call reads its input for
+# validation once, not once per kernel.
+_VALUES_CHECKED: contextvars.ContextVar[bool] = contextvars.ContextVar("values_checked", default=False)
+
+
+@contextlib.contextmanager
+def values_checked() -> Iterator[None]:
+    """Within this block ``check_frames`` checks shapes and dtypes but not values again."""
+    token = _VALUES_CHECKED.set(True)
+    try:
+        yield
+    finally:
+        _VALUES_CHECKED.reset(token)
+
 
 _INTEGER_DTYPES = {torch.uint8, torch.int8, torch.int16, torch.int32, torch.int64}
 
@@ -49,7 +67,7 @@ def check_frames(frames: object, name: str = "frames", *, check_values: bool = T
         raise ValueError(
             f"{name}: expected (T, 2, H, W) or (B, T, 2, H, W), got {tuple(frames.shape)}"
         )
-    if check_values and frames.numel() > 0 and frames.dtype != torch.uint8:
+    if check_values and frames.numel() > 0 and frames.dtype != torch.uint8 and not _VALUES_CHECKED.get():
         # one pass over the data: the minimum is NaN if any value is, and the maximum
         # is +Inf if any value is.
         low, high = torch.aminmax(frames)

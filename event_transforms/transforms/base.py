@@ -16,7 +16,7 @@ from typing import Any, Callable
 import torch
 from torch import Tensor, nn
 
-from .._validation import as_batch, check_frames
+from .._validation import as_batch, check_frames, values_checked
 
 __all__ = ["EventTransform", "Params", "apply_by_group"]
 
@@ -54,7 +54,7 @@ class EventTransform(nn.Module):
                 DataLoader worker draws differently.
             params: parameters returned by :meth:`make_params`, to replay a draw.
         """
-        check_frames(frames, check_values=False)
+        check_frames(frames)  # values once here; kernels inside skip them
         video = _video_type()
         like = frames if video is not None and isinstance(frames, video) else None
         if like is not None:
@@ -62,7 +62,8 @@ class EventTransform(nn.Module):
         batch, unbatch = as_batch(frames)
         if params is None:
             params = self.make_params(batch.shape[0], generator=generator)
-        out = unbatch(self.apply(batch, params, generator=generator))
+        with values_checked():
+            out = unbatch(self.apply(batch, params, generator=generator))
         if like is not None:
             from torchvision import tv_tensors
 
