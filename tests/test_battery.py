@@ -1,0 +1,212 @@
+"""The shared battery every module runs: hard cases, dtype/device rules, no in-place change,
+reproducibility, pickling, and interop (DataLoader workers, nn.Sequential, torchvision v2,
+tv_tensors.Video, tonic-style frames)."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+import torch
+from torch import nn
+from torch.utils.data import DataLoader, Dataset
+
+import event_transforms as et
+
+from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse_frames
+
+INTERPOLATING = {"Rotate", "RandomRotation", "Resize", "RandomResize"}
+
+
+def _bank(t: int, h: int, w: int) -> torch.Tensor:
+    return sparse_frames(t + 5, 2, h, w, seed=9)
+
+
+# name -> factory(T, H, W) -> module
+FACTORIES = {
+    "Rotate": lambda t, h, w: et.Rotate(30.0),
+    "RandomRotation": lambda t, h, w: et.RandomRotation(45.0),
+    "Resize": lambda t, h, w: et.Resize(1.25),
+    "RandomResize": lambda t, h, w: et.RandomResize(choices=(15 / 18, 15 / 12)),
+    "HorizontalFlip": lambda t, h, w: et.HorizontalFlip(),
+    "VerticalFlip": lambda t, h, w: et.VerticalFlip(),
+    "RandomHorizontalFlip": lambda t, h, w: et.RandomHorizontalFlip(0.5),
+    "RandomVerticalFlip": lambda t, h, w: et.RandomVerticalFlip(0.5),
+    "FrameShift": lambda t, h, w: et.FrameShift(-1),
+    "RandomFrameShift": lambda t, h, w: et.RandomFrameShift((-2, 2)),
+    "TemporalEventShift": lambda t, h, w: et.TemporalEventShift(-2, 0.5),
+    "TemporalEventShiftBinomial": lambda t, h, w: et.TemporalEventShift(-2, 0.5, mode="binomial"),
+    "RandomTemporalEventShift": lambda t, h, w: et.RandomTemporalEventShift((-2, 2), (0.2, 0.8)),
+    "AddNoise": lambda t, h, w: et.AddNoise(_bank(t, h, w)),
+    "AddPoissonNoise": lambda t, h, w: et.AddPoissonNoise((0.5, 20.0)),
+    "RandomEventDrop": lambda t, h, w: et.RandomEventDrop((0.1, 0.5)),
+    "Compose": lambda t, h, w: et.Compose([et.FrameShift(-1), et.RandomRotation(10.0)]),
+    "OneOf": lambda t, h, w: et.OneOf([et.RandomResize(choices=(0.83, 1.25)), et.FrameShift(-1)]),
+    "RandomApply": lambda t, h, w: et.RandomApply(et.RandomFrameShift((-1, 1)), p=0.5),
+}
+
+NAMES = sorted(FACTORIES)
+
+
+def expected_dtype(name: str, dtype: torch.dtype) -> torch.dtype:
+    interpolates = name in INTERPOLATING or name in ("Compose", "OneOf")
+    if interpolates and not dtype.is_floating_point:
+        return torch.float32
+    return dtype
+
+
+def run(name: str, frames: torch.Tensor, seed: int = 0) -> torch.Tensor:
+    t, _, h, w = frames.shape[-4:]
+    module = FACTORIES[name](t, h, w)
+    return module(frames, generator=torch.Generator().manual_seed(seed))
+
+
+@pytest.mark.parametrize("name", NAMES)
+class TestBattery:
+    @pytest.mark.parametrize(
+        "dtype",
+        [torch.float32, torch.float16, torch.bfloat16, torch.float64, torch.uint8, torch.int16, torch.int32, torch.int64],
+    )
+    def test_dtypes(self, name, dtype):
+        frames = sparse_frames(3, 6, 2, H, W, density=0.2, dtype=dtype)
+        out = check_not_modified(lambda x: run(name, x), frames)
+        check_sane(out, frames, expected_dtype(name, dtype))
+
+    def test_empty_frames(self, name):
+        frames = torch.zeros(2, 5, 2, H, W)
+        out = run(name, frames)
+        check_sane(out, frames)
+        if name not in ("AddNoise", "AddPoissonNoise"):
+            assert out.sum() == 0
+
+    def test_single_event(self, name):
+        frames = torch.zeros(1, 5, 2, H, W, dtype=torch.int32)
+        frames[0, 2, 1, 8, 5] = 1
+        out = run(name, frames)
+        check_sane(out, frames, expected_dtype(name, torch.int32))
+        if name not in ("AddNoise", "AddPoissonNoise"):
+            assert 0 <= float(out.double().sum()) <= 1.0 + 1e-6
+
+    @pytest.mark.parametrize("dtype", [torch.int32, torch.float32, torch.float64])
+    def test_one_pixel_with_a_million_counts(self, name, dtype):
+        frames = torch.zeros(2, 5, 2, H, W, dtype=dtype)
+        frames[:, 2, 0, 8, 5] = 10**6
+        out = check_not_modified(lambda x: run(name, x), frames)
+        check_sane(out, frames, expected_dtype(name, dtype))
+        total = float(out.double().sum())
+        assert total <= 2 * 10**6 + (out.numel() * 10 if "Noise" in name else 0)
+
+    def test_zero_batch(self, name):
+        frames = torch.zeros(0, 5, 2, H, W, dtype=torch.int16)
+        out = run(name, frames)
+        assert out.shape == frames.shape and out.dtype == expected_dtype(name, torch.int16)
+
+    @pytest.mark.parametrize("shape", [(3, 1, 2, H, W), (2, 4, 2, 1, W), (2, 4, 2, H, 1), (2, 4, 2, 1, 1), (2, 4, 2, 70, 75)])
+    def test_odd_shapes(self, name, shape):
+        frames = sparse_frames(*shape, density=0.3)
+        out = run(name, frames)
+        check_sane(out, frames)
+
+    def test_single_sequence_equals_batch_of_one(self, name):
+        frames = sparse_frames(6, 2, H, W, density=0.2)
+        single = run(name, frames, seed=5)
+        batch = run(name, frames.unsqueeze(0), seed=5)
+        assert single.shape == frames.shape
+        assert torch.equal(single, batch[0])
+
+    def test_seeded_reproducibility(self, name):
+        frames = sparse_frames(4, 6, 2, H, W, density=0.2)
+        assert torch.equal(run(name, frames, seed=11), run(name, frames, seed=11))
+
+    def test_pickle(self, name):
+        frames = sparse_frames(3, 6, 2, H, W, density=0.2)
+        check_pickle(FACTORIES[name](6, H, W), frames)
+
+    def test_bad_rank_and_polarity(self, name):
+        module = FACTORIES[name](6, H, W)
+        with pytest.raises(ValueError, match=r"got \(6, 3, 17, 11\)"):
+            module(torch.zeros(6, 3, H, W))
+        with pytest.raises(ValueError, match=r"got \(2, 11\)"):
+            module(torch.zeros(2, W))
+        with pytest.raises(TypeError, match="frames"):
+            module(np.zeros((6, 2, H, W)))
+
+    def test_negative_and_nan_counts(self, name):
+        module = FACTORIES[name](6, H, W)
+        frames = sparse_frames(2, 6, 2, H, W)
+        frames[0, 0, 0, 0, 0] = -1
+        with pytest.raises(ValueError, match="non-negative"):
+            module(frames, generator=torch.Generator().manual_seed(0))
+        frames[0, 0, 0, 0, 0] = float("nan")
+        with pytest.raises(ValueError, match="finite"):
+            module(frames, generator=torch.Generator().manual_seed(0))
+
+
+# ----------------------------------------------------------------------------- interop
+
+
+class _Sequences(Dataset):
+    def __init__(self, transform):
+        self.frames = sparse_frames(8, 6, 2, H, W, density=0.3)
+        self.transform = transform
+
+    def __len__(self):
+        return 8
+
+    def __getitem__(self, index):
+        return self.transform(self.frames[0])  # the same sequence every time
+
+
+def test_dataloader_workers_draw_differently():
+    loader = DataLoader(_Sequences(et.RandomRotation(180.0)), batch_size=4, num_workers=2)
+    first, second = list(loader)
+    assert not torch.equal(first[0], second[0])  # worker 0 and worker 1
+    assert not torch.equal(first[0], first[1])  # consecutive draws in one worker
+
+
+def test_collated_batch_gets_per_sample_parameters():
+    batch = sparse_frames(1, 6, 2, H, W, density=0.3).expand(8, 6, 2, H, W)
+    out = et.RandomRotation(180.0)(batch, generator=torch.Generator().manual_seed(0))
+    assert len({tuple(o.flatten()[:50].tolist()) for o in out}) == 8
+
+
+def test_inside_nn_sequential():
+    frames = sparse_frames(2, 6, 2, H, W, density=0.3)
+    model = nn.Sequential(et.FrameShift(-1), et.Rotate(15.0))
+    torch.testing.assert_close(model(frames), et.Rotate(15.0)(et.FrameShift(-1)(frames)))
+
+
+def test_inside_torchvision_v2_compose_keeps_video():
+    from torchvision import tv_tensors
+    from torchvision.transforms import v2
+
+    video = tv_tensors.Video(sparse_frames(6, 2, H, W, density=0.3))
+    pipeline = v2.Compose([et.Rotate(20.0), et.FrameShift(1), v2.ToDtype(torch.float64)])
+    out = pipeline(video)
+    assert isinstance(out, tv_tensors.Video)
+    assert out.dtype == torch.float64
+    expected = et.FrameShift(1)(et.Rotate(20.0)(video.as_subclass(torch.Tensor))).double()
+    torch.testing.assert_close(out.as_subclass(torch.Tensor), expected)
+
+
+@pytest.mark.parametrize("name", ["RandomRotation", "RandomTemporalEventShift", "OneOf"])
+def test_video_in_video_out(name):
+    from torchvision import tv_tensors
+
+    video = tv_tensors.Video(sparse_frames(2, 6, 2, H, W, density=0.3))
+    out = FACTORIES[name](6, H, W)(video)
+    assert isinstance(out, tv_tensors.Video)
+
+
+def test_tonic_to_frame_output_accepted_as_is():
+    # tonic's ToFrame returns an int16 numpy array (T, P, H, W), polarity 0 = OFF
+    frames = torch.from_numpy(np.random.default_rng(0).poisson(0.1, (36, 2, 70, 75)).astype(np.int16))
+    out = et.TemporalEventShift(-2, 0.5)(frames, generator=torch.Generator().manual_seed(0))
+    assert out.dtype == torch.int16 and out.shape == (36, 2, 70, 75)
+
+
+def test_modules_are_picklable_for_spawned_workers():
+    for name in NAMES:
+        module = FACTORIES[name](6, H, W)
+        assert repr(pickle.loads(pickle.dumps(module))) == repr(module)

@@ -1,0 +1,125 @@
+"""Compose (hybrid), OneOf (independent), RandomApply."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+from torch import nn
+
+import event_transforms as et
+
+from .checkers import H, W, sparse_frames
+
+
+def gen(seed: int = 0) -> torch.Generator:
+    return torch.Generator().manual_seed(seed)
+
+
+class TestCompose:
+    def test_applies_in_order(self):
+        frames = sparse_frames(3, 6, 2, H, W, density=0.3)
+        out = et.Compose([et.FrameShift(-1), et.HorizontalFlip(), et.Rotate(20.0)])(frames)
+        torch.testing.assert_close(out, et.Rotate(20.0)(et.FrameShift(-1)(frames).flip(-1)))
+
+    def test_one_generator_for_all(self):
+        frames = sparse_frames(3, 6, 2, H, W, density=0.3)
+        pipeline = et.Compose([et.RandomRotation(30.0), et.RandomTemporalEventShift((-2, 2), (0.2, 0.8))])
+        assert torch.equal(pipeline(frames, generator=gen(4)), pipeline(frames, generator=gen(4)))
+        assert not torch.equal(pipeline(frames, generator=gen(4)), pipeline(frames, generator=gen(5)))
+
+    def test_accepts_plain_modules(self):
+        frames = sparse_frames(2, 6, 2, H, W)
+        assert torch.equal(et.Compose([nn.Identity(), et.FrameShift(0)])(frames), frames)
+
+    def test_rejects_non_modules(self):
+        with pytest.raises(TypeError, match="transforms"):
+            et.Compose([lambda x: x])
+        with pytest.raises(TypeError, match="transforms"):
+            et.Compose(et.FrameShift(1))
+
+
+class TestOneOf:
+    def test_each_sample_gets_exactly_its_branch(self):
+        frames = sparse_frames(40, 5, 2, H, W, density=0.3)
+        one_of = et.OneOf([et.FrameShift(1), et.HorizontalFlip(), et.VerticalFlip()])
+        params = one_of.make_params(40, generator=gen())
+        out = one_of(frames, params=params)
+        branches = [et.FrameShift(1)(frames), frames.flip(-1), frames.flip(-2)]
+        for b in range(40):
+            assert torch.equal(out[b], branches[int(params["index"][b])][b])
+        assert set(params["index"].tolist()) == {0, 1, 2}
+
+    def test_weights(self):
+        one_of = et.OneOf([et.FrameShift(1), et.HorizontalFlip()], weights=[3.0, 1.0])
+        index = one_of.make_params(4000, generator=gen())["index"]
+        assert float(index.eq(0).double().mean()) == pytest.approx(0.75, abs=0.03)
+        never = et.OneOf([et.FrameShift(1), et.HorizontalFlip()], weights=[0.0, 1.0])
+        assert never.make_params(100, generator=gen())["index"].eq(1).all()
+
+    def test_dtype_does_not_depend_on_the_draw(self):
+        frames = sparse_frames(1, 5, 2, H, W, dtype=torch.int16)
+        one_of = et.OneOf([et.Rotate(10.0), et.FrameShift(1)], weights=[1e-9, 1.0])
+        for seed in range(5):
+            assert one_of(frames, generator=gen(seed)).dtype == torch.float32
+
+    def test_unused_branch_is_not_run(self):
+        calls = []
+
+        class Spy(nn.Module):
+            def forward(self, x):
+                calls.append(x.shape[0])
+                return x
+
+        frames = sparse_frames(8, 5, 2, H, W)
+        et.OneOf([Spy(), et.FrameShift(1)], weights=[0.0, 1.0])(frames, generator=gen())
+        assert calls == [0]  # called once, on an empty sub-batch (for the dtype), never on samples
+
+    def test_bad_weights(self):
+        with pytest.raises(ValueError, match="weights"):
+            et.OneOf([et.FrameShift(1)], weights=[1.0, 2.0])
+        with pytest.raises(ValueError, match="weights"):
+            et.OneOf([et.FrameShift(1), et.HorizontalFlip()], weights=[0.0, 0.0])
+        with pytest.raises(ValueError, match="weights"):
+            et.OneOf([et.FrameShift(1), et.HorizontalFlip()], weights=[-1.0, 2.0])
+        with pytest.raises(ValueError, match="at least one"):
+            et.OneOf([])
+
+
+class TestRandomApply:
+    def test_probability_extremes(self):
+        frames = sparse_frames(6, 5, 2, H, W, density=0.3)
+        assert torch.equal(et.RandomApply(et.HorizontalFlip(), p=0.0)(frames), frames)
+        assert torch.equal(et.RandomApply(et.HorizontalFlip(), p=1.0)(frames), frames.flip(-1))
+
+    def test_per_sample_gate(self):
+        frames = sparse_frames(50, 5, 2, H, W, density=0.3)
+        gate = et.RandomApply(et.HorizontalFlip(), p=0.3)
+        params = gate.make_params(50, generator=gen())
+        out = gate(frames, params=params)
+        for b in range(50):
+            assert torch.equal(out[b], frames[b].flip(-1) if params["apply"][b] else frames[b])
+        assert 5 < int(params["apply"].sum()) < 25
+
+    def test_output_is_not_the_input_object(self):
+        frames = sparse_frames(3, 5, 2, H, W)
+        out = et.RandomApply(et.HorizontalFlip(), p=0.0)(frames)
+        assert out.data_ptr() != frames.data_ptr()
+
+    def test_bad_settings(self):
+        with pytest.raises(ValueError, match="p must lie"):
+            et.RandomApply(et.HorizontalFlip(), p=-0.1)
+        with pytest.raises(TypeError, match="transform"):
+            et.RandomApply(lambda x: x)
+
+
+def test_paper_independent_and_hybrid():
+    """Independent: each copy one method; hybrid: both stacked (DESIGN §1)."""
+    frames = sparse_frames(16, 36, 2, 70, 75)
+    resize = et.RandomResize(choices=(15 / 18, 15 / 12))
+    shift = et.FrameShift(-1)
+    independent = et.OneOf([resize, shift])(frames, generator=gen())
+    hybrid = et.Compose([resize, shift])(frames, generator=gen())
+    assert independent.shape == hybrid.shape == frames.shape
+    # hybrid: the last frame is always vacated by the shift; independent only for shifted samples
+    assert hybrid[:, -1].sum() == 0
+    assert independent[:, -1].sum() > 0
