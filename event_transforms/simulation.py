@@ -1,0 +1,664 @@
+"""A seeded simulator of the paper's tactile setup: a bolt grasped against a silicone membrane.
+
+The paper's recordings are not public, so the package ships a small physical model of
+them (DESIGN §6). One *grasp* is:
+
+1. **Force.** A parallel gripper closes on a bolt of diameter D: a smooth ramp over the
+   first ~5 frames, a hold with vibration, a release over the last ~5 frames. Each gripper
+   setting has a nominal hold force; experiments vary around it (capped at 25 N). The
+   force/torque sensor reads the true force every 10 ms, at the frame centres.
+2. **Membrane.** The membrane follows the force through a first-order lag with a time
+   constant drawn per experiment, τ dF_m/dt = F − F_m (the creep of a Zener solid).
+3. **Contact.** The bolt leaves a dark strip on the membrane whose half-width follows
+   Hertz line contact, b = k·(F_m·R)^e with R = D/2 and e = 1/2 (thin layers are nearer
+   1/3; the exponent is configurable). The strip has a fixed length (the gripper pad), an
+   orientation drawn per experiment, and a centre near the sensor centre.
+4. **DVS.** The camera sees the membrane's log intensity on a fine time grid (1 ms
+   substeps); each pixel emits an ON (OFF) event whenever its log intensity rose (fell) by
+   its threshold since its last event, v2e/ESIM style, with per-pixel threshold mismatch
+   and a refractory period. Background shot noise (0.1–10 Hz per pixel) and hot pixels
+   are added as Poisson processes.
+
+Every effect has a switch in :class:`SimulatorConfig`, and an effect that is off is not
+computed. Randomness comes from ``numpy.random.Generator(PCG64)`` streams derived from the
+seed with ``SeedSequence`` (one stream per effect, so switching one effect off leaves the
+others' draws unchanged); nothing touches a global RNG. Fixed pixel properties (threshold
+mismatch, noise rates, hot pixels) belong to the camera and come from ``sensor_seed``, so
+every recording of one data set shares them, as recordings from one camera do. The log
+intensity is rounded to 2⁻²⁰ before thresholding so that last-bit differences between
+math libraries cannot change an event: same seed, same events on any machine.
+
+Results obtained on this data are results on synthetic data, never the paper's.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "SIMULATOR_VERSION",
+    "SimulatorConfig",
+    "Grasp",
+    "Recording",
+    "EVENT_DTYPE",
+    "draw_grasp",
+    "force_profile",
+    "membrane_force",
+    "contact_half_width",
+    "simulate_grasps",
+    "simulate_grasp",
+    "simulate_static",
+]
+
+import dataclasses
+import functools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from .functional.events import events_to_frames
+
+#: Bumped whenever the model changes what a seed produces (keys the data-set cache).
+SIMULATOR_VERSION = 1
+
+#: Structured dtype of simulated event streams (tonic's field names; t in microseconds).
+EVENT_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
+
+_LOG_QUANTUM = 2.0**-20
+
+
+@dataclass(frozen=True)
+class SimulatorConfig:
+    """Settings of the simulated setup. Every effect can be switched off.
+
+    Switches: ``contact`` (no contact: a static scene), ``force_variation = 0`` (every
+    experiment of a gripper setting gets its nominal force), ``timing_jitter_ms = 0``,
+    ``vibration``, ``lag`` (membrane follows the force instantly), ``orientation`` (strip
+    always horizontal), ``center_jitter_px = 0`` (strip at the sensor centre),
+    ``threshold_mismatch = 0``, ``refractory_us = 0``, ``shot_noise``, ``hot_pixels``.
+
+    Attributes:
+        sensor_size: (H, W) of the DVS; the paper's DAVIS240 is (180, 240).
+        n_frames: frames per grasp (36 × 10 ms = 360 ms).
+        frame_ms: frame length and force sampling period in milliseconds.
+        substep_ms: time step of the log-intensity rendering.
+        sensor_seed: seed of the camera's fixed pixel properties.
+        gripper_force_n: nominal hold force of each gripper setting, newtons.
+        force_variation: relative standard deviation of the hold force between experiments.
+        max_force_n: the gripper's limit; hold forces are capped there.
+        grasp_ms, release_ms: nominal ramp durations (±20 % per experiment).
+        timing_jitter_ms: the grasp starts and the release ends up to this late/early.
+        vibration: add a sinusoidal vibration to the hold force.
+        vibration_fraction: vibration amplitude relative to the force.
+        vibration_hz: range of the vibration frequency (drawn per experiment).
+        contact: render the contact strip (False gives a static scene).
+        width_exponent: e in b = k·(F·R)^e (1/2: Hertz line contact).
+        reference_half_width_px: b in pixels at the reference force and diameter.
+        reference_force_n, reference_diameter_mm: the reference point fixing k.
+        strip_half_length_px: half the strip's length along the bolt's axis.
+        edge_px: width of the strip's soft edge.
+        contrast: fractional darkening inside the strip (0 < contrast < 1).
+        center_jitter_px: the strip centre is uniform within ± this of the sensor centre.
+        lag: apply the membrane's first-order lag.
+        lag_ms: range of the lag time constant τ (drawn per experiment).
+        orientation: rotate the strip by an angle drawn per experiment.
+        angle_deg: range of that angle, degrees (counter-clockwise in the image).
+        threshold: nominal log-intensity contrast threshold (ON and OFF).
+        threshold_mismatch: relative standard deviation of per-pixel thresholds.
+        refractory_us: a pixel is blind this long after it fires (its reference follows
+            the light meanwhile, so changes during that time are lost).
+        shot_noise: add background shot noise.
+        shot_noise_hz: range of the per-pixel noise rates (log-uniform per pixel).
+        noise_on_fraction: probability that a noise event is ON.
+        hot_pixels: add hot pixels.
+        hot_pixel_fraction: fraction of pixels that are hot.
+        hot_pixel_hz: range of the hot pixels' rates (log-uniform).
+    """
+
+    sensor_size: tuple[int, int] = (180, 240)
+    n_frames: int = 36
+    frame_ms: float = 10.0
+    substep_ms: float = 1.0
+    sensor_seed: int = 0
+    gripper_force_n: tuple[float, ...] = (12.0, 20.0)
+    force_variation: float = 0.1
+    max_force_n: float = 25.0
+    grasp_ms: float = 50.0
+    release_ms: float = 50.0
+    timing_jitter_ms: float = 5.0
+    vibration: bool = True
+    vibration_fraction: float = 0.03
+    vibration_hz: tuple[float, float] = (15.0, 40.0)
+    contact: bool = True
+    width_exponent: float = 0.5
+    reference_half_width_px: float = 12.0
+    reference_force_n: float = 25.0
+    reference_diameter_mm: float = 18.0
+    strip_half_length_px: float = 45.0
+    edge_px: float = 1.5
+    contrast: float = 0.6
+    center_jitter_px: float = 6.0
+    lag: bool = True
+    lag_ms: tuple[float, float] = (2.0, 25.0)
+    orientation: bool = True
+    angle_deg: tuple[float, float] = (-20.0, 20.0)
+    threshold: float = 0.2
+    threshold_mismatch: float = 0.03
+    refractory_us: float = 200.0
+    shot_noise: bool = True
+    shot_noise_hz: tuple[float, float] = (0.1, 10.0)
+    noise_on_fraction: float = 0.5
+    hot_pixels: bool = True
+    hot_pixel_fraction: float = 1e-4
+    hot_pixel_hz: tuple[float, float] = (50.0, 200.0)
+
+    def __post_init__(self) -> None:
+        height, width = self.sensor_size
+        if height < 1 or width < 1:
+            raise ValueError(f"sensor_size must be positive, got {self.sensor_size!r}")
+        steps = self.frame_ms / self.substep_ms
+        if self.substep_ms <= 0 or abs(steps - round(steps)) > 1e-9:
+            raise ValueError(
+                f"frame_ms ({self.frame_ms}) must be a whole multiple of substep_ms "
+                f"({self.substep_ms})"
+            )
+        if not 0 < self.contrast < 1:
+            raise ValueError(f"contrast must lie in (0, 1), got {self.contrast!r}")
+        if self.threshold <= 0:
+            raise ValueError(f"threshold must be positive, got {self.threshold!r}")
+        if min(self.gripper_force_n, default=0) <= 0:
+            raise ValueError(f"gripper_force_n must be positive, got {self.gripper_force_n!r}")
+        for name in ("vibration_hz", "lag_ms", "angle_deg", "shot_noise_hz", "hot_pixel_hz"):
+            low, high = getattr(self, name)
+            if low > high:
+                raise ValueError(f"{name} must be a (min, max) pair, got {(low, high)!r}")
+        if self.lag and self.lag_ms[0] <= 0:
+            raise ValueError(f"lag_ms must be positive (or set lag=False), got {self.lag_ms!r}")
+        for name in ("shot_noise_hz", "hot_pixel_hz"):
+            if getattr(self, name)[0] <= 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
+
+    @property
+    def duration_ms(self) -> float:
+        """Length of one recording, ``n_frames · frame_ms``."""
+        return self.n_frames * self.frame_ms
+
+    def replace(self, **changes: object) -> SimulatorConfig:
+        """A copy with some settings changed (``dataclasses.replace``)."""
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """The parameters of one experiment, drawn by :func:`draw_grasp`."""
+
+    diameter_mm: float
+    gripper: int
+    seed: int
+    hold_force_n: float
+    grasp_start_ms: float
+    grasp_ms: float
+    release_ms: float
+    release_end_ms: float
+    vibration_hz: float
+    vibration_phase: float
+    lag_ms: float
+    angle_deg: float
+    center_yx: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One simulated recording: an event stream and the force sampled every frame.
+
+    Attributes:
+        events: structured array with fields ``x, y, t, p`` (:data:`EVENT_DTYPE`), sorted
+            by ``t`` (microseconds from ``t_start_us``); ``p`` is 1 for ON, 0 for OFF.
+        force: (n_frames,) float32 force in newtons at the frame centres.
+        force_t_us: (n_frames,) int64 times of the force samples.
+        grasp: the experiment's parameters (``None`` for a static scene).
+        config: the simulator settings that made it.
+        t_start_us: start of the first frame.
+    """
+
+    events: np.ndarray
+    force: np.ndarray
+    force_t_us: np.ndarray
+    grasp: Grasp | None
+    config: SimulatorConfig = field(repr=False)
+    t_start_us: int = 0
+
+    def frames(
+        self,
+        *,
+        crop: tuple[int, int, int, int] | None = None,
+        pool: int = 1,
+        dtype: torch.dtype = torch.float32,
+    ) -> Tensor:
+        """The recording as frames ``(n_frames, 2, H, W)`` (see :func:`events_to_frames`)."""
+        return events_to_frames(
+            self.events,
+            t_start=self.t_start_us,
+            frame_ms=self.config.frame_ms,
+            n_frames=self.config.n_frames,
+            sensor_size=self.config.sensor_size,
+            crop=crop,
+            pool=pool,
+            dtype=dtype,
+        )
+
+    def contact_crop(self, size: tuple[int, int] = (140, 150)) -> tuple[int, int, int, int]:
+        """``(top, left, height, width)`` window of ``size`` centred on the contact, inside
+        the sensor (the paper's 140×150 crop "around the contact area")."""
+        height, width = self.config.sensor_size
+        crop_h, crop_w = size
+        if not (0 < crop_h <= height and 0 < crop_w <= width):
+            raise ValueError(f"size must fit the sensor {self.config.sensor_size}, got {size!r}")
+        cy, cx = self.grasp.center_yx if self.grasp is not None else _sensor_center(self.config)
+        top = min(max(int(round(cy - (crop_h - 1) / 2)), 0), height - crop_h)
+        left = min(max(int(round(cx - (crop_w - 1) / 2)), 0), width - crop_w)
+        return top, left, crop_h, crop_w
+
+
+# --------------------------------------------------------------------------- experiment
+
+
+def _streams(seed: int) -> list[np.random.Generator]:
+    """Independent PCG64 streams: experiment, shot noise, hot-pixel noise."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    children = np.random.SeedSequence(int(seed)).spawn(3)
+    return [np.random.Generator(np.random.PCG64(child)) for child in children]
+
+
+def _sensor_center(config: SimulatorConfig) -> tuple[float, float]:
+    height, width = config.sensor_size
+    return (height - 1) / 2, (width - 1) / 2
+
+
+def draw_grasp(
+    diameter_mm: float, *, gripper: int = 0, seed: int = 0, config: SimulatorConfig | None = None
+) -> Grasp:
+    """Draw one experiment's parameters.
+
+    The draws depend on ``seed`` and ``config`` only, not on the diameter or the gripper
+    setting, so two bolts simulated with one seed see the same force profile shape, lag,
+    angle and centre. Effects switched off get their neutral value (no lag, angle 0, ...).
+
+    Args:
+        diameter_mm: bolt diameter in millimetres.
+        gripper: index into ``config.gripper_force_n``.
+        seed: experiment seed.
+        config: simulator settings (defaults to :class:`SimulatorConfig()`).
+
+    Example:
+        >>> grasp = draw_grasp(15.0, gripper=1, seed=3)
+        >>> grasp.diameter_mm, grasp.gripper, round(grasp.hold_force_n, 2)
+        (15.0, 1, 21.05)
+    """
+    config = config or SimulatorConfig()
+    if isinstance(diameter_mm, bool) or not isinstance(diameter_mm, (int, float)) or not (
+        diameter_mm > 0 and math.isfinite(diameter_mm)
+    ):
+        raise ValueError(f"diameter_mm must be a positive number, got {diameter_mm!r}")
+    if isinstance(gripper, bool) or not isinstance(gripper, (int, np.integer)) or not (
+        0 <= gripper < len(config.gripper_force_n)
+    ):
+        raise ValueError(
+            f"gripper must index gripper_force_n {config.gripper_force_n}, got {gripper!r}"
+        )
+    rng = _streams(seed)[0]
+    # Always draw every number in the same order so switches do not shift the others.
+    force_z = float(rng.standard_normal())
+    start_u, grasp_u, release_u, end_u, vib_u, phase_u, lag_u, angle_u = rng.random(8)
+    center_u = rng.random(2)
+
+    hold = config.gripper_force_n[gripper] * (1.0 + config.force_variation * force_z)
+    hold = float(min(max(hold, 0.0), config.max_force_n))
+    jitter = config.timing_jitter_ms
+    low, high = config.vibration_hz
+    cy, cx = _sensor_center(config)
+    shift = config.center_jitter_px * (2 * center_u - 1)
+    return Grasp(
+        diameter_mm=float(diameter_mm),
+        gripper=int(gripper),
+        seed=int(seed),
+        hold_force_n=hold,
+        grasp_start_ms=float(jitter * start_u),
+        grasp_ms=float(config.grasp_ms * (0.8 + 0.4 * grasp_u)),
+        release_ms=float(config.release_ms * (0.8 + 0.4 * release_u)),
+        release_end_ms=float(config.duration_ms - jitter * end_u),
+        vibration_hz=float(low + (high - low) * vib_u) if config.vibration else 0.0,
+        vibration_phase=float(2 * np.pi * phase_u),
+        lag_ms=float(config.lag_ms[0] + (config.lag_ms[1] - config.lag_ms[0]) * lag_u)
+        if config.lag
+        else 0.0,
+        angle_deg=float(config.angle_deg[0] + (config.angle_deg[1] - config.angle_deg[0]) * angle_u)
+        if config.orientation
+        else 0.0,
+        center_yx=(float(cy + shift[0]), float(cx + shift[1])),
+    )
+
+
+def _smoothstep(u: np.ndarray) -> np.ndarray:
+    return 0.5 - 0.5 * np.cos(np.pi * np.clip(u, 0.0, 1.0))
+
+
+def force_profile(grasps: Sequence[Grasp], times_ms: np.ndarray, config: SimulatorConfig) -> np.ndarray:
+    """The gripper force (newtons) of each grasp at ``times_ms``, shape (len(grasps), len(times)).
+
+    A raised-cosine ramp up over ``grasp_ms``, a hold with a sinusoidal vibration (if
+    switched on), and a raised-cosine ramp down ending at ``release_end_ms``.
+    """
+    times = np.asarray(times_ms, dtype=np.float64)[None, :]
+    column = lambda name: np.array([getattr(g, name) for g in grasps], dtype=np.float64)[:, None]  # noqa: E731
+    start, ramp_up = column("grasp_start_ms"), column("grasp_ms")
+    end, ramp_down = column("release_end_ms"), column("release_ms")
+    envelope = _smoothstep((times - start) / ramp_up) * (1.0 - _smoothstep((times - end + ramp_down) / ramp_down))
+    force = column("hold_force_n") * envelope
+    if config.vibration:
+        wave = np.sin(2 * np.pi * column("vibration_hz") * times / 1000.0 + column("vibration_phase"))
+        force = force * (1.0 + config.vibration_fraction * wave)
+    return force
+
+
+def membrane_force(force: np.ndarray, lag_ms: np.ndarray, substep_ms: float) -> np.ndarray:
+    """First-order lag τ dF_m/dt = F − F_m on a uniform grid, per row (τ = 0: no lag).
+
+    Uses the exact step response for an input linear over each substep's midpoint
+    (trapezoidal input), so a ramp is delayed by τ. ``force`` is (n, S), ``lag_ms`` (n,).
+    """
+    lag_ms = np.asarray(lag_ms, dtype=np.float64)
+    out = np.array(force, dtype=np.float64, copy=True)
+    lagged = lag_ms > 0
+    if not lagged.any():
+        return out
+    alpha = np.ones_like(lag_ms)
+    alpha[lagged] = -np.expm1(-substep_ms / lag_ms[lagged])
+    midpoint = 0.5 * (force[:, 1:] + force[:, :-1])
+    for step in range(1, force.shape[1]):
+        out[:, step] = out[:, step - 1] + alpha * (midpoint[:, step - 1] - out[:, step - 1])
+    return out
+
+
+def contact_half_width(
+    force_n: np.ndarray | float, diameter_mm: np.ndarray | float, config: SimulatorConfig | None = None
+) -> np.ndarray:
+    """Half-width of the contact strip in pixels, b = k·(F·R)^e (Hertz line contact for e=½).
+
+    ``k`` is fixed by ``reference_half_width_px`` at the reference force and diameter.
+
+    Example:
+        >>> config = SimulatorConfig()
+        >>> float(contact_half_width(25.0, 18.0, config))
+        12.0
+        >>> round(float(contact_half_width(10.0, 18.0) / contact_half_width(10.0, 12.0)), 4)
+        1.2247
+    """
+    config = config or SimulatorConfig()
+    e = config.width_exponent
+    reference = (config.reference_force_n * config.reference_diameter_mm / 2) ** e
+    product = np.maximum(np.asarray(force_n, dtype=np.float64), 0.0) * np.asarray(diameter_mm) / 2
+    return config.reference_half_width_px * product**e / reference
+
+
+# --------------------------------------------------------------------------- camera
+
+
+@dataclass(frozen=True)
+class _Sensor:
+    threshold_on: np.ndarray  # (H*W,) float64
+    threshold_off: np.ndarray
+    noise_hz: np.ndarray  # (H*W,) shot noise rate per pixel
+    hot_hz: np.ndarray  # (H*W,) extra rate of hot pixels (0 elsewhere)
+
+
+def _log_uniform(rng: np.random.Generator, low: float, high: float, size: int) -> np.ndarray:
+    return np.exp(rng.uniform(np.log(low), np.log(high), size))
+
+
+@functools.lru_cache(maxsize=8)
+def _sensor(config: SimulatorConfig) -> _Sensor:
+    """The camera's fixed pixel properties, from ``config.sensor_seed``."""
+    pixels = config.sensor_size[0] * config.sensor_size[1]
+    rng_threshold, rng_noise, rng_hot = (
+        np.random.Generator(np.random.PCG64(child))
+        for child in np.random.SeedSequence([config.sensor_seed, 0x5E45]).spawn(3)
+    )
+    if config.threshold_mismatch > 0:
+        spread = config.threshold_mismatch * rng_threshold.standard_normal((2, pixels))
+        # A threshold cannot vanish: keep at least 10 % of nominal (a 30-sigma event).
+        thresholds = config.threshold * np.maximum(1.0 + spread, 0.1)
+    else:
+        thresholds = np.full((2, pixels), config.threshold)
+    noise = _log_uniform(rng_noise, *config.shot_noise_hz, pixels)
+    hot = np.zeros(pixels)
+    n_hot = int(round(config.hot_pixel_fraction * pixels))
+    if n_hot:
+        where = rng_hot.choice(pixels, size=n_hot, replace=False)
+        hot[where] = _log_uniform(rng_hot, *config.hot_pixel_hz, n_hot)
+    for array in (thresholds, noise, hot):
+        array.setflags(write=False)
+    return _Sensor(thresholds[1], thresholds[0], noise, hot)
+
+
+def _noise_events(
+    rate_hz: np.ndarray, duration_us: int, on_fraction: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Homogeneous Poisson events per pixel: (pixel, t, p)."""
+    counts = rng.poisson(rate_hz * duration_us * 1e-6)
+    pixel = np.repeat(np.arange(rate_hz.size), counts)
+    t = rng.integers(0, duration_us, pixel.size)
+    p = (rng.random(pixel.size) < on_fraction).astype(np.int8)
+    return pixel, t, p
+
+
+def _background(
+    seed: int, duration_us: int, config: SimulatorConfig
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    sensor = _sensor(config)
+    _, rng_shot, rng_hot = _streams(seed)
+    parts = []
+    if config.shot_noise:
+        parts.append(_noise_events(sensor.noise_hz, duration_us, config.noise_on_fraction, rng_shot))
+    if config.hot_pixels and sensor.hot_hz.any():
+        hot = np.flatnonzero(sensor.hot_hz)
+        pixel, t, p = _noise_events(sensor.hot_hz[hot], duration_us, config.noise_on_fraction, rng_hot)
+        parts.append((hot[pixel], t, p))
+    return parts
+
+
+def _to_events(parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], width: int) -> np.ndarray:
+    """Merge (pixel, t, p) parts into one time-sorted structured array."""
+    pixel = np.concatenate([part[0] for part in parts]) if parts else np.zeros(0, np.int64)
+    t = np.concatenate([part[1] for part in parts]) if parts else np.zeros(0, np.int64)
+    p = np.concatenate([part[2] for part in parts]) if parts else np.zeros(0, np.int8)
+    order = np.lexsort((pixel, t))  # by time, ties by pixel: deterministic
+    events = np.empty(order.size, dtype=EVENT_DTYPE)
+    events["x"] = pixel[order] % width
+    events["y"] = pixel[order] // width
+    events["t"] = t[order]
+    events["p"] = p[order]
+    return events
+
+
+# --------------------------------------------------------------------------- simulation
+
+
+def _contact_events(
+    grasps: Sequence[Grasp], width_px: np.ndarray, config: SimulatorConfig
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """DVS events of the strips, vectorised over the active pixels of every grasp.
+
+    ``width_px`` is the half-width b of each grasp on the substep grid, (n, S + 1).
+    Returns per grasp (pixel, t_us, p).
+    """
+    height, width = config.sensor_size
+    sensor = _sensor(config)
+    ys, xs = np.divmod(np.arange(height * width), width)
+    edge = config.edge_px
+    # Gather the pixels each strip can ever touch; every other pixel sees constant light.
+    owner, pixel, across, along = [], [], [], []
+    for index, grasp in enumerate(grasps):
+        theta = np.deg2rad(grasp.angle_deg)
+        dy, dx = ys - grasp.center_yx[0], xs - grasp.center_yx[1]
+        # Image rows grow downwards: a counter-clockwise angle has direction (cos, -sin).
+        u = np.abs(dx * np.sin(theta) + dy * np.cos(theta))  # distance across the strip
+        v = np.abs(dx * np.cos(theta) - dy * np.sin(theta))  # distance along it
+        active = np.flatnonzero((u < width_px[index].max()) & (v < config.strip_half_length_px))
+        owner.append(np.full(active.size, index))
+        pixel.append(active)
+        across.append(u[active])
+        along.append(v[active])
+    owner, pixel = np.concatenate(owner), np.concatenate(pixel)
+    across = np.concatenate(across) / edge
+    # Darkening at full width: contrast, tapered over the edge at the strip's ends.
+    depth = config.contrast * np.clip((config.strip_half_length_px - np.concatenate(along)) / edge, 0, 1)
+    b_edge = width_px / edge
+
+    def log_intensity(step: int) -> np.ndarray:
+        cover = np.clip(b_edge[owner, step] - across, 0.0, 1.0)
+        light = np.log1p(-depth * cover)
+        return np.round(light / _LOG_QUANTUM) * _LOG_QUANTUM
+
+    threshold_on, threshold_off = sensor.threshold_on[pixel], sensor.threshold_off[pixel]
+    dt_us = config.substep_ms * 1000.0
+    refractory = config.refractory_us
+    cap = max(1, int(dt_us // refractory)) if refractory > 0 else None
+    reference = log_intensity(0)
+    last_fire = np.full(pixel.size, -np.inf)
+    fired_step, fired_index, fired_count = [], [], []
+    for step in range(1, width_px.shape[1]):
+        level = log_intensity(step)
+        now = step * dt_us
+        if refractory > 0:
+            blind = (now - last_fire) < refractory
+            reference = np.where(blind, level, reference)
+        change = level - reference
+        threshold = np.where(change > 0, threshold_on, threshold_off)
+        count = np.trunc(change / threshold)
+        fired = np.flatnonzero(count)
+        if fired.size == 0:
+            continue
+        n = count[fired]
+        if cap is not None:
+            capped = np.clip(n, -cap, cap)
+            reference[fired] = np.where(
+                capped == n, reference[fired] + n * threshold[fired], level[fired]
+            )
+            n = capped
+            last_fire[fired] = now
+        else:
+            reference[fired] += n * threshold[fired]
+        fired_step.append(np.full(fired.size, step))
+        fired_index.append(fired)
+        fired_count.append(n.astype(np.int64))
+
+    if not fired_index:
+        return [(np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.int8),) for _ in grasps]
+    step = np.concatenate(fired_step)
+    index = np.concatenate(fired_index)
+    signed = np.concatenate(fired_count)
+    count = np.abs(signed)
+    # Spread the n events of one substep evenly over it: t = t_prev + dt·(k + ½)/n.
+    repeat = np.repeat(np.arange(step.size), count)
+    k = np.arange(repeat.size) - np.repeat(np.cumsum(count) - count, count)
+    t_us = np.floor((step[repeat] - 1) * dt_us + dt_us * (k + 0.5) / count[repeat]).astype(np.int64)
+    polarity = (signed[repeat] > 0).astype(np.int8)
+    who = owner[index[repeat]]
+    where = pixel[index[repeat]]
+    order = np.argsort(who, kind="stable")
+    bounds = np.searchsorted(who[order], np.arange(len(grasps) + 1))
+    return [
+        (where[order[a:b]], t_us[order[a:b]], polarity[order[a:b]])
+        for a, b in zip(bounds[:-1], bounds[1:])
+    ]
+
+
+def simulate_grasps(grasps: Sequence[Grasp], config: SimulatorConfig | None = None) -> list[Recording]:
+    """Simulate several grasps at once (vectorised over all of their pixels).
+
+    Args:
+        grasps: experiments from :func:`draw_grasp` (made with the same ``config``).
+        config: simulator settings (defaults to :class:`SimulatorConfig()`).
+
+    Returns:
+        One :class:`Recording` per grasp, in order.
+
+    Example:
+        >>> config = SimulatorConfig()
+        >>> grasps = [draw_grasp(d, seed=s, config=config) for d, s in [(12.0, 0), (18.0, 1)]]
+        >>> [r.force.shape for r in simulate_grasps(grasps, config)]
+        [(36,), (36,)]
+    """
+    config = config or SimulatorConfig()
+    grasps = list(grasps)
+    height, width = config.sensor_size
+    duration_us = int(round(config.duration_ms * 1000))
+    frame_times_ms = (np.arange(config.n_frames) + 0.5) * config.frame_ms
+    force = force_profile(grasps, frame_times_ms, config).astype(np.float32)
+    contact: list = [[] for _ in grasps]
+    if config.contact and grasps:
+        steps = int(round(config.duration_ms / config.substep_ms))
+        fine_ms = np.arange(steps + 1) * config.substep_ms
+        fine = force_profile(grasps, fine_ms, config)
+        lag = np.array([g.lag_ms for g in grasps])
+        lagged = membrane_force(fine, lag, config.substep_ms) if config.lag else fine
+        diameter = np.array([g.diameter_mm for g in grasps])[:, None]
+        b = contact_half_width(lagged, diameter, config)
+        contact = [[part] for part in _contact_events(grasps, b, config)]
+    force_t_us = np.round(frame_times_ms * 1000).astype(np.int64)
+    return [
+        Recording(
+            events=_to_events(contact[i] + _background(g.seed, duration_us, config), width),
+            force=force[i],
+            force_t_us=force_t_us,
+            grasp=g,
+            config=config,
+        )
+        for i, g in enumerate(grasps)
+    ]
+
+
+def simulate_grasp(
+    diameter_mm: float, *, gripper: int = 0, seed: int = 0, config: SimulatorConfig | None = None
+) -> Recording:
+    """Simulate one grasp of a bolt of ``diameter_mm`` (see the module docstring).
+
+    Example:
+        >>> recording = simulate_grasp(12.0, gripper=1, seed=0)
+        >>> recording.events.dtype.names, recording.force.shape
+        (('x', 'y', 't', 'p'), (36,))
+        >>> recording.frames(crop=recording.contact_crop(), pool=2).shape
+        torch.Size([36, 2, 70, 75])
+    """
+    config = config or SimulatorConfig()
+    return simulate_grasps([draw_grasp(diameter_mm, gripper=gripper, seed=seed, config=config)], config)[0]
+
+
+def simulate_static(
+    duration_ms: float, *, seed: int = 0, config: SimulatorConfig | None = None
+) -> np.ndarray:
+    """Events of a static scene (no contact): background shot noise and hot pixels only.
+
+    Args:
+        duration_ms: length of the recording.
+        seed: seed of the noise realisation (the camera's pixels come from
+            ``config.sensor_seed``).
+        config: simulator settings (defaults to :class:`SimulatorConfig()`).
+
+    Returns:
+        Structured array (:data:`EVENT_DTYPE`) sorted by time, t in [0, duration).
+
+    Example:
+        >>> events = simulate_static(100.0, seed=0)
+        >>> bool((events["t"] < 100_000).all()), events.dtype.names
+        (True, ('x', 'y', 't', 'p'))
+    """
+    config = config or SimulatorConfig()
+    if not (isinstance(duration_ms, (int, float)) and duration_ms > 0 and math.isfinite(duration_ms)):
+        raise ValueError(f"duration_ms must be a positive number, got {duration_ms!r}")
+    duration_us = int(round(duration_ms * 1000))
+    return _to_events(_background(seed, duration_us, config), config.sensor_size[1])
