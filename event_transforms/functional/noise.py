@@ -47,6 +47,23 @@ def _add_counts(frames: Tensor, counts: Tensor, name: str) -> Tensor:
     return frames + counts.to(frames.dtype)
 
 
+def _add_events(batch: Tensor, flat_index: Tensor) -> Tensor:
+    """Add one event at each flat position (repeats accumulate): O(events) beyond a clone."""
+    out = batch.clone()
+    flat = out.view(-1)
+    if batch.dtype in _SMALL_INTEGERS and flat_index.numel():
+        cell, added = torch.unique(flat_index, return_counts=True)
+        high = (flat.index_select(0, cell).to(torch.int64) + added).max()
+        limit = torch.iinfo(batch.dtype).max
+        if bool(high > limit):
+            raise ValueError(
+                f"adding Poisson noise overflows {batch.dtype}: a pixel would hold {int(high)} > {limit}; "
+                "use a wider dtype"
+            )
+    flat.index_put_((flat_index,), torch.ones((), dtype=out.dtype, device=out.device).expand(flat_index.shape), accumulate=True)
+    return out
+
+
 def add_noise(frames: Tensor, noise: Tensor) -> Tensor:
     """Add noise frames (e.g. recorded from a static scene) to event frames.
 
@@ -128,7 +145,7 @@ def add_poisson_noise(
         count = int(totals.sum())
         position = torch.randint(cells, (count,), generator=generator, device=device)
         sample = torch.repeat_interleave(torch.arange(b, device=device), totals, output_size=count)
-        noise = torch.bincount(sample * cells + position, minlength=b * cells).reshape(batch.shape)
+        return unbatch(_add_events(batch, sample * cells + position))
     else:
         rates = lam.to(device=device, dtype=torch.float64).view(b, 1, 1, 1, 1).expand(batch.shape)
         noise = torch.poisson(rates.contiguous(), generator=generator)

@@ -54,8 +54,15 @@ def center_of_mass(frames: Tensor) -> Tensor:
 
 
 def _center_of_mass(batch: Tensor) -> Tensor:
-    _, _, _, height, width = batch.shape
-    weight = batch.sum(dim=(1, 2), dtype=torch.float64)  # (B, H, W)
+    b, t, p, height, width = batch.shape
+    # Sum the T·2 frames of each sequence with one batched matrix product (much faster
+    # than a strided reduction); float32 is exact for whole counts below 2**24 per pixel,
+    # float64 is used for float64 and 32/64-bit integer input.
+    exact = batch.dtype in (torch.float64, torch.int32, torch.int64)
+    acc = torch.float64 if exact else torch.float32
+    ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
+    weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc))
+    weight = weight.reshape(b, height, width).to(torch.float64)
     total = weight.sum(dim=(1, 2))
     ys = torch.arange(height, dtype=torch.float64, device=batch.device)
     xs = torch.arange(width, dtype=torch.float64, device=batch.device)
