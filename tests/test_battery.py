@@ -56,6 +56,11 @@ def expected_dtype(name: str, dtype: torch.dtype) -> torch.dtype:
     return dtype
 
 
+def bound(name: str) -> float:
+    """Largest factor by which a transform may grow the total count (interpolation)."""
+    return 2.5 if name in INTERPOLATING or name in ("Compose", "OneOf") else 1.0 + 1e-6
+
+
 def run(name: str, frames: torch.Tensor, seed: int = 0) -> torch.Tensor:
     t, _, h, w = frames.shape[-4:]
     module = FACTORIES[name](t, h, w)
@@ -86,7 +91,9 @@ class TestBattery:
         out = run(name, frames)
         check_sane(out, frames, expected_dtype(name, torch.int32))
         if name not in ("AddNoise", "AddPoissonNoise"):
-            assert 0 <= float(out.double().sum()) <= 1.0 + 1e-6
+            # interpolation spreads one event over its neighbours: the total may grow by
+            # about scale**2 (1.25**2) plus discretisation, never more than bound(name)
+            assert 0 <= float(out.double().sum()) <= bound(name)
 
     @pytest.mark.parametrize("dtype", [torch.int32, torch.float32, torch.float64])
     def test_one_pixel_with_a_million_counts(self, name, dtype):
@@ -95,7 +102,7 @@ class TestBattery:
         out = check_not_modified(lambda x: run(name, x), frames)
         check_sane(out, frames, expected_dtype(name, dtype))
         total = float(out.double().sum())
-        assert total <= 2 * 10**6 + (out.numel() * 10 if "Noise" in name else 0)
+        assert total <= 2 * 10**6 * bound(name) + (out.numel() * 10 if "Noise" in name else 0)
 
     def test_zero_batch(self, name):
         frames = torch.zeros(0, 5, 2, H, W, dtype=torch.int16)
