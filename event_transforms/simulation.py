@@ -87,7 +87,7 @@ class SimulatorConfig:
         sensor_seed: seed of the camera's fixed pixel properties.
         gripper_force_n: nominal hold force of each gripper setting, newtons.
         force_variation: relative standard deviation of the hold force between experiments.
-        max_force_n: the gripper's limit; hold forces are capped there.
+        max_force_n: the gripper's limit; hold forces (plus vibration) are capped there.
         grasp_ms, release_ms: nominal ramp durations (±20 % per experiment).
         timing_jitter_ms: the grasp starts and the release ends up to this late/early.
         vibration: add a sinusoidal vibration to the hold force.
@@ -316,7 +316,9 @@ def draw_grasp(
     center_u = rng.random(2)
 
     hold = config.gripper_force_n[gripper] * (1.0 + config.force_variation * force_z)
-    hold = float(min(max(hold, 0.0), config.max_force_n))
+    # The gripper's limit applies to the peak, vibration included.
+    peak = config.max_force_n / (1.0 + (config.vibration_fraction if config.vibration else 0.0))
+    hold = float(min(max(hold, 0.0), peak))
     jitter = config.timing_jitter_ms
     low, high = config.vibration_hz
     cy, cx = _sensor_center(config)
@@ -367,19 +369,21 @@ def force_profile(grasps: Sequence[Grasp], times_ms: np.ndarray, config: Simulat
 def membrane_force(force: np.ndarray, lag_ms: np.ndarray, substep_ms: float) -> np.ndarray:
     """First-order lag τ dF_m/dt = F − F_m on a uniform grid, per row (τ = 0: no lag).
 
-    Uses the exact step response for an input linear over each substep's midpoint
-    (trapezoidal input), so a ramp is delayed by τ. ``force`` is (n, S), ``lag_ms`` (n,).
+    Exact for a force linear between grid points, so a ramp is delayed by exactly τ.
+    ``force`` is (n, S) starting at rest (F_m = F at the first point), ``lag_ms`` (n,).
     """
     lag_ms = np.asarray(lag_ms, dtype=np.float64)
     out = np.array(force, dtype=np.float64, copy=True)
     lagged = lag_ms > 0
     if not lagged.any():
         return out
-    alpha = np.ones_like(lag_ms)
-    alpha[lagged] = -np.expm1(-substep_ms / lag_ms[lagged])
-    midpoint = 0.5 * (force[:, 1:] + force[:, :-1])
+    decay = np.zeros_like(lag_ms)
+    decay[lagged] = np.exp(-substep_ms / lag_ms[lagged])
+    # u(t) linear on a step with slope s: F_m(h) = u1 − τs + e^(−h/τ)·(F_m(0) − u0 + τs).
+    tau_slope = lag_ms[:, None] * np.diff(force, axis=1) / substep_ms
     for step in range(1, force.shape[1]):
-        out[:, step] = out[:, step - 1] + alpha * (midpoint[:, step - 1] - out[:, step - 1])
+        drift = tau_slope[:, step - 1]
+        out[:, step] = force[:, step] - drift + decay * (out[:, step - 1] - force[:, step - 1] + drift)
     return out
 
 
