@@ -1,0 +1,298 @@
+"""Temporal kernels: frame shifting (FS) and temporal event shifting (TES).
+
+Sign convention (DESIGN §1): ``shift = j`` moves frame (or events) t to t + j; j < 0 is
+earlier ("left"). The paper's best settings are FS-1 = ``frame_shift(frames, -1)`` and
+TES-2(0.50) = ``temporal_event_shift(frames, -2, 0.5)``. Whatever leaves the sequence
+through either end is dropped; vacated frames are zero.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from numbers import Integral
+
+import torch
+from torch import Tensor
+
+from .._validation import (
+    as_batch,
+    check_fraction,
+    check_frames,
+    check_generator,
+    check_integer_valued,
+    per_sample,
+)
+from ._hypergeometric import binomial_counts, multivariate_hypergeometric, segment_sum
+
+__all__ = ["frame_shift", "temporal_event_shift"]
+
+ShiftArg = int | Sequence[int] | Tensor
+FractionArg = float | Sequence[float] | Tensor
+
+_MODES = ("exact", "binomial", "expected")
+_TES_HINT = (
+    "temporal_event_shift(mode='exact' or 'binomial') moves whole events; apply it before "
+    "interpolating transforms (bilinear rotate/resize) or use mode='expected'"
+)
+# A view of float bits as integers of the same width: non-zero bits <=> non-zero value
+# (except -0.0, which becomes an entry with count 0, harmlessly). nonzero() is faster on it.
+_BITS = {torch.float16: torch.int16, torch.bfloat16: torch.int16, torch.float32: torch.int32,
+         torch.float64: torch.int64}
+
+
+# --------------------------------------------------------------------------- parameters
+
+
+def _shifts(shift: ShiftArg, batch: int) -> Tensor:
+    """(B,) int64 CPU tensor of whole-frame shifts; floats must hold whole numbers."""
+    if isinstance(shift, bool) or (isinstance(shift, Tensor) and shift.dtype == torch.bool):
+        raise TypeError(f"shift must be an integer number of frames, got {shift!r}")
+    if isinstance(shift, Integral):
+        return torch.full((batch,), int(shift), dtype=torch.int64)
+    if isinstance(shift, float):
+        raise TypeError(f"shift must be an integer number of frames, got {shift!r}")
+    if not isinstance(shift, (Tensor, Sequence)):
+        raise TypeError(f"shift must be an int or a (B,) integer tensor, got {type(shift).__name__}")
+    values = torch.as_tensor(shift).detach().cpu() if not isinstance(shift, Tensor) else shift.detach().cpu()
+    if values.is_floating_point():
+        if values.numel() and not bool((torch.isfinite(values) & (values == values.round())).all()):
+            raise ValueError(f"shift must hold whole numbers of frames, got {values.tolist()}")
+    elif values.is_complex():
+        raise TypeError(f"shift must be integers, got dtype {values.dtype}")
+    return per_sample(values, batch, "shift", dtype=torch.int64)
+
+
+def _fractions(fraction: FractionArg, batch: int) -> Tensor:
+    values = per_sample(fraction, batch, "fraction", dtype=torch.float64)
+    check_fraction(values, "fraction")
+    return values
+
+
+# --------------------------------------------------------------------------- frame shift
+
+
+def frame_shift(frames: Tensor, shift: ShiftArg) -> Tensor:
+    """Frame shifting FS-j: move every frame of a sequence ``shift`` bins in time.
+
+    Output frame t is input frame t - j; frames shifted past either end are dropped and
+    vacated frames are zero. |j| >= T gives all zeros. Values are moved, not inspected,
+    so any dtype works and the dtype and device are kept. The ground truth (labels) is
+    not touched (DESIGN §1).
+
+    Cost: one copy of the input (a concatenation with zero frames when the whole batch
+    shares one shift; otherwise one gather of whole frames plus zeroing the few vacated
+    frames). A ``shift`` tensor on an accelerator is read on the host once.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        shift: whole frames j, an int or a ``(B,)`` integer tensor/sequence (one per
+            sample). j < 0 moves frames earlier (the paper's FS-1 is ``shift=-1``).
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
+    Example:
+        >>> frames = torch.zeros(4, 2, 1, 2, dtype=torch.int64)
+        >>> frames[:, 1, 0, 0] = torch.tensor([1, 2, 3, 4])
+        >>> frame_shift(frames, -1)[:, 1, 0, 0]
+        tensor([2, 3, 4, 0])
+        >>> frame_shift(torch.stack([frames, frames]), torch.tensor([1, 5]))[:, :, 1, 0, 0]
+        tensor([[0, 1, 2, 3],
+                [0, 0, 0, 0]])
+    """
+    check_frames(frames, check_values=False)
+    batch, unbatch = as_batch(frames)
+    shifts = _shifts(shift, batch.shape[0])
+    return unbatch(_frame_shift(batch, shifts))
+
+
+def _frame_shift(batch: Tensor, shifts: Tensor) -> Tensor:
+    """``frame_shift`` on a (B, T, 2, H, W) batch with (B,) int64 CPU shifts."""
+    b, t = batch.shape[:2]
+    if batch.numel() == 0:
+        return batch.clone()
+    shifts = shifts.clamp(-t, t)
+    first = int(shifts[0])
+    if bool((shifts == first).all()):
+        if first == 0:
+            return batch.clone()
+        zeros = batch.new_zeros((b, min(abs(first), t), *batch.shape[2:]))
+        if first > 0:
+            return torch.cat([zeros, batch[:, : t - first]], dim=1)
+        return torch.cat([batch[:, -first:], zeros], dim=1)
+    # Per-sample shifts: gather whole frames with clamped source indices, then zero the
+    # vacated (b, t) frames (a few per sample); no full-size mask or index tensor.
+    time = torch.arange(t)
+    source = time.unsqueeze(0) - shifts.unsqueeze(1)  # (B, T)
+    vacated = (source < 0) | (source >= t)
+    rows = (source.clamp(0, t - 1) + t * torch.arange(b).unsqueeze(1)).flatten()
+    flat = batch.reshape(b * t, -1)
+    out = flat.index_select(0, rows.to(batch.device))
+    out.index_fill_(0, vacated.flatten().nonzero().squeeze(1).to(batch.device), 0)
+    return out.view(batch.shape)
+
+
+# --------------------------------------------------------------------------- TES
+
+
+def temporal_event_shift(
+    frames: Tensor,
+    shift: ShiftArg,
+    fraction: FractionArg,
+    *,
+    mode: str = "exact",
+    generator: torch.Generator | None = None,
+) -> Tensor:
+    """Temporal event shifting TES-j(ζ): move a fraction of each frame's events j frames.
+
+    For every sample, frame t and polarity with N events X_t (per pixel), a subset
+    Z_t <= X_t is chosen and moved to frame t + j:
+    ``out_t = X_t - Z_t + Z_{t-j}``; events moved past either end are dropped, as in
+    :func:`frame_shift`. ``fraction = 1`` equals ``frame_shift`` exactly and
+    ``fraction = 0`` is the identity.
+
+    Modes:
+
+    - ``"exact"`` (default, the paper's TES): Z_t is a uniformly random subset of
+      k = round(ζ N) of the N events (multivariate hypergeometric per pixel), so
+      ΣZ_t = k exactly and 0 <= Z_t <= X_t. Rounding is ``torch.round`` (half to even:
+      ζ N = 2.5 gives 2, 3.5 gives 4). Drawn without expanding events: a binomial draw
+      Z' ~ Binomial(X, k / N) followed by an exact hypergeometric correction of the
+      ~sqrt(N) surplus or deficit, recursively, finished by drawing distinct event positions (see
+      ``_hypergeometric.multivariate_hypergeometric``). Extra memory is a few int64
+      vectors over the non-zero pixels, whatever N (10**7 events in one pixel cost one
+      entry); one host synchronisation per recursion level (about three).
+    - ``"binomial"``: every event moves independently with probability ζ
+      (Z ~ Binomial(X, ζ)); ΣZ_t = ζ N only in expectation. Faster.
+    - ``"expected"``: Z_t = ζ X_t deterministically (fractional counts).
+
+    Dtype: ``"exact"`` and ``"binomial"`` conserve counts and keep the dtype; they need
+    integer-valued counts (integer dtypes, or floats holding whole numbers up to 2**53)
+    and raise ``ValueError`` otherwise. ``"expected"`` returns the input dtype for float
+    input and float32 for integer input. The device is kept. With a ``torch.Generator``
+    the result is a deterministic function of the input and the generator state.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, non-negative.
+        shift: whole frames j, an int or a ``(B,)`` integer tensor (one per sample);
+            j < 0 moves events earlier (the paper's TES-2(0.50) is ``shift=-2``).
+        fraction: ζ in [0, 1], a float or a ``(B,)`` tensor (one per sample).
+        mode: ``"exact"``, ``"binomial"`` or ``"expected"``.
+        generator: source of randomness on the frames' device; ``None`` uses torch's
+            global RNG.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape.
+
+    Example:
+        >>> g = torch.Generator().manual_seed(0)
+        >>> frames = torch.zeros(3, 2, 4, 4, dtype=torch.int64)
+        >>> frames[1, 1] = 2  # 32 ON events in frame 1
+        >>> out = temporal_event_shift(frames, -1, 0.5, generator=g)
+        >>> out[:, 1].sum(dim=(-2, -1))  # exactly 16 of them moved one frame earlier
+        tensor([16, 16,  0])
+        >>> bool((out[1, 1] <= frames[1, 1]).all())
+        True
+        >>> temporal_event_shift(frames, -1, 0.25, mode="expected")[:, 1, 0, 0]
+        tensor([0.5000, 1.5000, 0.0000])
+    """
+    check_frames(frames, check_values=False)
+    if mode not in _MODES:
+        raise ValueError(f"mode must be one of {_MODES}, got {mode!r}")
+    batch, unbatch = as_batch(frames)
+    shifts = _shifts(shift, batch.shape[0])
+    fractions = _fractions(fraction, batch.shape[0])
+    check_generator(generator, frames.device)
+    if mode == "expected":
+        check_frames(frames)
+        dtype = frames.dtype if frames.is_floating_point() else torch.float32
+        counts = batch.to(dtype)
+        moved = counts * fractions.to(device=frames.device, dtype=dtype).view(-1, 1, 1, 1, 1)
+        out = counts - moved
+        return unbatch(out.add_(_frame_shift(moved, shifts)))
+    index, counts, moved = _draw_moved(batch, fractions, mode, generator)
+    return unbatch(_move(batch, index, counts, moved, shifts))
+
+
+def _nonzero_entries(batch: Tensor) -> tuple[Tensor, Tensor]:
+    """Flat indices of the non-zero entries (sorted) and their values."""
+    flat = batch.reshape(-1)
+    bits = flat.view(_BITS[flat.dtype]) if flat.dtype in _BITS else flat
+    index = bits.nonzero().squeeze(1)
+    return index, flat[index]
+
+
+def _draw_moved(
+    batch: Tensor, fractions: Tensor, mode: str, generator: torch.Generator | None
+) -> tuple[Tensor, Tensor, Tensor]:
+    """Draw the moved counts Z of a (B, T, 2, H, W) batch on its non-zero pixels.
+
+    Returns the sorted flat indices of the non-zero pixels, their int64 counts X and the
+    int64 moved counts Z (0 <= Z <= X).
+    """
+    b, t, p, h, w = batch.shape
+    index, values = _nonzero_entries(batch)
+    if index.numel() == 0:
+        return index, index.clone(), index.clone()
+    if values.is_floating_point():
+        if not bool(torch.isfinite(values).all()):
+            raise ValueError("frames must be finite, got NaN or Inf values")
+        check_integer_valued(values, "frames", _TES_HINT)
+    if values.dtype != torch.uint8 and bool((values < 0).any()):
+        raise ValueError(f"frames must hold non-negative event counts, got minimum {values.min().item()}")
+    limit = min(2**53, 2**62 // (h * w))
+    if bool((values > limit).any()):
+        raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {values.max().item()}")
+    counts = values.to(torch.int64)
+    fractions = fractions.to(batch.device)
+    if mode == "binomial":
+        sample = index // (t * p * h * w)
+        return index, counts, binomial_counts(counts, fractions, sample, generator=generator)
+    rows = b * t * p
+    row = index // (h * w)  # (sample, frame, polarity), sorted
+    total = segment_sum(counts, row, rows)
+    row_fraction = fractions.repeat_interleave(t * p)
+    size = torch.round(row_fraction * total.to(torch.float64)).to(torch.int64)
+    moved = multivariate_hypergeometric(counts, row, size, total=total, generator=generator)
+    return index, counts, moved
+
+
+def _move(batch: Tensor, index: Tensor, counts: Tensor, moved: Tensor, shifts: Tensor) -> Tensor:
+    """``X - Z + frame_shift(Z)`` with Z given on the non-zero pixels ``index``."""
+    out = batch.clone(memory_format=torch.contiguous_format)
+    if index.numel() == 0:
+        return out
+    b, t = batch.shape[:2]
+    frame = batch[0, 0].numel()
+    sample_size = t * frame
+    flat = out.view(-1)
+    flat[index] = (counts - moved).to(out.dtype)
+    sample = index // sample_size
+    step = (shifts.clamp(-t, t) * frame).to(batch.device)
+    target = index + step[sample]
+    inside = (target >= sample * sample_size) & (target < (sample + 1) * sample_size)
+    target = torch.where(inside, target, index)  # dropped events add 0 to their own pixel
+    flat.index_add_(0, target, torch.where(inside, moved, 0).to(out.dtype))
+    return out
+
+
+def _moved_counts(
+    frames: Tensor,
+    fraction: FractionArg,
+    *,
+    mode: str = "exact",
+    generator: torch.Generator | None = None,
+) -> Tensor:
+    """The moved counts Z that ``temporal_event_shift`` draws (same generator use), dense.
+
+    For tests: with equal generator states, ``temporal_event_shift(frames, j, fraction)``
+    equals ``frames - Z + frame_shift(Z, j)``.
+    """
+    batch, unbatch = as_batch(frames)
+    fractions = _fractions(fraction, batch.shape[0])
+    index, _, moved = _draw_moved(batch, fractions, mode, generator)
+    out = torch.zeros(batch.numel(), dtype=frames.dtype, device=frames.device)
+    out[index] = moved.to(frames.dtype)
+    return unbatch(out.view(batch.shape))

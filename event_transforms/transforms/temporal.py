@@ -1,0 +1,217 @@
+"""Temporal transform modules: frame shifting (FS) and temporal event shifting (TES).
+
+``shift = j`` moves frames (or events) from t to t + j; j < 0 is earlier. The paper's
+best settings are FS-1 = ``FrameShift(-1)`` and TES-2(0.50) =
+``TemporalEventShift(-2, 0.5)``. Labels are never touched (the paper keeps ground truth).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from numbers import Integral
+
+import torch
+from torch import Tensor
+
+from .. import functional as F
+from .._validation import check_number
+from .base import EventTransform, Params, check_range, choice, uniform
+
+__all__ = ["FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift"]
+
+_MODES = ("exact", "binomial", "expected")
+
+
+def _check_shift(shift: object, name: str = "shift") -> int:
+    if isinstance(shift, bool) or not isinstance(shift, Integral):
+        raise TypeError(f"{name} must be an integer number of frames, got {shift!r}")
+    return int(shift)
+
+
+def _check_shifts(shifts: object) -> tuple[int, ...]:
+    """A non-empty sequence of candidate integer shifts (``range`` objects welcome)."""
+    if isinstance(shifts, (str, bytes)) or not isinstance(shifts, (Sequence, range)):
+        raise TypeError(
+            f"shifts must be a sequence of integer shifts such as (-1, 1) or range(-2, 3), "
+            f"got {shifts!r}"
+        )
+    values = tuple(_check_shift(s, "shifts") for s in shifts)
+    if not values:
+        raise ValueError(f"shifts must hold at least one shift, got {shifts!r}")
+    return values
+
+
+def _check_mode(mode: object) -> str:
+    if mode not in _MODES:
+        raise ValueError(f"mode must be one of {_MODES}, got {mode!r}")
+    return mode  # type: ignore[return-value]
+
+
+def _check_fractions(fractions: float | Sequence[float]) -> tuple[float, float]:
+    if isinstance(fractions, (int, float)) and not isinstance(fractions, bool):
+        value = check_number(fractions, "fractions", low=0.0, high=1.0)
+        return (value, value)
+    low, high = check_range(fractions, "fractions", low=0.0)
+    if high > 1.0:
+        raise ValueError(f"fractions must lie in [0, 1], got {fractions!r}")
+    return (low, high)
+
+
+class FrameShift(EventTransform):
+    """Frame shifting FS-j: every frame moves ``shift`` bins; vacated frames are zero.
+
+    Frames moved past either end are dropped (|j| >= T leaves only zeros). Values are
+    moved, not changed: dtype and device are kept.
+
+    Args:
+        shift: whole frames j; j < 0 moves frames earlier (the paper's FS-1 is -1).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged.
+
+    Example:
+        >>> frames = torch.arange(3.0).view(3, 1, 1, 1).expand(3, 2, 1, 1)
+        >>> FrameShift(-1)(frames)[:, 0, 0, 0]
+        tensor([1., 2., 0.])
+    """
+
+    def __init__(self, shift: int) -> None:
+        super().__init__()
+        self.shift = _check_shift(shift)
+
+    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
+        return {"shift": torch.full((batch_size,), self.shift, dtype=torch.int64)}
+
+    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
+        return F.frame_shift(frames, params["shift"])
+
+    def extra_repr(self) -> str:
+        return f"shift={self.shift}"
+
+
+class RandomFrameShift(EventTransform):
+    """Frame shifting with a shift drawn per sample, uniformly from ``shifts``.
+
+    Args:
+        shifts: the candidate shifts, a sequence of integers: choices such as ``(-1, 1)``
+            (never 0) or an inclusive range written as ``range(-2, 3)`` (-2 .. 2). One
+            draw per sample; every frame of a sample shares it.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+
+    Example:
+        >>> transform = RandomFrameShift(range(-2, 3))
+        >>> params = transform.make_params(4, generator=torch.Generator().manual_seed(0))
+        >>> frames = torch.ones(4, 5, 2, 3, 3)
+        >>> out = transform(frames, params=params)  # replays the draw
+        >>> bool((out[:, :, 0, 0, 0].sum(dim=1) == 5 - params["shift"].abs()).all())
+        True
+    """
+
+    def __init__(self, shifts: Sequence[int]) -> None:
+        super().__init__()
+        self.shifts = _check_shifts(shifts)
+
+    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
+        return {"shift": choice(torch.tensor(self.shifts, dtype=torch.int64), batch_size, generator)}
+
+    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
+        return F.frame_shift(frames, params["shift"])
+
+    def extra_repr(self) -> str:
+        return f"shifts={self.shifts}"
+
+
+class TemporalEventShift(EventTransform):
+    """Temporal event shifting TES-j(ζ): move a fraction ζ of every frame's events j frames.
+
+    In every frame and polarity a random subset Z_t of the events (ΣZ_t = round(ζ·ΣX_t),
+    Z_t <= X_t with ``mode="exact"``) moves to frame t + j; events moved past either end
+    are dropped. See :func:`event_transforms.functional.temporal_event_shift` for the
+    modes and dtype rules (``"exact"`` and ``"binomial"`` keep the dtype and need
+    integer-valued counts; ``"expected"`` returns floats).
+
+    Args:
+        shift: whole frames j; j < 0 is earlier (the paper's TES-2(0.50) is ``-2, 0.5``).
+        fraction: ζ in [0, 1].
+        mode: ``"exact"`` (default), ``"binomial"`` or ``"expected"``.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged.
+
+    Example:
+        >>> frames = torch.zeros(3, 2, 4, 4, dtype=torch.int64)
+        >>> frames[2, 0] = 1  # 16 OFF events in the last frame
+        >>> out = TemporalEventShift(-2, 0.25)(frames, generator=torch.Generator().manual_seed(0))
+        >>> out[:, 0].sum(dim=(-2, -1))
+        tensor([ 4,  0, 12])
+    """
+
+    def __init__(self, shift: int, fraction: float, mode: str = "exact") -> None:
+        super().__init__()
+        self.shift = _check_shift(shift)
+        self.fraction = check_number(fraction, "fraction", low=0.0, high=1.0)
+        self.mode = _check_mode(mode)
+
+    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
+        return {
+            "shift": torch.full((batch_size,), self.shift, dtype=torch.int64),
+            "fraction": torch.full((batch_size,), self.fraction, dtype=torch.float64),
+        }
+
+    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
+        return F.temporal_event_shift(
+            frames, params["shift"], params["fraction"], mode=self.mode, generator=generator
+        )
+
+    def extra_repr(self) -> str:
+        return f"shift={self.shift}, fraction={self.fraction}, mode={self.mode!r}"
+
+
+class RandomTemporalEventShift(EventTransform):
+    """Temporal event shifting with shift and fraction drawn per sample.
+
+    Args:
+        shifts: candidate shifts, a sequence of integers drawn uniformly: choices such as
+            ``(-2, -1)`` or an inclusive range written as ``range(-2, 3)``.
+        fractions: ζ drawn uniformly from a ``(min, max)`` range within [0, 1], or a
+            single number for a fixed ζ.
+        mode: ``"exact"`` (default), ``"binomial"`` or ``"expected"``.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged (dtype rules as in
+        :class:`TemporalEventShift`).
+
+    Example:
+        >>> transform = RandomTemporalEventShift((-2, -1), (0.25, 0.75))
+        >>> frames = torch.randint(0, 3, (4, 6, 2, 5, 5))
+        >>> out = transform(frames, generator=torch.Generator().manual_seed(0))
+        >>> out.shape, out.dtype, bool((out.sum((1, 2, 3, 4)) <= frames.sum((1, 2, 3, 4))).all())
+        (torch.Size([4, 6, 2, 5, 5]), torch.int64, True)
+    """
+
+    def __init__(
+        self,
+        shifts: Sequence[int],
+        fractions: float | Sequence[float] = (0.0, 1.0),
+        mode: str = "exact",
+    ) -> None:
+        super().__init__()
+        self.shifts = _check_shifts(shifts)
+        self.fractions = _check_fractions(fractions)
+        self.mode = _check_mode(mode)
+
+    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
+        return {
+            "shift": choice(torch.tensor(self.shifts, dtype=torch.int64), batch_size, generator),
+            "fraction": uniform(*self.fractions, batch_size, generator),
+        }
+
+    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
+        return F.temporal_event_shift(
+            frames, params["shift"], params["fraction"], mode=self.mode, generator=generator
+        )
+
+    def extra_repr(self) -> str:
+        return f"shifts={self.shifts}, fractions={self.fractions}, mode={self.mode!r}"
