@@ -96,6 +96,20 @@ def _atomic_save(obj: object, path: Path) -> None:
         raise
 
 
+def _cache_name(config: SimulatorConfig, seed: int, crop_size: tuple[int, int], pool: int) -> str:
+    """File name keyed by a hash of everything that determines the data."""
+    description = {
+        "format": _CACHE_FORMAT,
+        "simulator": SIMULATOR_VERSION,
+        "config": dataclasses.asdict(config),
+        "layout": _layout(seed),
+        "crop_size": list(crop_size),
+        "pool": pool,
+    }
+    text = json.dumps(description, sort_keys=True)
+    return f"tactile-grasps-v{SIMULATOR_VERSION}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.pt"
+
+
 def _check_seed(seed: object) -> int:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
@@ -169,7 +183,7 @@ class TactileGrasps(Dataset):
         self.transform = transform
         self._accepts = _accepts(transform)
         self.root = Path(root) if root is not None else default_cache_dir()
-        self.path = self.root / f"tactile-grasps-v{SIMULATOR_VERSION}-{self._key()}.pt"
+        self.path = self.root / _cache_name(self.config, self.seed, self.crop_size, self.pool)
         if not self.path.exists():
             _atomic_save(self._generate(), self.path)
         data = torch.load(self.path, mmap=True, weights_only=True)
@@ -182,18 +196,6 @@ class TactileGrasps(Dataset):
         self._seeds = data["seed"][start:stop].tolist()
 
     # ------------------------------------------------------------------ cache
-    def _key(self) -> str:
-        description = {
-            "format": _CACHE_FORMAT,
-            "simulator": SIMULATOR_VERSION,
-            "config": dataclasses.asdict(self.config),
-            "layout": _layout(self.seed),
-            "crop_size": self.crop_size,
-            "pool": self.pool,
-        }
-        text = json.dumps(description, sort_keys=True, default=list)
-        return hashlib.sha256(text.encode()).hexdigest()[:16]
-
     def _generate(self) -> dict[str, Tensor]:
         layout = _layout(self.seed)
         grasps = [draw_grasp(d, gripper=g, seed=s, config=self.config) for _, d, g, s in layout]

@@ -1,0 +1,217 @@
+"""Tests for ``event_transforms.datasets``."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+import torch
+from torch.utils.data import DataLoader, default_collate
+
+from event_transforms import datasets
+from event_transforms.datasets import AugmentedDataset, TactileGrasps, default_cache_dir, noise_bank
+from event_transforms.simulation import SimulatorConfig
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    return tmp_path_factory.mktemp("cache")
+
+
+@pytest.fixture(scope="module")
+def train(root):
+    return TactileGrasps("train", root=root)
+
+
+class TestTactileGrasps:
+    def test_split_sizes_and_bolts(self, root, train):
+        val, test = TactileGrasps("val", root=root), TactileGrasps("test", root=root)
+        assert (len(train), len(val), len(test)) == (48, 6, 6)
+        diameters = [train.meta(i)["diameter_mm"] for i in range(48)]
+        assert diameters.count(12.0) == 24 and diameters.count(18.0) == 24
+        assert {val.meta(i)["diameter_mm"] for i in range(6)} == {15.0}
+        assert {test.meta(i)["diameter_mm"] for i in range(6)} == {15.0}
+        grippers = [train.meta(i)["gripper"] for i in range(48)]
+        assert grippers.count(0) == grippers.count(1) == 24
+        seeds = [d.meta(i)["seed"] for d in (train, val, test) for i in range(len(d))]
+        assert len(set(seeds)) == 60  # no sequence is shared between splits
+
+    def test_item_contract(self, train):
+        frames, force, meta = train[5]
+        assert frames.shape == (36, 2, 70, 75) and frames.dtype == torch.float32
+        assert torch.equal(frames, frames.round()) and frames.min() >= 0 and frames.sum() > 0
+        assert force.shape == (36,) and force.dtype == torch.float32
+        assert 0 <= float(force.min()) and float(force.max()) <= 25.0
+        assert meta == {"diameter_mm": 12.0, "gripper": 1, "seed": 5, "index": 5}
+        assert [type(v) for v in meta.values()] == [float, int, int, int]
+        assert train[-1][2]["index"] == 47
+        with pytest.raises(IndexError):
+            train[48]
+
+    def test_collates_and_loads(self, train):
+        frames, force, meta = next(iter(DataLoader(train, batch_size=4)))
+        assert frames.shape == (4, 36, 2, 70, 75) and force.shape == (4, 36)
+        assert meta["diameter_mm"].dtype == torch.float64 and meta["index"].tolist() == [0, 1, 2, 3]
+        batch = default_collate([train[0], train[1]])
+        assert batch[0].shape == (2, 36, 2, 70, 75)
+
+    def test_whole_split_tensors(self, train):
+        assert train.frames.shape == (48, 36, 2, 70, 75) and train.frames.dtype == torch.float32
+        assert torch.equal(train.frames[7], train[7][0])
+        assert torch.equal(train.forces[7], train[7][1])
+
+    def test_cache_is_reused(self, root, train, monkeypatch):
+        def fail(*args, **kwargs):
+            raise AssertionError("regenerated although the cache exists")
+
+        monkeypatch.setattr(datasets, "simulate_grasps", fail)
+        again = TactileGrasps("train", root=root)
+        assert again.path == train.path and torch.equal(again[3][0], train[3][0])
+
+    def test_cache_key_follows_settings(self, root, train):
+        other = TactileGrasps("val", root=root, config=SimulatorConfig(hot_pixels=False))
+        assert other.path != train.path and other.path.exists()
+        names = {
+            datasets._cache_name(SimulatorConfig(), 0, (140, 150), 2),
+            datasets._cache_name(SimulatorConfig(), 100, (140, 150), 2),
+            datasets._cache_name(SimulatorConfig(), 0, (140, 150), 1),
+            datasets._cache_name(SimulatorConfig(lag_ms=(1.0, 2.0)), 0, (140, 150), 2),
+        }
+        assert len(names) == 4 and train.path.name in names
+
+    def test_interrupted_generation_leaves_no_cache(self, tmp_path, monkeypatch):
+        def interrupted(obj, stream):
+            stream.write(b"half a file")
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(datasets.torch, "save", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            TactileGrasps("test", root=tmp_path, config=SimulatorConfig(n_frames=36, shot_noise=False))
+        assert list(tmp_path.iterdir()) == []  # neither the cache nor its temporary file
+
+    def test_recording_resimulates_the_item(self, root):
+        test = TactileGrasps("test", root=root)
+        recording = test.recording(2)
+        frames = recording.frames(crop=recording.contact_crop(), pool=2)
+        assert torch.equal(frames, test[2][0])
+        assert np.array_equal(recording.force, test[2][1].numpy())
+
+    def test_transform_receives_metadata(self, root):
+        seen = []
+
+        def transform(frames, *, metadata):
+            seen.append(metadata["diameter_mm"])
+            return frames * 0
+
+        val = TactileGrasps("val", root=root, transform=transform)
+        assert val[0][0].sum() == 0 and seen == [15.0]
+
+    def test_bad_split_raises(self, root):
+        with pytest.raises(ValueError, match="split"):
+            TactileGrasps("validation", root=root)
+
+    def test_default_cache_dir(self, monkeypatch, tmp_path):
+        monkeypatch.setenv("EVENT_TRANSFORMS_CACHE", str(tmp_path / "a"))
+        assert default_cache_dir() == tmp_path / "a"
+        monkeypatch.delenv("EVENT_TRANSFORMS_CACHE")
+        monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+        assert default_cache_dir() == tmp_path / "xdg" / "event-transforms"
+        monkeypatch.delenv("XDG_CACHE_HOME")
+        assert str(default_cache_dir()) == os.path.join(os.path.expanduser("~"), ".cache", "event-transforms")
+
+
+class TestNoiseBank:
+    def test_shape_and_rate(self):
+        bank = noise_bank(50, seed=0)
+        assert bank.shape == (50, 2, 70, 75) and bank.dtype == torch.float32
+        config = SimulatorConfig(hot_pixels=False)
+        low, high = config.shot_noise_hz
+        quiet = noise_bank(50, seed=0, config=config)
+        rate = float(quiet.sum()) / (140 * 150 * 0.5)
+        assert rate == pytest.approx((high - low) / np.log(high / low), rel=0.1)
+
+    def test_seeded(self):
+        assert torch.equal(noise_bank(5, seed=1), noise_bank(5, seed=1))
+        assert not torch.equal(noise_bank(5, seed=1), noise_bank(5, seed=2))
+
+    def test_bad_length_raises(self):
+        with pytest.raises(ValueError, match="n_frames"):
+            noise_bank(0)
+
+
+class _Base(torch.utils.data.Dataset):
+    def __init__(self, n=3):
+        self.n = n
+
+    def __len__(self):
+        return self.n
+
+    def __getitem__(self, i):
+        return torch.full((4, 2, 3, 5), float(i)), torch.tensor([float(i)]), {"diameter_mm": 12.0 + i, "index": i}
+
+
+def add_noise(frames, *, generator=None):
+    return frames + torch.rand(frames.shape, generator=generator)
+
+
+class TestAugmentedDataset:
+    def test_length_and_originals(self):
+        data = AugmentedDataset(_Base(), add_noise, copies=2)
+        assert len(data) == 9
+        for i in range(3):
+            frames, label, meta = data[i]
+            assert torch.equal(frames, _Base()[i][0]) and meta["index"] == i
+
+    def test_copies_keep_labels_and_metadata(self):
+        data = AugmentedDataset(_Base(), add_noise, copies=2)
+        for i in range(3, 9):
+            frames, label, meta = data[i]
+            source = i % 3
+            assert label.item() == source and meta == {"diameter_mm": 12.0 + source, "index": source}
+            assert not torch.equal(frames, _Base()[source][0])
+
+    def test_fixed_copies_are_deterministic(self):
+        a, b = AugmentedDataset(_Base(), add_noise, seed=3), AugmentedDataset(_Base(), add_noise, seed=3)
+        assert torch.equal(a[4][0], a[4][0]) and torch.equal(a[4][0], b[4][0])
+        assert not torch.equal(a[4][0] - 1, a[3][0])  # copies of different items differ
+        assert not torch.equal(a[4][0], AugmentedDataset(_Base(), add_noise, seed=4)[4][0])
+
+    def test_fresh_copies_use_the_global_rng(self):
+        data = AugmentedDataset(_Base(), add_noise, fixed=False)
+        torch.manual_seed(0)
+        first = data[3][0]
+        assert not torch.equal(first, data[3][0])
+        torch.manual_seed(0)
+        assert torch.equal(first, data[3][0])
+
+    def test_metadata_hook(self):
+        def scale_by_size(frames, *, generator=None, metadata=None):
+            return frames * metadata["diameter_mm"]
+
+        data = AugmentedDataset(_Base(), scale_by_size)
+        assert data[4][0].max().item() == 1.0 * 13.0
+
+    def test_plain_callable_and_zero_copies(self):
+        data = AugmentedDataset(_Base(), lambda frames: frames + 1, copies=1)
+        assert data[3][0].min().item() == 1.0
+        assert len(AugmentedDataset(_Base(), add_noise, copies=0)) == 3
+
+    def test_data_loader(self):
+        loader = DataLoader(AugmentedDataset(_Base(), add_noise), batch_size=6)
+        frames, labels, meta = next(iter(loader))
+        assert frames.shape == (6, 4, 2, 3, 5) and labels.shape == (6, 1)
+
+    def test_with_tactile_grasps(self, train):
+        from event_transforms import HorizontalFlip
+
+        data = AugmentedDataset(train, HorizontalFlip())
+        assert len(data) == 96
+        assert torch.equal(data[48][0], train[0][0].flip(-1)) and data[48][2] == train[0][2]
+
+    @pytest.mark.parametrize("kwargs", [dict(copies=-1), dict(seed=-2)])
+    def test_bad_arguments_raise(self, kwargs):
+        with pytest.raises(ValueError):
+            AugmentedDataset(_Base(), add_noise, **kwargs)
+        with pytest.raises(TypeError):
+            AugmentedDataset(_Base(), "flip")
