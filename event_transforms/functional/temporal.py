@@ -8,6 +8,7 @@ through either end is dropped; vacated frames are zero.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from numbers import Integral
 
@@ -236,15 +237,16 @@ def _draw_moved(
     index, values = _nonzero_entries(batch)
     if index.numel() == 0:
         return index, index.clone(), index.clone()
+    low, high = (float(v) for v in torch.aminmax(values))  # NaN propagates
+    if math.isnan(low) or math.isnan(high) or math.isinf(high):
+        raise ValueError("frames must be finite, got NaN or Inf values")
+    if low < 0:
+        raise ValueError(f"frames must hold non-negative event counts, got minimum {low}")
+    limit = min(2**53, 2**62 // (h * w))  # float64-exact counts; row totals fit in int64
+    if high > limit:
+        raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
     if values.is_floating_point():
-        if not bool(torch.isfinite(values).all()):
-            raise ValueError("frames must be finite, got NaN or Inf values")
         check_integer_valued(values, "frames", _TES_HINT)
-    if values.dtype != torch.uint8 and bool((values < 0).any()):
-        raise ValueError(f"frames must hold non-negative event counts, got minimum {values.min().item()}")
-    limit = min(2**53, 2**62 // (h * w))
-    if bool((values > limit).any()):
-        raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {values.max().item()}")
     counts = values.to(torch.int64)
     fractions = fractions.to(batch.device)
     if mode == "binomial":
