@@ -225,8 +225,8 @@ def events_to_frames(
     index = index + (col.to(torch.int64) - left) // pool
     size = batch * n_frames * 2 * out_h * out_w
     counts = torch.bincount(index[keep], minlength=size)
-    if counts.numel() and dtype != torch.int64:
-        info = torch.finfo(dtype) if dtype.is_floating_point else torch.iinfo(dtype)
+    info = torch.finfo(dtype) if dtype.is_floating_point else torch.iinfo(dtype)
+    if counts.numel() and batch * length > info.max:  # else no count can overflow
         largest = int(counts.max())
         if largest > info.max:
             raise ValueError(f"a count of {largest} does not fit dtype {dtype}; use a wider dtype")

@@ -1,0 +1,161 @@
+"""How long the synthetic data set takes to make and to read, and what it looks like.
+
+Times, in one run:
+
+* generating the full 60-sequence ``TactileGrasps`` set into an empty cache (simulation,
+  events to frames, atomic save), against simulating the same 60 grasps one call at a
+  time (the baseline: no vectorisation across grasps);
+* opening the cached set and reading all 60 items;
+* ``events_to_frames`` on the 60 recordings' events, against ``numpy.add.at``.
+
+Writes one PNG of a grasp per bolt size (12, 15, 18 mm) and replaces the
+``simulation`` section of ``benchmarks/RESULTS.md``.
+
+    python benchmarks/simulation.py [--quick] [--out DIR] [--no-write]
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import (  # noqa: E402
+    apply_threads,
+    base_parser,
+    command_line,
+    environment_lines,
+    fmt_ms,
+    fmt_ratio,
+    markdown_table,
+    time_repeated,
+    write_section,
+)
+
+from event_transforms.datasets import SPLITS, TactileGrasps  # noqa: E402
+from event_transforms.functional.events import events_to_frames  # noqa: E402
+from event_transforms.simulation import (  # noqa: E402
+    SimulatorConfig,
+    draw_grasp,
+    simulate_grasp,
+    simulate_grasps,
+)
+from event_transforms.viz import save_event_grid  # noqa: E402
+
+
+def _numpy_frames(events: np.ndarray, crop: tuple[int, int, int, int]) -> np.ndarray:
+    """Baseline: the same binning with ``np.add.at``."""
+    top, left, height, width = crop
+    out = np.zeros((36, 2, height // 2, width // 2), dtype=np.int64)
+    frame = events["t"] // 10_000
+    keep = (
+        (frame >= 0) & (frame < 36)
+        & (events["y"] >= top) & (events["y"] < top + height)
+        & (events["x"] >= left) & (events["x"] < left + width)
+    )
+    e = events[keep]
+    np.add.at(
+        out,
+        (frame[keep], (e["p"] > 0).astype(np.int64), (e["y"] - top) // 2, (e["x"] - left) // 2),
+        1,
+    )
+    return out
+
+
+def main() -> None:
+    parser = base_parser(__doc__.splitlines()[0])
+    parser.add_argument("--out", default=str(Path(__file__).resolve().parent), help="folder for the PNGs")
+    args = parser.parse_args()
+    apply_threads(args.threads)
+    repeats = 1 if args.quick else 3
+    config = SimulatorConfig()
+
+    def generate() -> TactileGrasps:
+        with tempfile.TemporaryDirectory() as root:
+            return TactileGrasps("train", root=root)
+
+    grasps = [
+        draw_grasp(d, gripper=i % 2, seed=i, config=config)
+        for i, d in enumerate(d for blocks in SPLITS.values() for d, n in blocks for _ in range(n))
+    ]
+    full = time_repeated(generate, repeats=repeats)
+    batched = time_repeated(lambda: simulate_grasps(grasps, config), repeats=repeats)
+    one_by_one = time_repeated(
+        lambda: [simulate_grasps([g], config) for g in grasps], repeats=1 if args.quick else 2
+    )
+
+    with tempfile.TemporaryDirectory() as root:
+        TactileGrasps("train", root=root)
+        splits = list(SPLITS)
+
+        def read_all() -> None:
+            for split in splits:
+                data = TactileGrasps(split, root=root)
+                for i in range(len(data)):
+                    data[i]
+
+        reading = time_repeated(read_all, repeats=5 if args.quick else 20)
+
+    recordings = simulate_grasps(grasps, config)
+    crops = [r.contact_crop() for r in recordings]
+    n_events = sum(len(r.events) for r in recordings)
+    binning = time_repeated(
+        lambda: [r.frames(crop=c, pool=2) for r, c in zip(recordings, crops)], repeats=repeats * 3
+    )
+    numpy_binning = time_repeated(
+        lambda: [_numpy_frames(r.events, c) for r, c in zip(recordings, crops)], repeats=repeats * 3
+    )
+    for r, c in zip(recordings[:3], crops):
+        assert np.array_equal(r.frames(crop=c, pool=2, dtype=torch.int64).numpy(), _numpy_frames(r.events, c))
+
+    out = Path(args.out)
+    pictures = []
+    for diameter in (12.0, 15.0, 18.0):
+        recording = simulate_grasp(diameter, gripper=1, seed=0, config=config)
+        path = out / f"grasp_{int(diameter)}mm.png"
+        save_event_grid(recording.frames(crop=recording.contact_crop(), pool=2), path, upscale=2)
+        pictures.append(path)
+
+    rows = [
+        ["TactileGrasps: simulate + bin + save all 60 sequences", fmt_ms(full.median), fmt_ms(full.iqr), "—"],
+        ["simulate_grasps, 60 grasps in one call", fmt_ms(batched.median), fmt_ms(batched.iqr), "1.00×"],
+        [
+            "baseline: 60 calls of one grasp each",
+            fmt_ms(one_by_one.median),
+            fmt_ms(one_by_one.iqr),
+            fmt_ratio(one_by_one.ratio(batched)),
+        ],
+        ["open the cache and read all 60 items", fmt_ms(reading.median), fmt_ms(reading.iqr), "—"],
+        [f"events_to_frames, 60 recordings ({n_events / 1e6:.2f} M events)", fmt_ms(binning.median),
+         fmt_ms(binning.iqr), "1.00×"],
+        ["baseline: numpy.add.at", fmt_ms(numpy_binning.median), fmt_ms(numpy_binning.iqr),
+         fmt_ratio(numpy_binning.ratio(binning))],
+    ]
+    table = markdown_table(["task", "median", "IQR", "time / fast path"], rows)
+    body = "\n".join(
+        [
+            "## Synthetic data set (simulation)",
+            "",
+            f"Command: {command_line()}",
+            "",
+            *environment_lines(),
+            "",
+            table,
+            "",
+            "Pictures (OFF red, ON blue, 12 frames per row, 140×150 crop pooled 2×2): "
+            + ", ".join(f"`{p.name}`" for p in pictures),
+            "",
+            "Synthetic data from `event_transforms.simulation`, not the paper's recordings.",
+        ]
+    )
+    print(body)
+    if not args.no_write:
+        write_section("simulation", body, args.results)
+
+
+if __name__ == "__main__":
+    main()
