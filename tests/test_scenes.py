@@ -1,0 +1,216 @@
+"""Tests for ``event_transforms.scenes``: a scene builds transforms for its effects only."""
+
+from __future__ import annotations
+
+import itertools
+import pickle
+
+import pytest
+import torch
+
+from event_transforms import (
+    AddNoise,
+    AddPoissonNoise,
+    Compose,
+    OneOf,
+    RandomFrameShift,
+    RandomRotation,
+    RandomTemporalEventShift,
+)
+from event_transforms import functional as F
+from event_transforms.datasets import AugmentedDataset
+from event_transforms.scenes import ResizeToTarget, Scene, ScenePolicy
+
+T, H, W = 5, 17, 11
+
+EFFECT_FIELDS = {
+    "lag": dict(lag_shifts=(-1,)),
+    "size": dict(training_sizes=(12.0, 18.0), target_size=15.0),
+    "orientation": dict(orientation_deg=(30.0, 30.0 + 1e-9)),
+    "noise": dict(noise=torch.ones(8, 2, H, W)),
+}
+EFFECT_TYPES = {
+    "lag": RandomFrameShift,
+    "size": ResizeToTarget,
+    "orientation": RandomRotation,
+    "noise": AddNoise,
+}
+
+
+def frames_batch(batch: int = 4, seed: int = 0) -> torch.Tensor:
+    g = torch.Generator().manual_seed(seed)
+    frames = torch.zeros(batch, T, 2, H, W)
+    frames[:, :, :, 6:11, 3:8] = torch.randint(0, 4, (batch, T, 2, 5, 5), generator=g).float()
+    return frames
+
+
+def sizes(batch: int = 4) -> dict[str, torch.Tensor]:
+    return {"diameter_mm": torch.tensor([12.0, 18.0] * (batch // 2))}
+
+
+class TestSceneEffects:
+    @pytest.mark.parametrize(
+        "effects", [c for r in range(5) for c in itertools.combinations(EFFECT_FIELDS, r)]
+    )
+    def test_builds_a_transform_for_each_declared_effect_only(self, effects):
+        fields = {k: v for e in effects for k, v in EFFECT_FIELDS[e].items()}
+        scene = Scene(**fields)
+        assert set(scene.effects) == set(effects)
+        built = scene.transforms()
+        assert sorted(type(t).__name__ for t in built) == sorted(EFFECT_TYPES[e].__name__ for e in effects)
+        for combination in ("independent", "hybrid"):
+            policy = scene.policy(combination)
+            kinds = {type(t) for t in policy.transform.transforms}
+            for effect, kind in EFFECT_TYPES.items():
+                assert (kind in kinds) == (effect in effects)
+
+    @pytest.mark.parametrize(
+        "fields",
+        [
+            dict(training_sizes=(15.0, 15.0), target_size=15.0),  # sizes do not differ
+            dict(training_sizes=(12.0,)),  # no target
+            dict(orientation_deg=0.0),
+            dict(orientation_deg=(10.0, 10.0)),  # fixed, not varying
+            dict(lag_shifts=(0,)),
+            dict(noise=0.0),
+        ],
+    )
+    def test_effects_that_do_not_vary_build_nothing(self, fields):
+        scene = Scene(**fields)
+        assert scene.effects == () and scene.transforms() == []
+        frames = frames_batch()
+        assert torch.equal(scene.policy()(frames), frames)  # the identity
+
+    def test_noise_rate_and_tes(self):
+        scene = Scene(lag_shifts=range(-2, 1), lag_fraction=(0.25, 0.75), noise=(0.1, 10.0))
+        lag, noise = scene.transforms()
+        assert isinstance(lag, RandomTemporalEventShift) and lag.shifts == (-2, -1)
+        assert isinstance(noise, AddPoissonNoise) and noise.rate_hz == (0.1, 10.0)
+
+    def test_hybrid_order_is_physical(self):
+        scene = Scene(noise=1.0, orientation_deg=10.0, target_size=15.0, lag_shifts=(-1,))
+        assert scene.effects == ("lag", "size", "orientation", "noise")
+        policy = scene.policy("hybrid")
+        assert isinstance(policy.transform, Compose) and not policy.independent
+        assert isinstance(scene.policy().transform, OneOf) and scene.policy().independent
+
+    @pytest.mark.parametrize(
+        "fields, error",
+        [
+            (dict(target_size=0.0), ValueError),
+            (dict(training_sizes=(12.0, -1.0)), ValueError),
+            (dict(size_exponent=0.0), ValueError),
+            (dict(noise="loud"), TypeError),
+        ],
+    )
+    def test_bad_scene_raises(self, fields, error):
+        with pytest.raises(error):
+            Scene(**fields)
+
+    def test_bad_combination_raises(self):
+        scene = Scene(lag_shifts=(-1,), noise=1.0)
+        with pytest.raises(ValueError, match="combination"):
+            scene.policy("stacked")
+        with pytest.raises(ValueError, match="weights"):
+            scene.policy("hybrid", weights=[1, 1])
+
+
+class TestResizeToTarget:
+    def test_beta_per_sample_from_metadata(self):
+        frames = frames_batch()
+        out = ResizeToTarget(15.0)(frames, metadata=sizes())
+        expected = F.resize(frames, torch.tensor([1.25, 15 / 18, 1.25, 15 / 18], dtype=torch.float64))
+        torch.testing.assert_close(out, expected)
+
+    def test_exponent(self):
+        transform = ResizeToTarget(15.0, exponent=0.5)
+        scales = transform.scales({"diameter_mm": [12.0, 18.0]}, 2)
+        torch.testing.assert_close(scales, torch.tensor([1.25, 15 / 18], dtype=torch.float64) ** 0.5)
+
+    def test_single_sequence_with_number(self):
+        frames = frames_batch(1)[0]
+        out = ResizeToTarget(15.0)(frames, metadata={"diameter_mm": 12.0})
+        torch.testing.assert_close(out, F.resize(frames, 1.25))
+
+    def test_missing_or_bad_metadata_raises(self):
+        transform = ResizeToTarget(15.0)
+        with pytest.raises(ValueError, match="metadata"):
+            transform(frames_batch())
+        with pytest.raises(ValueError, match="diameter_mm"):
+            transform(frames_batch(), metadata={"size": 12.0})
+        with pytest.raises(ValueError, match="positive"):
+            transform(frames_batch(2), metadata={"diameter_mm": [12.0, 0.0]})
+        with pytest.raises(ValueError, match="metadata"):
+            OneOf([transform])(frames_batch())  # a plain container cannot pass metadata
+
+    def test_input_unchanged_and_pickles(self):
+        frames = frames_batch()
+        version = frames._version
+        transform = ResizeToTarget(15.0, key="size", exponent=0.5)
+        transform(frames, metadata={"size": torch.full((4,), 12.0)})
+        assert frames._version == version
+        clone = pickle.loads(pickle.dumps(transform))
+        assert repr(clone) == repr(transform)
+
+
+class TestScenePolicy:
+    def _candidates(self, frames, meta):
+        """Every deterministic effect of EFFECT_FIELDS applied alone, per sample."""
+        beta = ResizeToTarget(15.0).scales(meta, frames.shape[0])
+        return {
+            "lag": F.frame_shift(frames, -1),
+            "size": F.resize(frames, beta),
+            "orientation": F.rotate(frames, 30.0),
+        }
+
+    def test_independent_gives_each_sample_exactly_one_effect(self):
+        scene = Scene(**EFFECT_FIELDS["lag"], **EFFECT_FIELDS["size"], **EFFECT_FIELDS["orientation"])
+        frames, meta = frames_batch(8), sizes(8)
+        out = scene.policy()(frames, metadata=meta, generator=torch.Generator().manual_seed(1))
+        candidates = self._candidates(frames, meta)
+        used = []
+        for i in range(8):
+            matches = [k for k, c in candidates.items() if torch.allclose(out[i], c[i], atol=1e-4)]
+            assert len(matches) == 1
+            used.extend(matches)
+        assert len(set(used)) > 1
+
+    def test_hybrid_stacks_in_order(self):
+        scene = Scene(**EFFECT_FIELDS["lag"], **EFFECT_FIELDS["size"], **EFFECT_FIELDS["orientation"])
+        frames, meta = frames_batch(), sizes()
+        out = scene.policy("hybrid")(frames, metadata=meta)
+        beta = ResizeToTarget(15.0).scales(meta, 4)
+        expected = F.rotate(F.resize(F.frame_shift(frames, -1), beta), 30.0 + 1e-9)
+        torch.testing.assert_close(out, expected)
+
+    def test_noise_bank_is_added(self):
+        scene = Scene(noise=torch.ones(8, 2, H, W))
+        frames = frames_batch()
+        assert torch.equal(scene.policy()(frames), frames + 1)
+
+    def test_seeded_and_replayable(self):
+        scene = Scene(lag_shifts=range(-2, 3), noise=(1.0, 5.0), **EFFECT_FIELDS["size"])
+        policy, frames, meta = scene.policy(), frames_batch(), sizes()
+        a = policy(frames, metadata=meta, generator=torch.Generator().manual_seed(3))
+        b = policy(frames, metadata=meta, generator=torch.Generator().manual_seed(3))
+        assert torch.equal(a, b)
+
+    def test_batch_of_zero_and_single_sequence(self):
+        policy = Scene(**EFFECT_FIELDS["size"], **EFFECT_FIELDS["lag"]).policy()
+        empty = policy(torch.zeros(0, T, 2, H, W), metadata={"diameter_mm": torch.zeros(0) + 12})
+        assert empty.shape == (0, T, 2, H, W)
+        one = policy(frames_batch(1)[0], metadata={"diameter_mm": 12.0})
+        assert one.shape == (T, 2, H, W)
+
+    def test_pickles_and_repr(self):
+        policy = Scene(**EFFECT_FIELDS["size"], **EFFECT_FIELDS["noise"]).policy()
+        clone = pickle.loads(pickle.dumps(policy))
+        assert isinstance(clone, ScenePolicy) and "effects=('size', 'noise')" in repr(clone)
+
+    def test_augmented_dataset_passes_metadata(self):
+        frames = frames_batch(2)
+        base = [(frames[i], torch.zeros(T), {"diameter_mm": d, "index": i}) for i, d in enumerate((12.0, 18.0))]
+        data = AugmentedDataset(base, Scene(**EFFECT_FIELDS["size"]).policy(), copies=1)
+        for i, beta in ((2, 1.25), (3, 15 / 18)):
+            torch.testing.assert_close(data[i][0], F.resize(frames[i - 2], beta))
+            assert data[i][2] == base[i - 2][2]
