@@ -209,7 +209,7 @@ class Grasp:
     center_yx: tuple[float, float]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Recording:
     """One simulated recording: an event stream and the force sampled every frame.
 

@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from event_transforms.functional.events import events_to_frames
 
@@ -213,3 +215,27 @@ class TestEventsToFrames:
             events_to_frames(torch.zeros(2, 5, 4), lengths=[5, 6])
         with pytest.raises(ValueError, match="mask"):
             events_to_frames(torch.zeros(2, 5, 4), mask=torch.ones(2, 4, dtype=torch.bool))
+
+
+class TestEventsToFramesProperties:
+    @settings(max_examples=60, deadline=None)
+    @given(
+        seed=st.integers(0, 2**32 - 1),
+        n=st.integers(0, 300),
+        t_start=st.integers(-50_000, 50_000),
+        frame_ms=st.sampled_from([0.5, 1.0, 10.0, 33.3]),
+        n_frames=st.integers(1, 12),
+        size=st.tuples(st.integers(1, 9), st.integers(1, 9)),
+    )
+    def test_counts_every_event_in_the_window_once(self, seed, n, t_start, frame_ms, n_frames, size):
+        rng = np.random.default_rng(seed)
+        x, y, t, p = random_events(rng, n, sensor_size=size, t_max=200_000)
+        got = events_to_frames(
+            structured(x, y, t, p), t_start=t_start, frame_ms=frame_ms, n_frames=n_frames,
+            sensor_size=size, dtype=torch.int64,
+        )
+        inside = (x >= 0) & (x < size[1]) & (y >= 0) & (y < size[0])
+        rel = (t - t_start) / (frame_ms * 1000)
+        inside &= (rel >= 0) & (np.floor(rel) < n_frames)
+        assert int(got.sum()) == int(inside.sum())
+        assert int(got[:, 1].sum()) == int((inside & (p == 1)).sum())

@@ -13,7 +13,6 @@ from event_transforms.simulation import (
     SimulatorConfig,
     contact_half_width,
     draw_grasp,
-    force_profile,
     membrane_force,
     simulate_grasp,
     simulate_grasps,
