@@ -90,9 +90,11 @@ def binomial_counts(
     if largest > _TABLE_MAX_COUNT:
         large = (counts > width).nonzero().squeeze(1)
         drawn = torch.binomial(
-            counts[large].to(torch.float64), prob[key[large]].to(torch.float64), generator=generator
+            counts.index_select(0, large).to(torch.float64),
+            prob.to(torch.float64).index_select(0, key.index_select(0, large)),
+            generator=generator,
         )
-        out[large] = drawn.to(torch.int64)
+        out.index_copy_(0, large, drawn.to(torch.int64))
     return out
 
 
@@ -149,7 +151,7 @@ def multivariate_hypergeometric(
     kept_total = segment_sum(kept, segment, size.numel())
     excess = kept_total - size
     over = excess > 0
-    over_entry = over[segment]
+    over_entry = over.index_select(0, segment)
     residual_pool = torch.where(over_entry, kept, pool - kept)
     residual_total = torch.where(over, kept_total, total - kept_total)
     correction = multivariate_hypergeometric(
@@ -201,4 +203,4 @@ def _small_subsets(
         positions = (offset + picks)[picks < have]
         entries = torch.searchsorted(pool.cumsum(0), positions, right=True)
         counted.index_add_(0, entries, torch.ones_like(entries))
-    return torch.where(complement[segment], pool - counted, counted)
+    return torch.where(complement.index_select(0, segment), pool - counted, counted)

@@ -160,13 +160,19 @@ def temporal_event_shift(
       ΣZ_t = k exactly and 0 <= Z_t <= X_t. Rounding is ``torch.round`` (half to even:
       ζ N = 2.5 gives 2, 3.5 gives 4). Drawn without expanding events: a binomial draw
       Z' ~ Binomial(X, k / N) followed by an exact hypergeometric correction of the
-      ~sqrt(N) surplus or deficit, recursively, finished by drawing distinct event positions (see
-      ``_hypergeometric.multivariate_hypergeometric``). Extra memory is a few int64
-      vectors over the non-zero pixels, whatever N (10**7 events in one pixel cost one
-      entry); one host synchronisation per recursion level (about three).
+      ~sqrt(N) surplus or deficit, recursively, finished by drawing distinct event
+      positions (see ``_hypergeometric.multivariate_hypergeometric`` for the proof of
+      exactness and the cost).
     - ``"binomial"``: every event moves independently with probability ζ
       (Z ~ Binomial(X, ζ)); ΣZ_t = ζ N only in expectation. Faster.
     - ``"expected"``: Z_t = ζ X_t deterministically (fractional counts).
+
+    Cost: all modes work on the non-zero pixels only (one ``nonzero`` over the input,
+    then vectors of that length, one copy of the input for the output), never on single
+    events: extra memory is a few int64 vectors over the non-zero pixels whatever N
+    (10**7 events in one pixel cost one entry). Host synchronisations: a handful per call
+    (value checks; in exact mode one per recursion level and per round of the final
+    draw, about 10-15 in all), none per frame or sample.
 
     Dtype: ``"exact"`` and ``"binomial"`` conserve counts and keep the dtype; they need
     integer-valued counts (integer dtypes, or floats holding whole numbers up to 2**53)
@@ -206,77 +212,88 @@ def temporal_event_shift(
     shifts = _shifts(shift, batch.shape[0])
     fractions = _fractions(fraction, batch.shape[0])
     check_generator(generator, frames.device)
+    index, sample, values = _entries(batch, whole=mode != "expected")
     if mode == "expected":
-        check_frames(frames)
         dtype = frames.dtype if frames.is_floating_point() else torch.float32
-        counts = batch.to(dtype)
-        moved = counts * fractions.to(device=frames.device, dtype=dtype).view(-1, 1, 1, 1, 1)
-        out = counts - moved
-        return unbatch(out.add_(_frame_shift(moved, shifts)))
-    index, counts, moved = _draw_moved(batch, fractions, mode, generator)
-    return unbatch(_move(batch, index, counts, moved, shifts))
+        out = batch.to(dtype, memory_format=torch.contiguous_format, copy=True)
+        values = values.to(dtype)
+        moved = values * fractions.to(device=frames.device, dtype=dtype).index_select(0, sample)
+    else:
+        out = batch.clone(memory_format=torch.contiguous_format)
+        moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
+    return unbatch(_move(out, index, sample, values, moved, shifts))
 
 
-def _nonzero_entries(batch: Tensor) -> tuple[Tensor, Tensor]:
-    """Flat indices of the non-zero entries (sorted) and their values."""
+def _entries(batch: Tensor, *, whole: bool) -> tuple[Tensor, Tensor, Tensor]:
+    """The non-zero pixels of a (B, T, 2, H, W) batch, checked.
+
+    Returns their sorted flat indices, their sample indices and their values. Only these
+    values can be negative, NaN or fractional, so the checks cost O(non-zero pixels).
+    The float bits are read as integers of the same width (faster ``nonzero``); -0.0
+    becomes an entry holding 0, harmlessly.
+    """
     flat = batch.reshape(-1)
     bits = flat.view(_BITS[flat.dtype]) if flat.dtype in _BITS else flat
     index = bits.nonzero().squeeze(1)
-    return index, flat[index]
+    values = flat.index_select(0, index)
+    if index.numel():
+        low, high = (float(v) for v in torch.aminmax(values))  # NaN propagates
+        if math.isnan(low) or math.isnan(high) or math.isinf(high):
+            raise ValueError("frames must be finite, got NaN or Inf values")
+        if low < 0:
+            raise ValueError(f"frames must hold non-negative event counts, got minimum {low}")
+        if whole:
+            limit = min(2**53, 2**62 // batch.shape[-1] // batch.shape[-2])
+            if high > limit:  # float64-exact counts; row totals fit in int64
+                raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
+            if values.is_floating_point():
+                check_integer_valued(values, "frames", _TES_HINT)
+    return index, index // math.prod(batch.shape[1:]), values
 
 
 def _draw_moved(
-    batch: Tensor, fractions: Tensor, mode: str, generator: torch.Generator | None
-) -> tuple[Tensor, Tensor, Tensor]:
-    """Draw the moved counts Z of a (B, T, 2, H, W) batch on its non-zero pixels.
-
-    Returns the sorted flat indices of the non-zero pixels, their int64 counts X and the
-    int64 moved counts Z (0 <= Z <= X).
-    """
-    b, t, p, h, w = batch.shape
-    index, values = _nonzero_entries(batch)
-    if index.numel() == 0:
-        return index, index.clone(), index.clone()
-    low, high = (float(v) for v in torch.aminmax(values))  # NaN propagates
-    if math.isnan(low) or math.isnan(high) or math.isinf(high):
-        raise ValueError("frames must be finite, got NaN or Inf values")
-    if low < 0:
-        raise ValueError(f"frames must hold non-negative event counts, got minimum {low}")
-    limit = min(2**53, 2**62 // (h * w))  # float64-exact counts; row totals fit in int64
-    if high > limit:
-        raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
-    if values.is_floating_point():
-        check_integer_valued(values, "frames", _TES_HINT)
+    shape: torch.Size,
+    index: Tensor,
+    sample: Tensor,
+    values: Tensor,
+    fractions: Tensor,
+    mode: str,
+    generator: torch.Generator | None,
+) -> Tensor:
+    """Draw the int64 moved counts Z (0 <= Z <= X) of the non-zero pixels ``index``."""
+    b, t, p, h, w = shape
     counts = values.to(torch.int64)
-    fractions = fractions.to(batch.device)
+    fractions = fractions.to(values.device)
+    if index.numel() == 0:
+        return counts
     if mode == "binomial":
-        sample = index // (t * p * h * w)
-        return index, counts, binomial_counts(counts, fractions, sample, generator=generator)
-    rows = b * t * p
+        return binomial_counts(counts, fractions, sample, generator=generator)
     row = index // (h * w)  # (sample, frame, polarity), sorted
-    total = segment_sum(counts, row, rows)
-    row_fraction = fractions.repeat_interleave(t * p)
-    size = torch.round(row_fraction * total.to(torch.float64)).to(torch.int64)
-    moved = multivariate_hypergeometric(counts, row, size, total=total, generator=generator)
-    return index, counts, moved
+    total = segment_sum(counts, row, b * t * p)
+    size = torch.round(fractions.repeat_interleave(t * p) * total.to(torch.float64)).to(torch.int64)
+    return multivariate_hypergeometric(counts, row, size, total=total, generator=generator)
 
 
-def _move(batch: Tensor, index: Tensor, counts: Tensor, moved: Tensor, shifts: Tensor) -> Tensor:
-    """``X - Z + frame_shift(Z)`` with Z given on the non-zero pixels ``index``."""
-    out = batch.clone(memory_format=torch.contiguous_format)
+def _move(
+    out: Tensor, index: Tensor, sample: Tensor, values: Tensor, moved: Tensor, shifts: Tensor
+) -> Tensor:
+    """Turn ``out`` (a contiguous copy of X) into ``X - Z + frame_shift(Z)`` in place.
+
+    X (``values``) and Z (``moved``) are given on the non-zero pixels ``index``; Z moves
+    to ``index + j * frame`` unless that leaves the sample's sequence (then it is dropped).
+    """
     if index.numel() == 0:
         return out
-    b, t = batch.shape[:2]
-    frame = batch[0, 0].numel()
-    sample_size = t * frame
+    t = out.shape[1]
+    frame = out[0, 0].numel()
     flat = out.view(-1)
-    flat[index] = (counts - moved).to(out.dtype)
-    sample = index // sample_size
-    step = (shifts.clamp(-t, t) * frame).to(batch.device)
-    target = index + step[sample]
-    inside = (target >= sample * sample_size) & (target < (sample + 1) * sample_size)
-    target = torch.where(inside, target, index)  # dropped events add 0 to their own pixel
-    flat.index_add_(0, target, torch.where(inside, moved, 0).to(out.dtype))
+    moved = moved.to(out.dtype)
+    flat.scatter_(0, index, torch.sub(values, moved).to(out.dtype))
+    step = (shifts.clamp(-t, t) * frame).to(out.device)
+    target = index + step.index_select(0, sample)
+    dropped = target.div(t * frame, rounding_mode="floor") != sample
+    # Dropped events add 0 to their own pixel (no data-dependent shapes, no sync).
+    flat.index_add_(0, torch.where(dropped, index, target), moved.masked_fill_(dropped, 0))
     return out
 
 
@@ -294,7 +311,8 @@ def _moved_counts(
     """
     batch, unbatch = as_batch(frames)
     fractions = _fractions(fraction, batch.shape[0])
-    index, _, moved = _draw_moved(batch, fractions, mode, generator)
+    index, sample, values = _entries(batch, whole=True)
+    moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
     out = torch.zeros(batch.numel(), dtype=frames.dtype, device=frames.device)
     out[index] = moved.to(frames.dtype)
     return unbatch(out.view(batch.shape))
