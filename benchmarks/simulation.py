@@ -16,35 +16,32 @@ Writes one PNG of a grasp per bolt size (12, 15, 18 mm) and replaces the
 
 from __future__ import annotations
 
-import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import (  # noqa: E402
-    apply_threads,
-    base_parser,
-    command_line,
-    environment_lines,
-    fmt_ms,
-    fmt_ratio,
-    markdown_table,
-    time_repeated,
-    write_section,
-)
+if __package__:
+    from ._common import (
+        apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio,
+        markdown_table, time_repeated, write_section,
+    )
+else:  # run as a script: python benchmarks/simulation.py
+    from _common import (  # type: ignore[no-redef]
+        apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio,
+        markdown_table, time_repeated, write_section,
+    )
 
-from event_transforms.datasets import SPLITS, TactileGrasps  # noqa: E402
-from event_transforms.functional.events import events_to_frames  # noqa: E402
-from event_transforms.simulation import (  # noqa: E402
+from event_transforms.datasets import SPLITS, TactileGrasps
+from event_transforms.simulation import (
     SimulatorConfig,
     draw_grasp,
     simulate_grasp,
     simulate_grasps,
 )
-from event_transforms.viz import save_event_grid  # noqa: E402
+from event_transforms.viz import save_event_grid
 
 
 def _numpy_frames(events: np.ndarray, crop: tuple[int, int, int, int]) -> np.ndarray:
@@ -66,10 +63,10 @@ def _numpy_frames(events: np.ndarray, crop: tuple[int, int, int, int]) -> np.nda
     return out
 
 
-def main() -> None:
-    parser = base_parser(__doc__.splitlines()[0])
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = base_parser(__doc__.splitlines()[0], "simulation")
     parser.add_argument("--out", default=str(Path(__file__).resolve().parent), help="folder for the PNGs")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     apply_threads(args.threads)
     repeats = 1 if args.quick else 3
     config = SimulatorConfig()
@@ -140,7 +137,7 @@ def main() -> None:
         [
             "## Synthetic data set (simulation)",
             "",
-            f"Command: {command_line()}",
+            f"Command: `{command('simulation.py', argv)}`",
             "",
             *environment_lines(),
             "",
@@ -154,7 +151,7 @@ def main() -> None:
     )
     print(body)
     if not args.no_write:
-        write_section("simulation", body, args.results)
+        write_section(args.section, body, args.results)
 
 
 if __name__ == "__main__":
