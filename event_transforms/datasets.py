@@ -350,7 +350,8 @@ class AugmentedDataset(Dataset):
     (DataLoader workers are seeded differently, so they differ).
 
     A transform whose call accepts ``metadata=`` (e.g. a scene policy resizing by
-    target / source size) receives the item's metadata dict.
+    target / source size) receives the item's metadata dict. Fixed copies draw from a CPU
+    generator, so the base items should be CPU tensors (move batches to the GPU later).
 
     Args:
         base: a data set of ``(frames, label, meta)`` or ``(frames, label)`` items.
