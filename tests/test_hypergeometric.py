@@ -102,6 +102,15 @@ class TestBinomialCounts:
         z = hg.binomial_counts(counts, torch.tensor([0.0, 1.0], dtype=torch.float64), key)
         assert torch.equal(z, torch.where(key == 1, 5, 0))
 
+    def test_many_probabilities_fall_back_to_torch_binomial(self):
+        """A table per probability would outgrow the entries: same law, no big table."""
+        n = 3000
+        prob = torch.linspace(0, 1, n, dtype=torch.float64)
+        counts = torch.full((n,), 8)
+        z = hg.binomial_counts(counts, prob, torch.arange(n), generator=torch.Generator().manual_seed(4))
+        assert z[0] == 0 and z[-1] == 8 and bool(((z >= 0) & (z <= 8)).all())
+        assert abs(z.double().mean().item() - 4.0) < 5 * math.sqrt(8 / 6 / n) + 0.05
+
     def test_empty(self):
         empty = torch.zeros(0, dtype=torch.int64)
         assert hg.binomial_counts(empty, torch.tensor([0.5], dtype=torch.float64), empty).numel() == 0
@@ -183,6 +192,19 @@ class TestMultivariateHypergeometric:
         var = size * good / n * (1 - good / n) * (n - size) / (n - 1)
         assert abs(y.mean().item() - mean) < 5 * math.sqrt(var / draws)
         assert y.var().item() == pytest.approx(var, rel=0.1)
+
+    def test_many_rows_one_entry_each(self):
+        """Rows outnumber entries' budget: the final draw runs in bounded chunks."""
+        counts, segment = rows([100], 5000)
+        sizes = torch.randint(0, 101, (5000,), generator=torch.Generator().manual_seed(2))
+        y = hg.multivariate_hypergeometric(counts, segment, sizes, generator=torch.Generator().manual_seed(2))
+        assert torch.equal(y, sizes)  # one pixel per row: everything drawn comes from it
+        counts, segment = rows([60, 40], 3000)
+        sizes = torch.full((3000,), 30)
+        y = hg.multivariate_hypergeometric(counts, segment, sizes, generator=torch.Generator().manual_seed(3))
+        self.check_invariants(counts, segment, sizes, y)
+        pmf = hypergeometric_pmf(60, 100, 30)
+        assert chi_square_p_value(Counter(y[0::2].tolist()), pmf, 3000) > 1e-3
 
     def test_reproducible(self):
         counts, segment = rows([3, 9, 0, 40, 200], 50)

@@ -82,6 +82,12 @@ def binomial_counts(
     width = min(largest, _TABLE_MAX_COUNT)
     if width == 0:
         return torch.zeros_like(counts)
+    if prob.numel() * (width + 1) * width > 4 * counts.numel() + 2**16:
+        # A table per probability would outgrow the entries (many rows, few events).
+        drawn = torch.binomial(
+            counts.to(torch.float64), prob.to(torch.float64).index_select(0, key), generator=generator
+        )
+        return drawn.to(torch.int64)
     small = counts if largest <= _TABLE_MAX_COUNT else counts.masked_fill(counts > width, 0)
     table = _binomial_cdf_table(prob, width).view(-1, width)
     rows = table.index_select(0, key * (width + 1) + small)
@@ -174,33 +180,48 @@ def _small_subsets(
     about log2(d) rounds. Positions map to entries through the cumsum of the pool.
     Uniform integers use float64 (relative bias below total * 2**-53).
     """
-    device = pool.device
     complement = 2 * size > total
     draw = torch.where(complement, total - size, size)
     rows = (draw > 0).nonzero().squeeze(1)
     counted = torch.zeros_like(pool)
     if rows.numel():
-        want = draw[rows].unsqueeze(1)
-        have = total[rows].unsqueeze(1)
-        width = int(want.max())
-        slot = torch.arange(width, device=device).unsqueeze(0)
-        # Unused slots hold distinct sentinels >= have, never taken for positions.
-        picks = torch.where(slot < want, -1, have + slot)
-        scale = have.to(torch.float64)
-        while True:
-            empty = picks < 0
-            if not bool(empty.any()):
-                break
-            u = torch.rand(picks.shape, dtype=torch.float64, device=device, generator=generator)
-            fresh = torch.minimum((u * scale).to(torch.int64), have - 1)
-            # Sort (value, is_fresh): a held value precedes fresh copies of itself.
-            key, _ = (torch.where(empty, fresh, picks) * 2 + empty).sort(dim=1)
-            values = key // 2
-            repeated = torch.zeros_like(empty)
-            repeated[:, 1:] = values[:, 1:] == values[:, :-1]
-            picks = values.masked_fill(repeated, -1)
-        offset = (total.cumsum(0) - total)[rows].unsqueeze(1)
-        positions = (offset + picks)[picks < have]
-        entries = torch.searchsorted(pool.cumsum(0), positions, right=True)
-        counted.index_add_(0, entries, torch.ones_like(entries))
+        width = int(draw.max())
+        # Bound the (rows, width) work tensors by a small multiple of the pool (matters
+        # only for frames of a few pixels, where rows outnumber entries).
+        chunk = max(1, (4 * pool.numel() + 2**16) // width)
+        cumsum = pool.cumsum(0)
+        offset = total.cumsum(0) - total
+        for start in range(0, rows.numel(), chunk):
+            part = rows[start : start + chunk]
+            positions = offset[part].unsqueeze(1) + _distinct_positions(
+                draw[part].unsqueeze(1), total[part].unsqueeze(1), generator
+            )
+            entries = torch.searchsorted(cumsum, positions[positions >= 0], right=True)
+            counted.index_add_(0, entries, torch.ones_like(entries))
     return torch.where(complement.index_select(0, segment), pool - counted, counted)
+
+
+def _distinct_positions(want: Tensor, have: Tensor, generator: torch.Generator | None) -> Tensor:
+    """Per row, ``want`` distinct uniform positions in [0, have) (see :func:`_small_subsets`).
+
+    Returns (rows, max want) int64; padding slots hold -2**62, so ``offset + result >= 0``
+    selects the drawn positions.
+    """
+    device = want.device
+    slot = torch.arange(int(want.max()), device=device).unsqueeze(0)
+    # Unused slots hold distinct sentinels >= have, never taken for positions.
+    picks = torch.where(slot < want, -1, have + slot)
+    scale = have.to(torch.float64)
+    while True:
+        empty = picks < 0
+        if not bool(empty.any()):
+            break
+        u = torch.rand(picks.shape, dtype=torch.float64, device=device, generator=generator)
+        fresh = torch.minimum((u * scale).to(torch.int64), have - 1)
+        # Sort (value, is_fresh): a held value precedes fresh copies of itself.
+        key, _ = (torch.where(empty, fresh, picks) * 2 + empty).sort(dim=1)
+        values = key // 2
+        repeated = torch.zeros_like(empty)
+        repeated[:, 1:] = values[:, 1:] == values[:, :-1]
+        picks = values.masked_fill(repeated, -1)
+    return picks.masked_fill(picks >= have, -(2**62))
