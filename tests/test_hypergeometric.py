@@ -163,7 +163,8 @@ class TestMultivariateHypergeometric:
             for c in range(pool[2] + 1):
                 d = size - a - c
                 if 0 <= d <= pool[3]:
-                    pmf[(a, 0, c, d)] = math.comb(pool[0], a) * math.comb(pool[2], c) * math.comb(pool[3], d) / math.comb(total, size)
+                    ways = math.comb(pool[0], a) * math.comb(pool[2], c) * math.comb(pool[3], d)
+                    pmf[(a, 0, c, d)] = ways / math.comb(total, size)
         observed = Counter(map(tuple, y.tolist()))
         assert chi_square_p_value(observed, pmf, draws) > 1e-3
         # numpy's sampler of the same law passes the same test (sanity of the test itself)

@@ -37,8 +37,12 @@ _TES_HINT = (
 )
 # A view of float bits as integers of the same width: non-zero bits <=> non-zero value
 # (except -0.0, which becomes an entry with count 0, harmlessly). nonzero() is faster on it.
-_BITS = {torch.float16: torch.int16, torch.bfloat16: torch.int16, torch.float32: torch.int32,
-         torch.float64: torch.int64}
+_BITS = {
+    torch.float16: torch.int16,
+    torch.bfloat16: torch.int16,
+    torch.float32: torch.int32,
+    torch.float64: torch.int64,
+}
 
 
 # --------------------------------------------------------------------------- parameters
@@ -54,7 +58,7 @@ def _shifts(shift: ShiftArg, batch: int) -> Tensor:
         raise TypeError(f"shift must be an integer number of frames, got {shift!r}")
     if not isinstance(shift, (Tensor, Sequence)):
         raise TypeError(f"shift must be an int or a (B,) integer tensor, got {type(shift).__name__}")
-    values = torch.as_tensor(shift).detach().cpu() if not isinstance(shift, Tensor) else shift.detach().cpu()
+    values = (shift if isinstance(shift, Tensor) else torch.as_tensor(shift)).detach().cpu()
     if values.is_floating_point():
         if values.numel() and not bool((torch.isfinite(values) & (values == values.round())).all()):
             raise ValueError(f"shift must hold whole numbers of frames, got {values.tolist()}")
