@@ -1,0 +1,200 @@
+"""Smoke tests of the benchmark scripts: each main() runs on a tiny configuration.
+
+Nothing here asserts on timing: the scripts measure, the tests only check that they run,
+print a table, and write their own section of a results file without touching others.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+import torch
+
+from benchmarks import _common, accuracy, peers, scaling, streaming, training, transforms
+
+
+def _results(tmp_path):
+    path = tmp_path / "RESULTS.md"
+    path.write_text(
+        "# Benchmark results\n\n<!-- simulation:start -->\nkept as is\n<!-- simulation:end -->\n"
+    )
+    return path
+
+
+def _section(path, name):
+    text = path.read_text()
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    assert text.count(start) == 1 and text.count(end) == 1
+    assert "<!-- simulation:start -->\nkept as is\n<!-- simulation:end -->" in text
+    return text[text.index(start) + len(start) : text.index(end)]
+
+
+class TestCommon:
+    def test_write_section_replaces_only_its_own(self, tmp_path):
+        path = _results(tmp_path)
+        _common.write_section("transforms", "first", path)
+        _common.write_section("scaling", "other", path)
+        _common.write_section("transforms", "second\n| a | b |", path)
+        assert _section(path, "transforms").strip() == "second\n| a | b |"
+        assert _section(path, "scaling").strip() == "other"
+
+    def test_write_section_creates_the_file(self, tmp_path):
+        path = tmp_path / "new.md"
+        _common.write_section("peers", "body", path)
+        assert "<!-- peers:start -->\nbody\n<!-- peers:end -->" in path.read_text()
+
+    def test_write_section_rejects_odd_names(self, tmp_path):
+        with pytest.raises(ValueError, match="name"):
+            _common.write_section("a b", "x", tmp_path / "r.md")
+
+    def test_write_section_keeps_backslashes_literal(self, tmp_path):
+        path = _results(tmp_path)
+        _common.write_section("x", r"a \1 \n b", path)
+        _common.write_section("x", r"c \g<0>", path)
+        assert _section(path, "x").strip() == r"c \g<0>"
+
+    def test_loglog_slope(self):
+        xs = [1, 2, 4, 8]
+        assert _common.loglog_slope(xs, [3 * x**2 for x in xs]) == pytest.approx(2.0)
+        assert math.isnan(_common.loglog_slope([2, 2], [1, 3]))
+
+    def test_markdown_table_shape(self):
+        table = _common.markdown_table(["a", "b"], [["x", 1], ["yy", 22]])
+        lines = table.splitlines()
+        assert len(lines) == 4 and all(line.count("|") == 3 for line in lines)
+
+    def test_synthetic_frames_are_sparse_whole_counts(self):
+        frames = _common.synthetic_frames((2, 6, 2, 20, 30), seed=3)
+        assert frames.dtype == torch.float32
+        assert torch.equal(frames, frames.round()) and bool((frames >= 0).all())
+        assert 0.02 < float((frames > 0).float().mean()) < 0.08
+        assert torch.equal(frames, _common.synthetic_frames((2, 6, 2, 20, 30), seed=3))
+
+    def test_time_interleaved_ratios(self):
+        timings, ratios = _common.time_interleaved(
+            {"a": lambda: None, "b": lambda: sum(range(100))}, baseline="a", rounds=2,
+            min_run_time=0.001, progress=False,
+        )
+        assert ratios["a"] == 1.0 and set(timings) == {"a", "b"}
+        with pytest.raises(ValueError, match="baseline"):
+            _common.time_interleaved({"a": lambda: None}, baseline="z")
+
+
+class TestTransforms:
+    def test_quick_run_writes_its_section(self, tmp_path, capsys):
+        path = _results(tmp_path)
+        result = transforms.main(["--quick", "--results", str(path), "--rounds", "1", "--min-run-time", "0.001"])
+        section = _section(path, "transforms")
+        for name in (*transforms.GOALS, "torchvision v2 rotate, per-sample loop", "kornia VideoSequential"):
+            assert name in section
+        assert "× clone" in section and "Environment:" in section
+        assert result["ratios"]["frames.clone() (baseline)"] == 1.0
+        assert "× clone" in capsys.readouterr().out
+
+    def test_every_case_keeps_the_shape(self):
+        frames = _common.synthetic_frames(transforms.QUICK_SHAPE)
+        cases = {**transforms.build_cases(frames), **transforms.peer_rotations(frames)}
+        for name, fn in cases.items():
+            assert fn().shape == frames.shape, name
+
+    def test_profile_names_a_row(self):
+        assert "grid_sampler" in transforms.profile("Rotate(15°)", transforms.QUICK_SHAPE, rows=100)
+        with pytest.raises(ValueError, match="name"):
+            transforms.profile("nope", transforms.QUICK_SHAPE)
+
+
+class TestScaling:
+    def test_quick_run(self, tmp_path):
+        path = _results(tmp_path)
+        result = scaling.main(["--quick", "--results", str(path), "--min-run-time", "0.001"])
+        section = _section(path, "scaling")
+        assert "slope in B" in section and "ev/frame" in section and "10⁷" in section
+        assert set(result["sizes"]["TES exact"]) == {"B", "T", "H·W"}
+
+
+class TestPeers:
+    def test_tonic_style_paths_match_the_library_binning(self):
+        data = peers.load_samples(2)
+        to_frame, _ = peers._tonic_to_frame(data["config"])
+        for events, crop, frames in zip(data["events"], data["crops"], data["frames"]):
+            assert torch.equal(peers._crop_pool(to_frame(events), crop), frames)
+
+    def test_per_frame_loop_conserves_counts_without_drops(self):
+        sample = _common.synthetic_frames((6, 2, 9, 7))
+        torch.manual_seed(0)
+        out = peers.per_frame_loop_tes(sample)
+        # events moved out of frames 0 and 1 (shift -2) are dropped; the rest are kept
+        assert float(out.sum()) <= float(sample.sum()) and bool((out >= 0).all())
+
+    def test_quick_run(self, tmp_path):
+        path = _results(tmp_path)
+        result = peers.main(["--quick", "--results", str(path), "--workers", "0"])
+        section = _section(path, "peers")
+        assert "(c) tonic style" in section and "(e) per-frame" in section and "(d) kornia" in section
+        assert result["TES-2(0.5)"]["ratios"]["(a) per batch, exact"] == 1.0
+
+
+class TestStreaming:
+    def test_quick_run(self, tmp_path):
+        path = _results(tmp_path)
+        threads = torch.get_num_threads()
+        result = streaming.main(["--quick", "--results", str(path)])
+        assert torch.get_num_threads() == threads  # restored
+        assert result["frames_timed"] == 72 and result["median"] <= result["p99"] <= result["max"]
+        assert "p99" in _section(path, "streaming")
+
+
+class TestTraining:
+    def test_quick_run(self, tmp_path):
+        path = _results(tmp_path)
+        result = training.main(["--quick", "--results", str(path), "--methods", "none", "fs-1"])
+        section = _section(path, "training")
+        assert "aug share of epoch" in section
+        assert result["methods"]["none"]["on_the_fly"]["augmentation_s_per_epoch"] == 0.0
+
+
+def _fake_results(path):
+    def stat(mean, std=0.1):
+        return {"mean": mean, "std": std, "values": [mean]}
+
+    methods = {}
+    for name, mse, cost in (("none", 8.0, 10.0), ("fs-1", 5.5, 11.0), ("hybrid", 7.2, 12.0), ("tes-2:0.5", 6.0, 10.5)):
+        methods[name] = {
+            "method": name, "copies": 1, "seeds": [0, 1], "best_val_mse": stat(mse), "test_mse": stat(mse + 1),
+            "train_s_total": stat(cost), "augmentation_setup_s": stat(0.01), "augmentation_s_per_epoch": stat(0.0),
+        }
+    path.write_text(json.dumps({"config": {}, "seeds": [0, 1], "methods": methods, "per_seed": {}}))
+    return path
+
+
+class TestAccuracy:
+    def test_pareto_front(self):
+        rows = [
+            {"method": "a", "time_s": 1.0, "val_mean": 5.0},
+            {"method": "b", "time_s": 2.0, "val_mean": 4.0},
+            {"method": "c", "time_s": 3.0, "val_mean": 6.0},  # dominated by a and b
+            {"method": "d", "time_s": 1.0, "val_mean": 5.0},  # ties with a: neither dominates
+        ]
+        assert accuracy.pareto_front(rows) == {"a", "b", "d"}
+
+    def test_quick_run(self, tmp_path):
+        results_json = _fake_results(tmp_path / "results.json")
+        path = _results(tmp_path)
+        result = accuracy.main([str(results_json), "--quick", "--results", str(path), "--png", str(tmp_path / "a.png")])
+        section = _section(path, "accuracy")
+        assert "| fs-1" in section and "Pareto" in section and "TES mode" in section
+        front = accuracy.pareto_front(result["methods"])
+        assert front == {"none", "fs-1", "tes-2:0.5"}
+        tes = result["tes"]
+        assert tes["exact"]["max_abs_error"] <= 0.5 + 1e-9  # k = round(ζN)
+        assert tes["expected"]["max_abs_error"] < 1e-6
+        if result["figure"] is not None:
+            assert (tmp_path / "a.png").stat().st_size > 0
+
+    def test_rejects_other_json(self, tmp_path):
+        path = tmp_path / "x.json"
+        path.write_text("{}")
+        with pytest.raises(ValueError, match="results.json"):
+            accuracy.load_methods(path)
