@@ -27,6 +27,15 @@ from event_transforms.training import (
 )
 
 
+@pytest.fixture(autouse=True, scope="module")
+def one_thread():
+    """Small models on a shared 2-core machine: one thread avoids waiting for busy cores."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
 class FakeGrasps(Dataset):
     """Tiny stand-in for TactileGrasps: ``(frames, force, meta)`` with a learnable link.
 
@@ -130,7 +139,7 @@ class TestFit:
             model = tiny_model(seed)
             watch = Stopwatch()
             aug = OnTheFly(train, TimedTransform(Jitter(), watch))
-            result = fit(model, aug, val, epochs=3, patience=3, batch_size=3, seed=seed,
+            result = fit(model, aug, val, epochs=2, patience=2, batch_size=4, seed=seed,
                          stopwatch=watch, progress=False)
             return result, model.state_dict()
 
