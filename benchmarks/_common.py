@@ -32,6 +32,7 @@ __all__ = [
     "time_interleaved",
     "environment",
     "environment_lines",
+    "allocator_suffix",
     "markdown_table",
     "write_section",
     "base_parser",
@@ -171,6 +172,12 @@ def environment(extra_modules: Sequence[str] = ()) -> dict[str, str]:
     malloc = {k: v for k, v in os.environ.items() if k.startswith("MALLOC_") or k == "LD_PRELOAD"}
     info["allocator"] = ", ".join(f"{k}={v}" for k, v in sorted(malloc.items())) or "glibc defaults"
     return info
+
+
+def allocator_suffix() -> str:
+    """`` (MALLOC_* tuned)`` when glibc's allocator settings are changed, else empty (for titles)."""
+    tuned = sorted(k for k in os.environ if k.startswith("MALLOC_"))
+    return f" ({', '.join(tuned)} set)" if tuned else ""
 
 
 def environment_lines(extra_modules: Sequence[str] = ()) -> list[str]:

@@ -15,6 +15,7 @@ Run: ``python benchmarks/scaling.py`` (``--quick`` for a smoke run).
 
 from __future__ import annotations
 
+import math
 import resource
 import sys
 from collections.abc import Callable, Sequence
@@ -24,12 +25,12 @@ import torch
 
 if __package__:
     from ._common import (
-        apply_threads, base_parser, command, environment_lines, fmt_ms, loglog_slope,
+        allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, loglog_slope,
         markdown_table, synthetic_frames, time_call, write_section,
     )
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
-        apply_threads, base_parser, command, environment_lines, fmt_ms, loglog_slope,
+        allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, loglog_slope,
         markdown_table, synthetic_frames, time_call, write_section,
     )
 
@@ -132,7 +133,11 @@ def run(*, quick: bool = False, min_run_time: float = 0.2) -> dict[str, Any]:
         extreme[label] = time_call(lambda: module(frames), min_run_time=min_run_time).median
     extreme_rss = _peak_rss_mb() - before
 
-    return {"sizes": results, "events": events, "event_rss_mb": rss_growth, "extreme": extreme, "extreme_rss_mb": extreme_rss}
+    over = {
+        axis: [value for value, shape in points if 4 * math.prod(shape) > 32 * 2**20]
+        for axis, points in sweeps(quick).items()
+    }
+    return {"sizes": results, "over_mmap_threshold": over, "events": events, "event_rss_mb": rss_growth, "extreme": extreme, "extreme_rss_mb": extreme_rss}
 
 
 def tables(result: dict[str, Any]) -> str:
@@ -153,6 +158,15 @@ def tables(result: dict[str, Any]) -> str:
         values = [v for v, _ in next(iter(sizes.values()))[axis]]
         rows = [[name, *[fmt_ms(t) for _, t in by_axis[axis]]] for name, by_axis in sizes.items()]
         parts += [f"Median time, sweeping {axis}:", markdown_table(["transform", *[f"{axis}={v:g}" for v in values]], rows)]
+
+    big = result.get("over_mmap_threshold", {})
+    if any(big.values()):
+        listed = "; ".join(f"{axis} = {', '.join(f'{v:g}' for v in values)}" for axis, values in big.items() if values)
+        parts.append(
+            f"Batches over 32 MiB ({listed}) are above glibc's largest mmap threshold: with default settings "
+            "every fresh output of that size is returned to the OS when freed and page-faulted in again, "
+            "which bends the slopes upward; run with `MALLOC_MMAP_THRESHOLD_` raised to see the kernels alone."
+        )
 
     events = result["events"]
     per_frame = [v for v, _ in next(iter(events.values()))]
@@ -180,7 +194,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     result = run(quick=args.quick, min_run_time=min_run_time)
     body = "\n\n".join(
         [
-            "## Scaling: cost against B, T, H·W and events per frame",
+            "## Scaling: cost against B, T, H·W and events per frame" + allocator_suffix(),
             f"Base batch {BASE} float32, ≈5 % non-zero pixels; one axis varied at a time; "
             f"median of `blocked_autorange` (min_run_time {min_run_time} s). Command: `{command('scaling.py', argv)}`.",
             "\n".join(environment_lines()),

@@ -25,12 +25,12 @@ import torch
 
 if __package__:
     from ._common import (
-        apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table,
+        allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table,
         synthetic_frames, time_interleaved, write_section,
     )
 else:  # run as a script: python benchmarks/transforms.py
     from _common import (  # type: ignore[no-redef]
-        apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table,
+        allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table,
         synthetic_frames, time_interleaved, write_section,
     )
 
@@ -212,7 +212,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     density = "≈5 % non-zero pixels, counts 1 + Poisson(0.5)"
     body = "\n\n".join(
         [
-            "## Transforms: cost per batch as a multiple of `frames.clone()`",
+            "## Transforms: cost per batch as a multiple of `frames.clone()`" + allocator_suffix(),
             f"Batch {tuple(shape)} float32, {density}; global RNG; "
             f"{rounds} interleaved rounds of `torch.utils.benchmark.Timer.blocked_autorange` (min_run_time "
             f"{min_run_time} s per row and round); median and IQR of all blocks; '× clone' is the median over "
