@@ -20,8 +20,8 @@ __all__ = ["main", "build_parser", "QUICK", "FULL"]
 #: The quick configuration (default): stated in the output of every run.
 QUICK: dict[str, Any] = {
     "seeds": 2,
-    "epochs": 15,
-    "patience": 4,
+    "epochs": 20,
+    "patience": 5,
     "lr": 1e-2,
     "hidden_channels": (8,),
     "input_pool": 5,

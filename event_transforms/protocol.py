@@ -18,11 +18,15 @@ Method names (:func:`parse_method`):
 ``tes<j>:<ζ>``     ``TemporalEventShift(j, ζ)``, e.g. ``tes-2:0.5``
 ``independent``    ``OneOf([resize, fs-1])``: each copy gets one method
 ``hybrid``         ``Compose([resize, fs-1])``: both on every copy
+``scene``          the tactile :class:`~event_transforms.scenes.Scene` (sizes 12 and
+                   18 mm to 15 mm, lag of one frame): its independent policy
+``scene-hybrid``   the same scene, hybrid policy
 ``<name>x<k>``     ``k`` synthetic copies per item, e.g. ``tes-2:0.5x10``
 =================  ===============================================================
 
-Any other policy enters as a :class:`Method` built from a transform, or from a
-callable mapping a sample's bolt diameter to a transform (:meth:`Method.from_scene`).
+Any other policy enters as a :class:`Method` built from a transform
+(:meth:`Method.from_transform`), a scene (:meth:`Method.from_scene`), or a callable
+mapping a sample's bolt diameter (and the noise bank) to a transform.
 Results on the package's simulated grasps are results on synthetic data, not the paper's.
 """
 
@@ -108,15 +112,29 @@ class Method:
         return cls(name, lambda diameter, bank=None: transform, copies)
 
     @classmethod
-    def from_scene(cls, name: str, policy_for: TransformFor, copies: int = 1) -> Method:
-        """A method whose transform depends on the sample's bolt diameter (a scene policy).
+    def from_scene(
+        cls, name: str, scene: Any, copies: int = 1, *, combination: str = "independent"
+    ) -> Method:
+        """A method from a :class:`~event_transforms.scenes.Scene` (or a built policy).
 
-        ``policy_for(diameter_mm)`` returns the transform for samples of that diameter,
-        e.g. ``lambda d: Scene(source_size=d, target_size=15).policy()``.
+        The policy receives each item's metadata, so a scene with a target size resizes
+        every sample by target / its own size.
+
+        Example:
+            >>> from event_transforms.scenes import Scene
+            >>> scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,))
+            >>> Method.from_scene("scene", scene).build(12.0).effects
+            ('lag', 'size')
         """
-        if not callable(policy_for):
-            raise TypeError(f"policy_for must be callable, got {type(policy_for).__name__}")
-        return cls(name, lambda diameter, bank=None: policy_for(diameter), copies)
+        from .scenes import Scene
+
+        if isinstance(scene, Scene):
+            policy = scene.policy(combination)
+        elif isinstance(scene, nn.Module):
+            policy = scene
+        else:
+            raise TypeError(f"scene must be a Scene or a built policy, got {type(scene).__name__}")
+        return cls(name, lambda diameter, bank=None: policy, copies)
 
     def build(self, diameter_mm: float, noise_bank: torch.Tensor | None = None) -> nn.Module | None:
         """The transform for samples of ``diameter_mm``."""
@@ -143,7 +161,7 @@ def _noise(diameter: float, bank: torch.Tensor | None) -> nn.Module:
 
 _NUMBER = r"[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?"
 _PATTERN = re.compile(
-    rf"^(?P<base>none|resize|noise|independent|hybrid|rot(?P<deg>{_NUMBER})"
+    rf"^(?P<base>none|resize|noise|independent|hybrid|scene-hybrid|scene|rot(?P<deg>{_NUMBER})"
     rf"|fs(?P<fs>[+-]?\d+)|tes(?P<tes>[+-]?\d+):(?P<frac>{_NUMBER}))(?:x(?P<copies>\d+))?$"
 )
 
@@ -170,7 +188,8 @@ def parse_method(name: str, *, copies: int = 1) -> Method:
     if match is None:
         raise ValueError(
             f"unknown method {name!r}; expected none, rot<deg>, resize, noise, fs<j>, "
-            "tes<j>:<fraction>, independent or hybrid, optionally followed by x<copies>"
+            "tes<j>:<fraction>, independent, hybrid, scene or scene-hybrid, optionally followed "
+            "by x<copies>"
         )
     base = match["base"]
     if match["copies"] is not None:
@@ -186,6 +205,12 @@ def parse_method(name: str, *, copies: int = 1) -> Method:
         return Method(name, _noise, copies, needs_noise_bank=True)
     if base == "independent":
         return Method(name, lambda d, bank=None: et.OneOf([_resize_for(d), et.FrameShift(-1)]), copies)
+    if base in ("scene", "scene-hybrid"):
+        from .scenes import Scene
+
+        scene = Scene(training_sizes=(12.0, 18.0), target_size=TARGET_DIAMETER_MM, lag_shifts=(-1,))
+        combination = "hybrid" if base == "scene-hybrid" else "independent"
+        return Method.from_scene(name, scene, copies, combination=combination)
     if base == "hybrid":
         return Method(name, lambda d, bank=None: et.Compose([_resize_for(d), et.FrameShift(-1)]), copies)
     if match["deg"] is not None:

@@ -93,10 +93,37 @@ class TestParseMethod:
     def test_custom_methods(self):
         flip = Method.from_transform("shift", et.FrameShift(1), copies=2)
         assert flip.copies == 2 and isinstance(flip.build(12.0), et.FrameShift)
-        scene = Method.from_scene("scene", lambda d: et.Resize(15.0 / d))
-        assert scene.build(18.0).scale == pytest.approx(15 / 18)
+        from event_transforms.scenes import Scene
+
+        scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0, orientation_deg=10)
+        method = Method.from_scene("mine", scene, copies=2, combination="hybrid")
+        assert method.copies == 2 and method.build(12.0).effects == ("size", "orientation")
+        by_diameter = Method("by-d", lambda d, bank=None: et.Resize(15.0 / d))
+        assert by_diameter.build(18.0).scale == pytest.approx(15 / 18)
         with pytest.raises(TypeError):
             Method.from_transform("x", lambda f: f)
+        with pytest.raises(TypeError):
+            Method.from_scene("x", "scene")
+
+    def test_scene_names(self):
+        assert parse_method("scene").build(12.0).effects == ("lag", "size")
+        assert parse_method("scene").build(12.0).independent
+        assert parse_method("scene-hybridx2").copies == 2
+        assert not parse_method("scene-hybrid").build(12.0).independent
+
+    def test_scene_policy_resizes_per_item(self, data):
+        """AugmentedDataset hands each item's metadata through the timing wrapper."""
+        from event_transforms.scenes import Scene
+
+        scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0)
+        method = Method.from_scene("size", scene)
+        train = build_training_set(method, data, seed=0, fixed=True, stopwatch=Stopwatch())
+        for index, diameter in [(3, 12.0), (9, 18.0)]:
+            frames, _, meta = train[index]
+            assert meta["diameter_mm"] == diameter
+            original = train[index - 3][0]
+            expected = et.Resize(15.0 / diameter)(original)
+            torch.testing.assert_close(frames, expected)
 
 
 class TestTrainingSet:
