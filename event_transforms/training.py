@@ -323,7 +323,8 @@ def fit(
         total, count = 0.0, 0
         for frames, force, _ in loader:
             frames, force = frames.to(device), force.to(device)
-            loss = F.mse_loss(model(frames), force.to(torch.float32))
+            pred = model(frames)
+            loss = F.mse_loss(pred, force.to(pred.dtype))
             optimiser.zero_grad(set_to_none=True)
             loss.backward()
             optimiser.step()

@@ -169,6 +169,13 @@ class TestFit:
         captured = capsys.readouterr()
         assert captured.err == "" and captured.out == ""
 
+    def test_float64_model(self, data):
+        train, val = data
+        model = tiny_model().double()
+        result = fit(model, train, val, epochs=1, patience=1, progress=False)
+        assert math.isfinite(result.best_val_loss)
+        assert predict(model, val)[0].dtype == torch.float64
+
     def test_bad_arguments(self, data):
         train, val = data
         for kwargs, match in [
