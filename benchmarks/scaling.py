@@ -26,12 +26,12 @@ import torch
 if __package__:
     from ._common import (
         allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, loglog_slope,
-        markdown_table, synthetic_frames, time_call, write_section,
+        markdown_table, synthetic_frames, time_call, time_interleaved, write_section,
     )
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
         allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, loglog_slope,
-        markdown_table, synthetic_frames, time_call, write_section,
+        markdown_table, synthetic_frames, time_call, time_interleaved, write_section,
     )
 
 import event_transforms as et
@@ -96,15 +96,22 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def run(*, quick: bool = False, min_run_time: float = 0.2) -> dict[str, Any]:
+def run(*, quick: bool = False, min_run_time: float = 0.2, rounds: int = 3) -> dict[str, Any]:
     results: dict[str, dict[str, list[tuple[float, float]]]] = {}
     for axis, points in sweeps(quick).items():
+        # All points of one sweep are timed in interleaved rounds, so that the machine's
+        # drift over the run does not tilt the fitted slopes.
+        cases: dict[tuple[str, float], Any] = {}
         for value, shape in points:
             frames = synthetic_frames(shape)
             for name, module in transforms_for(shape[1], shape[3], shape[4]).items():
-                timing = time_call(lambda m=module: m(frames), min_run_time=min_run_time)
-                results.setdefault(name, {}).setdefault(axis, []).append((value, timing.median))
-            print(f"  {axis} = {value}: done", file=sys.stderr, flush=True)
+                cases[(name, value)] = lambda m=module, f=frames: m(f)
+        timings, _ = time_interleaved(
+            cases, baseline=next(iter(cases)), rounds=rounds, min_run_time=min_run_time, progress=False
+        )
+        for (name, value), timing in timings.items():
+            results.setdefault(name, {}).setdefault(axis, []).append((value, timing.median))
+        print(f"  sweep over {axis}: done", file=sys.stderr, flush=True)
 
     scales = (1, 100) if quick else (1, 10, 100, 10**3, 10**4, 10**5)
     shape = (1, 2, 2, 8, 8) if quick else EVENT_SHAPE
@@ -187,16 +194,19 @@ def tables(result: dict[str, Any]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser = base_parser(__doc__.splitlines()[0], "scaling")
-    parser.add_argument("--min-run-time", type=float, default=None, help="seconds per point (default 0.2, quick 0.02)")
+    parser.add_argument("--min-run-time", type=float, default=None, help="seconds per point and round (default 0.1, quick 0.01)")
+    parser.add_argument("--rounds", type=int, default=None, help="interleaved rounds per sweep (default 3, quick 1)")
     args = parser.parse_args(argv)
     apply_threads(args.threads)
-    min_run_time = args.min_run_time if args.min_run_time is not None else (0.02 if args.quick else 0.2)
-    result = run(quick=args.quick, min_run_time=min_run_time)
+    min_run_time = args.min_run_time if args.min_run_time is not None else (0.01 if args.quick else 0.1)
+    rounds = args.rounds or (1 if args.quick else 3)
+    result = run(quick=args.quick, min_run_time=min_run_time, rounds=rounds)
     body = "\n\n".join(
         [
             "## Scaling: cost against B, T, H·W and events per frame" + allocator_suffix(),
             f"Base batch {BASE} float32, ≈5 % non-zero pixels; one axis varied at a time; "
-            f"median of `blocked_autorange` (min_run_time {min_run_time} s). Command: `{command('scaling.py', argv)}`.",
+            f"{rounds} interleaved rounds per sweep of `blocked_autorange` (min_run_time {min_run_time} s), median "
+            f"of all blocks. Command: `{command('scaling.py', argv)}`.",
             "\n".join(environment_lines()),
             tables(result),
         ]
