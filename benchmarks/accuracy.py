@@ -123,6 +123,9 @@ def plot(rows: Sequence[dict[str, Any]], path: str | Path) -> Path | None:
     line = sorted((r for r in rows if r["method"] in front), key=lambda r: r["time_s"])
     ax.step([r["time_s"] for r in line], [r["val_mean"] for r in line], where="post", color="tab:red",
             linewidth=1, label="Pareto front")
+    times = [r["time_s"] for r in rows if r["time_s"] > 0]
+    if times and max(times) > 10 * min(times):
+        ax.set_xscale("log")
     ax.set_xlabel("total time per training run (s)")
     ax.set_ylabel("best validation MSE (N²), mean ± std over seeds")
     ax.set_title("Augmentation methods: accuracy against cost (synthetic data)")
