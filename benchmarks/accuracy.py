@@ -126,6 +126,10 @@ def plot(rows: Sequence[dict[str, Any]], path: str | Path) -> Path | None:
     times = [r["time_s"] for r in rows if r["time_s"] > 0]
     if times and max(times) > 10 * min(times):
         ax.set_xscale("log")
+        from matplotlib.ticker import FormatStrFormatter
+
+        ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+        ax.xaxis.set_minor_formatter(FormatStrFormatter("%g"))
     ax.set_xlabel("total time per training run (s)")
     ax.set_ylabel("best validation MSE (N²), mean ± std over seeds")
     ax.set_title("Augmentation methods: accuracy against cost (synthetic data)")
