@@ -12,5 +12,7 @@ from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
 from .noise import *  # noqa: F401,F403
 from .noise import __all__ as _noise
+from .events import *  # noqa: F401,F403
+from .events import __all__ as _events
 
-__all__ = [*_spatial, *_temporal, *_noise]
+__all__ = [*_spatial, *_temporal, *_noise, *_events]

@@ -73,7 +73,7 @@ class OneOf(EventTransform):
         >>> independent = OneOf([Resize(1.25), FrameShift(-1)])
         >>> params = independent.make_params(6, generator=torch.Generator().manual_seed(0))
         >>> params["index"].tolist()
-        [0, 1, 1, 1, 1, 1]
+        [1, 1, 0, 1, 1, 1]
     """
 
     def __init__(self, transforms: Sequence[nn.Module], weights: Sequence[float] | None = None) -> None:
