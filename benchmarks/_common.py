@@ -222,6 +222,13 @@ def write_section(name: str, body: str, path: str | os.PathLike | None = None) -
     return path
 
 
+def publish(body: str, args: argparse.Namespace) -> None:
+    """Print a script's section and, unless ``--no-write``, write it into RESULTS.md."""
+    print(body)
+    if not args.no_write:
+        write_section(args.section, body, args.results)
+
+
 def base_parser(description: str, section: str) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--section", default=section, help="section of the results file (default: %(default)s)")

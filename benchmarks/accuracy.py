@@ -32,12 +32,12 @@ import torch
 if __package__:
     from ._common import (
         RESULTS, apply_threads, base_parser, command, environment_lines, fmt_ms, markdown_table,
-        synthetic_frames, time_call, write_section,
+        synthetic_frames, time_call, publish,
     )
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
         RESULTS, apply_threads, base_parser, command, environment_lines, fmt_ms, markdown_table,
-        synthetic_frames, time_call, write_section,
+        synthetic_frames, time_call, publish,
     )
 
 import event_transforms as et
@@ -243,9 +243,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     )
     parts.append(tes_table(modes, rows))
     body = "\n\n".join(parts)
-    print(body)
-    if not args.no_write:
-        write_section(args.section, body, args.results)
+    publish(body, args)
     return {"methods": rows, "tes": modes, "figure": figure}
 
 

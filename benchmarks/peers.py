@@ -38,12 +38,12 @@ from torch.utils.data import DataLoader, Dataset
 if __package__:
     from ._common import (
         apply_threads, base_parser, command, environment_lines, fmt_ms, markdown_table,
-        time_interleaved, write_section,
+        time_interleaved, publish,
     )
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
         apply_threads, base_parser, command, environment_lines, fmt_ms, markdown_table,
-        time_interleaved, write_section,
+        time_interleaved, publish,
     )
 
 import event_transforms as et
@@ -293,9 +293,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             tables(result),
         ]
     )
-    print(body)
-    if not args.no_write:
-        write_section(args.section, body, args.results)
+    publish(body, args)
     return result
 
 

@@ -26,12 +26,12 @@ import torch
 if __package__:
     from ._common import (
         allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, loglog_slope,
-        markdown_table, synthetic_frames, time_call, time_interleaved, write_section,
+        markdown_table, synthetic_frames, time_call, time_interleaved, publish,
     )
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
         allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, loglog_slope,
-        markdown_table, synthetic_frames, time_call, time_interleaved, write_section,
+        markdown_table, synthetic_frames, time_call, time_interleaved, publish,
     )
 
 import event_transforms as et
@@ -211,9 +211,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             tables(result),
         ]
     )
-    print(body)
-    if not args.no_write:
-        write_section(args.section, body, args.results)
+    publish(body, args)
     return result
 
 

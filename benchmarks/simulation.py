@@ -26,12 +26,12 @@ import torch
 if __package__:
     from ._common import (
         apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio,
-        markdown_table, time_repeated, write_section,
+        markdown_table, time_repeated, publish,
     )
 else:  # run as a script: python benchmarks/simulation.py
     from _common import (  # type: ignore[no-redef]
         apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio,
-        markdown_table, time_repeated, write_section,
+        markdown_table, time_repeated, publish,
     )
 
 from event_transforms.datasets import SPLITS, TactileGrasps
@@ -149,9 +149,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             "Synthetic data from `event_transforms.simulation`, not the paper's recordings.",
         ]
     )
-    print(body)
-    if not args.no_write:
-        write_section(args.section, body, args.results)
+    publish(body, args)
 
 
 if __name__ == "__main__":

@@ -21,10 +21,10 @@ from typing import Any
 import torch
 
 if __package__:
-    from ._common import base_parser, command, environment_lines, fmt_ms, markdown_table, time_call, write_section
+    from ._common import base_parser, command, environment_lines, fmt_ms, markdown_table, time_call, publish
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
-        base_parser, command, environment_lines, fmt_ms, markdown_table, time_call, write_section,
+        base_parser, command, environment_lines, fmt_ms, markdown_table, time_call, publish,
     )
 
 from event_transforms.models import ForceRegressor
@@ -127,9 +127,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             markdown_table(["measure", "time"], rows),
         ]
     )
-    print(body)
-    if not args.no_write:
-        write_section(args.section, body, args.results)
+    publish(body, args)
     return result
 
 

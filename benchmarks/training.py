@@ -30,10 +30,10 @@ from typing import Any
 import torch
 
 if __package__:
-    from ._common import apply_threads, base_parser, command, environment_lines, markdown_table, write_section
+    from ._common import apply_threads, base_parser, command, environment_lines, markdown_table, publish
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
-        apply_threads, base_parser, command, environment_lines, markdown_table, write_section,
+        apply_threads, base_parser, command, environment_lines, markdown_table, publish,
     )
 
 from event_transforms import protocol
@@ -153,9 +153,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             table(result),
         ]
     )
-    print(body)
-    if not args.no_write:
-        write_section(args.section, body, args.results)
+    publish(body, args)
     return result
 
 

@@ -26,12 +26,12 @@ import torch
 if __package__:
     from ._common import (
         allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table,
-        synthetic_frames, time_interleaved, write_section,
+        synthetic_frames, time_interleaved, publish,
     )
 else:  # run as a script: python benchmarks/transforms.py
     from _common import (  # type: ignore[no-redef]
         allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table,
-        synthetic_frames, time_interleaved, write_section,
+        synthetic_frames, time_interleaved, publish,
     )
 
 import event_transforms as et
@@ -223,9 +223,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             result["summary"],
         ]
     )
-    print(body)
-    if not args.no_write:
-        write_section(args.section, body, args.results)
+    publish(body, args)
     return result
 
 
