@@ -239,8 +239,10 @@ class ConvLSTM(nn.Module):
             hx = cell.zero_state(x[:, 0] if steps else x.new_zeros(batch, *x.shape[2:]))
         input_gates = cell.input_conv(x.flatten(0, 1)).unflatten(0, (batch, steps))
         outputs = []
-        for t in range(steps):
-            hx = cell.step_gates(input_gates[:, t], hx)
+        # unbind, not input_gates[:, t]: indexing makes autograd build a full-size zero
+        # gradient per step (O(T^2) memory traffic); unbind's backward stacks once.
+        for gates in input_gates.unbind(1):
+            hx = cell.step_gates(gates, hx)
             outputs.append(hx[0])
         if not outputs:
             return hx[0].unsqueeze(1)[:, :0], hx
