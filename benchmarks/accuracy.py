@@ -145,7 +145,7 @@ def plot(rows: Sequence[dict[str, Any]], path: str | Path) -> Path | None:
 def _frames(count: int | None) -> tuple[torch.Tensor, str]:
     """Training grasps as float32 frames (B, 36, 2, 70, 75), or synthetic ones if unavailable."""
     try:
-        from event_transforms.datasets import TactileGrasps
+        from event_transforms.tactile.datasets import TactileGrasps
 
         data = TactileGrasps(split="train")
         frames = data.frames if isinstance(data.frames, torch.Tensor) else data.frames()

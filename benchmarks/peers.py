@@ -1,6 +1,6 @@
 """Temporal event shifting and rotation of a batch of simulated grasps, done five ways.
 
-Data: ``B`` grasps from :mod:`event_transforms.simulation` (12 and 18 mm bolts), kept both
+Data: ``B`` grasps from :mod:`event_transforms.tactile.simulation` (12 and 18 mm bolts), kept both
 as raw event streams and as the paper's frames (36 × 10 ms, 140×150 crop around the
 contact, 2×2 sum-pooled to 70×75). Each way produces a batch of augmented frames
 ``(B, 36, 2, 70, 75)``; we report samples per second and how many times faster the
@@ -47,7 +47,7 @@ else:  # run as a script
     )
 
 import event_transforms as et
-from event_transforms.simulation import SimulatorConfig, draw_grasp, simulate_grasps
+from event_transforms.tactile.simulation import SimulatorConfig, draw_grasp, simulate_grasps
 
 __all__ = ["load_samples", "build_cases", "run", "main"]
 

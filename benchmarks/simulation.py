@@ -34,8 +34,8 @@ else:  # run as a script: python benchmarks/simulation.py
         markdown_table, time_repeated, publish,
     )
 
-from event_transforms.datasets import SPLITS, TactileGrasps
-from event_transforms.simulation import (
+from event_transforms.tactile.datasets import SPLITS, TactileGrasps
+from event_transforms.tactile.simulation import (
     SimulatorConfig,
     draw_grasp,
     simulate_grasp,
@@ -146,7 +146,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             "Pictures (OFF red, ON blue, 12 frames per row, 140×150 crop pooled 2×2): "
             + ", ".join(f"`{p.name}`" for p in pictures),
             "",
-            "Synthetic data from `event_transforms.simulation`, not the paper's recordings.",
+            "Synthetic data from `event_transforms.tactile.simulation`, not the paper's recordings.",
         ]
     )
     publish(body, args)

@@ -27,8 +27,8 @@ else:  # run as a script
         base_parser, command, environment_lines, fmt_ms, markdown_table, time_call, publish,
     )
 
-from event_transforms.models import ForceRegressor
-from event_transforms.simulation import SimulatorConfig, draw_grasp, simulate_grasps
+from event_transforms.tactile.models import ForceRegressor
+from event_transforms.tactile.simulation import SimulatorConfig, draw_grasp, simulate_grasps
 
 __all__ = ["grasp_frames", "step_latencies", "run", "main"]
 

@@ -1,7 +1,7 @@
 """Share of a training epoch spent in augmentation, for each of the paper's methods.
 
-Uses the protocol's own bookkeeping: :func:`event_transforms.protocol.run_method` trains
-the reference :class:`~event_transforms.models.ForceRegressor` on the simulated grasps
+Uses the protocol's own bookkeeping: :func:`event_transforms.tactile.protocol.run_method` trains
+the reference :class:`~event_transforms.tactile.models.ForceRegressor` on the simulated grasps
 (48 training sequences + synthetic copies, validation on the 15 mm bolt) and records, per
 epoch, the wall time of the training pass and the time spent inside the augmentation (a
 ``TimedTransform`` around each method's transform, data loaded in the main process).
@@ -36,7 +36,7 @@ else:  # run as a script
         apply_threads, base_parser, command, environment_lines, markdown_table, publish,
     )
 
-from event_transforms import protocol
+from event_transforms.tactile import protocol
 
 __all__ = ["run", "main"]
 
@@ -148,7 +148,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             f"Data: {result['data']}. Reference `ForceRegressor(hidden_channels={tuple(config['hidden_channels'])}, "
             f"input_pool={config['input_pool']})`, Adam, batch {config['batch_size']}, {epochs} epoch(s) per method "
             f"and mode, seed 0, data in the main process; per-epoch times are the medians over epochs of the times "
-            f"`event_transforms.protocol.run_method` records. Command: `{command('training.py', argv)}`.",
+            f"`event_transforms.tactile.protocol.run_method` records. Command: `{command('training.py', argv)}`.",
             "\n".join(environment_lines()),
             table(result),
         ]

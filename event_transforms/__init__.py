@@ -1,15 +1,64 @@
-"""event-transforms: batched, reproducible augmentations for event-camera frames."""
+"""event-transforms: batched, reproducible augmentations for event-camera frames.
+
+The library:
+
+- :mod:`event_transforms.functional`: pure kernels (tensor first, options keyword-only);
+- :mod:`event_transforms.transforms`: ``nn.Module`` transforms and the containers
+  :class:`Compose`, :class:`OneOf`, :class:`RandomApply` (all re-exported here);
+- :mod:`event_transforms.scenes`: :class:`Scene`, which builds only the transforms for the
+  physical effects a setup declares;
+- :mod:`event_transforms.data`: :class:`AugmentedDataset`, synthetic copies of any data set;
+- :mod:`event_transforms.viz`: pictures of event frames.
+
+The tactile application built on it (simulator, data sets, reference model, training,
+protocol, command line) lives in :mod:`event_transforms.tactile`.
+
+Names are imported on first use (PEP 562), so ``import event_transforms`` costs little
+and the command line answers ``--help`` without importing torch.
+"""
 
 from __future__ import annotations
 
-from . import datasets, functional, models, scenes, simulation, viz
-from .scenes import ResizeToTarget, Scene, ScenePolicy
-from .transforms import *  # noqa: F401,F403
-from .transforms import __all__ as _transforms
+import importlib
+from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
+__version__ = "0.2.0.dev0"
 
-__all__ = [
-    "functional", "datasets", "models", "scenes", "simulation", "viz", "__version__",
-    "Scene", "ScenePolicy", "ResizeToTarget", *_transforms,
-]
+# public name -> the module that defines it
+_TRANSFORMS = (
+    "EventTransform", "Params", "Lambda", "as_transform",
+    "Rotate", "RandomRotation", "Resize", "RandomResize",
+    "HorizontalFlip", "VerticalFlip", "RandomHorizontalFlip", "RandomVerticalFlip",
+    "FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift",
+    "AddNoise", "AddPoissonNoise", "RandomEventDrop",
+    "Compose", "OneOf", "RandomApply",
+)
+_NAMES: dict[str, str] = {
+    **{name: "transforms" for name in _TRANSFORMS},
+    "Scene": "scenes",
+    "ResizeToTarget": "scenes",
+    "AugmentedDataset": "data",
+}
+_SUBMODULES = ("functional", "transforms", "scenes", "data", "viz", "tactile")
+
+__all__ = ["__version__", *_SUBMODULES, *_NAMES]
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
+    from . import data, functional, scenes, tactile, transforms, viz
+    from .data import AugmentedDataset
+    from .scenes import ResizeToTarget, Scene
+    from .transforms import *  # noqa: F403
+
+
+def __getattr__(name: str) -> Any:
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    if name in _NAMES:
+        value = getattr(importlib.import_module(f"{__name__}.{_NAMES[name]}"), name)
+        globals()[name] = value  # later lookups skip this function
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

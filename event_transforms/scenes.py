@@ -230,7 +230,7 @@ class Scene:
         lag_fraction: ``None`` shifts whole frames (FS); a fraction ζ or a ``(min, max)``
             range moves only that share of each frame's events (TES).
         noise: background activity: static-scene frames ``(N, 2, H, W)`` (e.g. from
-            :func:`event_transforms.datasets.noise_bank`) or a rate in Hz per pixel and
+            :func:`event_transforms.tactile.datasets.noise_bank`) or a rate in Hz per pixel and
             polarity (a number or ``(min, max)``); ``None`` for none.
         frame_ms: frame length, for a noise rate.
 

@@ -8,8 +8,8 @@ import pytest
 import torch
 
 import event_transforms as et
-from event_transforms import cli, protocol, training
-from event_transforms.protocol import (
+from event_transforms.tactile import cli, protocol, training
+from event_transforms.tactile.protocol import (
     PAPER_METHODS,
     MaterializedDataset,
     Method,
@@ -20,7 +20,7 @@ from event_transforms.protocol import (
     parse_method,
     run_protocol,
 )
-from event_transforms.training import Stopwatch
+from event_transforms.tactile.training import Stopwatch
 from tests.test_training import FakeGrasps
 
 

@@ -1,4 +1,4 @@
-"""Tests for ``event_transforms.datasets``."""
+"""Tests for ``event_transforms.tactile.datasets``."""
 
 from __future__ import annotations
 
@@ -9,9 +9,10 @@ import pytest
 import torch
 from torch.utils.data import DataLoader, default_collate
 
-from event_transforms import datasets
-from event_transforms.datasets import AugmentedDataset, TactileGrasps, default_cache_dir, noise_bank
-from event_transforms.simulation import SimulatorConfig
+from event_transforms.tactile import datasets
+from event_transforms.data import AugmentedDataset
+from event_transforms.tactile.datasets import TactileGrasps, default_cache_dir, noise_bank
+from event_transforms.tactile.simulation import SimulatorConfig
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from event_transforms.models import ConvLSTM, ConvLSTMCell, ForceRegressor
+from event_transforms.tactile.models import ConvLSTM, ConvLSTMCell, ForceRegressor
 
 H, W = 17, 11
 

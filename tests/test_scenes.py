@@ -18,7 +18,7 @@ from event_transforms import (
     RandomTemporalEventShift,
 )
 from event_transforms import functional as F
-from event_transforms.datasets import AugmentedDataset
+from event_transforms.data import AugmentedDataset
 from event_transforms.scenes import ResizeToTarget, Scene, ScenePolicy
 
 T, H, W = 5, 17, 11

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from event_transforms import simulation
+from event_transforms.tactile import simulation
 from event_transforms.functional.spatial import resize
-from event_transforms.simulation import (
+from event_transforms.tactile.simulation import (
     EVENT_DTYPE,
     SimulatorConfig,
     contact_half_width,

@@ -1,4 +1,4 @@
-"""Tests for the training loop (event_transforms.training) and the protocol (event_transforms.protocol)."""
+"""Tests for the training loop (event_transforms.tactile.training) and the protocol (event_transforms.tactile.protocol)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import torch
 from torch import nn
 from torch.utils.data import Dataset
 
-from event_transforms.models import ForceRegressor
-from event_transforms.training import (
+from event_transforms.tactile.models import ForceRegressor
+from event_transforms.tactile.training import (
     Stopwatch,
     TimedTransform,
     collate,

@@ -3,7 +3,7 @@
 :class:`TactileGrasps` follows the paper's split: 48 training sequences (24 with the
 12 mm bolt, 24 with the 18 mm bolt), 6 validation and 6 test sequences with the unseen
 15 mm bolt, each sequence 36 frames of 10 ms cropped to 140×150 around the contact and
-pooled 2×2 to 70×75. The data come from :mod:`event_transforms.simulation` (the paper's
+pooled 2×2 to 70×75. The data come from :mod:`event_transforms.tactile.simulation` (the paper's
 recordings are not public), are generated once into a cache directory and reused.
 Results on them are results on synthetic data.
 
@@ -15,7 +15,6 @@ from __future__ import annotations
 
 __all__ = [
     "TactileGrasps",
-    "AugmentedDataset",
     "noise_bank",
     "default_cache_dir",
     "SPLITS",
@@ -23,7 +22,6 @@ __all__ = [
 
 import dataclasses
 import hashlib
-import inspect
 import json
 import os
 import tempfile
@@ -37,7 +35,8 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset
 
-from .functional.events import events_to_frames
+from ..data import _accepts, _call
+from ..functional.events import events_to_frames
 from .simulation import (
     SIMULATOR_VERSION,
     Recording,
@@ -135,7 +134,7 @@ class TactileGrasps(Dataset):
         split: ``"train"`` (12 and 18 mm bolts, 48 sequences), ``"val"`` or ``"test"``
             (15 mm bolt, 6 each).
         root: cache directory (default :func:`default_cache_dir`).
-        config: simulator settings (default :class:`~event_transforms.simulation.SimulatorConfig`).
+        config: simulator settings (default :class:`~event_transforms.tactile.simulation.SimulatorConfig`).
         seed: seed of the first sequence; sequence ``k`` of the whole set uses ``seed + k``.
         transform: optional callable applied to the frames of each item (it receives
             ``metadata=meta`` too when its call accepts a ``metadata`` argument).
@@ -300,116 +299,3 @@ def noise_bank(
         crop=(top, left, crop_h, crop_w),
         pool=pool,
     )
-
-
-# --------------------------------------------------------------------------- augmentation
-
-
-def _accepts(transform: object) -> tuple[bool, bool]:
-    """Whether calling ``transform`` accepts ``generator=`` and ``metadata=`` keywords."""
-    if transform is None:
-        return False, False
-    target = transform.forward if isinstance(transform, torch.nn.Module) else transform
-    try:
-        parameters = inspect.signature(target).parameters
-    except (TypeError, ValueError):
-        return False, False
-    anything = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters.values())
-    return anything or "generator" in parameters, anything or "metadata" in parameters
-
-
-def _call(
-    transform: Callable[..., Tensor],
-    frames: Tensor,
-    generator: torch.Generator | None,
-    meta: Mapping[str, Any],
-    accepts: tuple[bool, bool],
-) -> Tensor:
-    kwargs: dict[str, Any] = {}
-    if accepts[0]:
-        kwargs["generator"] = generator
-    if accepts[1]:
-        kwargs["metadata"] = meta
-    return transform(frames, **kwargs)
-
-
-def _copy_seed(seed: int, index: int) -> int:
-    """A 63-bit seed for synthetic item ``index``, mixed by ``SeedSequence``."""
-    return int(np.random.SeedSequence([seed, index]).generate_state(1, np.uint64)[0] >> np.uint64(1))
-
-
-class AugmentedDataset(Dataset):
-    """A data set followed by ``copies`` synthetic versions of each of its items.
-
-    Item ``i < len(base)`` is the original; item ``c · len(base) + j`` (``c ≥ 1``) is
-    synthetic copy ``c`` of item ``j``: ``transform`` applied to its frames, its label and
-    metadata unchanged (the paper keeps the ground truth). With ``fixed=True`` each copy
-    is a deterministic function of ``(seed, i)`` — a ``torch.Generator`` seeded from both —
-    so every epoch and every worker sees the same set, as the paper's offline doubling.
-    With ``fixed=False`` copies are drawn afresh on every access from torch's global RNG
-    (DataLoader workers are seeded differently, so they differ).
-
-    A transform whose call accepts ``metadata=`` (e.g. a scene policy resizing by
-    target / source size) receives the item's metadata dict. Fixed copies draw from a CPU
-    generator, so the base items should be CPU tensors (move batches to the GPU later).
-
-    Args:
-        base: a data set of ``(frames, label, meta)`` or ``(frames, label)`` items.
-        transform: event transform called as ``transform(frames, generator=g)``.
-        copies: synthetic copies per item (1 doubles the set).
-        fixed: deterministic copies (True) or fresh ones per access (False).
-        seed: seed of the fixed copies.
-
-    Example:
-        >>> def add_one(frames, *, generator=None):
-        ...     return frames + 1
-        >>> base = [(torch.zeros(36, 2, 4, 4), torch.ones(36), {"index": 0})]
-        >>> data = AugmentedDataset(base, add_one, copies=2)
-        >>> len(data), [float(data[i][0].max()) for i in range(3)]
-        (3, [0.0, 1.0, 1.0])
-    """
-
-    def __init__(
-        self,
-        base: Dataset,
-        transform: Callable[..., Tensor],
-        copies: int = 1,
-        *,
-        fixed: bool = True,
-        seed: int = 0,
-    ) -> None:
-        if isinstance(copies, bool) or not isinstance(copies, (int, np.integer)) or copies < 0:
-            raise ValueError(f"copies must be a non-negative integer, got {copies!r}")
-        if not callable(transform):
-            raise TypeError(f"transform must be callable, got {type(transform).__name__}")
-        self.base = base
-        self.transform = transform
-        self.copies = int(copies)
-        self.fixed = bool(fixed)
-        self.seed = _check_seed(seed)
-        self._accepts = _accepts(transform)
-
-    def __len__(self) -> int:
-        return len(self.base) * (1 + self.copies)
-
-    def __getitem__(self, index: int) -> tuple[Any, ...]:
-        if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
-            raise TypeError(f"index must be an integer, got {type(index).__name__}")
-        if not -len(self) <= index < len(self):
-            raise IndexError(f"index {index} is out of range for {len(self)} items")
-        index = int(index) % len(self)
-        item = self.base[index % len(self.base)]
-        if index < len(self.base):
-            return item
-        frames, rest = item[0], tuple(item[1:])
-        meta = rest[1] if len(rest) > 1 and isinstance(rest[1], Mapping) else {}
-        generator = torch.Generator().manual_seed(_copy_seed(self.seed, index)) if self.fixed else None
-        with torch.no_grad():
-            frames = _call(self.transform, frames, generator, meta, self._accepts)
-        return (frames, *rest)
-
-    def __repr__(self) -> str:
-        return (
-            f"{type(self).__name__}(n={len(self)}, copies={self.copies}, fixed={self.fixed}, "
-            f"seed={self.seed}, transform={self.transform!r})"
-        )

@@ -1,6 +1,6 @@
 """Command line: ``event-transforms reproduce | simulate | show``.
 
-``reproduce`` runs the paper's protocol (:mod:`event_transforms.protocol`) on the simulated
+``reproduce`` runs the paper's protocol (:mod:`event_transforms.tactile.protocol`) on the simulated
 tactile grasps. Without ``--full`` it runs a quick configuration (fewer seeds and epochs,
 a narrower model) that finishes in minutes on a 2-core CPU; ``--full`` uses the paper's
 10 seeds and patience 20. Results are on synthetic data, never the paper's numbers.
@@ -274,7 +274,8 @@ def _simulate(args: argparse.Namespace) -> int:
 def _show(args: argparse.Namespace) -> int:
     import torch
 
-    from . import datasets, viz
+    from .. import viz
+    from . import datasets
     from .protocol import parse_method
 
     root = None if args.root is None else str(args.root)

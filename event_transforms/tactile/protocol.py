@@ -2,8 +2,8 @@
 
 Train on the 12 mm and 18 mm bolts (48 sequences) plus ``copies`` synthetic copies of each
 (the paper doubles the set: ``copies=1``), validate and test on the unseen 15 mm bolt, with
-the reference :class:`~event_transforms.models.ForceRegressor`, Adam, MSE and early
-stopping (:func:`~event_transforms.training.fit`). Each method runs once per seed; the
+the reference :class:`~event_transforms.tactile.models.ForceRegressor`, Adam, MSE and early
+stopping (:func:`~event_transforms.tactile.training.fit`). Each method runs once per seed; the
 summary gives mean ± standard deviation over seeds (sample standard deviation, n − 1).
 
 Method names (:func:`parse_method`):
@@ -126,7 +126,7 @@ class Method:
             >>> Method.from_scene("scene", scene).build(12.0).effects
             ('lag', 'size')
         """
-        from .scenes import Scene
+        from ..scenes import Scene
 
         if isinstance(scene, Scene):
             policy = scene.policy(combination)
@@ -206,7 +206,7 @@ def parse_method(name: str, *, copies: int = 1) -> Method:
     if base == "independent":
         return Method(name, lambda d, bank=None: et.OneOf([_resize_for(d), et.FrameShift(-1)]), copies)
     if base in ("scene", "scene-hybrid"):
-        from .scenes import Scene
+        from ..scenes import Scene
 
         scene = Scene(training_sizes=(12.0, 18.0), target_size=TARGET_DIAMETER_MM, lag_shifts=(-1,))
         combination = "hybrid" if base == "scene-hybrid" else "independent"
@@ -298,12 +298,12 @@ def build_training_set(
 
     Items are grouped by bolt diameter so that a diameter-dependent policy (resize by
     target / source size) gets its own transform per group; each group is an
-    :class:`~event_transforms.datasets.AugmentedDataset` whose transform is wrapped in a
-    :class:`~event_transforms.training.TimedTransform` reporting to ``stopwatch``.
+    :class:`~event_transforms.tactile.datasets.AugmentedDataset` whose transform is wrapped in a
+    :class:`~event_transforms.tactile.training.TimedTransform` reporting to ``stopwatch``.
     """
     if method.copies == 0 or method.transform_for is None:
         return data.train
-    from .datasets import AugmentedDataset
+    from ..data import AugmentedDataset
 
     diameters = [_diameter(data.train, i) for i in range(len(data.train))]
     parts: list[Dataset] = []

@@ -290,7 +290,7 @@ def fit(
 
     Example:
         >>> from torch.utils.data import TensorDataset
-        >>> from event_transforms.models import ForceRegressor
+        >>> from event_transforms.tactile.models import ForceRegressor
         >>> seed_everything(0)
         >>> x = torch.poisson(torch.full((4, 6, 2, 12, 12), 0.5))
         >>> data = TensorDataset(x, x.sum((2, 3, 4)) / 100)
