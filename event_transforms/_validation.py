@@ -1,86 +1,151 @@
-"""Input checks shared by every public entry point.
+"""Input checks shared by every public entry point, and the one definition of each mode set.
 
 Each check raises ``ValueError`` or ``TypeError`` naming the argument and the value seen;
-nothing is clamped or repaired. Checks that need the tensor's values (negative counts,
-NaN, integer-valued counts) reduce on the tensor's own device and synchronise once per
-call, at the public boundary, never inside a loop.
+nothing is clamped or repaired. Checks run once, at the public boundary (a functional
+kernel, or a module's ``forward``); private kernels behind it trust their input.
+
+Two kinds of frame check:
+
+- :func:`check_frames` looks at the type, dtype and shape only. It costs nothing and never
+  reads the values, so it never waits for an accelerator.
+- :func:`check_counts` reads the values (negative, NaN/Inf, optionally whole numbers) with
+  one reduction and one host synchronisation. Kernels whose result depends on the values
+  being counts (temporal event shifting, event drop, noise added to integer frames) run it
+  on the entries they touch; kernels that only move or interpolate values do not.
 """
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import math
-from collections.abc import Iterator, Sequence
-from typing import Callable
+from collections.abc import Callable, Sequence
+from numbers import Integral, Real
+from typing import Any
 
+import numpy as np
 import torch
 from torch import Tensor
 
 __all__ = [
+    "INTERPOLATIONS",
+    "TES_MODES",
+    "DROP_MODES",
     "check_frames",
-    "as_batch",
-    "is_integer_valued",
-    "check_integer_valued",
-    "per_sample",
-    "check_fraction",
+    "check_counts",
+    "check_shape",
+    "check_choice",
+    "as_number",
+    "check_positive",
+    "check_probability",
+    "check_pair",
     "check_generator",
+    "as_batch",
+    "per_sample",
+    "describe",
 ]
 
-# True while a module runs on frames whose values it has already checked: the kernels it
-# calls (and nested containers) then skip the value pass, so a call reads its input for
-# validation once, not once per kernel.
-_VALUES_CHECKED: contextvars.ContextVar[bool] = contextvars.ContextVar("values_checked", default=False)
+#: Sampling modes of the interpolating warps (rotate, resize, affine).
+INTERPOLATIONS = ("bilinear", "nearest")
+#: How temporal event shifting chooses the moved events.
+TES_MODES = ("exact", "binomial", "expected")
+#: How random event drop thins the counts.
+DROP_MODES = ("binomial", "expected")
+
+#: Dtypes whose values frames may hold (torch's unsigned 16/32/64-bit types lack the
+#: arithmetic the kernels need, so they are refused by name).
+FRAME_DTYPES = (
+    torch.uint8, torch.int8, torch.int16, torch.int32, torch.int64,
+    torch.float16, torch.bfloat16, torch.float32, torch.float64,
+)
+INTEGER_DTYPES = (torch.uint8, torch.int8, torch.int16, torch.int32, torch.int64)
 
 
-@contextlib.contextmanager
-def values_checked() -> Iterator[None]:
-    """Within this block ``check_frames`` checks shapes and dtypes but not values again."""
-    token = _VALUES_CHECKED.set(True)
-    try:
-        yield
-    finally:
-        _VALUES_CHECKED.reset(token)
+def describe(value: object) -> str:
+    """A short description of ``value`` for error messages."""
+    if isinstance(value, Tensor):
+        if value.numel() <= 8:
+            return f"tensor {value.tolist()!r} of dtype {value.dtype}"
+        return f"tensor of shape {tuple(value.shape)} and dtype {value.dtype}"
+    if isinstance(value, np.ndarray):
+        return f"numpy array of shape {value.shape} and dtype {value.dtype}"
+    return repr(value)
 
 
-_INTEGER_DTYPES = {torch.uint8, torch.int8, torch.int16, torch.int32, torch.int64}
+# --------------------------------------------------------------------------- frames
 
 
-def _describe(x: object) -> str:
-    if isinstance(x, Tensor):
-        return f"tensor of shape {tuple(x.shape)} and dtype {x.dtype}"
-    return repr(x)
+def check_frames(frames: object, name: str = "frames") -> Tensor:
+    """Check that ``frames`` is event frames ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
 
-
-def check_frames(frames: object, name: str = "frames", *, check_values: bool = True) -> Tensor:
-    """Check an event-frame tensor (T, 2, H, W) or (B, T, 2, H, W) and return it.
+    Looks at the type, dtype and shape only (free, no host synchronisation).
 
     Raises:
-        TypeError: not a tensor, or a bool/complex dtype.
-        ValueError: wrong rank, polarity axis not 2, negative counts or NaN/Inf.
+        TypeError: not a tensor, or a dtype that cannot hold counts (bool, complex,
+            unsigned 16/32/64-bit).
+        ValueError: wrong rank, or a polarity axis that is not 2.
+
+    Example:
+        >>> check_frames(torch.zeros(36, 3, 70, 75))
+        Traceback (most recent call last):
+        ...
+        ValueError: frames: expected (T, 2, H, W) or (B, T, 2, H, W), got (36, 3, 70, 75)
     """
     if not isinstance(frames, Tensor):
         raise TypeError(f"{name} must be a torch.Tensor, got {type(frames).__name__}")
-    if frames.dtype == torch.bool or frames.is_complex():
-        raise TypeError(f"{name} must hold integer or float event counts, got dtype {frames.dtype}")
+    if frames.dtype not in FRAME_DTYPES:
+        raise TypeError(
+            f"{name} must hold event counts in an integer (uint8, int8, int16, int32, int64) "
+            f"or float dtype, got {frames.dtype}"
+        )
     if frames.dim() not in (4, 5) or frames.shape[-3] != 2:
         raise ValueError(
             f"{name}: expected (T, 2, H, W) or (B, T, 2, H, W), got {tuple(frames.shape)}"
         )
-    if check_values and frames.numel() > 0 and frames.dtype != torch.uint8 and not _VALUES_CHECKED.get():
-        # one pass over the data: the minimum is NaN if any value is, and the maximum
-        # is +Inf if any value is.
-        low, high = torch.aminmax(frames)
-        finite, negative = torch.stack(
-            [torch.isfinite(low) & torch.isfinite(high), low < 0]
-        ).tolist()  # a single host sync for both checks
-        if not finite:
-            raise ValueError(f"{name} must be finite, got NaN or Inf values")
-        if negative:
-            raise ValueError(
-                f"{name} must hold non-negative event counts, got minimum {low.item()}"
-            )
     return frames
+
+
+def check_counts(values: Tensor, name: str = "frames", *, whole: str | None = None) -> None:
+    """Raise unless ``values`` are finite, non-negative (and whole numbers if ``whole``).
+
+    One reduction and one host synchronisation for any number of checks. ``whole`` is
+    the hint appended to the error when a float value is not a whole number; ``None``
+    skips that check. Integer dtypes skip everything but the sign.
+
+    Example:
+        >>> check_counts(torch.tensor([1.0, 2.5]), whole="use mode='expected'")
+        Traceback (most recent call last):
+        ...
+        ValueError: frames must hold whole event counts, got 2.5; use mode='expected'
+    """
+    if values.numel() == 0 or values.dtype == torch.uint8:
+        return
+    if not values.is_floating_point():
+        low = values.min()
+        if bool(low < 0):
+            raise ValueError(f"{name} must hold non-negative event counts, got minimum {low.item()}")
+        return
+    low, high = torch.aminmax(values)
+    checks = [low.isfinite() & high.isfinite(), low >= 0]
+    if whole is not None:
+        checks.append((values == values.round()).all())
+    flags = torch.stack(checks).tolist()  # one synchronisation for every check
+    if not flags[0]:
+        raise ValueError(f"{name} must be finite, got NaN or Inf values")
+    if not flags[1]:
+        raise ValueError(f"{name} must hold non-negative event counts, got minimum {low.item()}")
+    if whole is not None and not flags[2]:
+        bad = values[values != values.round()].flatten()[0].item()
+        raise ValueError(f"{name} must hold whole event counts, got {bad!r}; {whole}")
+
+
+def check_shape(shape: object, name: str = "shape") -> torch.Size:
+    """A batch shape ``(B, T, 2, H, W)`` of non-negative sizes, as ``torch.Size``."""
+    if isinstance(shape, Tensor) or not isinstance(shape, Sequence) or isinstance(shape, str):
+        raise TypeError(f"{name} must be a batch shape (B, T, 2, H, W), got {describe(shape)}")
+    if len(shape) != 5 or any(isinstance(s, bool) or not isinstance(s, Integral) for s in shape):
+        raise ValueError(f"{name} must be a batch shape (B, T, 2, H, W) of integers, got {tuple(shape)!r}")
+    if any(int(s) < 0 for s in shape) or int(shape[2]) != 2:
+        raise ValueError(f"{name} must be a batch shape (B, T, 2, H, W) with sizes >= 0, got {tuple(shape)!r}")
+    return torch.Size(int(s) for s in shape)
 
 
 def as_batch(frames: Tensor) -> tuple[Tensor, Callable[[Tensor], Tensor]]:
@@ -90,67 +155,114 @@ def as_batch(frames: Tensor) -> tuple[Tensor, Callable[[Tensor], Tensor]]:
     return frames, lambda out: out
 
 
-def is_integer_valued(frames: Tensor) -> bool:
-    """True when every value is a whole number (always true for integer dtypes)."""
-    if frames.dtype in _INTEGER_DTYPES or frames.numel() == 0:
-        return True
-    return bool((frames == torch.round(frames)).all())
+# --------------------------------------------------------------------------- numbers
 
 
-def check_integer_valued(frames: Tensor, name: str, hint: str) -> None:
-    """Raise ``ValueError`` when ``frames`` holds non-integer counts."""
-    if not is_integer_valued(frames):
-        bad = frames[frames != torch.round(frames)].flatten()[0].item()
-        raise ValueError(f"{name} must hold integer-valued event counts, got {bad!r}; {hint}")
-
-
-def per_sample(
-    value: float | int | Sequence[float] | Tensor,
-    batch: int,
+def as_number(
+    value: object,
     name: str,
     *,
-    dtype: torch.dtype = torch.float64,
-    device: torch.device | str | None = None,
-) -> Tensor:
-    """Turn a scalar or a (B,) sequence/tensor into a (B,) tensor on ``device``.
+    low: float = -math.inf,
+    high: float = math.inf,
+    integer: bool = False,
+    finite: bool = True,
+) -> Any:
+    """A real scalar (Python, numpy or 0-d tensor) within [low, high], as float (or int).
 
-    Raises:
-        TypeError: not a number, sequence or tensor.
-        ValueError: a tensor/sequence whose length is not the batch size, or NaN.
+    Example:
+        >>> as_number(np.float32(0.5), "fraction", low=0, high=1)
+        0.5
+        >>> as_number(torch.tensor(3), "shift", integer=True)
+        3
     """
-    if isinstance(value, bool):
-        raise TypeError(f"{name} must be a number or a (B,) tensor, got {value!r}")
-    if isinstance(value, (int, float)):
-        out = torch.full((batch,), value, dtype=dtype)
-    elif isinstance(value, (Tensor, Sequence)):
-        out = torch.as_tensor(value)
-        if out.dtype == torch.bool or out.is_complex():
-            raise TypeError(f"{name} must be real numbers, got dtype {out.dtype}")
-        if out.dim() == 0:
-            out = out.expand(batch)
-        if out.dim() != 1 or out.shape[0] != batch:
-            raise ValueError(
-                f"{name} must be a scalar or have shape ({batch},) to match the batch, "
-                f"got {_describe(value)}"
-            )
-        out = out.to(dtype)
+    if isinstance(value, Tensor):
+        if value.dim() != 0 or value.dtype == torch.bool or value.is_complex():
+            raise TypeError(f"{name} must be a real number, got {describe(value)}")
+        value = value.item()
+    elif isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, Real):
+        raise TypeError(f"{name} must be a real number, got {value!r}")
+    if integer:
+        if not isinstance(value, Integral):
+            if not (math.isfinite(value) and float(value).is_integer()):
+                raise TypeError(f"{name} must be an integer, got {value!r}")
+        number: Any = int(value)
     else:
-        raise TypeError(
-            f"{name} must be a number or a (B,) tensor, got {type(value).__name__}"
-        )
-    if out.is_floating_point() and out.numel() and bool(torch.isnan(out).any()):
-        raise ValueError(f"{name} must not be NaN, got {_describe(value)}")
-    return out.to(device) if device is not None else out
+        number = float(value)
+        if math.isnan(number) or (finite and math.isinf(number)):
+            raise ValueError(f"{name} must be a finite number, got {value!r}")
+    if not low <= number <= high:
+        raise ValueError(f"{name} must lie in [{low}, {high}], got {value!r}")
+    return number
 
 
-def check_fraction(fraction: Tensor, name: str = "fraction") -> None:
-    """Raise ``ValueError`` unless every entry lies in [0, 1]."""
-    if fraction.numel() and bool(((fraction < 0) | (fraction > 1)).any()):
-        raise ValueError(f"{name} must lie in [0, 1], got {fraction.tolist()}")
+def check_positive(value: object, name: str, *, integer: bool = False) -> Any:
+    """A finite number > 0 (an int >= 1 if ``integer``)."""
+    number = as_number(value, name, integer=integer)
+    if number <= 0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")
+    return number
+
+
+def check_probability(value: object, name: str = "p") -> float:
+    """A probability in [0, 1]."""
+    return as_number(value, name, low=0.0, high=1.0)
+
+
+def check_pair(
+    value: object,
+    name: str,
+    *,
+    symmetric: bool = False,
+    low: float = -math.inf,
+    high: float = math.inf,
+    single: bool = False,
+) -> tuple[float, float]:
+    """A checked ``(min, max)`` range with ``min <= max`` inside [low, high].
+
+    A single number ``x`` means ``(-x, x)`` when ``symmetric`` (then x >= 0), or
+    ``(x, x)`` when ``single``; otherwise a single number is refused.
+
+    Example:
+        >>> check_pair(45, "degrees", symmetric=True)
+        (-45.0, 45.0)
+        >>> check_pair((np.float64(0.1), torch.tensor(0.5)), "fraction", low=0, high=1)
+        (0.1, 0.5)
+    """
+    scalar = isinstance(value, (Real, np.generic)) or (
+        isinstance(value, (Tensor, np.ndarray)) and value.ndim == 0
+    )
+    if scalar:
+        number = as_number(value, name)
+        if symmetric:
+            if number < 0:
+                raise ValueError(f"{name} as a single number must be >= 0, got {value!r}")
+            pair = (-number, number)
+        elif single:
+            pair = (number, number)
+        else:
+            raise TypeError(f"{name} must be a (min, max) pair, got {value!r}")
+    else:
+        if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, Tensor, np.ndarray)) or len(value) != 2:
+            raise TypeError(f"{name} must be a number or a (min, max) pair, got {describe(value)}")
+        pair = (as_number(value[0], name), as_number(value[1], name))
+    if pair[0] > pair[1]:
+        raise ValueError(f"{name} must satisfy min <= max, got {describe(value)}")
+    if pair[0] < low or pair[1] > high:
+        raise ValueError(f"{name} must lie in [{low}, {high}], got {describe(value)}")
+    return pair
+
+
+def check_choice(value: object, name: str, choices: Sequence[str]) -> str:
+    """One of ``choices``."""
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name} must be one of {tuple(choices)}, got {value!r}")
+    return value
 
 
 def check_generator(generator: object, device: torch.device, name: str = "generator") -> None:
-    """Raise unless ``generator`` is ``None`` or a ``torch.Generator`` on ``device``."""
+    """Raise unless ``generator`` is ``None`` or a ``torch.Generator`` on ``device``'s type."""
     if generator is None:
         return
     if not isinstance(generator, torch.Generator):
@@ -162,10 +274,44 @@ def check_generator(generator: object, device: torch.device, name: str = "genera
         )
 
 
-def check_number(value: object, name: str, *, low: float = -math.inf, high: float = math.inf) -> float:
-    """Check a real scalar within [low, high] and return it as float."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
-    if not (low <= value <= high) or math.isnan(value):
-        raise ValueError(f"{name} must lie in [{low}, {high}], got {value!r}")
-    return float(value)
+def per_sample(
+    value: object,
+    batch: int,
+    name: str,
+    *,
+    dtype: torch.dtype = torch.float64,
+) -> Tensor:
+    """A scalar or a (B,) sequence/array/tensor as a (B,) CPU tensor of ``dtype``.
+
+    Raises:
+        TypeError: not a real number, sequence, array or tensor; a float for an integer dtype
+            that is not a whole number.
+        ValueError: a length that is not the batch size, or NaN.
+    """
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a number or a (B,) tensor, got {value!r}")
+    if isinstance(value, (Real, np.generic)):
+        integer = not dtype.is_floating_point
+        return torch.full((batch,), as_number(value, name, finite=False, integer=integer), dtype=dtype)
+    elif isinstance(value, (Tensor, Sequence, np.ndarray)) and not isinstance(value, (str, bytes)):
+        try:
+            out = torch.as_tensor(np.asarray(value) if isinstance(value, Sequence) else value)
+        except (TypeError, ValueError, RuntimeError):
+            raise TypeError(f"{name} must hold real numbers, got {value!r}") from None
+        if out.dtype == torch.bool or out.is_complex():
+            raise TypeError(f"{name} must hold real numbers, got dtype {out.dtype}")
+        out = out.detach().cpu()
+        if out.dim() == 0:
+            out = out.expand(batch)
+        if out.dim() != 1 or out.shape[0] != batch:
+            raise ValueError(
+                f"{name} must be a scalar or have shape ({batch},) to match the batch, got {describe(value)}"
+            )
+    else:
+        raise TypeError(f"{name} must be a number or a (B,) tensor, got {type(value).__name__}")
+    if out.is_floating_point() and out.numel() and bool(out.isnan().any()):
+        raise ValueError(f"{name} must not be NaN, got {describe(value)}")
+    if not dtype.is_floating_point and out.is_floating_point():
+        if out.numel() and not bool((out.isfinite() & (out == out.round())).all()):
+            raise TypeError(f"{name} must hold integers, got {describe(value)}")
+    return out.to(dtype)

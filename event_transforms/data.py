@@ -8,7 +8,6 @@ from __future__ import annotations
 
 __all__ = ["AugmentedDataset"]
 
-import inspect
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -17,39 +16,13 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset
 
+from .transforms.base import EventTransform, as_transform
+
 
 def _check_seed(seed: object) -> int:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     return int(seed)
-
-
-def _accepts(transform: object) -> tuple[bool, bool]:
-    """Whether calling ``transform`` accepts ``generator=`` and ``metadata=`` keywords."""
-    if transform is None:
-        return False, False
-    target = transform.forward if isinstance(transform, torch.nn.Module) else transform
-    try:
-        parameters = inspect.signature(target).parameters
-    except (TypeError, ValueError):
-        return False, False
-    anything = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters.values())
-    return anything or "generator" in parameters, anything or "metadata" in parameters
-
-
-def _call(
-    transform: Callable[..., Tensor],
-    frames: Tensor,
-    generator: torch.Generator | None,
-    meta: Mapping[str, Any],
-    accepts: tuple[bool, bool],
-) -> Tensor:
-    kwargs: dict[str, Any] = {}
-    if accepts[0]:
-        kwargs["generator"] = generator
-    if accepts[1]:
-        kwargs["metadata"] = meta
-    return transform(frames, **kwargs)
 
 
 def _copy_seed(seed: int, index: int) -> int:
@@ -68,19 +41,21 @@ class AugmentedDataset(Dataset):
     With ``fixed=False`` copies are drawn afresh on every access from torch's global RNG
     (DataLoader workers are seeded differently, so they differ).
 
-    A transform whose call accepts ``metadata=`` (e.g. a scene policy resizing by
-    target / source size) receives the item's metadata dict. Fixed copies draw from a CPU
-    generator, so the base items should be CPU tensors (move batches to the GPU later).
+    The transform is called as ``transform(frames, generator=g, metadata=meta)`` with the
+    item's metadata dict (so a scene policy can resize by target / source size); a plain
+    callable is wrapped by :func:`~event_transforms.as_transform` and called as
+    ``transform(frames)``. Fixed copies draw from a CPU generator, so the base items should
+    be CPU tensors (move batches to the GPU later).
 
     Args:
         base: a data set of ``(frames, label, meta)`` or ``(frames, label)`` items.
-        transform: event transform called as ``transform(frames, generator=g)``.
+        transform: an event transform, or a callable ``frames -> frames``.
         copies: synthetic copies per item (1 doubles the set).
         fixed: deterministic copies (True) or fresh ones per access (False).
         seed: seed of the fixed copies.
 
     Example:
-        >>> def add_one(frames, *, generator=None):
+        >>> def add_one(frames):
         ...     return frames + 1
         >>> base = [(torch.zeros(36, 2, 4, 4), torch.ones(36), {"index": 0})]
         >>> data = AugmentedDataset(base, add_one, copies=2)
@@ -91,7 +66,7 @@ class AugmentedDataset(Dataset):
     def __init__(
         self,
         base: Dataset,
-        transform: Callable[..., Tensor],
+        transform: EventTransform | Callable[[Tensor], Tensor],
         copies: int = 1,
         *,
         fixed: bool = True,
@@ -99,14 +74,11 @@ class AugmentedDataset(Dataset):
     ) -> None:
         if isinstance(copies, bool) or not isinstance(copies, (int, np.integer)) or copies < 0:
             raise ValueError(f"copies must be a non-negative integer, got {copies!r}")
-        if not callable(transform):
-            raise TypeError(f"transform must be callable, got {type(transform).__name__}")
         self.base = base
-        self.transform = transform
+        self.transform = as_transform(transform)
         self.copies = int(copies)
         self.fixed = bool(fixed)
         self.seed = _check_seed(seed)
-        self._accepts = _accepts(transform)
 
     def __len__(self) -> int:
         return len(self.base) * (1 + self.copies)
@@ -124,7 +96,7 @@ class AugmentedDataset(Dataset):
         meta = rest[1] if len(rest) > 1 and isinstance(rest[1], Mapping) else {}
         generator = torch.Generator().manual_seed(_copy_seed(self.seed, index)) if self.fixed else None
         with torch.no_grad():
-            frames = _call(self.transform, frames, generator, meta, self._accepts)
+            frames = self.transform(frames, generator=generator, metadata=meta)
         return (frames, *rest)
 
     def __repr__(self) -> str:

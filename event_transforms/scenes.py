@@ -1,6 +1,6 @@
 """Scenes: say which physical effects vary in your setup; get the transform that simulates them.
 
-An augmentation simulates a physical effect (DESIGN §5). A :class:`Scene` declares which
+An augmentation simulates a physical effect. A :class:`Scene` declares which
 effects really vary between the training data and the data the model will meet, and
 :meth:`Scene.policy` builds a transform that simulates exactly those and nothing else:
 
@@ -25,7 +25,7 @@ counts, so it runs before interpolation), then size, orientation, and noise last
 
 from __future__ import annotations
 
-__all__ = ["Scene", "ScenePolicy", "ResizeToTarget"]
+__all__ = ["Scene", "ResizeToTarget", "metadata_values"]
 
 import math
 from collections.abc import Mapping, Sequence
@@ -35,31 +35,68 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from . import functional as F
-from ._validation import check_number, per_sample
+from ._validation import as_number, check_positive, describe, per_sample
 from .functional.spatial import Center
-from .transforms.base import EventTransform, Params, apply_by_group
+from .transforms.base import EventTransform, Params
 from .transforms.containers import Compose, OneOf
 from .transforms.noise import AddNoise, AddPoissonNoise
-from .transforms.spatial import RandomRotation, _check_center, _check_mode
+from .transforms.spatial import RandomRotation, _Zoom
 from .transforms.temporal import RandomFrameShift, RandomTemporalEventShift
 
 _COMBINATIONS = ("independent", "hybrid")
 
+Metadata = Mapping[str, Any] | Sequence[Mapping[str, Any]] | None
 
-class ResizeToTarget(EventTransform):
+
+def metadata_values(metadata: Metadata, key: str, batch: int, *, owner: str = "transform") -> Tensor:
+    """Each sample's ``metadata[key]`` as a (B,) float64 CPU tensor.
+
+    ``metadata`` is a dict holding a number (one sequence, or one value for the whole
+    batch) or a (B,) sequence/array/tensor (as ``default_collate`` makes it), or a list of
+    B dicts (one per sample).
+
+    Example:
+        >>> metadata_values([{"d": 12.0}, {"d": 18.0}], "d", 2)
+        tensor([12., 18.], dtype=torch.float64)
+        >>> metadata_values({"d": torch.tensor([12.0, 18.0])}, "d", 2)
+        tensor([12., 18.], dtype=torch.float64)
+    """
+    if isinstance(metadata, Sequence) and not isinstance(metadata, (str, bytes)) and all(
+        isinstance(m, Mapping) for m in metadata
+    ):
+        if len(metadata) != batch or any(key not in m for m in metadata):
+            raise ValueError(
+                f"{owner} needs metadata[{key!r}] for each of the {batch} samples, got "
+                f"{len(metadata)} dicts"
+            )
+        values: Any = [m[key] for m in metadata]
+    elif isinstance(metadata, Mapping) and key in metadata:
+        values = metadata[key]
+    else:
+        raise ValueError(
+            f"{owner} needs each sample's {key!r}: call it (or the container holding it) with "
+            f"metadata={{{key!r}: ...}}, got metadata={metadata!r}"
+        )
+    if isinstance(values, list) and values and isinstance(values[0], Tensor):
+        values = torch.stack([torch.as_tensor(v) for v in values])
+    return per_sample(values, batch, f"metadata[{key!r}]")
+
+
+class ResizeToTarget(_Zoom):
     """Resize each sample so its object looks ``target_size`` large: β = (target / source)^e.
 
-    The source size of each sample comes from its metadata (``metadata[key]``: a number
-    for one sequence, a (B,) sequence or tensor for a batch, as ``default_collate`` makes
-    it). The exponent ``e`` is 1 for the paper's β = target / source; a contact whose width
-    grows as √D (Hertz line contact) calls for ``e = 1/2``.
+    ``make_params`` reads each sample's source size from its metadata (see
+    :func:`metadata_values`: a dict of numbers or (B,) values, or a list of dicts) and
+    stores β in ``params["scale"]``; containers hand the batch's metadata to it. The
+    exponent ``e`` is 1 for the paper's β = target / source; a contact whose width grows as
+    √D (Hertz line contact) calls for ``e = 1/2``.
 
     Args:
         target_size: the size to imitate (e.g. 15.0 mm).
         key: the metadata entry holding each sample's size.
         exponent: e above (> 0).
         center, mode: as in :func:`event_transforms.functional.resize`.
+        p: probability that a sample is resized.
 
     Example:
         >>> transform = ResizeToTarget(15.0, center="image")
@@ -78,135 +115,30 @@ class ResizeToTarget(EventTransform):
         exponent: float = 1.0,
         center: Center = "mass",
         mode: str = "bilinear",
+        p: float = 1.0,
     ) -> None:
-        super().__init__()
-        self.target_size = check_number(target_size, "target_size", low=0.0)
-        if self.target_size == 0 or math.isinf(self.target_size):
-            raise ValueError(f"target_size must be a positive finite number, got {target_size!r}")
-        self.exponent = check_number(exponent, "exponent", low=0.0, high=1e3)
-        if self.exponent == 0:
-            raise ValueError(f"exponent must be > 0, got {exponent!r}")
+        super().__init__(center=center, mode=mode, p=p)
+        self.target_size = check_positive(target_size, "target_size")
+        self.exponent = check_positive(exponent, "exponent")
         if not isinstance(key, str):
             raise TypeError(f"key must be a string, got {key!r}")
         self.key = key
-        self.center = _check_center(center)
-        self.mode = _check_mode(mode)
 
-    def scales(self, metadata: Mapping[str, Any] | None, batch_size: int) -> Tensor:
-        """β for each of ``batch_size`` samples, as a float64 (B,) CPU tensor."""
-        if not isinstance(metadata, Mapping) or self.key not in metadata:
-            raise ValueError(
-                f"{type(self).__name__} needs each sample's size: call it (or the scene policy "
-                f"holding it) with metadata={{{self.key!r}: ...}}, got metadata={metadata!r}"
-            )
-        source = metadata[self.key]
-        if isinstance(source, Tensor):
-            source = source.detach().cpu()
-        source = per_sample(source, batch_size, f"metadata[{self.key!r}]")
-        if batch_size and not bool((torch.isfinite(source) & (source > 0)).all()):
-            raise ValueError(f"metadata[{self.key!r}] must hold positive sizes, got {source.tolist()}")
-        return (self.target_size / source) ** self.exponent
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        source = metadata_values(metadata, self.key, shape[0], owner=type(self).__name__)
+        if source.numel() and not bool((source.isfinite() & (source > 0)).all()):
+            raise ValueError(f"metadata[{self.key!r}] must hold positive sizes, got {describe(source)}")
+        return {"scale": (self.target_size / source) ** self.exponent}
 
-    def forward(
-        self,
-        frames: Tensor,
-        *,
-        generator: torch.Generator | None = None,
-        params: Params | None = None,
-        metadata: Mapping[str, Any] | None = None,
-    ) -> Tensor:
-        """Resize ``frames`` by each sample's β (from ``metadata`` unless ``params`` given)."""
-        if params is None:
-            batch_size = 1 if frames.dim() == 4 else frames.shape[0]
-            params = {"scale": self.scales(metadata, batch_size)}
-        return super().forward(frames, generator=generator, params=params)
-
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {"scale": self.scales(None, batch_size)}  # raises: β needs metadata
-
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.resize(frames, params["scale"], center=self.center, mode=self.mode)
-
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         return (
             f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, "
-            f"center={self.center!r}, mode={self.mode!r}"
+            f"{self._common()}"
         )
 
 
-class ScenePolicy(EventTransform):
-    """The transform a :class:`Scene` builds: its effects combined independently or stacked.
-
-    ``transform`` is the plain container (:class:`~event_transforms.OneOf` for the
-    independent combination, :class:`~event_transforms.Compose` for the hybrid), kept for
-    inspection; calling the policy runs the same combination and also hands each sample's
-    β to :class:`ResizeToTarget` from ``metadata``.
-
-    Args:
-        transform: a ``OneOf`` or ``Compose`` of the effects' transforms.
-        effects: the names of the effects, in the order of ``transform``'s members.
-    """
-
-    def __init__(self, transform: OneOf | Compose, effects: Sequence[str]) -> None:
-        super().__init__()
-        if not isinstance(transform, (OneOf, Compose)):
-            raise TypeError(f"transform must be a OneOf or a Compose, got {type(transform).__name__}")
-        if len(effects) != len(transform.transforms):
-            raise ValueError(f"effects must name each of the {len(transform.transforms)} transforms, got {effects!r}")
-        self.transform = transform
-        self.effects = tuple(effects)
-
-    @property
-    def independent(self) -> bool:
-        return isinstance(self.transform, OneOf)
-
-    def _resize(self) -> ResizeToTarget | None:
-        return next((t for t in self.transform.transforms if isinstance(t, ResizeToTarget)), None)
-
-    def forward(
-        self,
-        frames: Tensor,
-        *,
-        generator: torch.Generator | None = None,
-        params: Params | None = None,
-        metadata: Mapping[str, Any] | None = None,
-    ) -> Tensor:
-        """Apply the policy; ``metadata`` gives each sample's size when the scene resizes."""
-        resize = self._resize()
-        if params is None and resize is not None:
-            batch_size = 1 if frames.dim() == 4 else frames.shape[0]
-            scale = resize.scales(metadata, batch_size)  # check before drawing anything
-            params = {**self.make_params(batch_size, generator=generator), "scale": scale}
-        return super().forward(frames, generator=generator, params=params)
-
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return self.transform.make_params(batch_size, generator=generator)
-
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        def run(transform: torch.nn.Module, sub: Tensor, index: Tensor) -> Tensor:
-            if isinstance(transform, ResizeToTarget):
-                return transform(sub, generator=generator, params={"scale": params["scale"][index]})
-            return transform(sub, generator=generator)
-
-        members = list(self.transform.transforms)
-        if self.independent:
-            branches = [lambda sub, index, t=t: run(t, sub, index) for t in members]
-            return apply_by_group(frames, params["index"], branches)
-        everything = torch.arange(frames.shape[0])
-        for transform in members:
-            frames = run(transform, frames, everything)
-        return frames
-
-    def extra_repr(self) -> str:
-        combination = "independent" if self.independent else "hybrid"
-        return f"effects={self.effects}, combination={combination!r}"
-
-
 def _positive(value: object, name: str) -> float:
-    number = check_number(value, name, low=0.0)
-    if number == 0 or math.isinf(number):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return number
+    return check_positive(value, name)
 
 
 @dataclass(frozen=True)
@@ -320,7 +252,7 @@ class Scene:
         weights: Sequence[float] | None = None,
         center: Center = "mass",
         mode: str = "bilinear",
-    ) -> ScenePolicy:
+    ) -> OneOf | Compose:
         """Build the transform simulating this scene's effects.
 
         Args:
@@ -332,9 +264,10 @@ class Scene:
             center, mode: passed to the resize and rotation.
 
         Returns:
-            A :class:`ScenePolicy`; call it with ``metadata=`` when the scene resizes
-            (``AugmentedDataset`` passes each item's metadata). A scene without effects
-            gives the identity.
+            A plain :class:`~event_transforms.OneOf` (independent) or
+            :class:`~event_transforms.Compose` (hybrid); call it with ``metadata=`` when
+            the scene resizes (``AugmentedDataset`` passes each item's metadata). A scene
+            without effects gives an empty ``Compose``, the identity.
         """
         if combination not in _COMBINATIONS:
             raise ValueError(f"combination must be one of {_COMBINATIONS}, got {combination!r}")
@@ -345,7 +278,7 @@ class Scene:
             if weights is not None:
                 raise ValueError("weights apply to the independent combination only")
             container = Compose(members)
-        return ScenePolicy(container, self.effects)
+        return container
 
 
 def _spread(value: object, low: float | None = None) -> float:

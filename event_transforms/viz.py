@@ -15,8 +15,6 @@ from typing import Any
 
 import torch
 from torch import Tensor
-from torchvision.utils import make_grid, save_image
-
 from ._validation import check_frames
 
 Color = Sequence[int]
@@ -65,7 +63,7 @@ def frames_to_rgb(
         >>> frames_to_rgb(frames, gamma=1.0)[0, :, 0].T.tolist()
         [[20, 90, 255], [242, 148, 142], [255, 255, 255]]
     """
-    check_frames(frames, check_values=False)
+    check_frames(frames)
     if not (isinstance(gamma, (int, float)) and gamma > 0):
         raise ValueError(f"gamma must be a positive number, got {gamma!r}")
     on, off, back = (
@@ -128,6 +126,8 @@ def make_event_grid(
     images = rgb.flatten(0, -4)
     if images.shape[0] == 0:
         raise ValueError(f"frames must hold at least one frame, got shape {tuple(frames.shape)}")
+    from torchvision.utils import make_grid  # imported on first use: torchvision is slow to import
+
     return make_grid(images, nrow=max(1, int(nrow)), padding=padding, pad_value=pad_value)
 
 
@@ -147,6 +147,8 @@ def _write(image: Tensor, path: str | os.PathLike[str]) -> Path:
     """Save a uint8 (3, H, W) image losslessly (PNG by the file's suffix)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    from torchvision.utils import save_image
+
     save_image(image.to(torch.float32) / 255, path)  # save_image rounds back to the same bytes
     return path
 
@@ -167,11 +169,12 @@ def compare_transform(
 
     Args:
         frames: counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
-        transform: called as ``transform(frames, generator=generator)`` (plus
-            ``metadata=metadata`` when given).
+        transform: an event transform, called as
+            ``transform(frames, generator=generator, metadata=metadata)``, or a callable
+            ``frames -> frames``.
         path: where to write the PNG (optional).
         generator: passed to the transform.
-        metadata: passed to the transform when not ``None``.
+        metadata: passed to the transform.
         **kwargs: passed to :func:`make_event_grid`.
 
     Returns:
@@ -182,12 +185,11 @@ def compare_transform(
         >>> compare_transform(torch.ones(4, 2, 5, 6), HorizontalFlip(), padding=0).shape
         torch.Size([3, 10, 24])
     """
-    check_frames(frames, check_values=False)
-    call: dict[str, Any] = {"generator": generator}
-    if metadata is not None:
-        call["metadata"] = metadata
+    from .transforms.base import as_transform
+
+    check_frames(frames)
     with torch.no_grad():
-        after = transform(frames, **call)
+        after = as_transform(transform)(frames, generator=generator, metadata=metadata)
     before = frames.unsqueeze(0) if frames.dim() == 4 else frames
     after = after.unsqueeze(0) if after.dim() == 4 else after
     if after.shape != before.shape:

@@ -31,10 +31,17 @@ class TestCompose:
         frames = sparse_frames(2, 6, 2, H, W)
         assert torch.equal(et.Compose([nn.Identity(), et.FrameShift(0)])(frames), frames)
 
-    def test_rejects_non_modules(self):
-        with pytest.raises(TypeError, match="transforms"):
-            et.Compose([lambda x: x])
-        with pytest.raises(TypeError, match="transforms"):
+    def test_accepts_plain_callables(self):
+        frames = sparse_frames(2, 6, 2, H, W)
+        pipeline = et.Compose([lambda x: 2 * x, et.FrameShift(-1)])
+        assert isinstance(pipeline.transforms[0], et.Lambda)
+        assert torch.equal(pipeline(frames), et.FrameShift(-1)(2 * frames))
+        assert pipeline.make_params(frames.shape)["0"] == {}
+
+    def test_rejects_non_callables(self):
+        with pytest.raises(TypeError, match=r"transforms\[1\] must be an EventTransform or a callable, got int"):
+            et.Compose([et.FrameShift(1), 3])
+        with pytest.raises(TypeError, match="transforms must be a sequence"):
             et.Compose(et.FrameShift(1))
 
 
@@ -42,7 +49,7 @@ class TestOneOf:
     def test_each_sample_gets_exactly_its_branch(self):
         frames = sparse_frames(40, 5, 2, H, W, density=0.3)
         one_of = et.OneOf([et.FrameShift(1), et.HorizontalFlip(), et.VerticalFlip()])
-        params = one_of.make_params(40, generator=gen())
+        params = one_of.make_params((40, 6, 2, 9, 11), generator=gen())
         out = one_of(frames, params=params)
         branches = [et.FrameShift(1)(frames), frames.flip(-1), frames.flip(-2)]
         for b in range(40):
@@ -51,10 +58,10 @@ class TestOneOf:
 
     def test_weights(self):
         one_of = et.OneOf([et.FrameShift(1), et.HorizontalFlip()], weights=[3.0, 1.0])
-        index = one_of.make_params(4000, generator=gen())["index"]
+        index = one_of.make_params((4000, 6, 2, 9, 11), generator=gen())["index"]
         assert float(index.eq(0).double().mean()) == pytest.approx(0.75, abs=0.03)
         never = et.OneOf([et.FrameShift(1), et.HorizontalFlip()], weights=[0.0, 1.0])
-        assert never.make_params(100, generator=gen())["index"].eq(1).all()
+        assert never.make_params((100, 6, 2, 9, 11), generator=gen())["index"].eq(1).all()
 
     def test_dtype_does_not_depend_on_the_draw(self):
         frames = sparse_frames(1, 5, 2, H, W, dtype=torch.int16)
@@ -94,7 +101,7 @@ class TestRandomApply:
     def test_per_sample_gate(self):
         frames = sparse_frames(50, 5, 2, H, W, density=0.3)
         gate = et.RandomApply(et.HorizontalFlip(), p=0.3)
-        params = gate.make_params(50, generator=gen())
+        params = gate.make_params((50, 6, 2, 9, 11), generator=gen())
         out = gate(frames, params=params)
         for b in range(50):
             assert torch.equal(out[b], frames[b].flip(-1) if params["apply"][b] else frames[b])
@@ -108,8 +115,8 @@ class TestRandomApply:
     def test_bad_settings(self):
         with pytest.raises(ValueError, match="p must lie"):
             et.RandomApply(et.HorizontalFlip(), p=-0.1)
-        with pytest.raises(TypeError, match="transform"):
-            et.RandomApply(lambda x: x)
+        with pytest.raises(TypeError, match="transform must be an EventTransform or a callable, got str"):
+            et.RandomApply("flip")
 
 
 def test_paper_independent_and_hybrid():

@@ -9,8 +9,10 @@ import pytest
 import torch
 from torch.utils.data import DataLoader, default_collate
 
+import event_transforms as et
 from event_transforms.tactile import datasets
 from event_transforms.data import AugmentedDataset
+from event_transforms.scenes import metadata_values
 from event_transforms.tactile.datasets import TactileGrasps, default_cache_dir, noise_bank
 from event_transforms.tactile.simulation import SimulatorConfig
 
@@ -99,14 +101,9 @@ class TestTactileGrasps:
         assert np.array_equal(recording.force, test[2][1].numpy())
 
     def test_transform_receives_metadata(self, root):
-        seen = []
-
-        def transform(frames, *, metadata):
-            seen.append(metadata["diameter_mm"])
-            return frames * 0
-
-        val = TactileGrasps("val", root=root, transform=transform)
-        assert val[0][0].sum() == 0 and seen == [15.0]
+        val = TactileGrasps("val", root=root, transform=ScaleBySize())
+        plain = TactileGrasps("val", root=root)
+        torch.testing.assert_close(val[0][0], plain[0][0] * 15.0)
 
     def test_bad_split_raises(self, root):
         with pytest.raises(ValueError, match="split"):
@@ -152,8 +149,27 @@ class _Base(torch.utils.data.Dataset):
         return torch.full((4, 2, 3, 5), float(i)), torch.tensor([float(i)]), {"diameter_mm": 12.0 + i, "index": i}
 
 
-def add_noise(frames, *, generator=None):
-    return frames + torch.rand(frames.shape, generator=generator)
+class AddUniform(et.EventTransform):
+    """A random transform with the library's contract: its draw lives in make_params."""
+
+    def sample_params(self, shape, *, generator=None, metadata=None):
+        return {"noise": torch.rand(shape, generator=generator)}
+
+    def apply(self, frames, params):
+        return frames + params["noise"]
+
+
+class ScaleBySize(et.EventTransform):
+    """Reads each sample's size from the metadata, as ResizeToTarget does."""
+
+    def sample_params(self, shape, *, generator=None, metadata=None):
+        return {"size": metadata_values(metadata, "diameter_mm", shape[0])}
+
+    def apply(self, frames, params):
+        return frames * params["size"].view(-1, 1, 1, 1, 1).to(frames.dtype)
+
+
+add_noise = AddUniform()
 
 
 class TestAugmentedDataset:
@@ -186,11 +202,8 @@ class TestAugmentedDataset:
         torch.manual_seed(0)
         assert torch.equal(first, data[3][0])
 
-    def test_metadata_hook(self):
-        def scale_by_size(frames, *, generator=None, metadata=None):
-            return frames * metadata["diameter_mm"]
-
-        data = AugmentedDataset(_Base(), scale_by_size)
+    def test_metadata_reaches_the_transform(self):
+        data = AugmentedDataset(_Base(), ScaleBySize())
         assert data[4][0].max().item() == 1.0 * 13.0
 
     def test_plain_callable_and_zero_copies(self):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import pickle
 
+import numpy as np
 import pytest
 import torch
 
@@ -13,13 +14,14 @@ from event_transforms import (
     AddPoissonNoise,
     Compose,
     OneOf,
+    RandomHorizontalFlip,
     RandomFrameShift,
     RandomRotation,
     RandomTemporalEventShift,
 )
 from event_transforms import functional as F
 from event_transforms.data import AugmentedDataset
-from event_transforms.scenes import ResizeToTarget, Scene, ScenePolicy
+from event_transforms.scenes import ResizeToTarget, Scene, metadata_values
 
 T, H, W = 5, 17, 11
 
@@ -60,7 +62,7 @@ class TestSceneEffects:
         assert sorted(type(t).__name__ for t in built) == sorted(EFFECT_TYPES[e].__name__ for e in effects)
         for combination in ("independent", "hybrid"):
             policy = scene.policy(combination)
-            kinds = {type(t) for t in policy.transform.transforms}
+            kinds = {type(t) for t in policy.transforms}
             for effect, kind in EFFECT_TYPES.items():
                 assert (kind in kinds) == (effect in effects)
 
@@ -91,8 +93,11 @@ class TestSceneEffects:
         scene = Scene(noise=1.0, orientation_deg=10.0, target_size=15.0, lag_shifts=(-1,))
         assert scene.effects == ("lag", "size", "orientation", "noise")
         policy = scene.policy("hybrid")
-        assert isinstance(policy.transform, Compose) and not policy.independent
-        assert isinstance(scene.policy().transform, OneOf) and scene.policy().independent
+        assert isinstance(policy, Compose)
+        assert [type(t).__name__ for t in policy.transforms] == [
+            "RandomFrameShift", "ResizeToTarget", "RandomRotation", "AddPoissonNoise"
+        ]
+        assert isinstance(scene.policy(), OneOf)
 
     @pytest.mark.parametrize(
         "fields, error",
@@ -124,7 +129,7 @@ class TestResizeToTarget:
 
     def test_exponent(self):
         transform = ResizeToTarget(15.0, exponent=0.5)
-        scales = transform.scales({"diameter_mm": [12.0, 18.0]}, 2)
+        scales = transform.make_params((2, T, 2, H, W), metadata={"diameter_mm": [12.0, 18.0]})["scale"]
         torch.testing.assert_close(scales, torch.tensor([1.25, 15 / 18], dtype=torch.float64) ** 0.5)
 
     def test_single_sequence_with_number(self):
@@ -141,7 +146,19 @@ class TestResizeToTarget:
         with pytest.raises(ValueError, match="positive"):
             transform(frames_batch(2), metadata={"diameter_mm": [12.0, 0.0]})
         with pytest.raises(ValueError, match="metadata"):
-            OneOf([transform])(frames_batch())  # a plain container cannot pass metadata
+            OneOf([transform])(frames_batch())  # the container passes metadata on: none given
+
+    def test_metadata_forms(self):
+        frames = frames_batch(2)
+        expected = F.resize(frames, torch.tensor([1.25, 15 / 18], dtype=torch.float64))
+        per_item = [{"diameter_mm": 12.0}, {"diameter_mm": 18.0}]  # a list of dicts
+        torch.testing.assert_close(ResizeToTarget(15.0)(frames, metadata=per_item), expected)
+        collated = {"diameter_mm": np.array([12.0, 18.0])}  # numpy values
+        torch.testing.assert_close(ResizeToTarget(15.0)(frames, metadata=collated), expected)
+        sample = {"frames": frames, "diameter_mm": torch.tensor([12.0, 18.0])}  # a dict input
+        torch.testing.assert_close(ResizeToTarget(15.0)(sample)["frames"], expected)
+        with pytest.raises(ValueError, match="each of the 2 samples"):
+            metadata_values([{"diameter_mm": 12.0}], "diameter_mm", 2)
 
     def test_input_unchanged_and_pickles(self):
         frames = frames_batch()
@@ -153,10 +170,10 @@ class TestResizeToTarget:
         assert repr(clone) == repr(transform)
 
 
-class TestScenePolicy:
+class TestScenePolicies:
     def _candidates(self, frames, meta):
         """Every deterministic effect of EFFECT_FIELDS applied alone, per sample."""
-        beta = ResizeToTarget(15.0).scales(meta, frames.shape[0])
+        beta = metadata_values(meta, "diameter_mm", frames.shape[0]).reciprocal() * 15.0
         return {
             "lag": F.frame_shift(frames, -1),
             "size": F.resize(frames, beta),
@@ -179,7 +196,7 @@ class TestScenePolicy:
         scene = Scene(**EFFECT_FIELDS["lag"], **EFFECT_FIELDS["size"], **EFFECT_FIELDS["orientation"])
         frames, meta = frames_batch(), sizes()
         out = scene.policy("hybrid")(frames, metadata=meta)
-        beta = ResizeToTarget(15.0).scales(meta, 4)
+        beta = metadata_values(meta, "diameter_mm", 4).reciprocal() * 15.0
         expected = F.rotate(F.resize(F.frame_shift(frames, -1), beta), 30.0 + 1e-9)
         torch.testing.assert_close(out, expected)
 
@@ -205,7 +222,21 @@ class TestScenePolicy:
     def test_pickles_and_repr(self):
         policy = Scene(**EFFECT_FIELDS["size"], **EFFECT_FIELDS["noise"]).policy()
         clone = pickle.loads(pickle.dumps(policy))
-        assert isinstance(clone, ScenePolicy) and "effects=('size', 'noise')" in repr(clone)
+        assert isinstance(clone, OneOf) and repr(clone) == repr(policy)
+        assert [type(t).__name__ for t in clone.transforms] == ["ResizeToTarget", "AddNoise"]
+
+    def test_policy_composes_with_other_transforms(self):
+        # a user's pipeline around a scene policy: metadata reaches the policy's resize
+        scene = Scene(**EFFECT_FIELDS["size"], **EFFECT_FIELDS["lag"])
+        pipeline = Compose([scene.policy(), RandomHorizontalFlip(p=1.0)])
+        frames, meta = frames_batch(), sizes()
+        params = pipeline.make_params(frames.shape, metadata=meta, generator=torch.Generator().manual_seed(0))
+        out = pipeline(frames, params=params)
+        index = params["0"]["index"]
+        beta = metadata_values(meta, "diameter_mm", 4).reciprocal() * 15.0
+        for i in range(4):
+            alone = F.frame_shift(frames[i], -1) if index[i] == 0 else F.resize(frames[i], float(beta[i]))
+            torch.testing.assert_close(out[i], alone.flip(-1))
 
     def test_augmented_dataset_passes_metadata(self):
         frames = frames_batch(2)

@@ -195,26 +195,26 @@ class TestFlips:
     def test_random_flip_per_sample(self):
         frames = sparse_frames(64, 2, 2, H, W, density=0.3)
         flip = et.RandomHorizontalFlip(p=0.5)
-        params = flip.make_params(64, generator=torch.Generator().manual_seed(0))
+        params = flip.make_params((64, 6, 2, 9, 11), generator=torch.Generator().manual_seed(0))
         out = flip(frames, params=params)
         for b in range(64):
-            expected = frames[b].flip(-1) if params["flip"][b] else frames[b]
+            expected = frames[b].flip(-1) if params["apply"][b] else frames[b]
             assert torch.equal(out[b], expected)
-        assert 10 < int(params["flip"].sum()) < 54
+        assert 10 < int(params["apply"].sum()) < 54
 
 
 class TestModules:
     def test_random_rotation_draws_per_sample_and_applies_them(self):
         frames = sparse_frames(5, 3, 2, H, W, density=0.2)
         module = et.RandomRotation((-30.0, 60.0))
-        params = module.make_params(5, generator=torch.Generator().manual_seed(1))
+        params = module.make_params((5, 6, 2, 9, 11), generator=torch.Generator().manual_seed(1))
         assert params["angle"].unique().numel() == 5
         assert bool((params["angle"] >= -30).all() & (params["angle"] <= 60).all())
         torch.testing.assert_close(module(frames, params=params), F.rotate(frames, params["angle"]))
 
     def test_random_resize_choices(self):
         module = et.RandomResize(choices=(15 / 18, 15 / 12))
-        scales = module.make_params(200, generator=torch.Generator().manual_seed(0))["scale"]
+        scales = module.make_params((200, 6, 2, 9, 11), generator=torch.Generator().manual_seed(0))["scale"]
         assert set(scales.tolist()) == {15 / 18, 15 / 12}
 
     def test_random_resize_needs_one_setting(self):

@@ -14,7 +14,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from event_transforms import functional as F
-from event_transforms.functional.temporal import _moved_counts
+from event_transforms._validation import as_batch
+from event_transforms.transforms.base import kernel_generator
+from event_transforms.functional.temporal import _draw_moved, _entries, _fractions
 from event_transforms.transforms import (
     FrameShift,
     RandomFrameShift,
@@ -31,6 +33,21 @@ ALL_DTYPES = [
 ]
 MODES = ["exact", "binomial", "expected"]
 
+
+
+def _moved_counts(frames, fraction, *, mode="exact", generator=None):
+    """The moved counts Z that ``temporal_event_shift`` draws (same generator use), dense.
+
+    With equal generator states, ``temporal_event_shift(frames, j, fraction)`` equals
+    ``frames - Z + frame_shift(Z, j)``.
+    """
+    batch, unbatch = as_batch(frames)
+    fractions = _fractions(fraction, batch.shape[0])
+    index, sample, values = _entries(batch, whole=True)
+    moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
+    out = torch.zeros(batch.numel(), dtype=frames.dtype, device=frames.device)
+    out[index] = moved.to(frames.dtype)
+    return unbatch(out.view(batch.shape))
 
 def gen(seed: int = 0) -> torch.Generator:
     return torch.Generator().manual_seed(seed)
@@ -122,7 +139,7 @@ class TestFrameShift:
             F.frame_shift(frames, 1.5)
         with pytest.raises(TypeError, match="shift"):
             F.frame_shift(frames, True)
-        with pytest.raises(ValueError, match="whole"):
+        with pytest.raises(TypeError, match="shift must hold integers"):
             F.frame_shift(frames, torch.tensor([0.5, 1.0]))
         with pytest.raises(ValueError, match="shift"):
             F.frame_shift(frames, torch.tensor([1, 2, 3]))
@@ -343,7 +360,7 @@ class TestTemporalEventShift:
             F.temporal_event_shift(frames, -1, torch.tensor([0.5, -0.1]))
         with pytest.raises(TypeError, match="shift"):
             F.temporal_event_shift(frames, 0.5, 0.5)
-        with pytest.raises(ValueError, match="shift"):
+        with pytest.raises(TypeError, match="shift must hold integers"):
             F.temporal_event_shift(frames, torch.tensor([0.5, 1.0]), 0.5)
         with pytest.raises(ValueError, match="'poisson'"):
             F.temporal_event_shift(frames, -1, 0.5, mode="poisson")
@@ -401,7 +418,7 @@ class TestModules:
     )
     def test_random_frame_shift(self, shifts, allowed):
         module = RandomFrameShift(shifts)
-        params = module.make_params(200, generator=gen())
+        params = module.make_params((200, 6, 2, 9, 11), generator=gen())
         assert params["shift"].shape == (200,) and params["shift"].dtype == torch.int64
         assert set(params["shift"].tolist()) == allowed  # one draw per sample, all values reached
         frames = sparse_frames(200, 4, 2, 3, 2)
@@ -422,8 +439,16 @@ class TestModules:
     def test_temporal_event_shift(self, mode):
         module = TemporalEventShift(-2, 0.5, mode=mode)
         frames = sparse_frames(3, 5, 2, H, W, high=7, density=0.3)
-        out = module(frames, generator=gen(5))
-        assert torch.equal(out, F.temporal_event_shift(frames, -2, 0.5, mode=mode, generator=gen(5)))
+        params = module.make_params(frames.shape, generator=gen(5))
+        out = module(frames, params=params)
+        if mode == "expected":  # deterministic: no seed
+            assert sorted(params) == ["fraction", "shift"]
+            kernel = None
+        else:  # the kernel draws from a generator seeded by the per-sample seeds in params
+            assert params["seed"].shape == (3,) and params["seed"].dtype == torch.int64
+            kernel = kernel_generator(params["seed"], frames.device)
+        assert torch.equal(out, F.temporal_event_shift(frames, -2, 0.5, mode=mode, generator=kernel))
+        assert torch.equal(module(frames, generator=gen(5)), out)
         assert repr(module) == f"TemporalEventShift(shift=-2, fraction=0.5, mode={mode!r})"
         check_pickle(module, frames)
         with pytest.raises(ValueError, match="fraction"):
@@ -433,18 +458,19 @@ class TestModules:
 
     def test_random_temporal_event_shift(self):
         module = RandomTemporalEventShift((-2, -1), (0.25, 0.75))
-        params = module.make_params(300, generator=gen(1))
+        params = module.make_params((300, 6, 2, 9, 11), generator=gen(1))
         assert set(params["shift"].tolist()) == {-2, -1}
         assert params["fraction"].dtype == torch.float64
         assert 0.25 <= params["fraction"].min() and params["fraction"].max() <= 0.75
         assert params["fraction"].std() > 0.1  # per sample, not one per batch
         frames = sparse_frames(300, 4, 2, 3, 5, high=9, density=0.6, dtype=torch.int64)
-        out = module(frames, params=params, generator=gen(2))
-        expected = F.temporal_event_shift(frames, params["shift"], params["fraction"], generator=gen(2))
+        out = module(frames, params=params)
+        kernel = kernel_generator(params["seed"], frames.device)
+        expected = F.temporal_event_shift(frames, params["shift"], params["fraction"], generator=kernel)
         assert torch.equal(out, expected)
         check_pickle(module, frames[:4])
         fixed = RandomTemporalEventShift(range(-1, 2), 0.5, mode="binomial")
-        assert torch.equal(fixed.make_params(5)["fraction"], torch.full((5,), 0.5, dtype=torch.float64))
+        assert torch.equal(fixed.make_params((5, 6, 2, 9, 11))["fraction"], torch.full((5,), 0.5, dtype=torch.float64))
         assert repr(fixed) == "RandomTemporalEventShift(shifts=(-1, 0, 1), fractions=(0.5, 0.5), mode='binomial')"
         with pytest.raises(ValueError, match="fractions"):
             RandomTemporalEventShift((-1,), (0.5, 1.5))

@@ -12,6 +12,8 @@ import torch
 from torch import nn
 from torch.utils.data import Dataset
 
+import event_transforms as et
+
 from event_transforms.tactile.models import ForceRegressor
 from event_transforms.tactile.training import (
     Stopwatch,
@@ -76,11 +78,14 @@ class OnTheFly(Dataset):
         return self.transform(frames), force, meta
 
 
-class Jitter(nn.Module):
+class Jitter(et.EventTransform):
     """A random transform drawing from the global RNG (for determinism tests)."""
 
-    def forward(self, frames, *, generator=None):
-        return frames + torch.poisson(torch.full_like(frames, 0.1), generator=generator)
+    def sample_params(self, shape, *, generator=None, metadata=None):
+        return {"noise": torch.poisson(torch.full(shape, 0.1), generator=generator)}
+
+    def apply(self, frames, params):
+        return frames + params["noise"].to(frames.dtype)
 
 
 class Constant(nn.Module):
@@ -149,7 +154,7 @@ class TestFit:
         watch = Stopwatch()
         aug = OnTheFly(train, TimedTransform(Jitter(), watch))
         result = fit(tiny_model(), aug, val, epochs=2, patience=2, stopwatch=watch, progress=False)
-        assert watch.calls == 2 * len(train)
+        assert watch.calls == 2 * 2 * len(train)  # 2 epochs; each call times its draw and its application
         assert all(r.augmentation_s > 0 for r in result.history)
         assert sum(r.augmentation_s for r in result.history) == pytest.approx(watch.seconds)
         assert result.augmentation_s_per_epoch <= result.train_s_per_epoch
@@ -224,9 +229,13 @@ class TestPredictAndMetrics:
         watch = Stopwatch()
         timed = TimedTransform(nn.Identity(), watch)
         x = torch.rand(2, 2, 3, 3)
-        assert timed(x) is x and watch.calls == 1
-        with pytest.raises(TypeError, match="transform"):
-            TimedTransform(lambda x: x)
+        assert torch.equal(timed(x), x) and watch.calls == 2  # the draw and the application
+        frames = torch.poisson(torch.full((3, 4, 2, 5, 5), 0.5))
+        rotation = et.RandomRotation(30.0)
+        params = TimedTransform(rotation).make_params(frames.shape, generator=torch.Generator().manual_seed(0))
+        assert torch.equal(TimedTransform(rotation)(frames, params=params), rotation(frames, params=params))
+        with pytest.raises(TypeError, match="transform must be an EventTransform or a callable, got int"):
+            TimedTransform(3)
 
 
 class TestResume:

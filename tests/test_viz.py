@@ -93,15 +93,17 @@ class TestCompareTransform:
         assert (tmp_path / "cmp.png").exists()
 
     def test_batch_and_metadata(self):
-        seen = {}
+        import event_transforms as et
 
-        def record(x, *, generator=None, metadata=None):
-            seen["metadata"] = metadata
-            return x
-
-        grid = compare_transform(sample(batch=3, t=2), record, metadata={"diameter_mm": 12.0}, padding=0)
-        assert grid.shape == (3, 6 * 17, 2 * 11) and seen["metadata"] == {"diameter_mm": 12.0}
+        resize = et.ResizeToTarget(15.0, center="image")  # reads each sample's size from metadata
+        frames = sample(batch=3, t=2)
+        grid = compare_transform(frames, resize, metadata={"diameter_mm": 12.0}, padding=0)
+        assert grid.shape == (3, 6 * 17, 2 * 11)
+        expected = compare_transform(frames, lambda x: et.Resize(1.25, center="image")(x), padding=0)
+        assert torch.equal(grid, expected)
+        with pytest.raises(ValueError, match="diameter_mm"):
+            compare_transform(frames, resize)
 
     def test_shape_change_raises(self):
         with pytest.raises(ValueError, match="shape"):
-            compare_transform(sample(t=2), lambda x, generator=None: x[:1])
+            compare_transform(sample(t=2), lambda x: x[:, :1])

@@ -13,12 +13,14 @@ import torch
 from torch import Tensor
 
 from .._validation import (
+    DROP_MODES,
     as_batch,
-    check_fraction,
+    check_choice,
+    check_counts,
     check_frames,
     check_generator,
-    check_integer_valued,
-    check_number,
+    check_positive,
+    describe,
     per_sample,
 )
 
@@ -89,8 +91,8 @@ def add_noise(frames: Tensor, noise: Tensor) -> Tensor:
             f"noise must have the frames' shape {tuple(frames.shape)} or {tuple(frames.shape[-4:])}, "
             f"got {tuple(noise.shape)}"
         )
-    if not frames.is_floating_point():
-        check_integer_valued(noise, "noise", "integer frames need integer-valued noise counts")
+    hint = None if frames.is_floating_point() else "integer frames need whole noise counts"
+    check_counts(noise, "noise", whole=hint)
     return _add_counts(frames, noise.to(frames.device), "noise")
 
 
@@ -125,31 +127,53 @@ def add_poisson_noise(
         >>> int(out.sum())  # expected 5 Hz * 0.36 s * 2 * 70 * 75 = 18900
         18884
     """
-    check_frames(frames)
-    frame_ms = check_number(frame_ms, "frame_ms", low=0.0)
-    if frame_ms == 0:
-        raise ValueError(f"frame_ms must be > 0, got {frame_ms!r}")
+    batch, unbatch = as_batch(check_frames(frames))
+    frame_ms = check_positive(frame_ms, "frame_ms")
     check_generator(generator, frames.device)
-    batch, unbatch = as_batch(frames)
-    b = batch.shape[0]
-    rate = per_sample(rate_hz, b, "rate_hz")
-    if rate.numel() and not bool((torch.isfinite(rate) & (rate >= 0)).all()):
-        raise ValueError(f"rate_hz must be finite and >= 0, got {rate.tolist()}")
+    rate = per_sample(rate_hz, batch.shape[0], "rate_hz")
+    if rate.numel() and not bool((rate.isfinite() & (rate >= 0)).all()):
+        raise ValueError(f"rate_hz must be finite and >= 0, got {describe(rate_hz)}")
+    return unbatch(_add_poisson_noise(batch, rate * (frame_ms / 1000.0), generator=generator))
+
+
+def _poisson_totals(lam: Tensor, shape: torch.Size, generator: torch.Generator | None) -> Tensor | None:
+    """Per-sample totals Poisson(λ·cells) (int64 CPU) for sparse noise, or ``None`` if dense.
+
+    ``lam`` is the (B,) mean count per cell (CPU float64). Below one event per cell the noise
+    is placed event by event (the totals, then uniform positions); otherwise cell by cell.
+    """
+    if lam.numel() == 0 or float(lam.max()) >= 1.0:
+        return None
+    cells = float(torch.Size(shape[1:]).numel())
+    return torch.poisson(lam * cells, generator=generator).to(torch.int64)
+
+
+def _add_poisson_noise(
+    batch: Tensor, lam: Tensor, *, totals: Tensor | None = None, generator: torch.Generator | None
+) -> Tensor:
+    """Add Poisson(λ_b) counts per cell to a (B, T, 2, H, W) batch; ``lam`` (B,) CPU float64.
+
+    With ``totals`` (B,) (CPU int64, from :func:`poisson_totals`) the events are placed
+    uniformly among the cells: exactly independent Poisson(λ) per cell (Poissonisation), in
+    O(events) work and with no host synchronisation. Without, sparse noise draws its totals
+    here and dense noise draws every cell with ``torch.poisson``.
+    """
     if batch.numel() == 0:
-        return frames.clone()
-    lam = rate * (frame_ms / 1000.0)  # (B,) float64, CPU
-    cells = batch[0].numel()
+        return batch.clone()
     device = batch.device
-    if float(lam.max()) < 1.0:
-        totals = torch.poisson((lam * cells).to(device), generator=generator).long()
+    cells = batch[0].numel()
+    if totals is None and lam.numel() and float(lam.max()) < 1.0:
+        totals = torch.poisson((lam * cells).to(device), generator=generator).long().cpu()
+    if totals is not None:
         count = int(totals.sum())
         position = torch.randint(cells, (count,), generator=generator, device=device)
-        sample = torch.repeat_interleave(torch.arange(b, device=device), totals, output_size=count)
-        return unbatch(_add_events(batch, sample * cells + position))
-    else:
-        rates = lam.to(device=device, dtype=torch.float64).view(b, 1, 1, 1, 1).expand(batch.shape)
-        noise = torch.poisson(rates.contiguous(), generator=generator)
-    return unbatch(_add_counts(batch, noise, "Poisson noise"))
+        sample = torch.repeat_interleave(
+            torch.arange(batch.shape[0], device=device), totals.to(device), output_size=count
+        )
+        return _add_events(batch, sample * cells + position)
+    rates = lam.to(device=device, dtype=torch.float64).view(-1, 1, 1, 1, 1).expand(batch.shape)
+    noise = torch.poisson(rates.contiguous(), generator=generator)
+    return _add_counts(batch, noise, "Poisson noise")
 
 
 def drop_events(
@@ -178,31 +202,33 @@ def drop_events(
         >>> out.dtype, int(out.sum()), bool((out <= frames).all())
         (torch.int32, 2562, True)
     """
-    check_frames(frames)
-    if mode not in ("binomial", "expected"):
-        raise ValueError(f"mode must be 'binomial' or 'expected', got {mode!r}")
+    batch, unbatch = as_batch(check_frames(frames))
+    check_choice(mode, "mode", DROP_MODES)
     check_generator(generator, frames.device)
-    batch, unbatch = as_batch(frames)
     fraction_t = per_sample(fraction, batch.shape[0], "fraction")
-    check_fraction(fraction_t)
-    keep = (1.0 - fraction_t).view(-1, 1, 1, 1, 1)
+    if fraction_t.numel() and bool(((fraction_t < 0) | (fraction_t > 1)).any()):
+        raise ValueError(f"fraction must lie in [0, 1], got {describe(fraction)}")
+    return unbatch(_drop_events(batch, fraction_t, mode, generator))
+
+
+def _drop_events(batch: Tensor, fraction: Tensor, mode: str, generator: torch.Generator | None) -> Tensor:
+    """``drop_events`` on a (B, T, 2, H, W) batch with (B,) CPU fractions."""
+    keep = (1.0 - fraction).view(-1, 1, 1, 1, 1)
     if mode == "expected":
         dtype = batch.dtype if batch.is_floating_point() else torch.float32
-        return unbatch((batch.to(torch.float64) * keep.to(batch.device)).to(dtype))
-    check_integer_valued(
-        batch, "frames", 'drop events before interpolating transforms, or use mode="expected"'
-    )
+        return (batch.to(torch.float64) * keep.to(batch.device)).to(dtype)
     if batch.numel() == 0:
-        return frames.clone()
+        return batch.clone()
     # Binomial thinning on the non-zero pixels only: frames are sparse.
     flat = batch.reshape(-1)
     index = flat.nonzero().squeeze(1)
-    counts = flat.index_select(0, index).to(torch.float64)
+    values = flat.index_select(0, index)
+    check_counts(values, "frames", whole='drop events before interpolating transforms, or use mode="expected"')
     sample = torch.div(index, batch[0].numel(), rounding_mode="floor")
     prob = keep.view(-1).to(batch.device).index_select(0, sample)
-    kept = torch.binomial(counts, prob, generator=generator)
+    kept = torch.binomial(values.to(torch.float64), prob, generator=generator)
     out = torch.zeros_like(flat).index_copy_(0, index, kept.to(batch.dtype))
-    return unbatch(out.reshape(batch.shape))
+    return out.reshape(batch.shape)
 
 
 def _window_mask(start: Tensor, length: Tensor, size: int, device: torch.device) -> Tensor:
@@ -213,10 +239,10 @@ def _window_mask(start: Tensor, length: Tensor, size: int, device: torch.device)
 
 
 def _check_window(value: Scalars, batch: int, name: str) -> Tensor:
-    t = per_sample(value, batch, name, dtype=torch.float64)
-    if not bool((t == t.round()).all()) or bool((t < 0).any()):
-        raise ValueError(f"{name} must be non-negative integers, got {t.tolist()}")
-    return t.long()
+    t = per_sample(value, batch, name, dtype=torch.int64)
+    if t.numel() and bool((t < 0).any()):
+        raise ValueError(f"{name} must be non-negative integers, got {describe(value)}")
+    return t
 
 
 def drop_by_time(frames: Tensor, start: Scalars, length: Scalars) -> Tensor:
@@ -235,11 +261,15 @@ def drop_by_time(frames: Tensor, start: Scalars, length: Scalars) -> Tensor:
         >>> drop_by_time(frames, 1, 2)[:, 0, 0, 0].tolist()
         [1, 0, 0, 1, 1]
     """
-    check_frames(frames)
-    batch, unbatch = as_batch(frames)
+    batch, unbatch = as_batch(check_frames(frames))
+    b = batch.shape[0]
+    return unbatch(_drop_by_time(batch, _check_window(start, b, "start"), _check_window(length, b, "length")))
+
+
+def _drop_by_time(batch: Tensor, start: Tensor, length: Tensor) -> Tensor:
     b, t = batch.shape[:2]
-    mask = _window_mask(_check_window(start, b, "start"), _check_window(length, b, "length"), t, batch.device)
-    return unbatch(batch.masked_fill(mask.view(b, t, 1, 1, 1), 0))
+    mask = _window_mask(start, length, t, batch.device)
+    return batch.masked_fill(mask.view(b, t, 1, 1, 1), 0)
 
 
 def drop_by_area(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> Tensor:
@@ -258,10 +288,15 @@ def drop_by_area(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, w
         >>> drop_by_area(frames, 1, 1, 2, 2)[0, 0].tolist()
         [[1.0, 1.0, 1.0, 1.0], [1.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 1.0]]
     """
-    check_frames(frames)
-    batch, unbatch = as_batch(frames)
+    batch, unbatch = as_batch(check_frames(frames))
+    b = batch.shape[0]
+    window = [_check_window(v, b, n) for v, n in ((top, "top"), (left, "left"), (height, "height"), (width, "width"))]
+    return unbatch(_drop_by_area(batch, *window))
+
+
+def _drop_by_area(batch: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
     b, _, _, h, w = batch.shape
-    rows = _window_mask(_check_window(top, b, "top"), _check_window(height, b, "height"), h, batch.device)
-    cols = _window_mask(_check_window(left, b, "left"), _check_window(width, b, "width"), w, batch.device)
+    rows = _window_mask(top, height, h, batch.device)
+    cols = _window_mask(left, width, w, batch.device)
     mask = (rows.unsqueeze(2) & cols.unsqueeze(1)).view(b, 1, 1, h, w)
-    return unbatch(batch.masked_fill(mask, 0))
+    return batch.masked_fill(mask, 0)

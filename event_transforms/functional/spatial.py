@@ -10,10 +10,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import torch
-from kornia.geometry.transform import get_rotation_matrix2d, warp_affine
 from torch import Tensor
 
-from .._validation import as_batch, check_frames, per_sample
+from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, per_sample
 
 __all__ = [
     "center_of_mass",
@@ -24,8 +23,6 @@ __all__ = [
 ]
 
 Center = str | Sequence[float] | Tensor
-
-_MODES = ("bilinear", "nearest")
 
 
 def center_of_mass(frames: Tensor) -> Tensor:
@@ -48,8 +45,7 @@ def center_of_mass(frames: Tensor) -> Tensor:
         >>> center_of_mass(frames)
         tensor([2.5000, 3.5000], dtype=torch.float64)
     """
-    check_frames(frames, check_values=False)
-    batch, unbatch = as_batch(frames)
+    batch, unbatch = as_batch(check_frames(frames))
     return unbatch(_center_of_mass(batch))
 
 
@@ -63,15 +59,30 @@ def _center_of_mass(batch: Tensor) -> Tensor:
     ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
     weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc))
     weight = weight.reshape(b, height, width).to(torch.float64)
-    total = weight.sum(dim=(1, 2))
     ys = torch.arange(height, dtype=torch.float64, device=batch.device)
     xs = torch.arange(width, dtype=torch.float64, device=batch.device)
-    y = (weight.sum(dim=2) * ys).sum(dim=1)
-    x = (weight.sum(dim=1) * xs).sum(dim=1)
+    rows = weight.sum(dim=2)
+    total = rows.sum(dim=1, keepdim=True)
+    moments = torch.stack([rows @ ys, weight.sum(dim=1) @ xs], dim=1)  # (B, 2)
     image = torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=torch.float64, device=batch.device)
-    empty = (total == 0).unsqueeze(1)
-    centroid = torch.stack([y, x], dim=1) / torch.where(total == 0, 1.0, total).unsqueeze(1)
-    return torch.where(empty, image, centroid)
+    return torch.where(total > 0, moments / total.clamp_min(1e-300), image)
+
+
+def _check_center(center: object, batch: int | None = None) -> Center:
+    """``"mass"``, ``"image"``, a ``(y, x)`` pair, or (with ``batch``) a ``(B, 2)`` tensor."""
+    if isinstance(center, str):
+        return check_choice(center, "center", ("mass", "image"))
+    try:
+        value = torch.as_tensor(center, dtype=torch.float64)
+    except (TypeError, ValueError, RuntimeError):
+        raise TypeError(f"center must be 'mass', 'image' or (y, x), got {center!r}") from None
+    shapes = [(2,)] if batch is None else [(2,), (batch, 2)]
+    if tuple(value.shape) not in shapes:
+        expected = "'mass', 'image' or (y, x)" + ("" if batch is None else f" or a ({batch}, 2) tensor")
+        raise ValueError(f"center must be {expected}, got {describe(center)}")
+    if not bool(value.isfinite().all()):
+        raise ValueError(f"center must be finite, got {describe(center)}")
+    return center
 
 
 def _resolve_center(batch: Tensor, center: Center) -> Tensor:
@@ -80,21 +91,9 @@ def _resolve_center(batch: Tensor, center: Center) -> Tensor:
     if isinstance(center, str):
         if center == "mass":
             return _center_of_mass(batch)
-        if center == "image":
-            return torch.tensor(
-                [[(height - 1) / 2, (width - 1) / 2]], dtype=torch.float64, device=batch.device
-            ).expand(b, 2)
-        raise ValueError(f"center must be 'mass', 'image', (y, x) or a (B, 2) tensor, got {center!r}")
-    value = torch.as_tensor(center, dtype=torch.float64)
-    if value.shape == (2,):
-        value = value.expand(b, 2)
-    if value.shape != (b, 2):
-        raise ValueError(
-            f"center must be 'mass', 'image', (y, x) or a ({b}, 2) tensor, got shape {tuple(value.shape)}"
-        )
-    if not bool(torch.isfinite(value).all()):
-        raise ValueError(f"center must be finite, got {value.tolist()}")
-    return value.to(batch.device)
+        center = ((height - 1) / 2, (width - 1) / 2)
+    value = torch.as_tensor(center, dtype=torch.float64).to(batch.device)
+    return value.expand(b, 2) if value.dim() == 1 else value
 
 
 def _work_dtype(dtype: torch.dtype, mode: str) -> torch.dtype:
@@ -109,27 +108,36 @@ def _output_dtype(dtype: torch.dtype, mode: str) -> torch.dtype:
     return torch.float32
 
 
-def _affine(frames: Tensor, angle: Tensor, scale: Tensor, center: Center, mode: str) -> Tensor:
-    """Rotate by ``angle`` degrees and zoom by ``scale`` about ``center``, per sample."""
-    if mode not in _MODES:
-        raise ValueError(f"mode must be one of {_MODES}, got {mode!r}")
-    batch, unbatch = as_batch(frames)
+def _affine(batch: Tensor, angle: Tensor, scale: Tensor, center: Center, mode: str) -> Tensor:
+    """Rotate by ``angle`` degrees and zoom by ``scale`` about ``center``, per sample.
+
+    ``angle`` and ``scale`` are (B,) float64 CPU tensors. The forward map of sample b is
+    ``dst = s R(θ) (src - c) + c`` (OpenCV's and kornia's convention); its 2×3 matrix is
+    built from host numbers and the device centre, and one kornia ``warp_affine`` samples
+    all T·2 frames of a sequence, folded into channels.
+    """
     b, t, p, height, width = batch.shape
     out_dtype = _output_dtype(batch.dtype, mode)
     if batch.numel() == 0:
-        return unbatch(batch.to(out_dtype, copy=True))
+        return batch.to(out_dtype, copy=True)
+    from kornia.geometry.transform import warp_affine  # imported on first use: keeps imports light
+
     work = _work_dtype(batch.dtype, mode)
-    yx = _resolve_center(batch, center)
-    matrix = get_rotation_matrix2d(
-        yx.flip(1),  # kornia wants (x, y)
-        angle.to(device=batch.device, dtype=torch.float64),
-        scale.to(device=batch.device, dtype=torch.float64).unsqueeze(1).expand(b, 2),
-    )
+    radians = torch.deg2rad(angle.to(torch.float64))
+    alpha = (scale * torch.cos(radians)).to(batch.device, work)  # (B,)
+    beta = (scale * torch.sin(radians)).to(batch.device, work)
+    yx = _resolve_center(batch, center).to(work)
+    cy, cx = yx[:, 0], yx[:, 1]
+    matrix = torch.stack(
+        [
+            torch.stack([alpha, beta, (1 - alpha) * cx - beta * cy], dim=1),
+            torch.stack([-beta, alpha, beta * cx + (1 - alpha) * cy], dim=1),
+        ],
+        dim=1,
+    )  # (B, 2, 3)
     folded = batch.reshape(b, t * p, height, width).to(work)
-    warped = warp_affine(
-        folded, matrix.to(work), (height, width), mode=mode, padding_mode="zeros", align_corners=True
-    )
-    return unbatch(warped.reshape(b, t, p, height, width).to(out_dtype))
+    warped = warp_affine(folded, matrix, (height, width), mode=mode, padding_mode="zeros", align_corners=True)
+    return warped.reshape(b, t, p, height, width).to(out_dtype)
 
 
 def rotate(
@@ -166,11 +174,13 @@ def rotate(
         >>> out.dtype, out[0, 1].nonzero().tolist(), int(out.sum())
         (torch.int16, [[0, 2]], 7)
     """
-    check_frames(frames)
-    angle_t = per_sample(angle, 1 if frames.dim() == 4 else frames.shape[0], "angle")
-    if not bool(torch.isfinite(angle_t).all()):
-        raise ValueError(f"angle must be finite, got {angle_t.tolist()}")
-    return _affine(frames, angle_t, torch.ones_like(angle_t), center, mode)
+    batch, unbatch = as_batch(check_frames(frames))
+    angle_t = per_sample(angle, batch.shape[0], "angle")
+    if not bool(angle_t.isfinite().all()):
+        raise ValueError(f"angle must be finite, got {describe(angle)}")
+    check_choice(mode, "mode", INTERPOLATIONS)
+    center = _check_center(center, batch.shape[0])
+    return unbatch(_affine(batch, angle_t, torch.ones_like(angle_t), center, mode))
 
 
 def resize(
@@ -205,11 +215,13 @@ def resize(
         >>> resize(frames, 2.0, center="image")[0, 0, 2].tolist()
         [0.0, 0.0, 0.0, 0.5, 1.0]
     """
-    check_frames(frames)
-    scale_t = per_sample(scale, 1 if frames.dim() == 4 else frames.shape[0], "scale")
-    if not bool((torch.isfinite(scale_t) & (scale_t > 0)).all()):
-        raise ValueError(f"scale must be finite and > 0, got {scale_t.tolist()}")
-    return _affine(frames, torch.zeros_like(scale_t), scale_t, center, mode)
+    batch, unbatch = as_batch(check_frames(frames))
+    scale_t = per_sample(scale, batch.shape[0], "scale")
+    if not bool((scale_t.isfinite() & (scale_t > 0)).all()):
+        raise ValueError(f"scale must be finite and > 0, got {describe(scale)}")
+    check_choice(mode, "mode", INTERPOLATIONS)
+    center = _check_center(center, batch.shape[0])
+    return unbatch(_affine(batch, torch.zeros_like(scale_t), scale_t, center, mode))
 
 
 def horizontal_flip(frames: Tensor) -> Tensor:
@@ -219,8 +231,7 @@ def horizontal_flip(frames: Tensor) -> Tensor:
         >>> horizontal_flip(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
     """
-    check_frames(frames)
-    return frames.flip(-1)
+    return check_frames(frames).flip(-1)
 
 
 def vertical_flip(frames: Tensor) -> Tensor:
@@ -230,5 +241,4 @@ def vertical_flip(frames: Tensor) -> Tensor:
         >>> vertical_flip(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
     """
-    check_frames(frames)
-    return frames.flip(-2)
+    return check_frames(frames).flip(-2)

@@ -1,6 +1,6 @@
 """Temporal kernels: frame shifting (FS) and temporal event shifting (TES).
 
-Sign convention (DESIGN §1): ``shift = j`` moves frame (or events) t to t + j; j < 0 is
+Sign convention (as in the README): ``shift = j`` moves frame (or events) t to t + j; j < 0 is
 earlier ("left"). The paper's best settings are FS-1 = ``frame_shift(frames, -1)`` and
 TES-2(0.50) = ``temporal_event_shift(frames, -2, 0.5)``. Whatever leaves the sequence
 through either end is dropped; vacated frames are zero.
@@ -10,19 +10,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from numbers import Integral
 
 import torch
 from torch import Tensor
 
-from .._validation import (
-    as_batch,
-    check_fraction,
-    check_frames,
-    check_generator,
-    check_integer_valued,
-    per_sample,
-)
+from .._validation import TES_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, describe, per_sample
 from ._hypergeometric import binomial_counts, multivariate_hypergeometric, segment_sum
 
 __all__ = ["frame_shift", "temporal_event_shift"]
@@ -30,7 +22,6 @@ __all__ = ["frame_shift", "temporal_event_shift"]
 ShiftArg = int | Sequence[int] | Tensor
 FractionArg = float | Sequence[float] | Tensor
 
-_MODES = ("exact", "binomial", "expected")
 _TES_HINT = (
     "temporal_event_shift(mode='exact' or 'binomial') moves whole events; apply it before "
     "interpolating transforms (bilinear rotate/resize) or use mode='expected'"
@@ -49,27 +40,17 @@ _BITS = {
 
 
 def _shifts(shift: ShiftArg, batch: int) -> Tensor:
-    """(B,) int64 CPU tensor of whole-frame shifts; floats must hold whole numbers."""
-    if isinstance(shift, bool) or (isinstance(shift, Tensor) and shift.dtype == torch.bool):
-        raise TypeError(f"shift must be an integer number of frames, got {shift!r}")
-    if isinstance(shift, Integral):
-        return torch.full((batch,), int(shift), dtype=torch.int64)
-    if isinstance(shift, float):
-        raise TypeError(f"shift must be an integer number of frames, got {shift!r}")
-    if not isinstance(shift, (Tensor, Sequence)):
-        raise TypeError(f"shift must be an int or a (B,) integer tensor, got {type(shift).__name__}")
-    values = (shift if isinstance(shift, Tensor) else torch.as_tensor(shift)).detach().cpu()
-    if values.is_floating_point():
-        if values.numel() and not bool((torch.isfinite(values) & (values == values.round())).all()):
-            raise ValueError(f"shift must hold whole numbers of frames, got {values.tolist()}")
-    elif values.is_complex():
-        raise TypeError(f"shift must be integers, got dtype {values.dtype}")
-    return per_sample(values, batch, "shift", dtype=torch.int64)
+    """(B,) int64 CPU tensor of whole-frame shifts (ints, numpy integers, whole floats)."""
+    if isinstance(shift, float) or (isinstance(shift, Tensor) and shift.dtype == torch.bool):
+        raise TypeError(f"shift must be an integer number of frames, got {describe(shift)}")
+    return per_sample(shift, batch, "shift", dtype=torch.int64)
 
 
 def _fractions(fraction: FractionArg, batch: int) -> Tensor:
+    """(B,) float64 CPU tensor of fractions in [0, 1]."""
     values = per_sample(fraction, batch, "fraction", dtype=torch.float64)
-    check_fraction(values, "fraction")
+    if values.numel() and bool(((values < 0) | (values > 1)).any()):
+        raise ValueError(f"fraction must lie in [0, 1], got {describe(fraction)}")
     return values
 
 
@@ -82,7 +63,7 @@ def frame_shift(frames: Tensor, shift: ShiftArg) -> Tensor:
     Output frame t is input frame t - j; frames shifted past either end are dropped and
     vacated frames are zero. |j| >= T gives all zeros. Values are moved, not inspected,
     so any dtype works and the dtype and device are kept. The ground truth (labels) is
-    not touched (DESIGN §1).
+    not touched (the paper keeps the ground truth).
 
     Cost: one copy of the input (a concatenation with zero frames when the whole batch
     shares one shift; otherwise one gather of whole frames plus zeroing the few vacated
@@ -106,10 +87,8 @@ def frame_shift(frames: Tensor, shift: ShiftArg) -> Tensor:
         tensor([[0, 1, 2, 3],
                 [0, 0, 0, 0]])
     """
-    check_frames(frames, check_values=False)
-    batch, unbatch = as_batch(frames)
-    shifts = _shifts(shift, batch.shape[0])
-    return unbatch(_frame_shift(batch, shifts))
+    batch, unbatch = as_batch(check_frames(frames))
+    return unbatch(_frame_shift(batch, _shifts(shift, batch.shape[0])))
 
 
 def _frame_shift(batch: Tensor, shifts: Tensor) -> Tensor:
@@ -118,8 +97,9 @@ def _frame_shift(batch: Tensor, shifts: Tensor) -> Tensor:
     if batch.numel() == 0:
         return batch.clone()
     shifts = shifts.clamp(-t, t)
-    first = int(shifts[0])
-    if bool((shifts == first).all()):
+    values = shifts.tolist()
+    first = values[0]
+    if values.count(first) == len(values):
         if first == 0:
             return batch.clone()
         zeros = batch.new_zeros((b, min(abs(first), t), *batch.shape[2:]))
@@ -209,23 +189,28 @@ def temporal_event_shift(
         >>> temporal_event_shift(frames, -1, 0.25, mode="expected")[:, 1, 0, 0]
         tensor([0.5000, 1.5000, 0.0000])
     """
-    check_frames(frames, check_values=False)
-    if mode not in _MODES:
-        raise ValueError(f"mode must be one of {_MODES}, got {mode!r}")
-    batch, unbatch = as_batch(frames)
+    batch, unbatch = as_batch(check_frames(frames))
+    check_choice(mode, "mode", TES_MODES)
     shifts = _shifts(shift, batch.shape[0])
     fractions = _fractions(fraction, batch.shape[0])
     check_generator(generator, frames.device)
+    return unbatch(_temporal_event_shift(batch, shifts, fractions, mode, generator))
+
+
+def _temporal_event_shift(
+    batch: Tensor, shifts: Tensor, fractions: Tensor, mode: str, generator: torch.Generator | None
+) -> Tensor:
+    """``temporal_event_shift`` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters."""
     index, sample, values = _entries(batch, whole=mode != "expected")
     if mode == "expected":
-        dtype = frames.dtype if frames.is_floating_point() else torch.float32
+        dtype = batch.dtype if batch.is_floating_point() else torch.float32
         out = batch.to(dtype, memory_format=torch.contiguous_format, copy=True)
         values = values.to(dtype)
-        moved = values * fractions.to(device=frames.device, dtype=dtype).index_select(0, sample)
+        moved = values * fractions.to(device=batch.device, dtype=dtype).index_select(0, sample)
     else:
         out = batch.clone(memory_format=torch.contiguous_format)
         moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
-    return unbatch(_move(out, index, sample, values, moved, shifts))
+    return _move(out, index, sample, values, moved, shifts)
 
 
 def _entries(batch: Tensor, *, whole: bool) -> tuple[Tensor, Tensor, Tensor]:
@@ -241,17 +226,12 @@ def _entries(batch: Tensor, *, whole: bool) -> tuple[Tensor, Tensor, Tensor]:
     index = bits.nonzero().squeeze(1)
     values = flat.index_select(0, index)
     if index.numel():
-        low, high = (float(v) for v in torch.aminmax(values))  # NaN propagates
-        if math.isnan(low) or math.isnan(high) or math.isinf(high):
-            raise ValueError("frames must be finite, got NaN or Inf values")
-        if low < 0:
-            raise ValueError(f"frames must hold non-negative event counts, got minimum {low}")
+        check_counts(values, "frames", whole=_TES_HINT if whole else None)
         if whole:
             limit = min(2**53, 2**62 // batch.shape[-1] // batch.shape[-2])
+            high = float(values.max())
             if high > limit:  # float64-exact counts; row totals fit in int64
                 raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
-            if values.is_floating_point():
-                check_integer_valued(values, "frames", _TES_HINT)
     return index, index // math.prod(batch.shape[1:]), values
 
 
@@ -299,24 +279,3 @@ def _move(
     # Dropped events add 0 to their own pixel (no data-dependent shapes, no sync).
     flat.index_add_(0, torch.where(dropped, index, target), moved.masked_fill_(dropped, 0))
     return out
-
-
-def _moved_counts(
-    frames: Tensor,
-    fraction: FractionArg,
-    *,
-    mode: str = "exact",
-    generator: torch.Generator | None = None,
-) -> Tensor:
-    """The moved counts Z that ``temporal_event_shift`` draws (same generator use), dense.
-
-    For tests: with equal generator states, ``temporal_event_shift(frames, j, fraction)``
-    equals ``frames - Z + frame_shift(Z, j)``.
-    """
-    batch, unbatch = as_batch(frames)
-    fractions = _fractions(fraction, batch.shape[0])
-    index, sample, values = _entries(batch, whole=True)
-    moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
-    out = torch.zeros(batch.numel(), dtype=frames.dtype, device=frames.device)
-    out[index] = moved.to(frames.dtype)
-    return unbatch(out.view(batch.shape))

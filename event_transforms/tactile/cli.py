@@ -285,15 +285,13 @@ def _show(args: argparse.Namespace) -> int:
     frames, _, meta = train[args.index]
     method = parse_method(args.method)
     bank = datasets.noise_bank() if method.needs_noise_bank else None
-    transform = method.build(float(meta["diameter_mm"]), bank)
+    transform = method.build(bank)
     generator = torch.Generator().manual_seed(args.seed)
     with torch.no_grad():  # transform the whole sequence, then show every n-th frame
-        after = frames if transform is None else transform(frames, generator=generator)
+        after = frames if transform is None else transform(frames, generator=generator, metadata=meta)
     shown = after[:: args.every]
     out = args.out or Path(f"{args.method.replace(':', '_')}.png")
-    viz.compare_transform(
-        frames[:: args.every], lambda _, generator=None: shown, out, upscale=args.upscale
-    )
+    viz.compare_transform(frames[:: args.every], lambda _: shown, out, upscale=args.upscale)
     _print(f"wrote {out}")
     return 0
 

@@ -35,7 +35,7 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset
 
-from ..data import _accepts, _call
+from ..transforms.base import as_transform
 from ..functional.events import events_to_frames
 from .simulation import (
     SIMULATOR_VERSION,
@@ -136,8 +136,8 @@ class TactileGrasps(Dataset):
         root: cache directory (default :func:`default_cache_dir`).
         config: simulator settings (default :class:`~event_transforms.tactile.simulation.SimulatorConfig`).
         seed: seed of the first sequence; sequence ``k`` of the whole set uses ``seed + k``.
-        transform: optional callable applied to the frames of each item (it receives
-            ``metadata=meta`` too when its call accepts a ``metadata`` argument).
+        transform: optional event transform applied to the frames of each item, called
+            with ``metadata=meta`` (a plain callable is called as ``transform(frames)``).
         crop_size: (height, width) of the window around the contact, in sensor pixels.
         pool: side of the sum-pooled blocks.
 
@@ -179,8 +179,7 @@ class TactileGrasps(Dataset):
         self.seed = _check_seed(seed)
         self.crop_size = (int(crop_size[0]), int(crop_size[1]))
         self.pool = int(pool)
-        self.transform = transform
-        self._accepts = _accepts(transform)
+        self.transform = None if transform is None else as_transform(transform)
         self.root = Path(root) if root is not None else default_cache_dir()
         self.path = self.root / _cache_name(self.config, self.seed, self.crop_size, self.pool)
         if not self.path.exists():
@@ -237,7 +236,7 @@ class TactileGrasps(Dataset):
         frames = self._counts[index].to(torch.float32)
         meta = self.meta(index)
         if self.transform is not None:
-            frames = _call(self.transform, frames, None, meta, self._accepts)
+            frames = self.transform(frames, metadata=meta)
         return frames, self.forces[index].clone(), meta
 
     @cached_property

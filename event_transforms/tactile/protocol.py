@@ -11,22 +11,20 @@ Method names (:func:`parse_method`):
 =================  ===============================================================
 ``none``           no synthetic copies (48 sequences)
 ``rot<deg>``       ``RandomRotation(±deg)`` about the event centroid, e.g. ``rot45``
-``resize``         scene policy: ``Resize(β)`` with β = 15 mm / the sample's diameter
-                   (1.25 for 12 mm, 0.83 for 18 mm)
+``resize``         ``ResizeToTarget(15 mm)``: β = 15 mm / the sample's diameter, read
+                   from each item's metadata (1.25 for 12 mm, 0.83 for 18 mm)
 ``noise``          ``AddNoise`` with a static-scene bank
 ``fs<j>``          ``FrameShift(j)``, e.g. ``fs-1`` (one frame earlier)
 ``tes<j>:<ζ>``     ``TemporalEventShift(j, ζ)``, e.g. ``tes-2:0.5``
-``independent``    ``OneOf([resize, fs-1])``: each copy gets one method
-``hybrid``         ``Compose([resize, fs-1])``: both on every copy
-``scene``          the tactile :class:`~event_transforms.scenes.Scene` (sizes 12 and
-                   18 mm to 15 mm, lag of one frame): its independent policy
-``scene-hybrid``   the same scene, hybrid policy
+``independent``    the :class:`~event_transforms.scenes.Scene` of sizes 12 and 18 mm to
+                   15 mm with a lag of one frame earlier: its independent policy
+                   (``OneOf``: each copy gets resize or FS-1)
+``hybrid``         the same scene's hybrid policy (``Compose``: FS-1, then resize)
 ``<name>x<k>``     ``k`` synthetic copies per item, e.g. ``tes-2:0.5x10``
 =================  ===============================================================
 
 Any other policy enters as a :class:`Method` built from a transform
-(:meth:`Method.from_transform`), a scene (:meth:`Method.from_scene`), or a callable
-mapping a sample's bolt diameter (and the noise bank) to a transform.
+(:meth:`Method.from_transform`) or a scene (:meth:`Method.from_scene`).
 Results on the package's simulated grasps are results on synthetic data, not the paper's.
 """
 
@@ -46,8 +44,11 @@ from typing import Any
 
 import torch
 from torch import nn
-from torch.utils.data import ConcatDataset, Dataset, Subset
+from torch.utils.data import Dataset
 
+from ..data import AugmentedDataset
+from ..scenes import ResizeToTarget, Scene
+from ..transforms import AddNoise, FrameShift, RandomRotation, TemporalEventShift
 from .models import ForceRegressor
 from .training import (
     Stopwatch,
@@ -63,6 +64,7 @@ from .training import (
 __all__ = [
     "PAPER_METHODS",
     "TARGET_DIAMETER_MM",
+    "PAPER_SCENE",
     "Method",
     "parse_method",
     "ProtocolConfig",
@@ -84,84 +86,65 @@ PAPER_METHODS: tuple[str, ...] = (
 #: Diameter of the validation/test bolt: the resize target.
 TARGET_DIAMETER_MM = 15.0
 
-TransformFor = Callable[[float], "nn.Module | None"]
 
 
 @dataclass(frozen=True)
 class Method:
-    """A named augmentation: which transform each training sample's copies get.
+    """A named augmentation: the transform every training item's synthetic copies get.
+
+    The transform is called with each item's metadata, so one transform serves every
+    bolt size (:class:`~event_transforms.ResizeToTarget` reads the size from it).
 
     Args:
         name: label in tables and file names.
-        transform_for: maps a sample's bolt diameter (mm) to its transform, or ``None``
-            for no synthetic copies.
+        make: builds the transform from the noise bank (``None`` if there is none), or
+            ``None`` for no synthetic copies.
         copies: synthetic copies per training item (0 = none).
         needs_noise_bank: the transform needs :attr:`ProtocolData.noise_bank`.
     """
 
     name: str
-    transform_for: Callable[..., nn.Module | None] | None
+    make: Callable[[torch.Tensor | None], nn.Module] | None
     copies: int = 1
     needs_noise_bank: bool = False
 
     @classmethod
     def from_transform(cls, name: str, transform: nn.Module, copies: int = 1) -> Method:
-        """A method applying the same ``transform`` to every sample."""
+        """A method applying ``transform`` to every item."""
         if not isinstance(transform, nn.Module):
             raise TypeError(f"transform must be an nn.Module, got {type(transform).__name__}")
-        return cls(name, lambda diameter, bank=None: transform, copies)
+        return cls(name, lambda bank: transform, copies)
 
     @classmethod
-    def from_scene(
-        cls, name: str, scene: Any, copies: int = 1, *, combination: str = "independent"
-    ) -> Method:
-        """A method from a :class:`~event_transforms.scenes.Scene` (or a built policy).
-
-        The policy receives each item's metadata, so a scene with a target size resizes
-        every sample by target / its own size.
+    def from_scene(cls, name: str, scene: Scene, copies: int = 1, *, combination: str = "independent") -> Method:
+        """A method from a :class:`~event_transforms.scenes.Scene`'s policy.
 
         Example:
             >>> from event_transforms.scenes import Scene
             >>> scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,))
-            >>> Method.from_scene("scene", scene).build(12.0).effects
-            ('lag', 'size')
+            >>> [type(t).__name__ for t in Method.from_scene("scene", scene).build().transforms]
+            ['RandomFrameShift', 'ResizeToTarget']
         """
-        from ..scenes import Scene
+        if not isinstance(scene, Scene):
+            raise TypeError(f"scene must be a Scene, got {type(scene).__name__}")
+        return cls(name, lambda bank: scene.policy(combination), copies)
 
-        if isinstance(scene, Scene):
-            policy = scene.policy(combination)
-        elif isinstance(scene, nn.Module):
-            policy = scene
-        else:
-            raise TypeError(f"scene must be a Scene or a built policy, got {type(scene).__name__}")
-        return cls(name, lambda diameter, bank=None: policy, copies)
-
-    def build(self, diameter_mm: float, noise_bank: torch.Tensor | None = None) -> nn.Module | None:
-        """The transform for samples of ``diameter_mm``."""
-        if self.transform_for is None or self.copies == 0:
+    def build(self, noise_bank: torch.Tensor | None = None) -> nn.Module | None:
+        """The transform of the synthetic copies, or ``None`` for none."""
+        if self.make is None or self.copies == 0:
             return None
-        return self.transform_for(diameter_mm, noise_bank)
+        if self.needs_noise_bank and noise_bank is None:
+            raise ValueError(f"method {self.name!r} needs a static-scene noise bank, got None")
+        return self.make(noise_bank)
 
 
-def _transforms():
-    import event_transforms as et
-
-    return et
-
-
-def _resize_for(diameter: float, bank: Any = None) -> nn.Module:
-    return _transforms().Resize(TARGET_DIAMETER_MM / diameter)
-
-
-def _noise(diameter: float, bank: torch.Tensor | None) -> nn.Module:
-    if bank is None:
-        raise ValueError("method 'noise' needs a static-scene noise bank, got None")
-    return _transforms().AddNoise(bank)
-
+#: The paper's scene: 12 and 18 mm bolts in training, the 15 mm bolt to generalise to, and
+#: events one frame later than the paper's best shift undoes (FS-1).
+PAPER_SCENE = Scene(training_sizes=(12.0, 18.0), target_size=TARGET_DIAMETER_MM, lag_shifts=(-1,))
 
 _NUMBER = r"[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?"
 _PATTERN = re.compile(
-    rf"^(?P<base>none|resize|noise|independent|hybrid|scene-hybrid|scene|rot(?P<deg>{_NUMBER})"
+    rf"^(?P<base>none|resize|noise|independent|hybrid|rot(?P<deg>{_NUMBER})"
     rf"|fs(?P<fs>[+-]?\d+)|tes(?P<tes>[+-]?\d+):(?P<frac>{_NUMBER}))(?:x(?P<copies>\d+))?$"
 )
 
@@ -175,10 +158,10 @@ def parse_method(name: str, *, copies: int = 1) -> Method:
 
     Example:
         >>> m = parse_method("tes-2:0.5x10")
-        >>> m.copies, m.build(12.0)
+        >>> m.copies, m.build()
         (10, TemporalEventShift(shift=-2, fraction=0.5, mode='exact'))
-        >>> parse_method("resize").build(12.0)
-        Resize(scale=1.25, center='mass', mode='bilinear')
+        >>> parse_method("resize").build()
+        ResizeToTarget(target_size=15.0, key='diameter_mm', exponent=1.0, center='mass', mode='bilinear')
         >>> parse_method("none").copies
         0
     """
@@ -188,8 +171,7 @@ def parse_method(name: str, *, copies: int = 1) -> Method:
     if match is None:
         raise ValueError(
             f"unknown method {name!r}; expected none, rot<deg>, resize, noise, fs<j>, "
-            "tes<j>:<fraction>, independent, hybrid, scene or scene-hybrid, optionally followed "
-            "by x<copies>"
+            "tes<j>:<fraction>, independent or hybrid, optionally followed by x<copies>"
         )
     base = match["base"]
     if match["copies"] is not None:
@@ -198,31 +180,22 @@ def parse_method(name: str, *, copies: int = 1) -> Method:
         raise ValueError(f"copies must be a non-negative int, got {copies!r}")
     if base == "none":
         return Method(name, None, 0)
-    et = _transforms()
     if base == "resize":
-        return Method(name, _resize_for, copies)
+        return Method(name, lambda bank: ResizeToTarget(TARGET_DIAMETER_MM), copies)
     if base == "noise":
-        return Method(name, _noise, copies, needs_noise_bank=True)
-    if base == "independent":
-        return Method(name, lambda d, bank=None: et.OneOf([_resize_for(d), et.FrameShift(-1)]), copies)
-    if base in ("scene", "scene-hybrid"):
-        from ..scenes import Scene
-
-        scene = Scene(training_sizes=(12.0, 18.0), target_size=TARGET_DIAMETER_MM, lag_shifts=(-1,))
-        combination = "hybrid" if base == "scene-hybrid" else "independent"
-        return Method.from_scene(name, scene, copies, combination=combination)
-    if base == "hybrid":
-        return Method(name, lambda d, bank=None: et.Compose([_resize_for(d), et.FrameShift(-1)]), copies)
+        return Method(name, lambda bank: AddNoise(bank), copies, needs_noise_bank=True)
+    if base in ("independent", "hybrid"):
+        return Method.from_scene(name, PAPER_SCENE, copies, combination=base)
     if match["deg"] is not None:
         degrees = float(match["deg"])
-        return Method(name, lambda d, bank=None: et.RandomRotation(degrees), copies)
+        return Method(name, lambda bank: RandomRotation(degrees), copies)
     if match["fs"] is not None:
         shift = int(match["fs"])
-        return Method(name, lambda d, bank=None: et.FrameShift(shift), copies)
+        return Method(name, lambda bank: FrameShift(shift), copies)
     shift, fraction = int(match["tes"]), float(match["frac"])
     if not 0 <= fraction <= 1:
         raise ValueError(f"TES fraction must lie in [0, 1], got {fraction!r} in {name!r}")
-    return Method(name, lambda d, bank=None: et.TemporalEventShift(shift, fraction), copies)
+    return Method(name, lambda bank: TemporalEventShift(shift, fraction), copies)
 
 
 @dataclass
@@ -286,40 +259,19 @@ def load_data(root: str | None = None, *, noise_frames: int = 360) -> ProtocolDa
     return ProtocolData(train, val, test, bank, "simulated tactile grasps (synthetic data)")
 
 
-def _diameter(data: Dataset, index: int) -> float:
-    meta = data.meta(index) if hasattr(data, "meta") else data[index][2]
-    return float(meta["diameter_mm"])
-
-
 def build_training_set(
     method: Method, data: ProtocolData, *, seed: int, fixed: bool, stopwatch: Stopwatch
 ) -> Dataset:
     """The training items followed by ``method.copies`` synthetic copies of each.
 
-    Items are grouped by bolt diameter so that a diameter-dependent policy (resize by
-    target / source size) gets its own transform per group; each group is an
-    :class:`~event_transforms.tactile.datasets.AugmentedDataset` whose transform is wrapped in a
-    :class:`~event_transforms.tactile.training.TimedTransform` reporting to ``stopwatch``.
+    One :class:`~event_transforms.AugmentedDataset` whose transform (wrapped in a
+    :class:`~event_transforms.tactile.training.TimedTransform` reporting to ``stopwatch``)
+    receives each item's metadata.
     """
-    if method.copies == 0 or method.transform_for is None:
+    transform = method.build(data.noise_bank)
+    if transform is None:
         return data.train
-    from ..data import AugmentedDataset
-
-    diameters = [_diameter(data.train, i) for i in range(len(data.train))]
-    parts: list[Dataset] = []
-    for group, diameter in enumerate(sorted(set(diameters))):
-        subset = Subset(data.train, [i for i, d in enumerate(diameters) if d == diameter])
-        transform = method.build(diameter, data.noise_bank)
-        if transform is None:
-            parts.append(subset)
-            continue
-        parts.append(
-            AugmentedDataset(
-                subset, TimedTransform(transform, stopwatch), method.copies,
-                fixed=fixed, seed=seed * 1000 + group,
-            )
-        )
-    return ConcatDataset(parts)
+    return AugmentedDataset(data.train, TimedTransform(transform, stopwatch), method.copies, fixed=fixed, seed=seed)
 
 
 class MaterializedDataset(Dataset):

@@ -19,7 +19,6 @@ interruption reads the finished seeds back and runs only the others.
 from __future__ import annotations
 
 import copy
-import inspect
 import json
 import math
 import os
@@ -35,6 +34,8 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 from torch.utils.data import DataLoader, Dataset
+
+from ..transforms.base import EventTransform, as_transform
 
 __all__ = [
     "Stopwatch",
@@ -83,16 +84,16 @@ class Stopwatch:
         return f"Stopwatch(seconds={self.seconds:.6f}, calls={self.calls})"
 
 
-class TimedTransform(nn.Module):
+class TimedTransform(EventTransform):
     """Wrap a transform so the time spent inside it is added to ``stopwatch``.
 
-    A measuring device, not a transform: it passes ``generator=`` and ``metadata=`` on to
-    the wrapped transform when its call accepts them and returns exactly what it returns.
-    The stopwatch counts only calls made in this process (use ``num_workers=0``, as
+    A measuring device, not a transform: it draws and applies exactly what the wrapped
+    transform does (its parameter tree is the wrapped one's), timing both steps. The
+    stopwatch counts only calls made in this process (use ``num_workers=0``, as
     :func:`fit` does).
 
     Args:
-        transform: an event transform, or any module called as ``transform(frames)``.
+        transform: an event transform, or a callable ``frames -> frames``.
         stopwatch: where the seconds go; a new one if ``None``.
 
     Example:
@@ -100,30 +101,24 @@ class TimedTransform(nn.Module):
         >>> timed = TimedTransform(et.FrameShift(-1))
         >>> out = timed(torch.ones(3, 2, 4, 5))
         >>> timed.stopwatch.calls, out[:, 0, 0, 0].tolist()
-        (1, [1.0, 1.0, 0.0])
+        (2, [1.0, 1.0, 0.0])
     """
 
     def __init__(self, transform: nn.Module, stopwatch: Stopwatch | None = None) -> None:
         super().__init__()
-        if not isinstance(transform, nn.Module):
-            raise TypeError(f"transform must be an nn.Module, got {type(transform).__name__}")
-        self.transform = transform
+        self.transform = as_transform(transform)
         self.stopwatch = Stopwatch() if stopwatch is None else stopwatch
-        parameters = inspect.signature(transform.forward).parameters
-        anything = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters.values())
-        self._keywords = tuple(k for k in ("generator", "metadata") if anything or k in parameters)
 
-    def forward(
-        self,
-        frames: Tensor,
-        *,
-        generator: torch.Generator | None = None,
-        metadata: dict[str, Any] | None = None,
-    ) -> Tensor:
-        given = {"generator": generator, "metadata": metadata}
-        kwargs = {k: given[k] for k in self._keywords if k != "metadata" or metadata is not None}
+    def sample_params(self, shape, *, generator=None, metadata=None):
         with self.stopwatch:
-            return self.transform(frames, **kwargs)
+            return self.transform.make_params(shape, generator=generator, metadata=metadata)
+
+    def output_shape(self, shape):
+        return self.transform.output_shape(shape)
+
+    def apply(self, frames: Tensor, params) -> Tensor:
+        with self.stopwatch:
+            return self.transform._run(frames, params)
 
 
 @dataclass

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .base import EventTransform, Params
+from .base import EventTransform, Lambda, Params, as_transform
 from .spatial import *  # noqa: F401,F403
 from .spatial import __all__ as _spatial
 from .temporal import *  # noqa: F401,F403
@@ -12,4 +12,4 @@ from .noise import __all__ as _noise
 from .containers import *  # noqa: F401,F403
 from .containers import __all__ as _containers
 
-__all__ = ["EventTransform", "Params", *_spatial, *_temporal, *_noise, *_containers]
+__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_containers]

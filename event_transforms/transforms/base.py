@@ -1,140 +1,152 @@
-"""The base class every transform module derives from, and parameter-sampling helpers.
+"""The base class of every transform module, its calling convention and parameter trees.
 
-A module holds settings. ``make_params`` draws the per-sample parameters of one call as
-(B,) tensors on the CPU (so CPU and CUDA runs draw the same numbers); ``apply`` hands them
-to a pure kernel from :mod:`event_transforms.functional` on the frames' device. ``forward``
-is not overridden by subclasses: it checks the input's rank, views one sequence as a batch
-of one, keeps a ``torchvision.tv_tensors.Video`` a ``Video``, and lets a caller replay a
-draw with ``params=``.
+A module holds settings. A call has two steps:
+
+1. :meth:`EventTransform.make_params` sees the whole batch shape ``(B, T, 2, H, W)`` (and
+   the batch's metadata) and draws *every* random number the call will use, as a dict of
+   ``(B, ...)`` CPU tensors (so CPU and CUDA calls draw the same numbers). Kernels that
+   need randomness of their own (temporal event shifting, event drop, Poisson noise) get
+   per-sample seeds from it. Containers return one entry per child, so a call's
+   parameters are one tree.
+2. :meth:`EventTransform.apply` hands a batch and its parameters to a private kernel from
+   :mod:`event_transforms.functional` on the frames' device.
+
+``module(frames, params=tree)`` replays a draw exactly, whatever the global RNG state.
+Subclasses override :meth:`~EventTransform.sample_params` and :meth:`~EventTransform.apply`;
+``forward`` and ``make_params`` are not overridden.
+
+The calling convention (owned here and nowhere else): every module is called as
+``module(*inputs, generator=None, params=None, metadata=None)``. The frames are the first
+input: a tensor, a ``torchvision.tv_tensors.Video`` (returned as a ``Video``) or a dict
+holding them under ``"frames"``. Any further inputs (labels, ...) and the dict's other
+entries pass through unchanged, as in torchvision's v2 transforms. Anything else a
+container or data set is handed (a plain function, a torchvision transform) is wrapped by
+:func:`as_transform` into a :class:`Lambda` called as ``function(frames)``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Any, Callable
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
+import numpy as np
 import torch
 from torch import Tensor, nn
 
-from .._validation import as_batch, check_frames, values_checked
+from .._validation import as_batch, check_frames, check_probability, check_shape, describe
 
-__all__ = ["EventTransform", "Params", "apply_by_group"]
+__all__ = ["EventTransform", "Params", "Lambda", "as_transform", "FRAMES_KEY"]
 
-Params = dict[str, Tensor]
+#: A call's parameters: a dict whose leaves are ``(B, ...)`` tensors and whose inner nodes
+#: are the parameters of a container's children.
+Params = dict[str, Any]
 
-
-def _video_type() -> type | None:
-    try:
-        from torchvision import tv_tensors
-    except ImportError:  # pragma: no cover - torchvision is a dependency
-        return None
-    return tv_tensors.Video
+#: The key under which a dict input holds the frames.
+FRAMES_KEY = "frames"
 
 
-class EventTransform(nn.Module):
-    """Base class: an ``nn.Module`` mapping event frames to event frames.
+def _video_of(frames: object) -> Any:
+    """The ``tv_tensors.Video`` class if ``frames`` is one (torchvision is never imported here)."""
+    module = sys.modules.get("torchvision.tv_tensors")
+    if module is not None and isinstance(frames, module.Video):
+        return module
+    return None
 
-    Subclasses override :meth:`make_params` (draw per-sample parameters, CPU, no state)
-    and :meth:`apply` (call a kernel). Calling the module accepts ``(T, 2, H, W)`` or
-    ``(B, T, 2, H, W)`` frames and returns the same layout on the same device.
-    """
 
-    def forward(
-        self,
-        frames: Tensor,
-        *,
-        generator: torch.Generator | None = None,
-        params: Params | None = None,
-    ) -> Tensor:
-        """Transform ``frames``.
+class _CheckedParams(dict):
+    """A params dict that names the module and the key when a key is missing."""
 
-        Args:
-            frames: event counts, ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
-            generator: source of randomness; ``None`` uses torch's global RNG, so each
-                DataLoader worker draws differently.
-            params: parameters returned by :meth:`make_params`, to replay a draw.
-        """
-        check_frames(frames)  # values once here; kernels inside skip them
-        video = _video_type()
-        like = frames if video is not None and isinstance(frames, video) else None
-        if like is not None:
-            frames = frames.as_subclass(Tensor)
-        batch, unbatch = as_batch(frames)
-        if params is None:
-            params = self.make_params(batch.shape[0], generator=generator)
-        with values_checked():
-            out = unbatch(self.apply(batch, params, generator=generator))
-        if like is not None:
-            from torchvision import tv_tensors
+    owner = "transform"
 
-            out = tv_tensors.wrap(out, like=like)
-        return out
+    def __missing__(self, key: str) -> Any:
+        raise ValueError(
+            f"params of {self.owner} has no entry {key!r} (it has {sorted(self)}); pass the "
+            "dict that make_params returns"
+        )
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        """Draw this call's per-sample parameters as (B,) CPU tensors."""
-        return {}
 
-    def apply(
-        self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None
-    ) -> Tensor:  # pragma: no cover - abstract
-        """Apply the transform to a batch ``(B, T, 2, H, W)`` with given parameters."""
-        raise NotImplementedError
+def _check_params(params: object, batch: int, owner: str, path: str = "params") -> Params:
+    """Check a user-given tree: dicts of (B, ...) tensors; return it with named missing keys."""
+    if not isinstance(params, Mapping):
+        raise TypeError(f"{path} must be a dict returned by make_params, got {type(params).__name__}")
+    checked = _CheckedParams()
+    checked.owner = owner
+    for key, value in params.items():
+        where = f"{path}[{key!r}]"
+        if isinstance(value, Mapping):
+            checked[key] = _check_params(value, batch, owner, where)
+        elif isinstance(value, Tensor):
+            if value.dim() == 0 or value.shape[0] != batch:
+                raise ValueError(
+                    f"{where} must have shape ({batch}, ...) to match the batch, got {describe(value)}"
+                )
+            checked[key] = value
+        else:
+            raise TypeError(f"{where} must be a tensor or a dict, got {type(value).__name__}")
+    return checked
+
+
+def slice_params(params: Params, index: Tensor) -> Params:
+    """The parameters of the samples ``index`` (a CPU int64 tensor): every leaf indexed on dim 0."""
+    out = type(params)()
+    if isinstance(params, _CheckedParams):
+        out.owner = params.owner
+    for key, value in params.items():
+        out[key] = slice_params(value, index) if isinstance(value, Mapping) else value.index_select(0, index)
+    return out
 
 
 # --------------------------------------------------------------------------- sampling
 
 
-def _sample_device(generator: torch.Generator | None) -> torch.device:
+def _draw_device(generator: torch.Generator | None) -> torch.device:
     return torch.device("cpu") if generator is None else torch.device(generator.device)
 
 
-def uniform(
-    low: float, high: float, batch_size: int, generator: torch.Generator | None
-) -> Tensor:
-    """``batch_size`` draws from U[low, high) as a float64 CPU tensor."""
-    u = torch.rand(
-        batch_size, generator=generator, device=_sample_device(generator), dtype=torch.float64
-    )
+def uniform(low: float, high: float, batch: int, generator: torch.Generator | None) -> Tensor:
+    """``batch`` draws from U[low, high) as a float64 CPU tensor."""
+    u = torch.rand(batch, generator=generator, device=_draw_device(generator), dtype=torch.float64)
     return (low + (high - low) * u).cpu()
 
 
-def choice(values: Sequence[Any] | Tensor, batch_size: int, generator: torch.Generator | None) -> Tensor:
-    """``batch_size`` uniform draws from ``values`` (a 1-D tensor or sequence), on the CPU."""
+def choice(values: Sequence[Any] | Tensor, batch: int, generator: torch.Generator | None) -> Tensor:
+    """``batch`` uniform draws from ``values`` (a 1-D tensor or sequence), on the CPU."""
     values = torch.as_tensor(values)
-    index = torch.randint(
-        len(values), (batch_size,), generator=generator, device=_sample_device(generator)
+    index = torch.randint(len(values), (batch,), generator=generator, device=_draw_device(generator))
+    return values[index.cpu()]
+
+
+def bernoulli(p: float, batch: int, generator: torch.Generator | None) -> Tensor:
+    """``batch`` Bernoulli(p) draws as a bool CPU tensor."""
+    return uniform(0.0, 1.0, batch, generator) < p
+
+
+def integers(high: Tensor | int, batch: int, generator: torch.Generator | None) -> Tensor:
+    """``batch`` uniform integers in ``[0, high)`` (``high`` a number or (B,) tensor >= 1), int64 CPU."""
+    u = uniform(0.0, 1.0, batch, generator)
+    high_t = torch.as_tensor(high, dtype=torch.float64)
+    return torch.minimum((u * high_t).floor(), high_t - 1).to(torch.int64)
+
+
+def seeds(batch: int, generator: torch.Generator | None) -> Tensor:
+    """``batch`` independent 63-bit seeds (int64, CPU), one per sample."""
+    return torch.randint(
+        0, 2**63 - 1, (batch,), generator=generator, device=_draw_device(generator), dtype=torch.int64
     ).cpu()
-    return values[index]
 
 
-def bernoulli(p: float, batch_size: int, generator: torch.Generator | None) -> Tensor:
-    """``batch_size`` Bernoulli(p) draws as a bool CPU tensor."""
-    return uniform(0.0, 1.0, batch_size, generator) < p
+def kernel_generator(seed: Tensor, device: torch.device) -> torch.Generator:
+    """A generator on ``device`` seeded from a batch's per-sample seeds (no device work).
 
-
-def check_range(
-    value: float | Sequence[float], name: str, *, symmetric: bool = False, low: float | None = None
-) -> tuple[float, float]:
-    """Turn ``x`` (``(-x, x)`` if ``symmetric``) or ``(a, b)`` into a checked ``(a, b)``."""
-    if isinstance(value, bool):
-        raise TypeError(f"{name} must be a number or a (min, max) pair, got {value!r}")
-    if isinstance(value, (int, float)):
-        if not symmetric:
-            raise TypeError(f"{name} must be a (min, max) pair, got {value!r}")
-        if value < 0:
-            raise ValueError(f"{name} as a single number must be non-negative, got {value!r}")
-        pair = (-float(value), float(value))
-    elif isinstance(value, Sequence) and len(value) == 2 and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
-    ):
-        pair = (float(value[0]), float(value[1]))
-    else:
-        raise TypeError(f"{name} must be a number or a (min, max) pair, got {value!r}")
-    if pair[0] > pair[1] or any(v != v for v in pair):
-        raise ValueError(f"{name} must satisfy min <= max, got {value!r}")
-    if low is not None and pair[0] < low:
-        raise ValueError(f"{name} must be >= {low}, got {value!r}")
-    return pair
+    The seeds are CPU tensors from :meth:`EventTransform.make_params`; they are read on the
+    host and mixed by NumPy's ``SeedSequence``, so the kernel's draws are a deterministic
+    function of the whole (B,) seed vector: replaying the same parameters replays the draw.
+    """
+    state = np.random.SeedSequence([int(s) for s in seed.tolist()]).generate_state(2, np.uint32)
+    generator = torch.Generator(device=device)
+    generator.manual_seed(int(state[0]) << 31 | int(state[1]) >> 1)
+    return generator
 
 
 # --------------------------------------------------------------------------- groups
@@ -161,14 +173,17 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
         if function is None:
             continue
         index = (group == g).nonzero().squeeze(1)
-        if index.numel() == frames.shape[0]:
-            sub = frames  # the whole batch: no gather
-        else:
-            sub = frames.index_select(0, index.to(device))
+        sub = frames if index.numel() == frames.shape[0] else frames.index_select(0, index.to(device))
         result = function(sub, index)
+        if result.shape[1:] != frames.shape[1:]:
+            raise ValueError(
+                f"every branch must keep the frames' shape {tuple(frames.shape[1:])}, "
+                f"got {tuple(result.shape[1:])}"
+            )
         out_dtype = result.dtype if out_dtype is None else torch.promote_types(out_dtype, result.dtype)
         results.append((index, result))
-    assert out_dtype is not None  # at least one group is a function or None
+    if out_dtype is None:
+        raise ValueError("apply_by_group needs at least one function or None")
     for index, result in results:
         if index.numel() == frames.shape[0]:
             return result.to(out_dtype)
@@ -177,3 +192,187 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
         if index.numel():
             out.index_copy_(0, index.to(device), result.to(out_dtype))
     return out
+
+
+# --------------------------------------------------------------------------- base
+
+
+class EventTransform(nn.Module):
+    """Base class: an ``nn.Module`` mapping event frames to event frames.
+
+    Subclasses override :meth:`sample_params` (draw per-sample parameters on the CPU, no
+    state) and :meth:`apply` (call a private kernel on a checked batch). Calling a module
+    accepts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames and returns the same layout on
+    the same device (see the module docstring for extra inputs and dicts).
+
+    Args:
+        p: probability that a sample is transformed; the others pass unchanged. Drawn
+            per sample in :meth:`make_params` (entry ``"apply"``) when ``p < 1``.
+
+    Example:
+        >>> import event_transforms as et
+        >>> rotation = et.RandomRotation(30.0, p=0.5)
+        >>> frames = torch.poisson(torch.full((4, 6, 2, 9, 11), 0.3))
+        >>> params = rotation.make_params(frames.shape, generator=torch.Generator().manual_seed(0))
+        >>> sorted(params), params["apply"].tolist()
+        (['angle', 'apply'], [False, False, True, True])
+        >>> _ = torch.manual_seed(123)  # the global RNG does not matter when params are given
+        >>> torch.equal(rotation(frames, params=params), rotation(frames, params=params))
+        True
+    """
+
+    def __init__(self, *, p: float = 1.0) -> None:
+        super().__init__()
+        self.p = check_probability(p, "p")
+
+    def forward(
+        self,
+        *inputs: Any,
+        generator: torch.Generator | None = None,
+        params: Params | None = None,
+        metadata: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
+    ) -> Any:
+        """Transform the frames among ``inputs``; everything else passes through.
+
+        Args:
+            inputs: frames ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` (a tensor, a
+                ``tv_tensors.Video``, or a dict holding them under ``"frames"``), then
+                anything (labels, ...), returned unchanged.
+            generator: source of the parameter draws (a CPU generator keeps CUDA calls
+                free of host synchronisation); ``None`` uses torch's global RNG, so each
+                DataLoader worker draws differently.
+            params: a tree returned by :meth:`make_params`, to replay a draw.
+            metadata: per-sample information some transforms read (e.g. object sizes):
+                a dict of numbers or ``(B,)`` values, or a list of dicts (one per sample).
+                For a dict input, its other entries are the metadata unless given here.
+
+        Returns:
+            The transformed frames in the input's form: a tensor, a ``Video``, a dict
+            with ``"frames"`` replaced, or a tuple ``(frames, *rest)`` for several inputs.
+        """
+        if not inputs:
+            raise TypeError(f"{type(self).__name__} needs frames as its first input, got no inputs")
+        first, rest = inputs[0], inputs[1:]
+        frames = first
+        if isinstance(first, Mapping):
+            if FRAMES_KEY not in first:
+                raise ValueError(
+                    f"a dict input must hold the frames under {FRAMES_KEY!r}, got keys {sorted(first)}"
+                )
+            frames = first[FRAMES_KEY]
+            if metadata is None:
+                metadata = {k: v for k, v in first.items() if k != FRAMES_KEY}
+        video = _video_of(frames)
+        like = frames if video is not None else None
+        if video is not None:
+            frames = frames.as_subclass(Tensor)
+        batch, unbatch = as_batch(check_frames(frames))
+        if params is None:
+            params = self.make_params(batch.shape, generator=generator, metadata=metadata)
+        else:
+            params = _check_params(params, batch.shape[0], type(self).__name__)
+        out = unbatch(self._run(batch, params))
+        if like is not None:
+            out = video.wrap(out, like=like)
+        if isinstance(first, Mapping):
+            out = {**first, FRAMES_KEY: out}
+        return (out, *rest) if rest else out
+
+    def make_params(
+        self,
+        shape: Sequence[int],
+        *,
+        generator: torch.Generator | None = None,
+        metadata: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
+    ) -> Params:
+        """Draw every random number of one call on a batch of ``shape`` ``(B, T, 2, H, W)``.
+
+        Returns a dict of ``(B, ...)`` CPU tensors (nested for containers). Give it back as
+        ``module(frames, params=...)`` to replay the call exactly.
+        """
+        shape = check_shape(shape)
+        params = self.sample_params(shape, generator=generator, metadata=metadata)
+        if self.p < 1:
+            params["apply"] = bernoulli(self.p, shape[0], generator)
+        return params
+
+    def sample_params(
+        self,
+        shape: torch.Size,
+        *,
+        generator: torch.Generator | None = None,
+        metadata: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
+    ) -> Params:
+        """Override: this transform's own parameters for a checked batch ``shape``."""
+        return {}
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:  # pragma: no cover - abstract
+        """Override: transform a checked batch ``(B, T, 2, H, W)`` with given parameters."""
+        raise NotImplementedError
+
+    def output_shape(self, shape: torch.Size) -> torch.Size:
+        """The batch shape this transform returns for input ``shape`` (the same by default)."""
+        return shape
+
+    def _run(self, frames: Tensor, params: Params) -> Tensor:
+        """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``."""
+        gate = params.get("apply")
+        if gate is None:
+            return self.apply(frames, params)
+        if bool(gate.all()):
+            return self.apply(frames, params)
+        return apply_by_group(
+            frames, gate.long(), [None, lambda sub, index: self.apply(sub, slice_params(params, index))]
+        )
+
+    def extra_repr(self) -> str:
+        settings = self._settings()
+        if self.p < 1:
+            settings = f"{settings}, p={self.p}" if settings else f"p={self.p}"
+        return settings
+
+    def _settings(self) -> str:
+        """Override: the settings shown in ``repr`` (``p`` is added by the base class)."""
+        return ""
+
+
+class Lambda(EventTransform):
+    """A plain function of frames as a transform: ``function(frames) -> frames``.
+
+    :func:`as_transform` wraps anything that is not an :class:`EventTransform` in one, so
+    containers and data sets call every member the same way. The function draws no
+    parameters (its tree entry is empty) and is called on the whole batch
+    ``(B, T, 2, H, W)``; it must keep the shape.
+
+    Example:
+        >>> double = Lambda(lambda frames: 2 * frames)
+        >>> double(torch.ones(1, 2, 1, 1)).flatten().tolist()
+        [2.0, 2.0]
+    """
+
+    def __init__(self, function: Callable[[Tensor], Tensor]) -> None:
+        super().__init__()
+        if not callable(function):
+            raise TypeError(f"function must be callable, got {type(function).__name__}")
+        self.function = function
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return self.function(frames)
+
+    def _settings(self) -> str:
+        if isinstance(self.function, nn.Module):
+            return ""  # shown as a child module
+        return getattr(self.function, "__name__", None) or repr(self.function)
+
+
+def as_transform(transform: object, name: str = "transform") -> EventTransform:
+    """``transform`` if it is an :class:`EventTransform`, else a :class:`Lambda` around it.
+
+    Raises:
+        TypeError: ``transform`` is not callable.
+    """
+    if isinstance(transform, EventTransform):
+        return transform
+    if not callable(transform):
+        raise TypeError(f"{name} must be an EventTransform or a callable, got {type(transform).__name__}")
+    return Lambda(transform)

@@ -1,139 +1,166 @@
 """Containers: ``Compose`` (hybrid), ``OneOf`` (independent) and ``RandomApply``.
 
-Containers only chain: they pass one generator through to every transform they hold, so a
-seeded call is reproducible end to end. ``OneOf`` and ``RandomApply`` gather the samples
-that take each branch and run the branch once on that sub-batch (no per-sample loop), so
-an unused branch costs nothing.
+Containers only chain. Their :meth:`~EventTransform.make_params` returns one entry per
+child (``"0"``, ``"1"``, ...; each child's own tree, drawn for the whole batch with the
+batch's metadata), plus the container's own draws (``"index"`` for :class:`OneOf`,
+``"apply"`` for :class:`RandomApply`), so a whole pipeline's draw can be logged and
+replayed. ``OneOf`` and ``RandomApply`` gather the samples that take each branch, slice
+the branch's parameters to them, and run the branch once on that sub-batch (no per-sample
+loop), so an unused branch costs nothing. Members that are not event transforms (plain
+functions, torchvision transforms) are wrapped by :func:`as_transform` and called as
+``function(frames)``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any, Callable
 
 import torch
 from torch import Tensor, nn
 
-from .._validation import check_number
-from .base import EventTransform, Params, _sample_device, apply_by_group, bernoulli
+from .._validation import as_number, check_probability
+from .base import EventTransform, Params, _draw_device, apply_by_group, as_transform, bernoulli, slice_params
 
 __all__ = ["Compose", "OneOf", "RandomApply"]
 
-
-def _call(transform: nn.Module, frames: Tensor, generator: torch.Generator | None) -> Tensor:
-    if isinstance(transform, EventTransform):
-        return transform(frames, generator=generator)
-    return transform(frames)
+Metadata = Mapping[str, Any] | Sequence[Mapping[str, Any]] | None
 
 
-def _check_modules(transforms: Sequence[nn.Module], name: str) -> nn.ModuleList:
-    if isinstance(transforms, nn.Module) or not isinstance(transforms, Sequence):
-        raise TypeError(f"{name} must be a sequence of nn.Module transforms, got {type(transforms).__name__}")
-    for t in transforms:
-        if not isinstance(t, nn.Module):
-            raise TypeError(f"{name} must hold nn.Module transforms, got {type(t).__name__}")
-    return nn.ModuleList(transforms)
+def _members(transforms: object, name: str) -> nn.ModuleList:
+    if isinstance(transforms, (nn.Module, str, bytes)) or not isinstance(transforms, Sequence):
+        raise TypeError(
+            f"{name} must be a sequence of transforms or callables, got {type(transforms).__name__}"
+        )
+    return nn.ModuleList(as_transform(t, f"{name}[{i}]") for i, t in enumerate(transforms))
 
 
 class Compose(EventTransform):
     """Apply transforms one after another to every sample: the paper's *hybrid* combination.
 
     Args:
-        transforms: ``nn.Module`` transforms; event-transforms modules receive the generator.
+        transforms: event transforms or callables ``frames -> frames``.
 
     Example:
-        >>> from event_transforms import FrameShift, HorizontalFlip
+        >>> from event_transforms import FrameShift, HorizontalFlip, RandomRotation
         >>> hybrid = Compose([FrameShift(-1), HorizontalFlip()])
         >>> hybrid(torch.arange(8.).reshape(2, 2, 1, 2))[:, :, 0].tolist()
         [[[5.0, 4.0], [7.0, 6.0]], [[0.0, 0.0], [0.0, 0.0]]]
+        >>> params = Compose([FrameShift(-1), RandomRotation(10.0)]).make_params(
+        ...     (2, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))
+        >>> params["0"]["shift"].tolist(), params["1"]["angle"].shape
+        ([-1, -1], torch.Size([2]))
     """
 
-    def __init__(self, transforms: Sequence[nn.Module]) -> None:
+    def __init__(self, transforms: Sequence[EventTransform | Callable[[Tensor], Tensor]]) -> None:
         super().__init__()
-        self.transforms = _check_modules(transforms, "transforms")
+        self.transforms = _members(transforms, "transforms")
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Metadata = None) -> Params:
+        params: Params = {}
+        for i, transform in enumerate(self.transforms):
+            params[str(i)] = transform.make_params(shape, generator=generator, metadata=metadata)
+            shape = transform.output_shape(shape)
+        return params
+
+    def output_shape(self, shape: torch.Size) -> torch.Size:
         for transform in self.transforms:
-            frames = _call(transform, frames, generator)
+            shape = transform.output_shape(shape)
+        return shape
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        for i, transform in enumerate(self.transforms):
+            frames = transform._run(frames, params[str(i)])
         return frames
 
 
 class OneOf(EventTransform):
     """Give each sample exactly one of the transforms: the paper's *independent* combination.
 
-    Each sample draws its branch (uniformly, or by ``weights``); each branch runs once on
-    the sub-batch that drew it. The output dtype is the promotion of every branch's dtype,
-    whatever the draw.
+    Each sample draws its branch (uniformly, or by ``weights``) into ``params["index"]``;
+    each branch runs once on the sub-batch that drew it. The output dtype is the promotion
+    of every branch's dtype, whatever the draw. Every branch must keep the batch shape.
 
     Args:
-        transforms: ``nn.Module`` transforms, at least one.
+        transforms: event transforms or callables, at least one.
         weights: non-negative relative probabilities, one per transform (default equal).
 
     Example:
         >>> from event_transforms import FrameShift, Resize
         >>> independent = OneOf([Resize(1.25), FrameShift(-1)])
-        >>> params = independent.make_params(6, generator=torch.Generator().manual_seed(0))
-        >>> params["index"].tolist()
-        [1, 1, 0, 1, 1, 1]
+        >>> params = independent.make_params((6, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))
+        >>> params["index"].tolist(), params["1"]["shift"].tolist()
+        ([1, 1, 0, 1, 1, 1], [-1, -1, -1, -1, -1, -1])
     """
 
-    def __init__(self, transforms: Sequence[nn.Module], weights: Sequence[float] | None = None) -> None:
+    def __init__(
+        self,
+        transforms: Sequence[EventTransform | Callable[[Tensor], Tensor]],
+        weights: Sequence[float] | None = None,
+    ) -> None:
         super().__init__()
-        self.transforms = _check_modules(transforms, "transforms")
-        if len(self.transforms) == 0:
+        self.transforms = _members(transforms, "transforms")
+        n = len(self.transforms)
+        if n == 0:
             raise ValueError("transforms must hold at least one transform, got an empty sequence")
         if weights is None:
-            weights = [1.0] * len(self.transforms)
-        w = torch.as_tensor(weights, dtype=torch.float64)
-        if w.shape != (len(self.transforms),):
-            raise ValueError(f"weights must have one entry per transform ({len(self.transforms)}), got {list(weights)}")
-        if not bool(torch.isfinite(w).all()) or bool((w < 0).any()) or float(w.sum()) <= 0:
-            raise ValueError(f"weights must be finite, non-negative and not all zero, got {list(weights)}")
-        self.register_buffer("weights", w / w.sum(), persistent=False)
+            weights = [1.0] * n
+        if isinstance(weights, (str, bytes)) or not isinstance(weights, Sequence) or len(weights) != n:
+            raise ValueError(f"weights must have one entry per transform ({n}), got {weights!r}")
+        values = [as_number(w, "weights", low=0.0) for w in weights]
+        if sum(values) <= 0:
+            raise ValueError(f"weights must not all be zero, got {weights!r}")
+        total = sum(values)
+        self.register_buffer("weights", torch.tensor([v / total for v in values], dtype=torch.float64), persistent=False)
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        if batch_size == 0:
-            return {"index": torch.zeros(0, dtype=torch.long)}
-        weights = self.weights.to(_sample_device(generator))
-        index = torch.multinomial(weights, batch_size, replacement=True, generator=generator)
-        return {"index": index.cpu()}
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Metadata = None) -> Params:
+        batch = shape[0]
+        if batch:
+            index = torch.multinomial(
+                self.weights.to(_draw_device(generator)), batch, replacement=True, generator=generator
+            ).cpu()
+        else:
+            index = torch.zeros(0, dtype=torch.int64)
+        params: Params = {"index": index}
+        for i, transform in enumerate(self.transforms):
+            params[str(i)] = transform.make_params(shape, generator=generator, metadata=metadata)
+        return params
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
         branches = [
-            (lambda sub, _, t=t: _call(t, sub, generator)) for t in self.transforms
+            (lambda sub, index, t=t, i=i: t._run(sub, slice_params(params[str(i)], index)))
+            for i, t in enumerate(self.transforms)
         ]
         return apply_by_group(frames, params["index"], branches)
 
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         return f"weights={[round(w, 4) for w in self.weights.tolist()]}"
 
 
 class RandomApply(EventTransform):
     """Apply ``transform`` to each sample with probability ``p``; other samples pass unchanged.
 
+    The same as giving the transform ``p=``; kept for transforms that have no ``p`` (plain
+    callables, torchvision transforms) and for torchvision's spelling.
+
     Args:
-        transform: an ``nn.Module`` transform.
+        transform: an event transform or a callable.
         p: probability per sample, in [0, 1].
 
     Example:
         >>> from event_transforms import FrameShift
         >>> gate = RandomApply(FrameShift(1), p=0.5)
-        >>> gate.make_params(4, generator=torch.Generator().manual_seed(0))["apply"].tolist()
-        [False, False, True, False]
+        >>> params = gate.make_params((4, 3, 2, 5, 5), generator=torch.Generator().manual_seed(0))
+        >>> params["apply"].tolist(), params["0"]["shift"].tolist()
+        ([False, False, True, False], [1, 1, 1, 1])
     """
 
-    def __init__(self, transform: nn.Module, p: float = 0.5) -> None:
-        super().__init__()
-        if not isinstance(transform, nn.Module):
-            raise TypeError(f"transform must be an nn.Module, got {type(transform).__name__}")
-        self.transform = transform
-        self.p = check_number(p, "p", low=0.0, high=1.0)
+    def __init__(self, transform: EventTransform | Callable[[Tensor], Tensor], p: float = 0.5) -> None:
+        super().__init__(p=check_probability(p, "p"))
+        self.transform = as_transform(transform)
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {"apply": bernoulli(self.p, batch_size, generator)}
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Metadata = None) -> Params:
+        return {"0": self.transform.make_params(shape, generator=generator, metadata=metadata)}
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        branch = lambda sub, _: _call(self.transform, sub, generator)  # noqa: E731
-        return apply_by_group(frames, params["apply"].long(), [None, branch])
-
-    def extra_repr(self) -> str:
-        return f"p={self.p}"
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return self.transform._run(frames, params["0"])

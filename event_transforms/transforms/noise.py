@@ -7,9 +7,9 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from .. import functional as F
-from .._validation import check_frames, check_number
-from .base import EventTransform, Params, apply_by_group, check_range, choice, uniform
+from .._validation import check_counts, check_frames, check_pair, check_positive
+from ..functional.noise import _add_counts, _add_poisson_noise, _drop_by_area, _drop_by_time, _drop_events, _poisson_totals
+from .base import EventTransform, Params, apply_by_group, choice, integers, kernel_generator, seeds, slice_params, uniform
 
 __all__ = ["AddNoise", "AddPoissonNoise", "RandomEventDrop"]
 
@@ -18,12 +18,13 @@ class AddNoise(EventTransform):
     """Add a window of frames recorded (or simulated) in a static scene, drawn per sample.
 
     The bank is one long static-scene recording ``(N, 2, H, W)``; each sample gets the
-    ``T`` consecutive frames starting at its own random offset in ``[0, N - T]``. The bank
-    is a buffer, so ``.to(device)`` moves it with the module.
+    ``T`` consecutive frames starting at its own random offset in ``[0, N - T]``
+    (``params["offset"]``). The bank is a buffer, so ``.to(device)`` moves it with the module.
 
     Args:
         bank: non-negative counts ``(N, 2, H, W)`` with ``N >= T`` of the frames it is
             applied to and the frames' ``H, W``.
+        p: probability that a sample gets noise.
 
     Shape:
         ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype of the frames kept.
@@ -36,50 +37,50 @@ class AddNoise(EventTransform):
         [[1.0, 2.0, 3.0], [2.0, 3.0, 4.0]]
     """
 
-    def __init__(self, bank: Tensor) -> None:
-        super().__init__()
+    def __init__(self, bank: Tensor, *, p: float = 1.0) -> None:
+        super().__init__(p=p)
         if not isinstance(bank, Tensor) or bank.dim() != 4 or bank.shape[1] != 2:
             shape = tuple(bank.shape) if isinstance(bank, Tensor) else type(bank).__name__
             raise ValueError(f"bank: expected static-scene frames (N, 2, H, W), got {shape}")
-        check_frames(bank, "bank")
+        check_frames(bank.unsqueeze(0), "bank")
+        check_counts(bank, "bank")
         if bank.shape[0] == 0:
             raise ValueError("bank must hold at least one frame, got N = 0")
         self.register_buffer("bank", bank.clone())
 
-    def _check_size(self, frames: Tensor) -> None:
-        t, _, h, w = frames.shape[-4:]
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        b, t, _, h, w = shape
         n, _, bh, bw = self.bank.shape
         if (bh, bw) != (h, w) or n < t:
             raise ValueError(
-                f"bank of shape {tuple(self.bank.shape)} cannot cover frames of shape "
-                f"{tuple(frames.shape)}: it needs H, W = {(h, w)} and at least T = {t} frames"
+                f"bank of shape {tuple(self.bank.shape)} cannot cover frames of shape {tuple(shape)}: "
+                f"it needs H, W = {(h, w)} and at least T = {t} frames"
             )
+        return {"offset": integers(n - t + 1, b, generator)}
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        # The window length is only known with the frames: draw a uniform position in
-        # [0, 1) now and scale it to [0, N - T] in apply.
-        return {"offset": uniform(0.0, 1.0, batch_size, generator)}
-
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        self._check_size(frames)
-        t = frames.shape[1]
-        span = self.bank.shape[0] - t + 1
-        start = (params["offset"] * span).floor().long().clamp_(max=span - 1)
-        index = start.unsqueeze(1) + torch.arange(t)  # (B, T), CPU
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        b, t = frames.shape[:2]
+        index = (params["offset"].unsqueeze(1) + torch.arange(t)).reshape(-1)  # (B·T,) CPU
+        if b and int(index.max()) >= self.bank.shape[0]:
+            raise ValueError(f"params['offset'] reaches past the bank's {self.bank.shape[0]} frames")
         bank = self.bank.to(frames.device)
-        noise = bank.index_select(0, index.reshape(-1).to(frames.device)).view(frames.shape[0], t, *bank.shape[1:])
-        return F.add_noise(frames, noise)
+        noise = bank.index_select(0, index.to(frames.device)).view(b, t, *bank.shape[1:])
+        return _add_counts(frames, noise, "noise")
 
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         return f"bank=({', '.join(map(str, self.bank.shape))})"
 
 
 class AddPoissonNoise(EventTransform):
     """Add Poisson background activity at ``rate_hz`` per pixel and polarity.
 
+    For sparse noise (under one event per cell) ``make_params`` also draws each sample's
+    total ``count``; the kernel places the events from a per-sample ``seed``.
+
     Args:
         rate_hz: a rate in Hz, or a ``(min, max)`` range drawn uniformly per sample.
         frame_ms: frame length in milliseconds (the paper's 10 ms).
+        p: probability that a sample gets noise.
 
     Example:
         >>> transform = AddPoissonNoise((0.1, 10.0))
@@ -88,22 +89,29 @@ class AddPoissonNoise(EventTransform):
         (torch.Size([4, 36, 2, 70, 75]), True)
     """
 
-    def __init__(self, rate_hz: float | Sequence[float], frame_ms: float = 10.0) -> None:
-        super().__init__()
-        if isinstance(rate_hz, (int, float)) and not isinstance(rate_hz, bool):
-            rate_hz = (float(rate_hz), float(rate_hz))
-        self.rate_hz = check_range(rate_hz, "rate_hz", low=0.0)
-        self.frame_ms = check_number(frame_ms, "frame_ms", low=0.0)
-        if self.frame_ms == 0:
-            raise ValueError(f"frame_ms must be > 0, got {frame_ms!r}")
+    def __init__(self, rate_hz: float | Sequence[float], frame_ms: float = 10.0, *, p: float = 1.0) -> None:
+        super().__init__(p=p)
+        self.rate_hz = check_pair(rate_hz, "rate_hz", low=0.0, single=True)
+        self.frame_ms = check_positive(frame_ms, "frame_ms")
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {"rate_hz": uniform(*self.rate_hz, batch_size, generator)}
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        rate = uniform(*self.rate_hz, shape[0], generator)
+        params: Params = {"rate_hz": rate}
+        totals = _poisson_totals(rate * (self.frame_ms / 1000.0), shape, generator)
+        if totals is not None:
+            params["count"] = totals
+        params["seed"] = seeds(shape[0], generator)
+        return params
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.add_poisson_noise(frames, params["rate_hz"], frame_ms=self.frame_ms, generator=generator)
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return _add_poisson_noise(
+            frames,
+            params["rate_hz"] * (self.frame_ms / 1000.0),
+            totals=params.get("count"),
+            generator=kernel_generator(params["seed"], frames.device),
+        )
 
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         return f"rate_hz={self.rate_hz}, frame_ms={self.frame_ms}"
 
 
@@ -117,12 +125,14 @@ class RandomEventDrop(EventTransform):
     * ``"time"``: every event in ``floor(ρ·T)`` consecutive frames at a random start;
     * ``"area"``: every event in a ``floor(ρ·H) × floor(ρ·W)`` rectangle at a random place.
 
-    ρ is drawn per sample from ``fraction``. Counts stay integer and the dtype is kept;
-    ``"random"`` needs integer-valued counts (apply it before rotate/resize).
+    ρ, the method and the window are drawn per sample in ``make_params``; the random
+    thinning draws from a per-sample seed. Counts stay integer and the dtype is kept;
+    ``"random"`` needs whole counts (apply it before bilinear rotate/resize).
 
     Args:
         fraction: ``(min, max)`` range of ρ within [0, 1] (a single number is fixed).
         methods: the methods to choose from, uniformly.
+        p: probability that a sample loses events.
 
     Example:
         >>> drop = RandomEventDrop(fraction=(0.1, 0.5))
@@ -136,52 +146,52 @@ class RandomEventDrop(EventTransform):
         self,
         fraction: float | Sequence[float] = (0.0, 0.5),
         methods: Sequence[str] = _DROPS,
+        *,
+        p: float = 1.0,
     ) -> None:
-        super().__init__()
-        if isinstance(fraction, (int, float)) and not isinstance(fraction, bool):
-            fraction = (float(fraction), float(fraction))
-        self.fraction = check_range(fraction, "fraction", low=0.0)
-        if self.fraction[1] > 1:
-            raise ValueError(f"fraction must lie in [0, 1], got {fraction!r}")
-        if isinstance(methods, str) or not methods or any(m not in _DROPS for m in methods):
+        super().__init__(p=p)
+        self.fraction = check_pair(fraction, "fraction", low=0.0, high=1.0, single=True)
+        if isinstance(methods, str) or not isinstance(methods, Sequence) or not methods or any(
+            m not in _DROPS for m in methods
+        ):
             raise ValueError(f"methods must be a non-empty subset of {_DROPS}, got {methods!r}")
         self.methods = tuple(methods)
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        b, t, _, h, w = shape
         codes = torch.tensor([_DROPS.index(m) for m in self.methods])
+        method = choice(codes, b, generator)
+        fraction = uniform(*self.fraction, b, generator)
+
+        def window(size: int) -> tuple[Tensor, Tensor]:
+            length = (fraction * size).floor().to(torch.int64)
+            return integers(size - length + 1, b, generator), length
+
+        start, length = window(t)
+        top, height = window(h)
+        left, width = window(w)
         return {
-            "method": choice(codes, batch_size, generator),
-            "fraction": uniform(*self.fraction, batch_size, generator),
-            # positions in [0, 1): scaled to the frames' size in apply
-            "start": uniform(0.0, 1.0, batch_size, generator),
-            "top": uniform(0.0, 1.0, batch_size, generator),
-            "left": uniform(0.0, 1.0, batch_size, generator),
+            "method": method, "fraction": fraction, "seed": seeds(b, generator),
+            "start": start, "length": length,
+            "top": top, "height": height, "left": left, "width": width,
         }
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        _, t, _, h, w = frames.shape
-        fraction = params["fraction"]
-
-        def window(size: int, position: Tensor) -> tuple[Tensor, Tensor]:
-            length = (fraction * size).floor().long()
-            start = (position * (size - length + 1)).floor().long().clamp(max=size - length)
-            return start, length
-
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
         def by_random(sub: Tensor, index: Tensor) -> Tensor:
-            return F.drop_events(sub, fraction[index], generator=generator)
+            part = slice_params(params, index)
+            return _drop_events(sub, part["fraction"], "binomial", kernel_generator(part["seed"], sub.device))
 
         def by_time(sub: Tensor, index: Tensor) -> Tensor:
-            start, length = window(t, params["start"])
-            return F.drop_by_time(sub, start[index], length[index])
+            part = slice_params(params, index)
+            return _drop_by_time(sub, part["start"], part["length"])
 
         def by_area(sub: Tensor, index: Tensor) -> Tensor:
-            top, height = window(h, params["top"])
-            left, width = window(w, params["left"])
-            return F.drop_by_area(sub, top[index], left[index], height[index], width[index])
+            part = slice_params(params, index)
+            return _drop_by_area(sub, part["top"], part["left"], part["height"], part["width"])
 
         branches = {"random": by_random, "time": by_time, "area": by_area}
         functions = [branches[m] if m in self.methods else None for m in _DROPS]
         return apply_by_group(frames, params["method"], functions)
 
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         return f"fraction={self.fraction}, methods={self.methods}"

@@ -1,4 +1,10 @@
-"""Spatial transform modules: rotation, resize, flips."""
+"""Spatial transform modules: rotation, resize, flips.
+
+Rotation and resize are one affine warp per sequence (every frame of a grasp keeps the
+same orientation), about the event centroid by default. Bilinear sampling returns the
+input dtype for float input and float32 for integer input; ``mode="nearest"`` keeps the
+dtype. Values are moved or interpolated, never inspected.
+"""
 
 from __future__ import annotations
 
@@ -8,9 +14,9 @@ import torch
 from torch import Tensor
 
 from .. import functional as F
-from .._validation import check_number
-from ..functional.spatial import Center
-from .base import EventTransform, Params, apply_by_group, bernoulli, check_range, choice, uniform
+from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
+from ..functional.spatial import Center, _affine, _check_center
+from .base import EventTransform, Params, choice, uniform
 
 __all__ = [
     "Rotate",
@@ -24,40 +30,44 @@ __all__ = [
 ]
 
 
-def _check_center(center: Center) -> Center:
-    if isinstance(center, str) and center not in ("mass", "image"):
-        raise ValueError(f"center must be 'mass', 'image' or (y, x), got {center!r}")
-    if not isinstance(center, (str, Sequence, Tensor)):
-        raise TypeError(f"center must be 'mass', 'image' or (y, x), got {center!r}")
-    return center
-
-
-def _check_mode(mode: str) -> str:
-    if mode not in ("bilinear", "nearest"):
-        raise ValueError(f"mode must be 'bilinear' or 'nearest', got {mode!r}")
-    return mode
-
-
 class _Affine(EventTransform):
-    """Shared settings of the rotation and resize modules."""
+    """Shared settings of the rotation and resize modules: ``params`` hold angle and/or scale."""
 
-    def __init__(self, *, center: Center, mode: str) -> None:
-        super().__init__()
+    def __init__(self, *, center: Center, mode: str, p: float) -> None:
+        super().__init__(p=p)
         self.center = _check_center(center)
-        self.mode = _check_mode(mode)
+        self.mode = check_choice(mode, "mode", INTERPOLATIONS)
 
-    def _extra(self) -> str:
+    def _warp(self, frames: Tensor, *, angle: Tensor | None = None, scale: Tensor | None = None) -> Tensor:
+        if angle is None:
+            angle = torch.zeros(frames.shape[0], dtype=torch.float64)
+        if scale is None:
+            scale = torch.ones(frames.shape[0], dtype=torch.float64)
+        return _affine(frames, angle, scale, self.center, self.mode)
+
+    def _common(self) -> str:
         return f"center={self.center!r}, mode={self.mode!r}"
 
 
-class Rotate(_Affine):
+class _Rotation(_Affine):
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return self._warp(frames, angle=params["angle"])
+
+
+class _Zoom(_Affine):
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return self._warp(frames, scale=params["scale"])
+
+
+class Rotate(_Rotation):
     """Rotate every frame by a fixed angle about the sequence's centre.
 
     Args:
-        angle: degrees, counter-clockwise on the displayed image.
+        angle: degrees, counter-clockwise on the displayed image (finite).
         center: ``"mass"`` (event centroid of the sequence), ``"image"`` or ``(y, x)``.
         mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
             or ``"nearest"`` (dtype kept).
+        p: probability that a sample is rotated.
 
     Shape:
         ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged.
@@ -69,55 +79,51 @@ class Rotate(_Affine):
         [[0, 0, 2], [1, 0, 2]]
     """
 
-    def __init__(self, angle: float, *, center: Center = "mass", mode: str = "bilinear") -> None:
-        super().__init__(center=center, mode=mode)
-        self.angle = check_number(angle, "angle")
+    def __init__(self, angle: float, *, center: Center = "mass", mode: str = "bilinear", p: float = 1.0) -> None:
+        super().__init__(center=center, mode=mode, p=p)
+        self.angle = as_number(angle, "angle")
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {"angle": torch.full((batch_size,), self.angle, dtype=torch.float64)}
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        return {"angle": torch.full((shape[0],), self.angle, dtype=torch.float64)}
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.rotate(frames, params["angle"], center=self.center, mode=self.mode)
-
-    def extra_repr(self) -> str:
-        return f"angle={self.angle}, {self._extra()}"
+    def _settings(self) -> str:
+        return f"angle={self.angle}, {self._common()}"
 
 
-class RandomRotation(_Affine):
+class RandomRotation(_Rotation):
     """Rotate each sequence by its own random angle, the same for all its frames.
 
     Args:
         degrees: ``d`` for U(-d, d), or a ``(min, max)`` range, in degrees.
         center, mode: as in :class:`Rotate`.
+        p: probability that a sample is rotated.
 
     Example:
         >>> transform = RandomRotation(45.0)
-        >>> transform.make_params(3, generator=torch.Generator().manual_seed(0))["angle"]
+        >>> transform.make_params((3, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["angle"]
         tensor([42.3048, 18.7038, -3.6555], dtype=torch.float64)
     """
 
     def __init__(
-        self, degrees: float | Sequence[float], *, center: Center = "mass", mode: str = "bilinear"
+        self, degrees: float | Sequence[float], *, center: Center = "mass", mode: str = "bilinear", p: float = 1.0
     ) -> None:
-        super().__init__(center=center, mode=mode)
-        self.degrees = check_range(degrees, "degrees", symmetric=True)
+        super().__init__(center=center, mode=mode, p=p)
+        self.degrees = check_pair(degrees, "degrees", symmetric=True)
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {"angle": uniform(*self.degrees, batch_size, generator)}
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        return {"angle": uniform(*self.degrees, shape[0], generator)}
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.rotate(frames, params["angle"], center=self.center, mode=self.mode)
-
-    def extra_repr(self) -> str:
-        return f"degrees={self.degrees}, {self._extra()}"
+    def _settings(self) -> str:
+        return f"degrees={self.degrees}, {self._common()}"
 
 
-class Resize(_Affine):
-    """Zoom every frame by a fixed factor about the sequence's centre (H×W kept).
+class Resize(_Zoom):
+    """Zoom every frame by a fixed factor about the sequence's centre (H×W kept, zero margin).
 
     Args:
-        scale: the paper's β = target size / source size (> 0).
+        scale: the paper's β = target size / source size (finite, > 0).
         center, mode: as in :class:`Rotate`.
+        p: probability that a sample is resized.
 
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
@@ -126,23 +132,18 @@ class Resize(_Affine):
         [0.0, 0.0, 0.0, 0.5, 1.0]
     """
 
-    def __init__(self, scale: float, *, center: Center = "mass", mode: str = "bilinear") -> None:
-        super().__init__(center=center, mode=mode)
-        self.scale = check_number(scale, "scale", low=0.0)
-        if self.scale == 0:
-            raise ValueError(f"scale must be > 0, got {scale!r}")
+    def __init__(self, scale: float, *, center: Center = "mass", mode: str = "bilinear", p: float = 1.0) -> None:
+        super().__init__(center=center, mode=mode, p=p)
+        self.scale = check_positive(scale, "scale")
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {"scale": torch.full((batch_size,), self.scale, dtype=torch.float64)}
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        return {"scale": torch.full((shape[0],), self.scale, dtype=torch.float64)}
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.resize(frames, params["scale"], center=self.center, mode=self.mode)
-
-    def extra_repr(self) -> str:
-        return f"scale={self.scale}, {self._extra()}"
+    def _settings(self) -> str:
+        return f"scale={self.scale}, {self._common()}"
 
 
-class RandomResize(_Affine):
+class RandomResize(_Zoom):
     """Zoom each sequence by its own random factor about its centre.
 
     Give either ``scale``, a ``(min, max)`` range drawn uniformly, or ``choices``, a set
@@ -152,10 +153,11 @@ class RandomResize(_Affine):
         scale: ``(min, max)`` zoom range, both > 0.
         choices: zoom factors, all > 0.
         center, mode: as in :class:`Rotate`.
+        p: probability that a sample is resized.
 
     Example:
         >>> transform = RandomResize(choices=(15 / 18, 15 / 12))
-        >>> transform.make_params(4, generator=torch.Generator().manual_seed(0))["scale"]
+        >>> transform.make_params((4, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["scale"]
         tensor([0.8333, 1.2500, 1.2500, 0.8333], dtype=torch.float64)
     """
 
@@ -166,69 +168,63 @@ class RandomResize(_Affine):
         choices: Sequence[float] | None = None,
         center: Center = "mass",
         mode: str = "bilinear",
+        p: float = 1.0,
     ) -> None:
-        super().__init__(center=center, mode=mode)
+        super().__init__(center=center, mode=mode, p=p)
         if (scale is None) == (choices is None):
             raise ValueError(f"give exactly one of scale or choices, got scale={scale!r}, choices={choices!r}")
-        self.scale = None if scale is None else check_range(scale, "scale")
-        self.choices = None if choices is None else tuple(float(c) for c in choices)
+        self.scale = None if scale is None else check_pair(scale, "scale")
         if self.scale is not None and self.scale[0] <= 0:
             raise ValueError(f"scale must be > 0, got {scale!r}")
-        if self.choices is not None and (not self.choices or min(self.choices) <= 0):
-            raise ValueError(f"choices must be a non-empty set of factors > 0, got {choices!r}")
+        self.choices = None
+        if choices is not None:
+            if isinstance(choices, (str, bytes)) or not isinstance(choices, Sequence) or not choices:
+                raise TypeError(f"choices must be a non-empty sequence of factors > 0, got {choices!r}")
+            self.choices = tuple(check_positive(c, "choices") for c in choices)
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         if self.choices is not None:
-            return {"scale": choice(torch.tensor(self.choices, dtype=torch.float64), batch_size, generator)}
+            return {"scale": choice(torch.tensor(self.choices, dtype=torch.float64), shape[0], generator)}
         assert self.scale is not None
-        return {"scale": uniform(*self.scale, batch_size, generator)}
+        return {"scale": uniform(*self.scale, shape[0], generator)}
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.resize(frames, params["scale"], center=self.center, mode=self.mode)
-
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         setting = f"choices={self.choices}" if self.choices is not None else f"scale={self.scale}"
-        return f"{setting}, {self._extra()}"
+        return f"{setting}, {self._common()}"
 
 
 class HorizontalFlip(EventTransform):
     """Mirror every frame left-right. Counts and dtype are kept.
+
+    Args:
+        p: probability that a sample is mirrored.
 
     Example:
         >>> HorizontalFlip()(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.horizontal_flip(frames)
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return frames.flip(-1)
 
 
 class VerticalFlip(EventTransform):
     """Mirror every frame top-bottom. Counts and dtype are kept.
+
+    Args:
+        p: probability that a sample is mirrored.
 
     Example:
         >>> VerticalFlip()(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.vertical_flip(frames)
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return frames.flip(-2)
 
 
-class _RandomFlip(EventTransform):
-    def __init__(self, p: float = 0.5) -> None:
-        super().__init__()
-        self.p = check_number(p, "p", low=0.0, high=1.0)
-
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {"flip": bernoulli(self.p, batch_size, generator)}
-
-    def extra_repr(self) -> str:
-        return f"p={self.p}"
-
-
-class RandomHorizontalFlip(_RandomFlip):
-    """Mirror each sequence left-right with probability ``p`` (per sample).
+class RandomHorizontalFlip(HorizontalFlip):
+    """Mirror each sequence left-right with probability ``p`` (per sample; default 0.5).
 
     Example:
         >>> frames = torch.arange(8.).reshape(2, 1, 2, 1, 2)
@@ -236,13 +232,15 @@ class RandomHorizontalFlip(_RandomFlip):
         [[1.0, 0.0], [5.0, 4.0]]
     """
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        flip = lambda sub, _: F.horizontal_flip(sub)  # noqa: E731
-        return apply_by_group(frames, params["flip"].long(), [None, flip])
+    def __init__(self, p: float = 0.5) -> None:
+        super().__init__(p=p)
+
+    def _settings(self) -> str:
+        return "" if self.p < 1 else "p=1.0"
 
 
-class RandomVerticalFlip(_RandomFlip):
-    """Mirror each sequence top-bottom with probability ``p`` (per sample).
+class RandomVerticalFlip(VerticalFlip):
+    """Mirror each sequence top-bottom with probability ``p`` (per sample; default 0.5).
 
     Example:
         >>> frames = torch.arange(8.).reshape(2, 1, 2, 2, 1)
@@ -250,6 +248,8 @@ class RandomVerticalFlip(_RandomFlip):
         [[1.0, 0.0], [5.0, 4.0]]
     """
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        flip = lambda sub, _: F.vertical_flip(sub)  # noqa: E731
-        return apply_by_group(frames, params["flip"].long(), [None, flip])
+    def __init__(self, p: float = 0.5) -> None:
+        super().__init__(p=p)
+
+    def _settings(self) -> str:
+        return "" if self.p < 1 else "p=1.0"

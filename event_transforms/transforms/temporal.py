@@ -8,56 +8,54 @@ best settings are FS-1 = ``FrameShift(-1)`` and TES-2(0.50) =
 from __future__ import annotations
 
 from collections.abc import Sequence
-from numbers import Integral
 
 import torch
 from torch import Tensor
 
-from .. import functional as F
-from .._validation import check_number
-from .base import EventTransform, Params, check_range, choice, uniform
+from .._validation import TES_MODES, as_number, check_choice, check_pair, check_probability
+from ..functional.temporal import _frame_shift, _temporal_event_shift
+from .base import EventTransform, Params, choice, kernel_generator, seeds, uniform
 
 __all__ = ["FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift"]
-
-_MODES = ("exact", "binomial", "expected")
-
-
-def _check_shift(shift: object, name: str = "shift") -> int:
-    if isinstance(shift, bool) or not isinstance(shift, Integral):
-        raise TypeError(f"{name} must be an integer number of frames, got {shift!r}")
-    return int(shift)
 
 
 def _check_shifts(shifts: object) -> tuple[int, ...]:
     """A non-empty sequence of candidate integer shifts (``range`` objects welcome)."""
-    if isinstance(shifts, (str, bytes)) or not isinstance(shifts, (Sequence, range)):
+    if isinstance(shifts, (str, bytes)) or not isinstance(shifts, (Sequence, range, Tensor)):
         raise TypeError(
             f"shifts must be a sequence of integer shifts such as (-1, 1) or range(-2, 3), "
             f"got {shifts!r}"
         )
-    values = tuple(_check_shift(s, "shifts") for s in shifts)
+    values = tuple(as_number(s, "shifts", integer=True) for s in shifts)
     if not values:
         raise ValueError(f"shifts must hold at least one shift, got {shifts!r}")
     return values
 
 
-def _check_mode(mode: object) -> str:
-    if mode not in _MODES:
-        raise ValueError(f"mode must be one of {_MODES}, got {mode!r}")
-    return mode  # type: ignore[return-value]
+class _Shift(EventTransform):
+    """Frame shifting: ``params["shift"]`` (B,) int64."""
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return _frame_shift(frames, params["shift"])
 
 
-def _check_fractions(fractions: float | Sequence[float]) -> tuple[float, float]:
-    if isinstance(fractions, (int, float)) and not isinstance(fractions, bool):
-        value = check_number(fractions, "fractions", low=0.0, high=1.0)
-        return (value, value)
-    low, high = check_range(fractions, "fractions", low=0.0)
-    if high > 1.0:
-        raise ValueError(f"fractions must lie in [0, 1], got {fractions!r}")
-    return (low, high)
+class _EventShift(EventTransform):
+    """Temporal event shifting: ``params`` hold shift, fraction and the kernel's seed."""
+
+    mode: str
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        generator = None if self.mode == "expected" else kernel_generator(params["seed"], frames.device)
+        return _temporal_event_shift(frames, params["shift"], params["fraction"], self.mode, generator)
+
+    def _draws(self, shift: Tensor, fraction: Tensor, generator: torch.Generator | None) -> Params:
+        params: Params = {"shift": shift, "fraction": fraction}
+        if self.mode != "expected":
+            params["seed"] = seeds(shift.shape[0], generator)
+        return params
 
 
-class FrameShift(EventTransform):
+class FrameShift(_Shift):
     """Frame shifting FS-j: every frame moves ``shift`` bins; vacated frames are zero.
 
     Frames moved past either end are dropped (|j| >= T leaves only zeros). Values are
@@ -65,6 +63,7 @@ class FrameShift(EventTransform):
 
     Args:
         shift: whole frames j; j < 0 moves frames earlier (the paper's FS-1 is -1).
+        p: probability that a sample is shifted.
 
     Shape:
         ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged.
@@ -75,21 +74,18 @@ class FrameShift(EventTransform):
         tensor([1., 2., 0.])
     """
 
-    def __init__(self, shift: int) -> None:
-        super().__init__()
-        self.shift = _check_shift(shift)
+    def __init__(self, shift: int, *, p: float = 1.0) -> None:
+        super().__init__(p=p)
+        self.shift = as_number(shift, "shift", integer=True)
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {"shift": torch.full((batch_size,), self.shift, dtype=torch.int64)}
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        return {"shift": torch.full((shape[0],), self.shift, dtype=torch.int64)}
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.frame_shift(frames, params["shift"])
-
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         return f"shift={self.shift}"
 
 
-class RandomFrameShift(EventTransform):
+class RandomFrameShift(_Shift):
     """Frame shifting with a shift drawn per sample, uniformly from ``shifts``.
 
     Args:
@@ -102,28 +98,25 @@ class RandomFrameShift(EventTransform):
 
     Example:
         >>> transform = RandomFrameShift(range(-2, 3))
-        >>> params = transform.make_params(4, generator=torch.Generator().manual_seed(0))
         >>> frames = torch.ones(4, 5, 2, 3, 3)
+        >>> params = transform.make_params(frames.shape, generator=torch.Generator().manual_seed(0))
         >>> out = transform(frames, params=params)  # replays the draw
         >>> bool((out[:, :, 0, 0, 0].sum(dim=1) == 5 - params["shift"].abs()).all())
         True
     """
 
-    def __init__(self, shifts: Sequence[int]) -> None:
-        super().__init__()
+    def __init__(self, shifts: Sequence[int], *, p: float = 1.0) -> None:
+        super().__init__(p=p)
         self.shifts = _check_shifts(shifts)
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {"shift": choice(torch.tensor(self.shifts, dtype=torch.int64), batch_size, generator)}
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        return {"shift": choice(torch.tensor(self.shifts, dtype=torch.int64), shape[0], generator)}
 
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.frame_shift(frames, params["shift"])
-
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         return f"shifts={self.shifts}"
 
 
-class TemporalEventShift(EventTransform):
+class TemporalEventShift(_EventShift):
     """Temporal event shifting TES-j(ζ): move a fraction ζ of every frame's events j frames.
 
     In every frame and polarity a random subset Z_t of the events (ΣZ_t = round(ζ·ΣX_t),
@@ -136,6 +129,10 @@ class TemporalEventShift(EventTransform):
         shift: whole frames j; j < 0 is earlier (the paper's TES-2(0.50) is ``-2, 0.5``).
         fraction: ζ in [0, 1].
         mode: ``"exact"`` (default), ``"binomial"`` or ``"expected"``.
+        p: probability that a sample is shifted.
+
+    The random subset is drawn by the kernel from a per-sample seed in ``params["seed"]``,
+    so ``params=`` replays it exactly.
 
     Shape:
         ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged.
@@ -148,28 +145,25 @@ class TemporalEventShift(EventTransform):
         tensor([ 4,  0, 12])
     """
 
-    def __init__(self, shift: int, fraction: float, mode: str = "exact") -> None:
-        super().__init__()
-        self.shift = _check_shift(shift)
-        self.fraction = check_number(fraction, "fraction", low=0.0, high=1.0)
-        self.mode = _check_mode(mode)
+    def __init__(self, shift: int, fraction: float, mode: str = "exact", *, p: float = 1.0) -> None:
+        super().__init__(p=p)
+        self.shift = as_number(shift, "shift", integer=True)
+        self.fraction = check_probability(fraction, "fraction")
+        self.mode = check_choice(mode, "mode", TES_MODES)
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {
-            "shift": torch.full((batch_size,), self.shift, dtype=torch.int64),
-            "fraction": torch.full((batch_size,), self.fraction, dtype=torch.float64),
-        }
-
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.temporal_event_shift(
-            frames, params["shift"], params["fraction"], mode=self.mode, generator=generator
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        batch = shape[0]
+        return self._draws(
+            torch.full((batch,), self.shift, dtype=torch.int64),
+            torch.full((batch,), self.fraction, dtype=torch.float64),
+            generator,
         )
 
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         return f"shift={self.shift}, fraction={self.fraction}, mode={self.mode!r}"
 
 
-class RandomTemporalEventShift(EventTransform):
+class RandomTemporalEventShift(_EventShift):
     """Temporal event shifting with shift and fraction drawn per sample.
 
     Args:
@@ -196,22 +190,21 @@ class RandomTemporalEventShift(EventTransform):
         shifts: Sequence[int],
         fractions: float | Sequence[float] = (0.0, 1.0),
         mode: str = "exact",
+        *,
+        p: float = 1.0,
     ) -> None:
-        super().__init__()
+        super().__init__(p=p)
         self.shifts = _check_shifts(shifts)
-        self.fractions = _check_fractions(fractions)
-        self.mode = _check_mode(mode)
+        self.fractions = check_pair(fractions, "fractions", low=0.0, high=1.0, single=True)
+        self.mode = check_choice(mode, "mode", TES_MODES)
 
-    def make_params(self, batch_size: int, *, generator: torch.Generator | None = None) -> Params:
-        return {
-            "shift": choice(torch.tensor(self.shifts, dtype=torch.int64), batch_size, generator),
-            "fraction": uniform(*self.fractions, batch_size, generator),
-        }
-
-    def apply(self, frames: Tensor, params: Params, *, generator: torch.Generator | None = None) -> Tensor:
-        return F.temporal_event_shift(
-            frames, params["shift"], params["fraction"], mode=self.mode, generator=generator
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        batch = shape[0]
+        return self._draws(
+            choice(torch.tensor(self.shifts, dtype=torch.int64), batch, generator),
+            uniform(*self.fractions, batch, generator),
+            generator,
         )
 
-    def extra_repr(self) -> str:
+    def _settings(self) -> str:
         return f"shifts={self.shifts}, fractions={self.fractions}, mode={self.mode!r}"
