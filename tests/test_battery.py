@@ -13,6 +13,7 @@ from torch import nn
 from torch.utils.data import DataLoader, Dataset
 
 import event_transforms as et
+from event_transforms.transforms.base import slice_params
 
 from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse_frames
 
@@ -158,6 +159,119 @@ class TestBattery:
             assert bool(out.isnan().any()) if bad != bad else bool((out < 0).any())
 
 
+    def test_replay_ignores_the_global_rng(self, name):
+        frames = sparse_frames(4, 6, 2, H, W, density=0.2, dtype=torch.int32)
+        module = FACTORIES[name](6, H, W)
+        params = module.make_params(frames.shape, generator=torch.Generator().manual_seed(1))
+        torch.manual_seed(0)
+        first = module(frames, params=params)
+        torch.manual_seed(12345)
+        assert torch.equal(module(frames, params=params), first)
+        # the tree is exactly what a seeded call draws and uses
+        assert torch.equal(module(frames, generator=torch.Generator().manual_seed(1)), first)
+
+    def test_params_are_a_tree_of_batched_cpu_tensors(self, name):
+        module = FACTORIES[name](6, H, W)
+        for batch in (0, 1, 5):
+            params = module.make_params((batch, 6, 2, H, W), generator=torch.Generator().manual_seed(2))
+            leaves = list(_leaves(params))
+            assert all(leaf.shape[0] == batch and leaf.device.type == "cpu" for leaf in leaves)
+
+    def test_batched_equals_per_sample_given_params(self, name):
+        frames = sparse_frames(3, 6, 2, H, W, density=0.2)
+        module = FACTORIES[name](6, H, W)
+        params = module.make_params(frames.shape, generator=torch.Generator().manual_seed(4))
+        batched = module(frames, params=params)
+        for b in range(3):
+            alone = module(frames[b : b + 1], params=slice_params(params, torch.tensor([b])))
+            if "seed" in _keys(params):
+                # a kernel's own draw is seeded by the whole batch's seeds: a slice of the
+                # tree is a valid tree for the slice, and replays exactly
+                assert torch.equal(alone, module(frames[b : b + 1], params=slice_params(params, torch.tensor([b]))))
+            else:
+                torch.testing.assert_close(alone[0], batched[b], rtol=1e-5, atol=1e-5)
+
+    def test_metadata_reaches_through_containers(self, name):
+        frames = sparse_frames(4, 6, 2, H, W, density=0.2)
+        metadata = {"diameter_mm": torch.tensor([12.0, 18.0, 12.0, 18.0])}
+        module, probe = FACTORIES[name](6, H, W), _Probe()
+        for container in (et.Compose([module, probe]), et.OneOf([module, probe]), et.RandomApply(et.Compose([probe, module]), p=1.0)):
+            probe.seen.clear()
+            params = container.make_params(frames.shape, metadata=metadata, generator=torch.Generator().manual_seed(0))
+            assert probe.seen and all(seen is metadata for seen in probe.seen)
+            out = container(frames, params=params)
+            if isinstance(container, et.Compose):  # the module's part of the tree replays it alone
+                torch.testing.assert_close(out, module(frames, params=params["0"]))
+
+    def test_p_gates_each_sample(self, name):
+        frames = sparse_frames(6, 6, 2, H, W, density=0.2)
+        module = FACTORIES[name](6, H, W)
+        module.p = 0.5
+        params = module.make_params(frames.shape, generator=torch.Generator().manual_seed(6))
+        gate = params["apply"]
+        assert gate.dtype == torch.bool and gate.shape == (6,) and 0 < int(gate.sum()) < 6
+        out = module(frames, params=params)
+        # the gated samples are the transform of that sub-batch with its slice of the tree
+        chosen = gate.nonzero().squeeze(1)
+        own = slice_params({k: v for k, v in params.items() if k != "apply"}, chosen)
+        always = FACTORIES[name](6, H, W)
+        always.p = 1.0
+        assert torch.equal(out[chosen], always(frames[chosen], params=own).to(out.dtype))
+        assert torch.equal(out[~gate], frames[~gate].to(out.dtype))
+        module.p = 0.0
+        assert torch.equal(module(frames).to(frames.dtype), frames)
+
+    def test_named_errors_for_bad_params(self, name):
+        module = FACTORIES[name](6, H, W)
+        frames = sparse_frames(2, 6, 2, H, W)
+        with pytest.raises(TypeError, match="params must be a dict"):
+            module(frames, params=[1, 2])
+        good = module.make_params(frames.shape)
+        if good:
+            with pytest.raises(ValueError, match=r"params.*has no entry|must have shape \(2, \.\.\.\)"):
+                module(frames, params={})
+            key, value = next(iter(_items(good)))
+            with pytest.raises(ValueError, match=r"must have shape \(2, \.\.\.\)"):
+                module(frames, params=_replace(good, key, torch.cat([value, value])))
+
+
+class _Probe(et.EventTransform):
+    """Records the metadata its make_params sees; the identity."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen = []
+
+    def sample_params(self, shape, *, generator=None, metadata=None):
+        self.seen.append(metadata)
+        return {}
+
+    def apply(self, frames, params):
+        return frames
+
+
+def _items(tree, prefix=()):
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            yield from _items(value, prefix + (key,))
+        else:
+            yield prefix + (key,), value
+
+
+def _leaves(tree):
+    return (value for _, value in _items(tree))
+
+
+def _keys(tree):
+    return {path[-1] for path, _ in _items(tree)}
+
+
+def _replace(tree, path, value):
+    out = dict(tree)
+    out[path[0]] = value if len(path) == 1 else _replace(tree[path[0]], path[1:], value)
+    return out
+
+
 # ----------------------------------------------------------------------------- interop
 
 
@@ -225,3 +339,84 @@ def test_modules_are_picklable_for_spawned_workers():
     for name in NAMES:
         module = FACTORIES[name](6, H, W)
         assert repr(pickle.loads(pickle.dumps(module))) == repr(module)
+
+
+def test_torchvision_v2_passes_other_inputs_through():
+    from torchvision import tv_tensors
+    from torchvision.transforms import v2
+
+    frames = sparse_frames(3, 6, 2, H, W, density=0.3)
+    label = torch.arange(3.0)
+    pipeline = v2.Compose([et.RandomRotation(20.0), et.FrameShift(-1)])
+    torch.manual_seed(0)
+    out, same_label = pipeline(frames, label)
+    assert same_label is label
+    torch.manual_seed(0)
+    assert torch.equal(out, et.FrameShift(-1)(et.RandomRotation(20.0)(frames)))
+    # a Video among other inputs stays a Video
+    video, extra = et.FrameShift(1)(tv_tensors.Video(frames), {"force": label})
+    assert isinstance(video, tv_tensors.Video) and extra == {"force": label}
+
+
+def test_dict_samples_keep_their_other_entries():
+    frames = sparse_frames(2, 6, 2, H, W, density=0.3)
+    sample = {"frames": frames, "force": torch.ones(2, 6), "diameter_mm": torch.tensor([12.0, 18.0])}
+    out = et.Compose([et.FrameShift(-1), et.ResizeToTarget(15.0)])(sample)
+    assert set(out) == set(sample) and out["force"] is sample["force"]
+    expected = et.Resize(1.0)(et.FrameShift(-1)(frames))  # shapes and dtype
+    assert out["frames"].shape == expected.shape
+    with pytest.raises(ValueError, match="'frames'"):
+        et.FrameShift(1)({"events": frames})
+
+
+@pytest.mark.parametrize(
+    "build",
+    [
+        lambda n: et.Rotate(n(30.0)),
+        lambda n: et.RandomRotation(n(30.0)),
+        lambda n: et.RandomRotation((n(-10.0), n(10.0))),
+        lambda n: et.Resize(n(1.25)),
+        lambda n: et.RandomResize((n(0.8), n(1.2))),
+        lambda n: et.RandomResize(choices=(n(0.8), n(1.25))),
+        lambda n: et.FrameShift(n(-1)),
+        lambda n: et.RandomFrameShift((n(-1), n(1))),
+        lambda n: et.TemporalEventShift(n(-2), n(0.5)),
+        lambda n: et.RandomTemporalEventShift((n(-2),), (n(0.2), n(0.8))),
+        lambda n: et.AddPoissonNoise(n(5.0), frame_ms=n(10.0)),
+        lambda n: et.RandomEventDrop(n(0.3)),
+        lambda n: et.RandomHorizontalFlip(n(0.5)),
+        lambda n: et.OneOf([et.FrameShift(1), et.FrameShift(-1)], weights=[n(1.0), n(2.0)]),
+        lambda n: et.RandomApply(et.FrameShift(1), p=n(0.5)),
+        lambda n: et.ResizeToTarget(n(15.0), exponent=n(0.5)),
+    ],
+)
+@pytest.mark.parametrize("kind", ["numpy", "tensor"])
+def test_numpy_scalars_and_zero_dim_tensors_are_numbers(build, kind):
+    def number(value):
+        if kind == "numpy":
+            return np.int64(value) if isinstance(value, int) else np.float64(value)
+        return torch.tensor(value, dtype=torch.int64 if isinstance(value, int) else torch.float64)
+
+    reference = build(lambda value: value)
+    module = build(number)
+    assert repr(module) == repr(reference)
+    frames = sparse_frames(2, 6, 2, H, W, density=0.3)
+    meta = {"diameter_mm": [12.0, 18.0]}
+    out = module(frames, generator=torch.Generator().manual_seed(0), metadata=meta)
+    torch.testing.assert_close(out, reference(frames, generator=torch.Generator().manual_seed(0), metadata=meta))
+
+
+def test_issue_examples_of_numbers():
+    frames = sparse_frames(2, 6, 2, H, W, density=0.3, dtype=torch.int64)
+    g = lambda: torch.Generator().manual_seed(0)  # noqa: E731
+    assert torch.equal(
+        et.TemporalEventShift(-1, fraction=np.float32(0.5))(frames, generator=g()),
+        et.TemporalEventShift(-1, fraction=0.5)(frames, generator=g()),
+    )
+    assert torch.equal(et.Rotate(torch.tensor(30.0))(frames), et.Rotate(30.0)(frames))
+
+
+def test_unsigned_wide_dtypes_are_refused_by_name():
+    for dtype in (torch.uint16, torch.uint32, torch.uint64):
+        with pytest.raises(TypeError, match=f"got {dtype}"):
+            et.FrameShift(1)(torch.zeros(2, 2, 3, 3, dtype=dtype))

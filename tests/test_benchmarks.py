@@ -198,3 +198,14 @@ class TestAccuracy:
         path.write_text("{}")
         with pytest.raises(ValueError, match="results.json"):
             accuracy.load_methods(path)
+
+
+class TestImports:
+    def test_quick_run(self, tmp_path):
+        from benchmarks import imports
+
+        path = _results(tmp_path)
+        result = imports.main(["--quick", "--results", str(path)])
+        assert not result["help_imports_torch"]
+        assert set(result["medians"]) == set(imports.COMMANDS)
+        assert "--help" in _section(path, "imports")

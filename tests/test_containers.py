@@ -120,7 +120,7 @@ class TestRandomApply:
 
 
 def test_paper_independent_and_hybrid():
-    """Independent: each copy one method; hybrid: both stacked (DESIGN §1)."""
+    """Independent: each copy one method; hybrid: both stacked (the paper's two combinations)."""
     frames = sparse_frames(16, 36, 2, 70, 75)
     resize = et.RandomResize(choices=(15 / 18, 15 / 12))
     shift = et.FrameShift(-1)

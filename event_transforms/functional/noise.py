@@ -211,8 +211,14 @@ def drop_events(
     return unbatch(_drop_events(batch, fraction_t, mode, generator))
 
 
-def _drop_events(batch: Tensor, fraction: Tensor, mode: str, generator: torch.Generator | None) -> Tensor:
-    """``drop_events`` on a (B, T, 2, H, W) batch with (B,) CPU fractions."""
+_DROP_HINT = 'drop events before interpolating transforms (bilinear rotate/resize), or use mode="expected"'
+
+
+def _drop_events(
+    batch: Tensor, fraction: Tensor, mode: str, generator: torch.Generator | None, hint: str = _DROP_HINT
+) -> Tensor:
+    """``drop_events`` on a (B, T, 2, H, W) batch with (B,) CPU fractions; ``hint`` ends the
+    error raised for fractional counts."""
     keep = (1.0 - fraction).view(-1, 1, 1, 1, 1)
     if mode == "expected":
         dtype = batch.dtype if batch.is_floating_point() else torch.float32
@@ -223,7 +229,7 @@ def _drop_events(batch: Tensor, fraction: Tensor, mode: str, generator: torch.Ge
     flat = batch.reshape(-1)
     index = flat.nonzero().squeeze(1)
     values = flat.index_select(0, index)
-    check_counts(values, "frames", whole='drop events before interpolating transforms, or use mode="expected"')
+    check_counts(values, "frames", whole=hint)
     sample = torch.div(index, batch[0].numel(), rounding_mode="floor")
     prob = keep.view(-1).to(batch.device).index_select(0, sample)
     kept = torch.binomial(values.to(torch.float64), prob, generator=generator)

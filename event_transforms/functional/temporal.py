@@ -198,10 +198,16 @@ def temporal_event_shift(
 
 
 def _temporal_event_shift(
-    batch: Tensor, shifts: Tensor, fractions: Tensor, mode: str, generator: torch.Generator | None
+    batch: Tensor,
+    shifts: Tensor,
+    fractions: Tensor,
+    mode: str,
+    generator: torch.Generator | None,
+    hint: str = _TES_HINT,
 ) -> Tensor:
-    """``temporal_event_shift`` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters."""
-    index, sample, values = _entries(batch, whole=mode != "expected")
+    """``temporal_event_shift`` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters;
+    ``hint`` ends the error raised for fractional counts."""
+    index, sample, values = _entries(batch, whole=mode != "expected", hint=hint)
     if mode == "expected":
         dtype = batch.dtype if batch.is_floating_point() else torch.float32
         out = batch.to(dtype, memory_format=torch.contiguous_format, copy=True)
@@ -213,7 +219,7 @@ def _temporal_event_shift(
     return _move(out, index, sample, values, moved, shifts)
 
 
-def _entries(batch: Tensor, *, whole: bool) -> tuple[Tensor, Tensor, Tensor]:
+def _entries(batch: Tensor, *, whole: bool, hint: str = _TES_HINT) -> tuple[Tensor, Tensor, Tensor]:
     """The non-zero pixels of a (B, T, 2, H, W) batch, checked.
 
     Returns their sorted flat indices, their sample indices and their values. Only these
@@ -226,7 +232,7 @@ def _entries(batch: Tensor, *, whole: bool) -> tuple[Tensor, Tensor, Tensor]:
     index = bits.nonzero().squeeze(1)
     values = flat.index_select(0, index)
     if index.numel():
-        check_counts(values, "frames", whole=_TES_HINT if whole else None)
+        check_counts(values, "frames", whole=hint if whole else None)
         if whole:
             limit = min(2**53, 2**62 // batch.shape[-1] // batch.shape[-2])
             high = float(values.max())

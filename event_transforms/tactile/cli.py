@@ -93,9 +93,7 @@ def _channels(text: str) -> tuple[int, ...]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The ``event-transforms`` argument parser."""
-    from .protocol import PAPER_METHODS
-
+    """The ``event-transforms`` argument parser (builds without importing torch)."""
     parser = argparse.ArgumentParser(
         prog="event-transforms",
         description="Event-camera augmentations from 'Event Augmentation for Contact Force "
@@ -116,7 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.add_argument("--full", action="store_true", help="the paper's 10 seeds and patience 20")
     rep.add_argument(
-        "--methods", nargs="+", default=list(PAPER_METHODS), metavar="METHOD",
+        "--methods", nargs="+", default=None, metavar="METHOD",
         help="methods by name (none rot45 resize noise fs-1 tes-2:0.5 independent hybrid "
         "tes-2:0.5x10 ...); default: the paper's list",
     )
@@ -161,7 +159,7 @@ def _print(*args: Any) -> None:
 def _reproduce(args: argparse.Namespace) -> int:
     import torch
 
-    from .protocol import ProtocolConfig, format_table, load_data, run_protocol
+    from .protocol import PAPER_METHODS, ProtocolConfig, format_table, load_data, run_protocol
 
     base = FULL if args.full else QUICK
     threads = args.threads or base["threads"]
@@ -192,7 +190,7 @@ def _reproduce(args: argparse.Namespace) -> int:
     _print(f"data: {data.description} ({len(data.train)} train, {len(data.val)} val, "
            f"{len(data.test)} test sequences), loaded in {time.perf_counter() - start:.1f} s")
     results = run_protocol(
-        args.methods, seeds, args.out, config=config, data=data, log=_print
+        args.methods or list(PAPER_METHODS), seeds, args.out, config=config, data=data, log=_print
     )
     table = format_table(results.methods)
     _print()

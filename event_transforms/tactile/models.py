@@ -1,4 +1,4 @@
-"""Reference ConvLSTM force regressor (DESIGN.md §7).
+"""Reference ConvLSTM force regressor (the paper's best architecture, from its reference [17]).
 
 The paper's best regressor (its ref. [17]) is a ConvLSTM whose exact layer sizes are not
 public; this module gives a small, documented stand-in that trains in minutes on a CPU:

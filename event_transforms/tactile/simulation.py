@@ -1,7 +1,7 @@
 """A seeded simulator of the paper's tactile setup: a bolt grasped against a silicone membrane.
 
 The paper's recordings are not public, so the package ships a small physical model of
-them (DESIGN §6). One *grasp* is:
+them. One *grasp* is:
 
 1. **Force.** A parallel gripper closes on a bolt of diameter D: a smooth ramp over the
    first ~5 frames, a hold with vibration, a release over the last ~5 frames. Each gripper

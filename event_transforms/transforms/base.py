@@ -316,7 +316,7 @@ class EventTransform(nn.Module):
 
     def _run(self, frames: Tensor, params: Params) -> Tensor:
         """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``."""
-        gate = params.get("apply")
+        gate = params["apply"] if self.p < 1 else params.get("apply")
         if gate is None:
             return self.apply(frames, params)
         if bool(gate.all()):

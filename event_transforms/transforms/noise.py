@@ -116,6 +116,7 @@ class AddPoissonNoise(EventTransform):
 
 
 _DROPS = ("random", "time", "area")
+_HINT = "apply RandomEventDrop before interpolating transforms (bilinear rotate/resize)"
 
 
 class RandomEventDrop(EventTransform):
@@ -179,7 +180,8 @@ class RandomEventDrop(EventTransform):
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         def by_random(sub: Tensor, index: Tensor) -> Tensor:
             part = slice_params(params, index)
-            return _drop_events(sub, part["fraction"], "binomial", kernel_generator(part["seed"], sub.device))
+            generator = kernel_generator(part["seed"], sub.device)
+            return _drop_events(sub, part["fraction"], "binomial", generator, _HINT)
 
         def by_time(sub: Tensor, index: Tensor) -> Tensor:
             part = slice_params(params, index)

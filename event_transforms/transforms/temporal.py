@@ -46,7 +46,11 @@ class _EventShift(EventTransform):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         generator = None if self.mode == "expected" else kernel_generator(params["seed"], frames.device)
-        return _temporal_event_shift(frames, params["shift"], params["fraction"], self.mode, generator)
+        hint = (
+            f"{type(self).__name__}(mode={self.mode!r}) moves whole events: apply it before interpolating "
+            "transforms (bilinear rotate/resize), or use mode='expected'"
+        )
+        return _temporal_event_shift(frames, params["shift"], params["fraction"], self.mode, generator, hint)
 
     def _draws(self, shift: Tensor, fraction: Tensor, generator: torch.Generator | None) -> Params:
         params: Params = {"shift": shift, "fraction": fraction}
