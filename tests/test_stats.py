@@ -1,0 +1,97 @@
+"""Tests for the paired statistics (reference values computed once with SciPy 1.17)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import pytest
+
+from event_transforms.tactile.stats import holm, paired_t, student_t_cdf, student_t_quantile, wilcoxon_signed_rank
+
+# (t, df, scipy.stats.t.cdf(t, df))
+T_CDF = [(0.3, 1, 0.5927735790777423),
+         (2.5, 3, 0.9561466764959672),
+         (-1.5, 9, 0.08392532802853753),
+         (7.0, 29, 0.9999999464986423),
+         (2.0, 100, 0.9758939106344332)]
+
+
+class TestStudentT:
+    @pytest.mark.parametrize("t, df, expected", T_CDF)
+    def test_cdf(self, t, df, expected):
+        assert student_t_cdf(t, df) == pytest.approx(expected, abs=1e-9)
+
+    @pytest.mark.parametrize("df, expected", [(1, 12.706204736), (4, 2.776445105), (9, 2.262157163), (29, 2.045229642)])
+    def test_quantile(self, df, expected):
+        assert student_t_quantile(0.975, df) == pytest.approx(expected, abs=1e-8)
+        assert student_t_quantile(0.025, df) == pytest.approx(-expected, abs=1e-8)
+
+    def test_bad_arguments(self):
+        with pytest.raises(ValueError, match="df"):
+            student_t_cdf(1.0, 0)
+        with pytest.raises(ValueError, match="p must lie"):
+            student_t_quantile(1.0, 3)
+
+
+class TestPairedT:
+    def test_against_scipy(self):
+        # scipy.stats.ttest_rel(b, a) and t.interval(0.95, 4, mean, sem)
+        test = paired_t([10.0, 11.0, 9.5, 10.5, 10.2], [9.0, 10.1, 9.0, 9.4, 9.5])
+        assert test.n == 5 and test.mean == pytest.approx(-0.84)
+        assert test.ci == pytest.approx((-1.13903228938904, -0.5409677106109596), abs=1e-9)
+        assert test.t_p_value == pytest.approx(0.0014581089266073135, rel=1e-6)
+        assert test.wilcoxon_p_value == 0.0625
+
+    def test_one_pair_and_constant_differences(self):
+        one = paired_t([1.0], [2.0])
+        assert one.ci is None and math.isnan(one.sd) and math.isnan(one.t_p_value)
+        same = paired_t([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])
+        assert same.mean == 0 and same.t_p_value == 1.0 and same.wilcoxon_p_value == 1.0
+
+    def test_bad_pairs(self):
+        with pytest.raises(ValueError, match="pair up"):
+            paired_t([1.0, 2.0], [1.0])
+        with pytest.raises(ValueError, match="at least one"):
+            paired_t([], [])
+
+
+def _brute_force(differences):
+    """Two-sided exact signed-rank p-value by enumerating every sign pattern."""
+    values = [d for d in differences if d != 0]
+    magnitudes = sorted(abs(v) for v in values)
+    rank = {m: (2 * magnitudes.index(m) + magnitudes.count(m) + 1) / 2 for m in magnitudes}
+    ranks = [rank[abs(v)] for v in values]
+    observed = sum(r for r, v in zip(ranks, values) if v > 0)
+    sums = [sum(r for r, s in zip(ranks, signs) if s) for signs in itertools.product((0, 1), repeat=len(values))]
+    lower = sum(s <= observed + 1e-9 for s in sums) / len(sums)
+    upper = sum(s >= observed - 1e-9 for s in sums) / len(sums)
+    return min(1.0, 2 * min(lower, upper))
+
+
+class TestWilcoxon:
+    def test_against_scipy_without_ties(self):
+        x = [-1.2, -0.4, -0.9, -1.6, -0.2, 0.3, -0.7, -1.1, -0.5, -0.8]
+        assert wilcoxon_signed_rank(x) == 0.005859375  # scipy.stats.wilcoxon(x, method="exact")
+
+    @pytest.mark.parametrize(
+        "differences",
+        [[1, -1, 2, 2, -3, 3, 3, 4, 0, -5, 6], [0.5, 0.5, 0.5, -0.5], [1, 2, 3], [-2, 1, 0, 0, 3, -4, 4]],
+    )
+    def test_exact_with_ties_and_zeros(self, differences):
+        # SciPy's "exact" mode ignores ties; the brute force counts every sign pattern
+        assert wilcoxon_signed_rank(differences) == pytest.approx(_brute_force(differences))
+
+    def test_floor_with_few_pairs(self):
+        assert wilcoxon_signed_rank([-1.0] * 5) == 2 / 2**5
+        assert wilcoxon_signed_rank([-1.0] * 10) == 2 / 2**10
+        assert wilcoxon_signed_rank([0.0, 0.0]) == 1.0
+
+
+class TestHolm:
+    def test_step_down(self):
+        assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
+        assert holm([0.5, 0.001]) == pytest.approx([0.5, 0.002])
+        adjusted = holm([0.2, math.nan, 0.01])
+        assert adjusted[0] == pytest.approx(0.2) and math.isnan(adjusted[1]) and adjusted[2] == pytest.approx(0.02)
+        assert holm([]) == []
