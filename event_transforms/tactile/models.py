@@ -317,6 +317,18 @@ class ForceRegressor(nn.Module):
         self.register_buffer("force_offset", torch.zeros(()))
         self.register_buffer("force_scale", torch.ones(()))
 
+    @property
+    def config(self) -> dict[str, object]:
+        """The constructor's keyword arguments: ``ForceRegressor(**model.config)`` rebuilds it."""
+        first = self.lstm.cells[0]
+        return {
+            "in_channels": self.in_channels,
+            "hidden_channels": tuple(cell.hidden_channels for cell in self.lstm.cells),
+            "kernel_size": first.kernel_size,
+            "input_pool": self.input_pool,
+            "recurrent_activation": first.recurrent_activation,
+        }
+
     def set_force_scaling(self, offset: float, scale: float) -> None:
         """Set the affine map from the head's output to newtons (e.g. target mean and std)."""
         if not (math.isfinite(offset) and math.isfinite(scale) and scale > 0):
@@ -347,9 +359,9 @@ class ForceRegressor(nn.Module):
     def _readout(self, h: Tensor) -> Tensor:
         """``(N, C, H, W)`` last hidden state -> force ``(N,)``."""
         features = torch.cat([h.mean(dim=(-2, -1)), h.amax(dim=(-2, -1))], dim=-1)
-        out = self.head(features.to(self.head.weight.dtype)).squeeze(-1).float()
-        if self.head.weight.dtype == torch.float64:
-            out = out.double()
+        out = self.head(features.to(self.head.weight.dtype)).squeeze(-1)
+        # float32 (under autocast too), but a float64 model's output stays float64 throughout
+        out = out.double() if self.head.weight.dtype == torch.float64 else out.float()
         return self.force_offset.to(out.dtype) + self.force_scale.to(out.dtype) * out
 
     def forward(self, frames: Tensor) -> Tensor:
