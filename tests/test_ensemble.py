@@ -46,9 +46,9 @@ def dataset(n, seed):
 
 
 class TestForward:
-    @pytest.mark.parametrize("activation", ["sigmoid", "hard_sigmoid"])
-    def test_members_match_single_models(self, activation):
-        models = seeded_models([0, 1, 2], torch.float64, recurrent_activation=activation)
+    @pytest.mark.parametrize("activation,cumulative", [("sigmoid", False), ("hard_sigmoid", False), ("sigmoid", True)])
+    def test_members_match_single_models(self, activation, cumulative):
+        models = seeded_models([0, 1, 2], torch.float64, recurrent_activation=activation, cumulative=cumulative)
         ensemble = EnsembleForceRegressor.from_models(models)
         frames = counts(3, 2, T, 2, H, W)
         out = ensemble(frames)
@@ -56,8 +56,9 @@ class TestForward:
         for m, model in enumerate(models):
             torch.testing.assert_close(out[m], model(frames[m]), rtol=1e-10, atol=1e-10)
 
-    def test_shared_batch_broadcasts(self):
-        models = seeded_models([3, 4])
+    @pytest.mark.parametrize("cumulative", [False, True])
+    def test_shared_batch_broadcasts(self, cumulative):
+        models = seeded_models([3, 4], cumulative=cumulative)
         ensemble = EnsembleForceRegressor.from_models(models)
         frames = counts(4, T, 2, H, W).to(torch.uint8)
         out = ensemble(frames)

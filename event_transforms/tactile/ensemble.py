@@ -44,7 +44,14 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from .models import ForceRegressor, _check_positive_int, _hard_sigmoid
+from .models import (
+    ForceRegressor,
+    _check_positive_int,
+    _feature_channels,
+    _hard_sigmoid,
+    _input_features,
+    _pool_counts,
+)
 
 __all__ = [
     "EnsembleForceRegressor",
@@ -142,8 +149,9 @@ class EnsembleForceRegressor(nn.Module):
         self.config = dict(config)
         self.in_channels = int(config["in_channels"])
         self.input_pool = int(config["input_pool"])
+        self.cumulative = bool(config.get("cumulative", False))
         hidden = list(config["hidden_channels"])
-        inputs = [self.in_channels, *hidden[:-1]]
+        inputs = [_feature_channels(self.in_channels, self.cumulative), *hidden[:-1]]
         self.cells = nn.ModuleList(
             _GroupedCell(members, c_in, c_h, tuple(config["kernel_size"]), config["recurrent_activation"])
             for c_in, c_h in zip(inputs, hidden)
@@ -222,13 +230,6 @@ class EnsembleForceRegressor(nn.Module):
         self.force_offset.copy_(values[0])
         self.force_scale.copy_(values[1])
 
-    def _preprocess(self, frames: Tensor) -> Tensor:
-        """``(N, C, H, W)`` counts -> log1p of the pooled counts (as :class:`ForceRegressor`)."""
-        x = frames.to(self.head_weight.dtype)
-        if self.input_pool > 1:
-            x = F.avg_pool2d(x, self.input_pool)
-        return torch.log1p(x)
-
     def _readout(self, h: Tensor) -> Tensor:
         """``(N, M*h, H, W)`` last hidden state -> force ``(N, M)``."""
         h = h.unflatten(1, (self.members, -1))
@@ -254,8 +255,10 @@ class EnsembleForceRegressor(nn.Module):
                 f"frames: (H, W) = {tuple(frames.shape[-2:])} is smaller than input_pool={self.input_pool}"
             )
         batch, steps = frames.shape[-5:-3]
-        x = self._preprocess(frames.flatten(0, -4))
-        if not shared:  # (M, B, T, C, h, w) -> (B*T, M*C, h, w), member-major channels
+        # the input features of ForceRegressor: log1p of pooled counts (+ running sums)
+        pooled = _pool_counts(frames.flatten(0, -5), self.input_pool, self.head_weight.dtype)
+        x = _input_features(pooled, self.cumulative)[0].flatten(0, 1)  # ([M*]B*T, C', h, w)
+        if not shared:  # (M*B*T, C', h, w) -> (B*T, M*C', h, w), member-major channels
             x = x.unflatten(0, (members, batch * steps)).transpose(0, 1).flatten(1, 2)
         for index, cell in enumerate(self.cells):
             if index:
