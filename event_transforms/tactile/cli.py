@@ -30,7 +30,7 @@ QUICK: dict[str, Any] = {
     "steps": 400,
     "lr": 1e-2,
     "hidden_channels": (8,),
-    "input_pool": 5,
+    "input_pool": 10,
     "batch_size": 8,
     "eval_every": 50,
     "threads": 1,

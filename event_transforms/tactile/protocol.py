@@ -406,10 +406,9 @@ def run_unit(
     for method in parsed:
         for seed in seeds:
             torch.manual_seed(seed)
+            extra = {"cumulative": True} if config.cumulative else {}
             models.append(
-                ForceRegressor(
-                    hidden_channels=config.hidden_channels, input_pool=config.input_pool, cumulative=config.cumulative
-                )
+                ForceRegressor(hidden_channels=config.hidden_channels, input_pool=config.input_pool, **extra)
             )
             before = watch.seconds
             train_sets.append(build_training_set(method, data, seed=seed, fixed=config.fixed, stopwatch=watch))
@@ -620,6 +619,7 @@ class _Unit:
 
 
 def _units(scenes: Sequence[str], methods: dict[str, Sequence[str]], group: str) -> list[_Unit]:
+    """Work units; the costly ones (many copies) first, so ranks finish together."""
     units = []
     for scene in scenes:
         names = tuple(methods[scene])
@@ -627,7 +627,7 @@ def _units(scenes: Sequence[str], methods: dict[str, Sequence[str]], group: str)
             units.append(_Unit(scene, names))
         else:
             units.extend(_Unit(scene, (m,)) for m in names)
-    return units
+    return sorted(units, key=lambda u: -max(parse_method(m, scene=u.scene).copies for m in u.methods))
 
 
 def _environment() -> dict[str, Any]:
@@ -657,11 +657,12 @@ def _baselines(data: SceneData) -> dict[str, dict[str, float]]:
 def _work(
     rank: int, world: int, units: list[_Unit], seeds: list[int], config: ProtocolConfig, runs: Path,
     root: str | None, device: str, threads: int | None, log: Callable[[str], None] | None, progress: bool | None,
+    given: dict[str, SceneData] | None = None,
 ) -> None:
     """Rank ``rank``'s share of the units (every ``world``-th), each saved as it finishes."""
     if threads:
         torch.set_num_threads(threads)
-    cache: dict[str, SceneData] = {}
+    cache: dict[str, SceneData] = dict(given or {})
     for index, unit in enumerate(units):
         if index % world != rank:
             continue
@@ -714,6 +715,7 @@ def run_protocol(
     device: str = "cpu",
     threads: int | None = 1,
     group: str = "scene",
+    data: dict[str, SceneData] | None = None,
     progress: bool | None = None,
     log: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
@@ -725,6 +727,9 @@ def run_protocol(
     already initialised process group (``torchrun``). Each finished unit is kept under
     ``out/runs/<settings hash>/`` so an interrupted run resumes; rank 0 gathers everything
     (``dist.gather_object`` under torchrun) and writes the results.
+
+    ``data`` (scene name -> :class:`SceneData`) replaces the simulated scenes, e.g. with your
+    own recordings; it is sent to every worker. Without it, workers read the data cache.
 
     Returns:
         The ``results.json`` dict (on rank 0; other ranks of a torchrun group get ``{}``).
@@ -757,12 +762,16 @@ def run_protocol(
     start = time.perf_counter()
 
     # Data first, in this process: the cache is written once, workers only read it.
-    data = {scene: load_scene_data(scene, root) for scene in scenes}
+    given = data
+    data = dict(given) if given is not None else {scene: load_scene_data(scene, root) for scene in scenes}
+    missing = [scene for scene in scenes if scene not in data]
+    if missing:
+        raise ValueError(f"data must hold every scene, missing {missing}")
     if log:
         for scene, d in data.items():
             log(f"data: scene {scene!r} ({d.scene.description}): {len(d.train)} train, {len(d.val)} val, "
                 f"{len(d.test)} test sequences, ready in {d.seconds:.1f} s")
-    arguments = (units, seeds, config, runs, root, device, threads, log, progress)
+    arguments = (units, seeds, config, runs, root, device, threads, log, progress, given)
     write_json_atomic(runs / "config.json", asdict(config))
     if dist.is_available() and dist.is_initialized():
         rank, world = dist.get_rank(), dist.get_world_size()
