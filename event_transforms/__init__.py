@@ -35,7 +35,7 @@ _TRANSFORMS = (
     # transform coverage (issue 13)
     "Affine", "RandomAffine", "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample",
     "FlipPolarity", "RandomFlipPolarity", "TimeReversal", "RandomTimeReversal", "MergePolarities",
-    "CropTime", "RandomCropTime",
+    "CropTime", "RandomCropTime", "Cutout", "CutMix", "MixUp",
 )
 _NAMES: dict[str, str] = {
     **{name: "transforms" for name in _TRANSFORMS},

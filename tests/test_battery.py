@@ -60,6 +60,7 @@ FACTORIES = {
     "TimeReversal": lambda t, h, w: et.TimeReversal(),
     "RandomTimeReversal": lambda t, h, w: et.RandomTimeReversal(0.5),
     "MergePolarities": lambda t, h, w: et.MergePolarities(),
+    "Cutout": lambda t, h, w: et.Cutout((3, 2)),
 }
 
 NAMES = sorted(FACTORIES)

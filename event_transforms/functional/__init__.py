@@ -19,5 +19,7 @@ from .geometry import *  # noqa: F401,F403
 from .geometry import __all__ as _geometry
 from .polarity import *  # noqa: F401,F403
 from .polarity import __all__ as _polarity
+from .mixing import *  # noqa: F401,F403
+from .mixing import __all__ as _mixing
 
-__all__ = [*_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity]
+__all__ = [*_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing]

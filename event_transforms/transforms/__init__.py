@@ -13,7 +13,9 @@ from .geometry import *  # noqa: F401,F403
 from .geometry import __all__ as _geometry
 from .polarity import *  # noqa: F401,F403
 from .polarity import __all__ as _polarity
+from .mixing import *  # noqa: F401,F403
+from .mixing import __all__ as _mixing
 from .containers import *  # noqa: F401,F403
 from .containers import __all__ as _containers
 
-__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_geometry, *_polarity, *_containers]
+__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_containers]
