@@ -36,6 +36,7 @@ _TRANSFORMS = (
     "Affine", "RandomAffine", "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample",
     "FlipPolarity", "RandomFlipPolarity", "TimeReversal", "RandomTimeReversal", "MergePolarities",
     "CropTime", "RandomCropTime", "Cutout", "CutMix", "MixUp",
+    "DropPixel", "RandomDropPixel", "Denoise",
 )
 _NAMES: dict[str, str] = {
     **{name: "transforms" for name in _TRANSFORMS},

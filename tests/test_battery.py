@@ -61,6 +61,10 @@ FACTORIES = {
     "RandomTimeReversal": lambda t, h, w: et.RandomTimeReversal(0.5),
     "MergePolarities": lambda t, h, w: et.MergePolarities(),
     "Cutout": lambda t, h, w: et.Cutout((3, 2)),
+    "DropPixel": lambda t, h, w: et.DropPixel([[0, 0], [h - 1, w - 1]]),
+    "DropHotPixels": lambda t, h, w: et.DropPixel(rate_hz=150.0),
+    "RandomDropPixel": lambda t, h, w: et.RandomDropPixel((0.1, 0.3)),
+    "Denoise": lambda t, h, w: et.Denoise(),
 }
 
 NAMES = sorted(FACTORIES)

@@ -21,5 +21,7 @@ from .polarity import *  # noqa: F401,F403
 from .polarity import __all__ as _polarity
 from .mixing import *  # noqa: F401,F403
 from .mixing import __all__ as _mixing
+from .cleaning import *  # noqa: F401,F403
+from .cleaning import __all__ as _cleaning
 
-__all__ = [*_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing]
+__all__ = [*_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning]
