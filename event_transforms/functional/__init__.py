@@ -23,5 +23,7 @@ from .mixing import *  # noqa: F401,F403
 from .mixing import __all__ as _mixing
 from .cleaning import *  # noqa: F401,F403
 from .cleaning import __all__ as _cleaning
+from .representations import *  # noqa: F401,F403
+from .representations import __all__ as _representations
 
-__all__ = [*_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning]
+__all__ = [*_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning, *_representations]
