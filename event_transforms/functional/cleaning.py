@@ -64,7 +64,7 @@ def _pixel_mask(pixels: object, batch: int, height: int, width: int, device: tor
             raise ValueError(
                 f"a pixel mask must have shape ({height}, {width}) or ({batch}, {height}, {width}), got {tuple(pixels.shape)}"
             )
-        return pixels.to(device).reshape(-1, height, width)
+        return pixels.to(device, non_blocking=True).reshape(-1, height, width)
     if pixels.is_floating_point() or pixels.is_complex():
         raise TypeError(f"pixel coordinates must be integers, got dtype {pixels.dtype}")
     if pixels.dim() != 2 or pixels.shape[1] != 2:
@@ -74,7 +74,7 @@ def _pixel_mask(pixels: object, batch: int, height: int, width: int, device: tor
         raise ValueError(f"pixel coordinates must lie inside (H, W) = ({height}, {width}), got {describe(pixels)}")
     mask = torch.zeros(height * width, dtype=torch.bool)
     mask[ys * width + xs] = True
-    return mask.view(1, height, width).to(device)
+    return mask.view(1, height, width).to(device, non_blocking=True)
 
 
 def drop_pixel(frames: Tensor, pixels: Tensor | Sequence[Sequence[int]]) -> Tensor:
@@ -125,11 +125,11 @@ def random_pixel_mask(seed: Tensor, fraction: Tensor, height: int, width: int, d
         device: where the mask is built.
     """
     pixel = torch.arange(height * width, dtype=torch.int64, device=device)
-    seed = seed.to(device).unsqueeze(1)
+    seed = seed.to(device, non_blocking=True).unsqueeze(1)
     low, high = seed & _MASK32, (seed >> 32) & _MASK32
     x = _hash32(_hash32(pixel ^ low) + high)
     u = (x.to(torch.float64) + 0.5) / 2.0**32  # (B, H*W) in (0, 1)
-    return (u < fraction.to(device, torch.float64).unsqueeze(1)).view(-1, height, width)
+    return (u < fraction.to(device, torch.float64, non_blocking=True).unsqueeze(1)).view(-1, height, width)
 
 
 def denoise(frames: Tensor, *, radius: int = 1, temporal_radius: int = 1) -> Tensor:

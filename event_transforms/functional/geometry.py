@@ -9,7 +9,9 @@ and :func:`~event_transforms.functional.resize`, which are its special cases
 and optionally resizes it back to H×W, and :func:`downsample` sums k×k blocks (the
 paper's "adding the closest neighbourhoods"). None of them reads the values, so none waits
 for an accelerator, except :func:`downsample` on 8/16-bit integer frames, which checks once
-that the block sums fit the dtype.
+that the block sums fit the dtype. Per-sample parameters are CPU tensors; they reach the
+frames' device by non-blocking copies (the same holds for the polarity, mixing and cleaning
+kernels).
 """
 
 from __future__ import annotations
@@ -75,9 +77,9 @@ def affine_matrix(angle: Tensor, scale: Tensor, translate: Tensor, shear: Tensor
     one, zero = torch.ones_like(cos), torch.zeros_like(cos)
     shear_matrix = torch.stack([torch.stack([one + shear_x * shear_y, shear_x], 1), torch.stack([shear_y, one], 1)], 1)
     linear = scale.view(-1, 1, 1) * rotation @ shear_matrix  # (B, 2, 2), host
-    linear = linear.to(center.device)
+    linear = linear.to(center.device, non_blocking=True)
     cxy = center.flip(1).to(torch.float64)  # (B, 2) as (x, y)
-    offset = cxy + translate.flip(1).to(center.device) - (linear @ cxy.unsqueeze(2)).squeeze(2)
+    offset = cxy + translate.flip(1).to(center.device, non_blocking=True) - (linear @ cxy.unsqueeze(2)).squeeze(2)
     return torch.cat([linear, offset.unsqueeze(2)], dim=2)
 
 
@@ -165,7 +167,7 @@ def _translate(batch: Tensor, shift: Tensor) -> Tensor:
     if batch.numel() == 0:
         return batch.clone()
     device = batch.device
-    shift = shift.to(device)
+    shift = shift.to(device, non_blocking=True)
     rows = torch.arange(height, device=device) - shift[:, :1]  # (B, H) source rows
     cols = torch.arange(width, device=device) - shift[:, 1:]  # (B, W)
     valid = ((rows >= 0) & (rows < height)).view(b, 1, 1, height, 1) & ((cols >= 0) & (cols < width)).view(
@@ -220,8 +222,8 @@ def _crop(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resiz
     b, t, p, height, width = batch.shape
     h, w = size
     device = batch.device
-    rows = (top.to(device).unsqueeze(1) + torch.arange(h, device=device)).view(b, 1, 1, h, 1)
-    cols = (left.to(device).unsqueeze(1) + torch.arange(w, device=device)).view(b, 1, 1, 1, w)
+    rows = (top.to(device, non_blocking=True).unsqueeze(1) + torch.arange(h, device=device)).view(b, 1, 1, h, 1)
+    cols = (left.to(device, non_blocking=True).unsqueeze(1) + torch.arange(w, device=device)).view(b, 1, 1, 1, w)
     out = batch.gather(3, rows.expand(b, t, p, h, width)).gather(4, cols.expand(b, t, p, h, w))
     if not resize:
         return out

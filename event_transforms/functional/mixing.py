@@ -26,9 +26,9 @@ def _box_mask(top: Tensor, left: Tensor, height: Tensor, width: Tensor, size: Se
     h, w = size
     rows = torch.arange(h, device=device)
     cols = torch.arange(w, device=device)
-    top, left = top.to(device).unsqueeze(1), left.to(device).unsqueeze(1)
-    inside_rows = (rows >= top) & (rows < top + height.to(device).unsqueeze(1))
-    inside_cols = (cols >= left) & (cols < left + width.to(device).unsqueeze(1))
+    top, left = top.to(device, non_blocking=True).unsqueeze(1), left.to(device, non_blocking=True).unsqueeze(1)
+    inside_rows = (rows >= top) & (rows < top + height.to(device, non_blocking=True).unsqueeze(1))
+    inside_cols = (cols >= left) & (cols < left + width.to(device, non_blocking=True).unsqueeze(1))
     return (inside_rows.unsqueeze(2) & inside_cols.unsqueeze(1)).unsqueeze(1).unsqueeze(1)
 
 
@@ -99,7 +99,7 @@ def cutmix(frames: Tensor, partner: Scalars, top: Scalars, left: Scalars, height
 
 def _cutmix(batch: Tensor, partner: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
     mask = _box_mask(top, left, height, width, batch.shape[-2:], batch.device)
-    return torch.where(mask, batch.index_select(0, partner.to(batch.device)), batch)
+    return torch.where(mask, batch.index_select(0, partner.to(batch.device, non_blocking=True)), batch)
 
 
 def mixup(frames: Tensor, partner: Scalars, weight: Scalars) -> Tensor:
@@ -134,9 +134,9 @@ def _check_weight(weight: object, batch: int) -> Tensor:
 def _mixup(batch: Tensor, partner: Tensor, weight: Tensor) -> Tensor:
     out_dtype = batch.dtype if batch.dtype.is_floating_point else torch.float32
     work = torch.float64 if batch.dtype == torch.float64 else torch.float32
-    w = weight.to(batch.device, work).view(-1, 1, 1, 1, 1)
+    w = weight.to(batch.device, work, non_blocking=True).view(-1, 1, 1, 1, 1)
     own = batch.to(work)
-    other = own.index_select(0, partner.to(batch.device))
+    other = own.index_select(0, partner.to(batch.device, non_blocking=True))
     return (other + w * (own - other)).to(out_dtype)
 
 
@@ -191,7 +191,7 @@ def _mix_labels(labels: Tensor, partner: Tensor, weight: Tensor, num_classes: in
     if not labels.is_floating_point():
         labels = torch.nn.functional.one_hot(labels.long(), num_classes).to(torch.float32)
     work = torch.float64 if labels.dtype == torch.float64 else torch.float32
-    w = weight.to(labels.device, work).view(-1, *([1] * (labels.dim() - 1)))
+    w = weight.to(labels.device, work, non_blocking=True).view(-1, *([1] * (labels.dim() - 1)))
     own = labels.to(work)
-    other = own.index_select(0, partner.to(labels.device))
+    other = own.index_select(0, partner.to(labels.device, non_blocking=True))
     return (other + w * (own - other)).to(labels.dtype)

@@ -118,7 +118,7 @@ def crop_time(frames: Tensor, start: Scalars, length: int) -> Tensor:
 def _crop_time(batch: Tensor, start: Tensor, length: int) -> Tensor:
     """Frames ``[start, start + length)`` with a (B,) int64 CPU ``start``."""
     b, t, p, h, w = batch.shape
-    index = (start.unsqueeze(1) + torch.arange(length)).to(batch.device)  # (B, length)
+    index = (start.unsqueeze(1) + torch.arange(length)).to(batch.device, non_blocking=True)  # (B, length)
     if b == 0 or batch.numel() == 0:
         return batch.new_zeros((b, length, p, h, w))
     return batch.gather(1, index.view(b, length, 1, 1, 1).expand(b, length, p, h, w))
