@@ -59,6 +59,20 @@ class TestMergePolarities:
         one = F.merge_polarities(frames, keepdim=False)
         assert one.shape == (2, 3, 1, H, W) and torch.equal(one[:, :, 0], out[:, :, 0])
 
+    def test_equals_tonic_merge_then_to_frame(self):
+        pytest.importorskip("tonic")
+        import numpy as np
+        import tonic.transforms as T
+
+        rng = np.random.default_rng(0)
+        events = np.zeros(200, dtype=[("x", "<i8"), ("y", "<i8"), ("t", "<i8"), ("p", "<i8")])
+        events["x"], events["y"] = rng.integers(0, 9, 200), rng.integers(0, 7, 200)
+        events["t"], events["p"] = np.sort(rng.integers(0, 30_000, 200)), rng.integers(0, 2, 200)
+        to_frame = T.ToFrame(sensor_size=(9, 7, 2), time_window=10_000)
+        merged = to_frame(T.MergePolarities()(events.copy()))
+        ours = F.merge_polarities(torch.from_numpy(to_frame(events.copy()).astype(np.int64)))
+        assert np.array_equal(ours.numpy(), merged)
+
     def test_overflow_raises(self):
         frames = torch.full((1, 2, 1, 1), 200, dtype=torch.uint8)
         with pytest.raises(ValueError, match="wider dtype"):

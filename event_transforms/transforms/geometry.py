@@ -260,14 +260,14 @@ class _Crop(EventTransform):
     """Crops ``params`` top/left (B,) int64 to ``size``; resizes back if ``resize``."""
 
     def __init__(self, size: int | Sequence[int], *, resize: bool, mode: str, p: float) -> None:
-        if not resize and p < 1:
+        super().__init__(p=p)
+        if not isinstance(resize, bool):
+            raise TypeError(f"resize must be a bool, got {resize!r}")
+        if not resize and self.p < 1:
             raise ValueError(
                 f"p < 1 needs resize=True: a batch cannot mix cropped and uncropped sizes, got p={p!r}"
             )
-        super().__init__(p=p)
         self.size = _size(size, "size")
-        if not isinstance(resize, bool):
-            raise TypeError(f"resize must be a bool, got {resize!r}")
         self.resize = resize
         self.mode = check_choice(mode, "mode", INTERPOLATIONS)
 
