@@ -170,12 +170,24 @@ def _translate(batch: Tensor, shift: Tensor) -> Tensor:
     shift = shift.to(device, non_blocking=True)
     rows = torch.arange(height, device=device) - shift[:, :1]  # (B, H) source rows
     cols = torch.arange(width, device=device) - shift[:, 1:]  # (B, W)
-    valid = ((rows >= 0) & (rows < height)).view(b, 1, 1, height, 1) & ((cols >= 0) & (cols < width)).view(
-        b, 1, 1, 1, width
-    )
-    out = batch.gather(3, rows.clamp(0, height - 1).view(b, 1, 1, height, 1).expand(b, t, p, height, width))
-    out = out.gather(4, cols.clamp(0, width - 1).view(b, 1, 1, 1, width).expand(b, t, p, height, width))
-    return out.masked_fill_(~valid, 0)
+    valid = ((rows >= 0) & (rows < height)).unsqueeze(2) & ((cols >= 0) & (cols < width)).unsqueeze(1)
+    source = rows.clamp(0, height - 1).unsqueeze(2) * width + cols.clamp(0, width - 1).unsqueeze(1)
+    return _gather_pixels(batch, source, valid)
+
+
+def _gather_pixels(batch: Tensor, source: Tensor, valid: Tensor | None = None) -> Tensor:
+    """``out[b, ..., i, j] = batch[b, ..., source[b, i, j]]`` (flat pixel index), zero where not ``valid``.
+
+    One gather over the flattened pixels serves all T·2 frames of a sequence (twice as
+    fast on the CPU as a gather per axis).
+    """
+    b, t, p = batch.shape[:3]
+    h, w = source.shape[1:]
+    flat = batch.reshape(b, t * p, batch.shape[-2] * batch.shape[-1])
+    out = flat.gather(2, source.reshape(b, 1, h * w).expand(b, t * p, h * w))
+    if valid is not None:
+        out.masked_fill_(~valid.reshape(b, 1, h * w), 0)
+    return out.view(b, t, p, h, w)
 
 
 def translate(frames: Tensor, shift: Pairs) -> Tensor:
@@ -222,9 +234,9 @@ def _crop(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resiz
     b, t, p, height, width = batch.shape
     h, w = size
     device = batch.device
-    rows = (top.to(device, non_blocking=True).unsqueeze(1) + torch.arange(h, device=device)).view(b, 1, 1, h, 1)
-    cols = (left.to(device, non_blocking=True).unsqueeze(1) + torch.arange(w, device=device)).view(b, 1, 1, 1, w)
-    out = batch.gather(3, rows.expand(b, t, p, h, width)).gather(4, cols.expand(b, t, p, h, w))
+    rows = top.to(device, non_blocking=True).unsqueeze(1) + torch.arange(h, device=device)  # (B, h)
+    cols = left.to(device, non_blocking=True).unsqueeze(1) + torch.arange(w, device=device)  # (B, w)
+    out = _gather_pixels(batch, rows.unsqueeze(2) * width + cols.unsqueeze(1))
     if not resize:
         return out
     out_dtype = _output_dtype(batch.dtype, mode)
