@@ -80,16 +80,17 @@ def run(
     size: tuple[int, int] = (70, 75),
     rounds: int = 3,
     min_run_time: float = 0.2,
+    device: str = "cpu",
 ) -> list[dict[str, Any]]:
     rows = []
     for pool in pools:
         for count in members:
-            frames = synthetic_frames((count, batch, steps, 2, *size), seed=count)
-            force = torch.rand(count, batch, steps, generator=torch.Generator().manual_seed(1)) * 20
+            frames = synthetic_frames((count, batch, steps, 2, *size), seed=count).to(device)
+            force = (torch.rand(count, batch, steps, generator=torch.Generator().manual_seed(1)) * 20).to(device)
             models = []
             for seed in range(count):
                 torch.manual_seed(seed)
-                models.append(ForceRegressor(hidden_channels=hidden_channels, input_pool=pool))
+                models.append(ForceRegressor(hidden_channels=hidden_channels, input_pool=pool).to(device))
             ensemble = EnsembleForceRegressor.from_models(models)
             timings, ratios = time_interleaved(
                 {"loop": loop_step(models, frames, force), "ensemble": ensemble_step(ensemble, frames, force)},
@@ -106,13 +107,15 @@ def run(
 
 def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
     parser = base_parser(__doc__.splitlines()[0], "ensemble")
+    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (default: %(default)s)")
+    parser.add_argument("--device", default="cpu", help="torch device (default: %(default)s)")
     args = parser.parse_args(argv)
     apply_threads(args.threads)
     if args.quick:
         rows = run(pools=(2,), members=(1, 2), hidden_channels=(2,), batch=2, steps=4, size=(12, 10),
-                   rounds=1, min_run_time=0.01)
+                   rounds=1, min_run_time=0.01, device=args.device)
     else:
-        rows = run()
+        rows = run(rounds=args.rounds, device=args.device)
     table = markdown_table(
         ["input_pool", "members M", "loop of M models / step", "ensemble / step", "ensemble per member",
          "ensemble / loop"],
@@ -126,8 +129,9 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
         "",
         "One optimiser step (forward, MSE, backward, gradient clipping per member, Adam) of "
         "`ForceRegressor(hidden_channels=(8,))` at batch 8 per member, T = 36, 70×75 frames: M separate "
-        "models stepped in a Python loop against one `EnsembleForceRegressor(M)`; median of interleaved "
-        f"rounds, ratio = ensemble / loop measured in the same round. Command: `{command('ensemble.py', argv)}`.",
+        f"models stepped in a Python loop against one `EnsembleForceRegressor(M)` on {args.device}; median "
+        "of interleaved rounds, ratio = median over rounds of ensemble / loop measured in the same round "
+        f"(times in a noisy round can differ from the ratio). Command: `{command('ensemble.py', argv)}`.",
         "",
         table,
     ])
