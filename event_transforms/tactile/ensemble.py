@@ -31,8 +31,10 @@ input_pool     M = 1   M = 5   M = 15
 At ``input_pool=5`` the step is bound by convolution arithmetic and grouping buys nothing
 on the CPU (grouped convolutions with 2-8 channels per group are no faster in oneDNN than
 separate ones); at ``input_pool=10`` the per-call overhead dominates and M members cost
-about half of M separate steps. One member-step at pool 10 costs about a third of one at
-pool 5 (and, in an ensemble of 15, about a tenth). On a GPU the ensemble should win at any
+about half of M separate steps. In thread CPU time, a single-model step at pool 10 cost
+0.52x one at pool 5, and a member-step in an ensemble of 15 at pool 10 cost 0.23x a single
+pool-5 step (59, 31 and 206 / 15 ms; absolute times on this loaded machine vary 2-3x
+between runs, the ratios far less). On a GPU the ensemble should win at any
 pool (DESIGN.md measured 10 members in about the time of one with ``vmap``); run
 ``benchmarks/ensemble.py --device cuda`` there.
 
