@@ -16,8 +16,27 @@ grouped convolution differs from a plain one).
 own data set, shuffled with its own seed, with a one-cycle (or cosine) learning rate,
 per-member gradient clipping, periodic validation and optional per-member early stopping.
 
-Measured cost (CPU, one thread): see ``benchmarks/ensemble.py`` and the table in
-``benchmarks/RESULTS.md``.
+Measured cost of one optimiser step, ensemble / loop of M separate models (CPU, one
+thread, 2-core machine shared with other jobs; ``hidden_channels=(8,)``, batch 8 per
+member, T = 36, 70x75 frames; ``python benchmarks/ensemble.py --threads 1``, ratios of
+thread CPU time, wall-time ratios within 0.05 of them):
+
+=============  ======  ======  ======
+input_pool     M = 1   M = 5   M = 15
+=============  ======  ======  ======
+5              1.01    0.97    0.90
+10             1.04    0.50    0.42
+=============  ======  ======  ======
+
+At ``input_pool=5`` the step is bound by convolution arithmetic and grouping buys nothing
+on the CPU (grouped convolutions with 2-8 channels per group are no faster in oneDNN than
+separate ones); at ``input_pool=10`` the per-call overhead dominates and M members cost
+about half of M separate steps. In thread CPU time, a single-model step at pool 10 cost
+0.52x one at pool 5, and a member-step in an ensemble of 15 at pool 10 cost 0.23x a single
+pool-5 step (59, 31 and 206 / 15 ms; absolute times on this loaded machine vary 2-3x
+between runs, the ratios far less). On a GPU the ensemble should win at any
+pool (DESIGN.md measured 10 members in about the time of one with ``vmap``); run
+``benchmarks/ensemble.py --device cuda`` there.
 
 Example:
     >>> from event_transforms.tactile.models import ForceRegressor
@@ -120,7 +139,8 @@ class EnsembleForceRegressor(nn.Module):
     Args:
         members: number of members ``M``.
         **kwargs: the arguments of :class:`ForceRegressor` (``in_channels``,
-            ``hidden_channels``, ``kernel_size``, ``input_pool``, ``recurrent_activation``).
+            ``hidden_channels``, ``kernel_size``, ``input_pool``, ``recurrent_activation``,
+            ``cumulative``).
 
     Shape:
         - frames: ``(M, B, T, 2, H, W)`` (member ``m`` reads batch ``frames[m]``) or
