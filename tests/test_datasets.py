@@ -90,7 +90,7 @@ class TestTactileGrasps:
         assert again.path == train.path and torch.equal(again[3][0], train[3][0])
 
     def test_cache_key_follows_settings(self, root, train):
-        session = get_scene("control").train
+        session = get_scene("paper").train
         names = {
             datasets._cache_name(session, range(0, 48), (140, 150), 2),
             datasets._cache_name(session, range(100, 148), (140, 150), 2),

@@ -227,7 +227,8 @@ QUICK_METHODS: dict[str, tuple[str, ...]] = {
 def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str, ...]:
     """The methods a scene runs: quick — ``none`` + its matched methods (the paper's list on
     ``paper``, other scenes' matched methods on ``control``); full — the paper's list (where
-    defined) and every scene's matched methods that the scene can build.
+    defined) and every scene's matched methods that the scene can build (``independent`` and
+    ``hybrid`` only where they combine two effects or more: on ``paper``).
 
     Example:
         >>> methods_for("timing")
@@ -239,6 +240,8 @@ def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str
     names = list(PAPER_METHODS) + [m for s in SCENES.values() for m in s.matched_methods]
     usable = []
     for name in dict.fromkeys(names):
+        if name in ("independent", "hybrid") and scene.name != "paper" and len(scene.gaps) < 2:
+            continue  # with one effect or none, the combinations are the matched method or a copy
         try:
             parse_method(name, scene=scene)
         except ValueError:
