@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from event_transforms.functional.events import events_to_frames
+from event_transforms.functional.events import EventsOutsideSensorWarning, events_to_frames
 
 TONIC_DTYPE = [("x", int), ("y", int), ("t", int), ("p", int)]
 
@@ -56,14 +57,15 @@ class TestEventsToFrames:
         x, y, t, p = random_events(rng, 3000)  # unsorted timestamps, some off-sensor
         kwargs = dict(t_start=5_000, frame_ms=10.0, n_frames=36, sensor_size=(17, 11))
         expected = reference(x, y, t, p, **kwargs)
-        got = events_to_frames(structured(x, y, t, p), **kwargs)
+        with pytest.warns(EventsOutsideSensorWarning, match="events lie outside sensor_size"):
+            got = events_to_frames(structured(x, y, t, p), **kwargs)
         assert got.dtype == torch.float32 and got.shape == (36, 2, 17, 11)
         torch.testing.assert_close(got, expected.float(), rtol=0, atol=0)
 
     def test_bin_edges_are_half_open(self):
         edges = [0, 9_999, 10_000, 19_999, 20_000, 29_999, 30_000, -1]
         events = {"x": [0] * 8, "y": [0] * 8, "t": edges, "p": [1] * 8}
-        got = events_to_frames(events, n_frames=3, sensor_size=(1, 1))
+        got = events_to_frames(events, t_start=0, n_frames=3, sensor_size=(1, 1))
         assert got[:, 1, 0, 0].tolist() == [2.0, 2.0, 2.0]
         assert got.sum().item() == 6
 
@@ -76,7 +78,10 @@ class TestEventsToFrames:
         rng = np.random.default_rng(1)
         x, y, t, p = random_events(rng, 5000, sensor_size=(180, 240), t_max=360_000)
         crop = (20, 45, 140, 150)
-        got = events_to_frames(structured(x, y, t, p), crop=crop, pool=2, dtype=torch.int64)
+        with pytest.warns(EventsOutsideSensorWarning):
+            got = events_to_frames(
+                structured(x, y, t, p), t_start=0, n_frames=36, crop=crop, pool=2, dtype=torch.int64
+            )
         expected = reference(
             x, y, t, p, t_start=0, frame_ms=10.0, n_frames=36, sensor_size=(180, 240),
             crop=crop, pool=2,
@@ -87,9 +92,11 @@ class TestEventsToFrames:
     def test_pool_sums_blocks(self):
         rng = np.random.default_rng(2)
         x, y, t, p = random_events(rng, 2000, sensor_size=(8, 6), margin=0)
-        full = events_to_frames(structured(x, y, t, p), sensor_size=(8, 6), dtype=torch.int64)
+        full = events_to_frames(
+            structured(x, y, t, p), t_start=0, n_frames=36, sensor_size=(8, 6), dtype=torch.int64
+        )
         pooled = events_to_frames(
-            structured(x, y, t, p), sensor_size=(8, 6), pool=2, dtype=torch.int64
+            structured(x, y, t, p), t_start=0, n_frames=36, sensor_size=(8, 6), pool=2, dtype=torch.int64
         )
         summed = full.view(36, 2, 4, 2, 3, 2).sum(dim=(3, 5))
         assert torch.equal(pooled, summed)
@@ -114,13 +121,14 @@ class TestEventsToFrames:
         rng = np.random.default_rng(3)
         x, y, t, p = random_events(rng, 1000)
         rows = torch.tensor(np.stack([x, y, t, p], axis=1), dtype=torch.float64)
-        a = events_to_frames(rows, sensor_size=(17, 11), t_start=1_000)
-        b = events_to_frames(structured(x, y, t, p), sensor_size=(17, 11), t_start=1_000)
-        c = events_to_frames(
-            {"x": torch.tensor(x), "y": torch.tensor(y), "t": torch.tensor(t), "p": torch.tensor(p)},
-            sensor_size=(17, 11),
-            t_start=1_000,
-        )
+        with pytest.warns(EventsOutsideSensorWarning):
+            a = events_to_frames(rows, sensor_size=(17, 11), t_start=1_000)
+            b = events_to_frames(structured(x, y, t, p), sensor_size=(17, 11), t_start=1_000)
+            c = events_to_frames(
+                {"x": torch.tensor(x), "y": torch.tensor(y), "t": torch.tensor(t), "p": torch.tensor(p)},
+                sensor_size=(17, 11),
+                t_start=1_000,
+            )
         assert torch.equal(a, b) and torch.equal(b, c)
 
     def test_narrow_structured_fields(self):
@@ -128,7 +136,7 @@ class TestEventsToFrames:
         events["x"], events["y"], events["t"], events["p"] = [0, 1, 1, 2], [0, 0, 1, 1], [0, 5, 9, 11], [
             True, False, True, True,
         ]
-        got = events_to_frames(events, frame_ms=0.01, n_frames=2, sensor_size=(2, 3))
+        got = events_to_frames(events, t_start=0, frame_ms=0.01, n_frames=2, sensor_size=(2, 3))
         assert got.sum() == 4 and got[1, 1, 1, 2] == 1
 
     def test_batch_with_lengths_equals_per_stream(self):
@@ -140,16 +148,21 @@ class TestEventsToFrames:
             padded[i, : len(s[0])] = torch.tensor(np.stack(s, axis=1), dtype=torch.float64)
         lengths = torch.tensor([len(s[0]) for s in streams])
         starts = torch.tensor([0, 10_000, 20_000, 0])
-        got = events_to_frames(padded, lengths=lengths, t_start=starts, sensor_size=(17, 11))
+        kwargs = dict(n_frames=36, sensor_size=(17, 11))
+        with pytest.warns(EventsOutsideSensorWarning):
+            got = events_to_frames(padded, lengths=lengths, t_start=starts, **kwargs)
         mask = torch.arange(longest) < lengths[:, None]
-        via_mask = events_to_frames(padded, mask=mask, t_start=starts, sensor_size=(17, 11))
+        with pytest.warns(EventsOutsideSensorWarning):
+            via_mask = events_to_frames(padded, mask=mask, t_start=starts, chunk_size=64, **kwargs)
         assert got.shape == (4, 36, 2, 17, 11) and torch.equal(got, via_mask)
         for i, s in enumerate(streams):
-            one = events_to_frames(structured(*s), t_start=int(starts[i]), sensor_size=(17, 11))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", EventsOutsideSensorWarning)
+                one = events_to_frames(structured(*s), t_start=int(starts[i]), **kwargs)
             assert torch.equal(got[i], one)
 
     def test_batch_of_zero_streams(self):
-        got = events_to_frames(torch.zeros(0, 5, 4), lengths=torch.zeros(0, dtype=torch.long))
+        got = events_to_frames(torch.zeros(0, 5, 4), n_frames=36, lengths=torch.zeros(0, dtype=torch.long))
         assert got.shape == (0, 36, 2, 180, 240)
 
     @pytest.mark.parametrize(
@@ -176,13 +189,14 @@ class TestEventsToFrames:
 
     def test_float_coordinates_are_floored(self):
         events = torch.tensor([[0.9, 1.5, 0.0, 1.0], [-0.5, 0.0, 0.0, 1.0]])
-        got = events_to_frames(events, n_frames=1, sensor_size=(2, 2))
+        with pytest.warns(EventsOutsideSensorWarning, match="1 of 2 events"):
+            got = events_to_frames(events, n_frames=1, sensor_size=(2, 2))
         assert got[0, 1, 1, 0] == 1 and got.sum() == 1  # x = -0.5 is off the sensor
 
     def test_input_unchanged(self):
         events = torch.tensor([[1, 1, 5, 0], [0, 0, 15_000, 1]])
         before, version = events.clone(), events._version
-        events_to_frames(events, sensor_size=(2, 2))
+        events_to_frames(events, sensor_size=(2, 2), chunk_size=1)
         assert torch.equal(events, before) and events._version == version
 
     @pytest.mark.parametrize(
@@ -194,6 +208,9 @@ class TestEventsToFrames:
             (dict(frame_ms=0), "frame_ms"),
             (dict(n_frames=0), "n_frames"),
             (dict(sensor_size=(4,)), "sensor_size"),
+            (dict(sensor_size=(4, 4, 2)), r"tonic_sensor_size=\(4, 4, 2\)"),
+            (dict(t_start="last"), "t_start"),
+            (dict(chunk_size=0), "chunk_size"),
             (dict(pool=0), "pool"),
         ],
     )
@@ -230,12 +247,20 @@ class TestEventsToFramesProperties:
     def test_counts_every_event_in_the_window_once(self, seed, n, t_start, frame_ms, n_frames, size):
         rng = np.random.default_rng(seed)
         x, y, t, p = random_events(rng, n, sensor_size=size, t_max=200_000)
-        got = events_to_frames(
-            structured(x, y, t, p), t_start=t_start, frame_ms=frame_ms, n_frames=n_frames,
-            sensor_size=size, dtype=torch.int64,
-        )
         inside = (x >= 0) & (x < size[1]) & (y >= 0) & (y < size[0])
         rel = (t - t_start) / (frame_ms * 1000)
-        inside &= (rel >= 0) & (np.floor(rel) < n_frames)
+        in_window = (rel >= 0) & (np.floor(rel) < n_frames)
+        inside &= in_window
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", EventsOutsideSensorWarning)
+            if n and not in_window.any():
+                with pytest.raises(ValueError, match="t_start"):
+                    events_to_frames(structured(x, y, t, p), t_start=t_start, frame_ms=frame_ms,
+                                     n_frames=n_frames, sensor_size=size)
+                return
+            got = events_to_frames(
+                structured(x, y, t, p), t_start=t_start, frame_ms=frame_ms, n_frames=n_frames,
+                sensor_size=size, dtype=torch.int64, chunk_size=97,
+            )
         assert int(got.sum()) == int(inside.sum())
         assert int(got[:, 1].sum()) == int((inside & (p == 1)).sum())

@@ -11,5 +11,7 @@ from .noise import *  # noqa: F401,F403
 from .noise import __all__ as _noise
 from .containers import *  # noqa: F401,F403
 from .containers import __all__ as _containers
+from .events import *  # noqa: F401,F403
+from .events import __all__ as _events
 
-__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_containers]
+__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_containers, *_events]
