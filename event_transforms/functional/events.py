@@ -490,12 +490,12 @@ def _warn_outside(tally: _Tally, total: int, grid: _Grid, stacklevel: int) -> No
     warnings.warn(EventsOutsideSensorWarning(message), stacklevel=stacklevel)
 
 
-def _empty_window_error(stream: str, start: Any, frame_ms: object, n_frames: int | None, grid: _Grid,
-                        t_min: Any, t_max: Any, count: int) -> ValueError:
-    end = "" if n_frames is None else f" to {start + n_frames * grid.frame_us}"
+def _empty_window_error(stream: str, start: Any, t_start: object, frame_ms: object, n_frames: int | None,
+                        grid: _Grid, t_min: Any, t_max: Any, count: int) -> ValueError:
+    end = "..." if n_frames is None else f"{start + n_frames * grid.frame_us})"
     return ValueError(
-        f"no event of {stream} falls in the time window from t_start={start} µs{end} "
-        f"(frame_ms={frame_ms!r}, n_frames={n_frames!r}): its {count:,} events span "
+        f"no event of {stream} falls in the time window [{start}, {end} µs set by t_start={t_start!r}, "
+        f"frame_ms={frame_ms!r}, n_frames={n_frames!r}: its {count:,} events span "
         f"t = {t_min} to {t_max} µs. For absolute timestamps leave t_start='floor' or 'first'; "
         "timestamps must be in microseconds"
     )
@@ -646,7 +646,8 @@ def events_to_frames(
         if tally.events[b] and not tally.in_window[b]:
             stream = f"stream {b}" if source.batched else "the stream"
             raise _empty_window_error(
-                stream, starts[b].item(), frame_ms, n_frames, grid, tally.t_min[b], tally.t_max[b], int(tally.events[b])
+                stream, starts[b].item(), t_start if not isinstance(t_start, (Tensor, np.ndarray)) else "(per stream)",
+                frame_ms, n_frames, grid, tally.t_min[b], tally.t_max[b], int(tally.events[b])
             )
     _warn_outside(tally, int(tally.events.sum()), grid, stacklevel=3)
     frames = _as_dtype(counts, grid.dtype).view(batch, n_frames, 2, grid.out_h, grid.out_w)
@@ -812,7 +813,7 @@ def _iter_frames(
             break  # every later event is past the window: the remaining bins are complete
     if tally.events.item() and not tally.in_window.item():
         raise _empty_window_error(
-            "the stream", starts.item(), frame_ms, n_frames, grid, tally.t_min[0], tally.t_max[0],
+            "the stream", starts.item(), t_start, frame_ms, n_frames, grid, tally.t_min[0], tally.t_max[0],
             int(tally.events.item()),
         )
     if frame is None:
