@@ -176,7 +176,12 @@ class RandomApply(EventTransform):
 
     def __init__(self, transform: EventTransform | Callable[[Tensor], Tensor], p: float = 0.5) -> None:
         super().__init__(p=check_probability(p, "p"))
-        self.transform = _members([transform], "transform")[0]
+        self.transform = as_transform(transform)
+        if self.transform.takes_events:
+            raise TypeError(
+                f"transform ({type(self.transform).__name__}) turns events into frames and can stand only "
+                "first in a Compose; here it would be handed frames"
+            )
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Metadata = None) -> Params:
         return {"0": self.transform.make_params(shape, generator=generator, metadata=metadata)}
