@@ -619,6 +619,8 @@ class TestEventsToFramesModule:
             et.EventsToFrames((320, 240, 2))
         with pytest.raises(ValueError, match="t_start"):
             et.EventsToFrames((2, 2), t_start="start")
+        with pytest.raises(TypeError, match="dtype"):
+            et.EventsToFrames((2, 2), dtype=torch.uint16)
 
     def test_composes_with_frame_transforms(self):
         import event_transforms as et

@@ -633,7 +633,8 @@ def events_to_frames(
     # Pass 2: bin chunk by chunk into one int64 buffer.
     tally = _Tally(batch)
     counts = torch.zeros(batch * n_frames * grid.frame_size, dtype=torch.int64, device=source.device)
-    for i in range(0, length, chunk):
+
+    def bin_chunk(i: int) -> None:  # a function, so that a chunk's temporaries die before the next
         columns = source.read(i, i + chunk, _FIELDS)
         valid = valid_of(i, i + chunk)
         tally.add_times(columns["t"], valid)
@@ -641,6 +642,9 @@ def events_to_frames(
         bins = _time_bins(columns["t"], starts, grid.frame_us)
         index, _ = _flat_index(columns, valid, bins, n_frames, grid, tally)
         _accumulate(counts, index)
+
+    for i in range(0, length, chunk):
+        bin_chunk(i)
 
     for b in range(batch):
         if tally.events[b] and not tally.in_window[b]:
@@ -770,31 +774,16 @@ def _iter_frames(
         source = _source(events)
         if source.batched:
             raise ValueError(f"chunks[{number}] must be one stream, got a batch of shape {tuple(events.shape)}")
-        if source.length == 0:
+        chunk = _stream_chunk(source, number, last_t, starts, t_start, n_frames, grid, tally)
+        if chunk is None:
             continue
-        columns = source.read(0, source.length, _FIELDS)
-        t = columns["t"]
-        first_t, chunk_last = t[0, 0].item(), t[0, -1].item()
-        if (last_t is not None and first_t < last_t) or bool((t[0, 1:] < t[0, :-1]).any()):
-            raise ValueError(
-                f"iter_frames needs events sorted by t across chunks; chunks[{number}] goes back in time "
-                f"(to t={t.min().item()} after t={last_t if last_t is not None else t[0, 0].item()})"
-            )
-        last_t = chunk_last
-        if starts is None:
-            starts = torch.tensor([first_t], dtype=torch.float64 if isinstance(first_t, float) else torch.int64)
-            if t_start == "floor":
-                starts = _floor_to_grid(starts, grid.frame_us)
+        starts, last_t, pixel, kept_bins, past_window = chunk
+        del chunk
+        if tally.outside and not warned:
+            _warn_outside(tally, int(tally.events.item()), grid, stacklevel=3)
+            warned = True
         if frame is None:
             frame = torch.zeros(size, dtype=torch.int64, device=source.device)
-        tally.add_times(t, None)
-        tally.events += t.shape[1]
-        outside_before = tally.outside
-        bins = _time_bins(t, starts, grid.frame_us)
-        pixel, kept_bins = _flat_index(columns, None, bins, n_frames, grid, tally)
-        if tally.outside > outside_before and not warned:
-            _warn_outside(tally, t.shape[1], grid, stacklevel=3)
-            warned = True
         # the kept events' bins are sorted: count them ``step`` distinct bins at a time
         distinct, inverse = torch.unique_consecutive(kept_bins, return_inverse=True)
         bin_list = distinct.tolist()
@@ -809,7 +798,8 @@ def _iter_frames(
                     frame = torch.zeros_like(frame)
                     pending += 1
                 frame += local[k * size : (k + 1) * size]
-        if n_frames is not None and int(bins[0, -1]) >= n_frames:
+        del pixel, kept_bins, distinct, inverse  # before the next chunk is read
+        if past_window:
             break  # every later event is past the window: the remaining bins are complete
     if tally.events.item() and not tally.in_window.item():
         raise _empty_window_error(
@@ -825,3 +815,29 @@ def _iter_frames(
         yield emit(frame)
         frame = torch.zeros_like(frame)
         pending += 1
+
+
+def _stream_chunk(
+    source: _Source, number: int, last_t: Any, starts: Tensor | None, t_start: object, n_frames: int | None,
+    grid: _Grid, tally: _Tally,
+) -> tuple[Tensor, Any, Tensor, Tensor, bool] | None:
+    """Bin one chunk of a stream: (starts, its last t, the kept events' pixels and bins, past the window?)."""
+    if source.length == 0:
+        return None
+    columns = source.read(0, source.length, _FIELDS)
+    t = columns["t"]
+    first_t, chunk_last = t[0, 0].item(), t[0, -1].item()
+    if (last_t is not None and first_t < last_t) or bool((t[0, 1:] < t[0, :-1]).any()):
+        raise ValueError(
+            f"iter_frames needs events sorted by t across chunks; chunks[{number}] goes back in time "
+            f"(to t={t.min().item()} after t={last_t if last_t is not None else first_t})"
+        )
+    if starts is None:
+        starts = torch.tensor([first_t], dtype=torch.float64 if isinstance(first_t, float) else torch.int64)
+        if t_start == "floor":
+            starts = _floor_to_grid(starts, grid.frame_us)
+    tally.add_times(t, None)
+    tally.events += t.shape[1]
+    bins = _time_bins(t, starts, grid.frame_us)
+    pixel, kept_bins = _flat_index(columns, None, bins, n_frames, grid, tally)
+    return starts, chunk_last, pixel, kept_bins, n_frames is not None and int(bins[0, -1]) >= n_frames

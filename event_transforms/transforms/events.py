@@ -7,6 +7,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
+from .._validation import FRAME_DTYPES
 from ..functional.events import CHUNK_EVENTS, _grid, _integer, _T_STARTS, _explicit_starts, events_to_frames
 from .base import EventTransform, Params
 
@@ -92,6 +93,8 @@ class EventsToFrames(EventTransform):
         self.t_start = t_start
         self.crop = None if crop is None else (grid.top, grid.left, grid.crop_h, grid.crop_w)
         self.pool = grid.pool
+        if grid.dtype not in FRAME_DTYPES:
+            raise TypeError(f"dtype must be one of the frame dtypes {FRAME_DTYPES}, got {dtype!r}")
         self.dtype = grid.dtype
         self.chunk_size = _integer(chunk_size, "chunk_size")
 
