@@ -545,6 +545,13 @@ class TestIterFrames:
         assert len(frames) == len(expected) and all(f.shape == (2, 4, 5) for f in frames)
         assert torch.equal(torch.stack(frames), expected)
 
+    @pytest.mark.parametrize("n_frames", [1, 5, 40])
+    def test_n_frames_equals_events_to_frames(self, n_frames):
+        events = recording(np.random.default_rng(19), 900, sensor_size=(5, 6), span_us=230_000)
+        kwargs = dict(sensor_size=(5, 6), n_frames=n_frames, dtype=torch.int64)
+        frames = list(iter_frames(chunked(events, [50, 3]), frames_per_step=2, **kwargs))
+        assert torch.equal(torch.stack(frames), events_to_frames(events, **kwargs))
+
     def test_gaps_give_empty_frames_and_n_frames_pads_and_stops(self):
         events = {"x": [0, 0, 0], "y": [0, 0, 0], "t": [0, 55_000, 99_000], "p": [1, 0, 1]}
         got = [f[:, 0, 0].tolist() for f in iter_frames([events], sensor_size=(1, 1), dtype=torch.int64)]

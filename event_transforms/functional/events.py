@@ -413,7 +413,7 @@ def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally) -> Tensor:
             tally.polarities.add(0)
         if tally.polarities == {-1, 0}:
             raise ValueError(
-                "events polarity p mixes the {0, 1} and {-1, 1} conventions (it holds -1, 0 and 1); "
+                "events polarity p mixes the {0, 1} and {-1, 1} conventions (it holds both -1 and 0); "
                 "OFF must be either 0 or -1"
             )
     return (p > 0).to(torch.int64)
@@ -421,12 +421,13 @@ def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally) -> Tensor:
 
 def _flat_index(
     columns: dict[str, Tensor], valid: Tensor | None, bins: Tensor, n_frames: int | None, grid: _Grid,
-    tally: _Tally,
+    tally: _Tally, *, within_frame: bool = False,
 ) -> tuple[Tensor, Tensor]:
     """For a (B, n) chunk: the kept events' flat index into (B, T, 2, H', W') and their bins.
 
-    With ``n_frames=None`` the index leaves out the sample and frame (it is the index
-    within a frame, ``2 * H' * W'`` values) and the caller combines it with the bins.
+    With ``within_frame`` the index leaves out the sample and frame (it is the index
+    within one frame, ``2 * H' * W'`` values) and the caller combines it with the bins;
+    ``n_frames=None`` (only then) keeps every bin from 0 on.
     """
     x, y, p = columns["x"], columns["y"], columns["p"]
     channel = _polarity_channel(p, valid, tally)
@@ -449,7 +450,7 @@ def _flat_index(
     tally.in_window += in_time.sum(dim=1).cpu()
     keep &= in_time
     pixel = (channel * grid.out_h + (row - grid.top) // grid.pool) * grid.out_w + (col - grid.left) // grid.pool
-    if n_frames is None:
+    if within_frame:
         return pixel[keep], bins[keep]
     sample = torch.arange(x.shape[0], device=x.device).unsqueeze(1)
     index = (sample * n_frames + bins) * grid.frame_size + pixel
@@ -839,5 +840,5 @@ def _stream_chunk(
     tally.add_times(t, None)
     tally.events += t.shape[1]
     bins = _time_bins(t, starts, grid.frame_us)
-    pixel, kept_bins = _flat_index(columns, None, bins, n_frames, grid, tally)
+    pixel, kept_bins = _flat_index(columns, None, bins, n_frames, grid, tally, within_frame=True)
     return starts, chunk_last, pixel, kept_bins, n_frames is not None and int(bins[0, -1]) >= n_frames
