@@ -236,4 +236,4 @@ class TestEvents:
 
         path = _results(tmp_path)
         result = events.main(["--quick", "--results", str(path)])
-        assert len(result["rows"]) == 8 and "peak RSS" in _section(path, "events")
+        assert len(result["rows"]) == 10 and "peak RSS" in _section(path, "events")
