@@ -603,20 +603,22 @@ def events_to_frames(
     def valid_of(i: int, j: int) -> Tensor | None:
         return None if valid_all is None else valid_all[:, i:j]
 
+    if isinstance(t_start, str):
+        if t_start not in _T_STARTS:
+            raise ValueError(f"t_start must be 'floor', 'first', a number or one per stream, got {t_start!r}")
+    else:
+        starts = _explicit_starts(t_start, batch)
+
     # Pass 1 (only when needed): every stream's time range, for t_start and n_frames.
     ranges = _Tally(batch)
     if isinstance(t_start, str) or n_frames is None:
         for i in range(0, length, chunk):
             ranges.add_times(source.read(i, i + chunk, ("t",))["t"], valid_of(i, i + chunk))
     if isinstance(t_start, str):
-        if t_start not in _T_STARTS:
-            raise ValueError(f"t_start must be 'floor', 'first', a number or one per stream, got {t_start!r}")
         firsts = [0 if v is None else v for v in ranges.t_min]
         starts = torch.tensor(firsts, dtype=torch.float64 if any(isinstance(v, float) for v in firsts) else torch.int64)
         if t_start == "floor":
             starts = _floor_to_grid(starts, grid.frame_us)
-    else:
-        starts = _explicit_starts(t_start, batch)
     if n_frames is None:
         n_frames = 0
         for b, last in enumerate(ranges.t_max):
