@@ -402,14 +402,16 @@ def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally) -> Tensor:
     """Channel per event: 1 for ON (p > 0), 0 for OFF (p in {0, -1}); refuses anything else."""
     checked = p if valid is None else p[valid]
     if checked.numel():
-        bad = (checked != 0) & (checked != 1) & (checked != -1)
-        if bool(bad.any()):
+        low, high = (v.item() for v in torch.aminmax(checked))
+        whole = not checked.is_floating_point() or bool((checked == checked.round()).all())
+        if low < -1 or high > 1 or not whole:
+            bad = (checked != 0) & (checked != 1) & (checked != -1)
             raise ValueError(
                 f"events polarity p must be bool, {{0, 1}} or {{-1, 1}}, got {checked[bad].flatten()[0].item()!r}"
             )
-        if bool((checked == -1).any()):
+        if low == -1:
             tally.polarities.add(-1)
-        if bool((checked == 0).any()):
+        if low == 0 or (low == -1 and 0 not in tally.polarities and bool((checked == 0).any())):
             tally.polarities.add(0)
         if tally.polarities == {-1, 0}:
             raise ValueError(
@@ -422,11 +424,11 @@ def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally) -> Tensor:
 def _flat_index(
     columns: dict[str, Tensor], valid: Tensor | None, bins: Tensor, n_frames: int | None, grid: _Grid,
     tally: _Tally, *, within_frame: bool = False,
-) -> tuple[Tensor, Tensor]:
-    """For a (B, n) chunk: the kept events' flat index into (B, T, 2, H', W') and their bins.
+) -> tuple[Tensor, Tensor | None]:
+    """For a (B, n) chunk: the kept events' flat index into (B, T, 2, H', W') (and their bins).
 
     With ``within_frame`` the index leaves out the sample and frame (it is the index
-    within one frame, ``2 * H' * W'`` values) and the caller combines it with the bins;
+    within one frame, ``2 * H' * W'`` values) and the kept events' bins come with it;
     ``n_frames=None`` (only then) keeps every bin from 0 on.
     """
     x, y, p = columns["x"], columns["y"], columns["p"]
@@ -441,20 +443,27 @@ def _flat_index(
         seen = slice(None) if valid is None else valid
         _merge(tally.x_range, int(col[seen].min()), int(col[seen].max()))
         _merge(tally.y_range, int(row[seen].min()), int(row[seen].max()))
-    keep = (col >= grid.left) & (col < grid.left + grid.crop_w) & (row >= grid.top) & (row < grid.top + grid.crop_h)
     in_time = bins >= 0
     if n_frames is not None:
         in_time &= bins < n_frames
     if valid is not None:
         in_time &= valid
     tally.in_window += in_time.sum(dim=1).cpu()
-    keep &= in_time
-    pixel = (channel * grid.out_h + (row - grid.top) // grid.pool) * grid.out_w + (col - grid.left) // grid.pool
+    if (grid.crop_h, grid.crop_w) == (grid.height, grid.width):
+        keep = inside & in_time
+    else:
+        keep = (col >= grid.left) & (col < grid.left + grid.crop_w) & (row >= grid.top) & (row < grid.top + grid.crop_h)
+        keep &= in_time
+    if grid.top or grid.left:
+        row, col = row - grid.top, col - grid.left
+    if grid.pool > 1:
+        row, col = row // grid.pool, col // grid.pool
+    pixel = (channel * grid.out_h + row) * grid.out_w + col
     if within_frame:
         return pixel[keep], bins[keep]
-    sample = torch.arange(x.shape[0], device=x.device).unsqueeze(1)
-    index = (sample * n_frames + bins) * grid.frame_size + pixel
-    return index[keep], bins[keep]
+    if x.shape[0] > 1:
+        bins = bins + torch.arange(x.shape[0], device=x.device).unsqueeze(1) * n_frames
+    return (bins * grid.frame_size + pixel)[keep], None
 
 
 def _accumulate(counts: Tensor, index: Tensor) -> None:
@@ -640,7 +649,6 @@ def events_to_frames(
     def bin_chunk(i: int) -> None:  # a function, so that a chunk's temporaries die before the next
         columns = source.read(i, i + chunk, _FIELDS)
         valid = valid_of(i, i + chunk)
-        tally.add_times(columns["t"], valid)
         tally.events += (torch.full((batch,), columns["t"].shape[1]) if valid is None else valid.sum(dim=1).cpu())
         bins = _time_bins(columns["t"], starts, grid.frame_us)
         index, _ = _flat_index(columns, valid, bins, n_frames, grid, tally)
@@ -651,10 +659,13 @@ def events_to_frames(
 
     for b in range(batch):
         if tally.events[b] and not tally.in_window[b]:
+            if ranges.t_min[b] is None:  # pass 1 did not run: read the time range for the message
+                for i in range(0, length, chunk):
+                    ranges.add_times(source.read(i, i + chunk, ("t",))["t"], valid_of(i, i + chunk))
             stream = f"stream {b}" if source.batched else "the stream"
             raise _empty_window_error(
                 stream, starts[b].item(), t_start if not isinstance(t_start, (Tensor, np.ndarray)) else "(per stream)",
-                frame_ms, n_frames, grid, tally.t_min[b], tally.t_max[b], int(tally.events[b])
+                frame_ms, n_frames, grid, ranges.t_min[b], ranges.t_max[b], int(tally.events[b])
             )
     _warn_outside(tally, int(tally.events.sum()), grid, stacklevel=3)
     frames = _as_dtype(counts, grid.dtype).view(batch, n_frames, 2, grid.out_h, grid.out_w)
