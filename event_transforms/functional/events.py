@@ -195,6 +195,29 @@ def _source(events: Any) -> _Source:
 # --------------------------------------------------------------------------- options
 
 
+def _columns(events: Any) -> tuple[list[Tensor], bool]:
+    """All of x, y, t, p as (B, N) columns at once, and whether the input was a batch.
+
+    For kernels that need a whole stream in memory (voxel grids, time surfaces); the
+    columns are int64 (bool and integer input) or float64, as :func:`_column` makes them.
+    """
+    source = _source(events)
+    columns = source.read(0, source.length, _FIELDS)
+    return [columns[c] for c in _FIELDS], source.batched
+
+
+def _pair(value: object, name: str) -> tuple[Any, Any]:
+    """Two entries of a size ``(H, W)``."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
+        raise ValueError(f"{name} must be a pair (H, W), got {value!r}")
+    return value[0], value[1]
+
+
+def _positive_int(value: object, name: str) -> int:
+    """An integer >= 1 (Python, numpy or 0-d tensor)."""
+    return _integer(value, name)
+
+
 def _integer(value: object, name: str, *, low: int = 1) -> int:
     """A Python, numpy or 0-d tensor integer >= ``low``."""
     if isinstance(value, Tensor) and value.dim() == 0 and not value.is_floating_point():
@@ -398,8 +421,12 @@ def _merge(bounds: list[Any], low: Any, high: Any) -> None:
     bounds[1] = high if bounds[1] is None else max(bounds[1], high)
 
 
-def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally) -> Tensor:
-    """Channel per event: 1 for ON (p > 0), 0 for OFF (p in {0, -1}); refuses anything else."""
+def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally | None = None) -> Tensor:
+    """Channel per event: 1 for ON (p > 0), 0 for OFF (p in {0, -1}); refuses anything else.
+
+    ``tally`` remembers the OFF values seen in earlier chunks of the same call.
+    """
+    tally = _Tally(0) if tally is None else tally
     checked = p if valid is None else p[valid]
     if checked.numel():
         low, high = (v.item() for v in torch.aminmax(checked))
