@@ -33,6 +33,11 @@ _TRANSFORMS = (
     "FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift",
     "AddNoise", "AddPoissonNoise", "RandomEventDrop",
     "Compose", "OneOf", "RandomApply", "EventsToFrames",
+    # transform coverage (issue 13)
+    "Affine", "RandomAffine", "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample",
+    "FlipPolarity", "RandomFlipPolarity", "TimeReversal", "RandomTimeReversal", "MergePolarities",
+    "CropTime", "RandomCropTime", "Cutout", "CutMix", "MixUp",
+    "DropPixel", "RandomDropPixel", "Denoise",
 )
 _NAMES: dict[str, str] = {
     **{name: "transforms" for name in _TRANSFORMS},

@@ -10,6 +10,8 @@ effect declared in the scene              transform built
 object size differs from training sizes   :class:`ResizeToTarget`: β = target / source,
                                           per sample, from its metadata
 contact orientation varies                :class:`~event_transforms.RandomRotation`
+contact centre moves between recordings   :class:`~event_transforms.RandomTranslate`
+                                          (whole pixels, zero fill)
 lag between force and events varies       :class:`~event_transforms.RandomFrameShift`, or
                                           :class:`~event_transforms.RandomTemporalEventShift`
                                           when only a fraction of the events lags
@@ -20,7 +22,12 @@ background activity                       :class:`~event_transforms.AddNoise` (s
 The policy combines them independently by default (one effect per synthetic sample, the
 paper's better combination: 5.71 N against 7.20 N for the hybrid) or stacks them
 (``combination="hybrid"``) in physical order: lag first (event shifting needs whole
-counts, so it runs before interpolation), then size, orientation, and noise last.
+counts, so it runs before interpolation), then size, orientation, position, and noise last.
+
+Effects a tactile grasp does *not* call for, so no scene declares them: time reversal (a
+grasp never plays backwards: loading and release differ), polarity flip (ON and OFF events
+mark pressing and releasing), mixing of two grasps (CutMix/MixUp are regularisers, not
+physical effects), and crops that change the frame size.
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ from .functional.spatial import Center
 from .transforms.base import EventTransform, Params
 from .transforms.containers import Compose, OneOf
 from .transforms.noise import AddNoise, AddPoissonNoise
+from .transforms.geometry import RandomTranslate
 from .transforms.spatial import RandomRotation, _Zoom
 from .transforms.temporal import RandomFrameShift, RandomTemporalEventShift
 
@@ -161,6 +169,9 @@ class Scene:
             shifts (e.g. ``(-1,)`` or ``range(-2, 1)``); ``None`` if the lag does not vary.
         lag_fraction: ``None`` shifts whole frames (FS); a fraction ζ or a ``(min, max)``
             range moves only that share of each frame's events (TES).
+        contact_shift_px: how far the contact centre moves between recordings, in pixels
+            of the frames: ``m`` or ``(max_dy, max_dx)`` for integer shifts in ±m; ``None``
+            or 0 if the contact is always at the same place.
         noise: background activity: static-scene frames ``(N, 2, H, W)`` (e.g. from
             :func:`event_transforms.tactile.datasets.noise_bank`) or a rate in Hz per pixel and
             polarity (a number or ``(min, max)``); ``None`` for none.
@@ -184,6 +195,7 @@ class Scene:
     orientation_deg: float | tuple[float, float] | None = None
     lag_shifts: Sequence[int] | None = None
     lag_fraction: float | tuple[float, float] | None = None
+    contact_shift_px: int | tuple[int, int] | None = None
     noise: Tensor | float | tuple[float, float] | None = field(default=None, compare=False)
     frame_ms: float = 10.0
 
@@ -195,6 +207,11 @@ class Scene:
             _positive(self.target_size, "target_size")
         _positive(self.size_exponent, "size_exponent")
         _positive(self.frame_ms, "frame_ms")
+        if self.contact_shift_px is not None:
+            try:
+                self._contact_shift()
+            except (TypeError, ValueError) as error:
+                raise type(error)(f"contact_shift_px: {error}") from None
         if self.noise is not None and not isinstance(self.noise, (Tensor, int, float, tuple, list)):
             raise TypeError(
                 f"noise must be static-scene frames (N, 2, H, W), a rate in Hz or a (min, max) "
@@ -213,9 +230,14 @@ class Scene:
             found.append("size")
         if self.orientation_deg is not None and _spread(self.orientation_deg) > 0:
             found.append("orientation")
+        if self.contact_shift_px is not None and any(self._contact_shift()):
+            found.append("position")
         if self.noise is not None and (isinstance(self.noise, Tensor) or _spread(self.noise, low=0) > 0):
             found.append("noise")
         return tuple(found)
+
+    def _contact_shift(self) -> tuple[int, int]:
+        return RandomTranslate(self.contact_shift_px).max_shift  # type: ignore[arg-type]
 
     def transforms(self, *, center: Center = "mass", mode: str = "bilinear") -> list[EventTransform]:
         """One transform per declared effect, in :attr:`effects` order."""
@@ -239,6 +261,8 @@ class Scene:
                 )
             elif effect == "orientation":
                 built.append(RandomRotation(self.orientation_deg, center=center, mode=mode))  # type: ignore[arg-type]
+            elif effect == "position":
+                built.append(RandomTranslate(self._contact_shift()))
             elif isinstance(self.noise, Tensor):
                 built.append(AddNoise(self.noise))
             else:

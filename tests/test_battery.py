@@ -18,6 +18,7 @@ from event_transforms.transforms.base import slice_params
 from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse_frames
 
 INTERPOLATING = {"Rotate", "RandomRotation", "Resize", "RandomResize"}
+INTERPOLATING |= {"Affine", "RandomAffine", "RandomCropResize", "CenterCropResize"}
 # modules whose kernels need whole, non-negative counts and check them
 VALUE_CHECKED = {"TemporalEventShift", "TemporalEventShiftBinomial", "RandomTemporalEventShift", "RandomEventDrop"}
 
@@ -47,6 +48,23 @@ FACTORIES = {
     "Compose": lambda t, h, w: et.Compose([et.FrameShift(-1), et.RandomRotation(10.0)]),
     "OneOf": lambda t, h, w: et.OneOf([et.RandomResize(choices=(0.83, 1.25)), et.FrameShift(-1)]),
     "RandomApply": lambda t, h, w: et.RandomApply(et.RandomFrameShift((-1, 1)), p=0.5),
+    # transform coverage (issue 13); size-changing modules run tests/test_shape_battery.py
+    "Affine": lambda t, h, w: et.Affine(angle=15.0, translate=(1.5, -1.0), scale=1.1, shear=(5.0, 0.0)),
+    "RandomAffine": lambda t, h, w: et.RandomAffine(20.0, translate=(0.1, 0.1), scale=(0.9, 1.1), shear=5.0),
+    "Translate": lambda t, h, w: et.Translate((1, -2)),
+    "RandomTranslate": lambda t, h, w: et.RandomTranslate(2),
+    "RandomCropResize": lambda t, h, w: et.RandomCrop((max(1, h - 3), max(1, w - 2)), resize=True),
+    "CenterCropResize": lambda t, h, w: et.CenterCrop((max(1, h - 4), max(1, w - 1)), resize=True),
+    "FlipPolarity": lambda t, h, w: et.FlipPolarity(),
+    "RandomFlipPolarity": lambda t, h, w: et.RandomFlipPolarity(0.5),
+    "TimeReversal": lambda t, h, w: et.TimeReversal(),
+    "RandomTimeReversal": lambda t, h, w: et.RandomTimeReversal(0.5),
+    "MergePolarities": lambda t, h, w: et.MergePolarities(),
+    "Cutout": lambda t, h, w: et.Cutout((3, 2)),
+    "DropPixel": lambda t, h, w: et.DropPixel([[0, 0], [h - 1, w - 1]]),
+    "DropHotPixels": lambda t, h, w: et.DropPixel(rate_hz=150.0),
+    "RandomDropPixel": lambda t, h, w: et.RandomDropPixel((0.1, 0.3)),
+    "Denoise": lambda t, h, w: et.Denoise(),
 }
 
 NAMES = sorted(FACTORIES)

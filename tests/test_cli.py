@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 
@@ -10,18 +11,21 @@ import pytest
 import torch
 
 import event_transforms as et
-from event_transforms.tactile import cli, protocol, training
+from event_transforms.tactile import cli, protocol
 from event_transforms.tactile.protocol import (
     PAPER_METHODS,
     MaterializedDataset,
     Method,
     ProtocolConfig,
-    ProtocolData,
+    SceneData,
     build_training_set,
-    format_table,
+    format_scene_table,
+    methods_for,
     parse_method,
     run_protocol,
 )
+from event_transforms.tactile.scenes import SCENES, get_scene
+from event_transforms.tactile.stats import holm, paired_t
 from event_transforms.tactile.training import Stopwatch
 from tests.test_training import FakeGrasps
 
@@ -29,15 +33,15 @@ from tests.test_training import FakeGrasps
 pytestmark = pytest.mark.usefixtures("one_thread")  # see conftest.py
 
 
-TINY = ProtocolConfig(epochs=2, patience=1, batch_size=4, hidden_channels=(2,), input_pool=4)
+TINY = ProtocolConfig(steps=3, batch_size=4, eval_every=2, hidden_channels=(2,), input_pool=4)
 
 
-def fake_data() -> ProtocolData:
+def fake_data(scene: str = "paper") -> SceneData:
     g = torch.Generator().manual_seed(9)
     bank = torch.poisson(torch.full((40, 2, 16, 12), 0.2), generator=g)
-    return ProtocolData(
-        FakeGrasps(6, seed=1), FakeGrasps(3, diameters=(15.0,), seed=2),
-        FakeGrasps(3, diameters=(15.0,), seed=3), bank, "fake grasps",
+    return SceneData(
+        get_scene(scene), FakeGrasps(6, seed=1), FakeGrasps(7, diameters=(15.0,), seed=2),
+        FakeGrasps(8, diameters=(15.0,), seed=3), bank,
     )
 
 
@@ -171,97 +175,193 @@ class TestMaterializedDataset:
         assert watch.calls == 2 * 6  # each copy: one draw and one application, timed once
 
 
+class TestScenesAndMethods:
+    def test_scene_methods(self):
+        assert methods_for("paper") == PAPER_METHODS
+        assert methods_for("timing") == ("none", "fs2", "tes2:0.5")
+        assert methods_for("control")[0] == "none"
+        full = methods_for("control", full=True)
+        assert "resize" not in full and "rot45" in full and "noise" in full  # no size gap: no resize
+        assert {"resize", "resize-hertz", "fs2"} <= set(methods_for("paper", full=True))
+        for scene in SCENES:
+            for name in methods_for(scene) + methods_for(scene, full=True):
+                parse_method(name, scene=scene)
+
+    def test_scene_targets(self):
+        assert parse_method("resize", scene="size-extrapolation").build().target_size == 18.0
+        assert parse_method("resize-hertz").build().exponent == 0.5
+        with pytest.raises(ValueError, match="size"):
+            parse_method("resize", scene="timing")
+        timing = parse_method("independent", scene="timing").build()
+        assert isinstance(timing, et.OneOf) and timing.transforms[0].shifts == (2,)
+        noise = parse_method("independent", scene="noise")
+        assert noise.needs_noise_bank and isinstance(noise.build(torch.zeros(5, 2, 4, 4)).transforms[0], et.AddNoise)
+
+
+def _check_shape(saved: dict, scenes: list[str], methods: list[str], seeds: list[int]) -> None:
+    """The results.json contract of the protocol issue."""
+    assert set(saved) >= {"config", "wall_s", "scenes"} and isinstance(saved["wall_s"], float)
+    assert list(saved["scenes"]) == scenes
+    for name, scene in saved["scenes"].items():
+        assert scene["gaps"] == list(get_scene(name).gaps)
+        assert scene["matched_methods"] == list(get_scene(name).matched_methods)
+        assert set(scene["split_sizes"]) == {"train", "val", "test"}
+        assert set(scene["baselines"]) == {"global-mean", "per-frame-mean", "cumulative-count-ridge"}
+        assert all(isinstance(b["test_mse"], float) for b in scene["baselines"].values())
+        assert list(scene["methods"]) == methods
+        for method, m in scene["methods"].items():
+            assert m["seeds"] == seeds
+            for key in ("test_mse", "val_mse", "converged"):
+                assert len(m[key]) == len(seeds)
+            assert all(isinstance(c, bool) for c in m["converged"])
+            assert isinstance(m["steps"], int)
+            for key in ("aug_s_once", "aug_s_per_epoch", "train_s"):
+                assert isinstance(m[key], float) and m[key] >= 0
+            if method == "none":
+                assert m["delta_vs_none"] is None
+            else:
+                delta = m["delta_vs_none"]
+                assert set(delta) >= {"mean", "ci95", "p_value", "p_holm"} and len(delta["ci95"]) == 2
+
+
+@pytest.fixture(scope="module")
+def scene_data():
+    return {scene: fake_data(scene) for scene in TestRunProtocol.scenes}
+
+
+@pytest.fixture(scope="module")
+def clean(scene_data, tmp_path_factory):
+    out = tmp_path_factory.mktemp("clean")
+    run = TestRunProtocol
+    return out, run_protocol(run.scenes, run.seeds, out, config=TINY, methods=run.methods, data=scene_data,
+                             group="method")
+
+
 class TestRunProtocol:
-    def test_results_and_table(self, data, tmp_path):
-        results = run_protocol(["none", "fs-1", "noise"], [0, 1], tmp_path, config=TINY, data=data)
-        saved = json.loads((tmp_path / "results.json").read_text())
-        assert list(saved["methods"]) == ["none", "fs-1", "noise"]
-        summary = saved["methods"]["fs-1"]
-        assert summary["best_val_mse"]["values"] == [r["best_val_mse"] for r in saved["per_seed"]["fs-1"]]
-        assert summary["train_items"] == 12 and summary["copies"] == 1
-        assert set(summary["test_phase_mse"]) == {"grasp", "hold", "release"}
-        # Fixed copies are made once before training: their cost is "aug once".
-        assert summary["augmentation_setup_s"]["mean"] > 0
-        assert summary["augmentation_s_per_epoch"]["mean"] == 0
-        assert saved["methods"]["none"]["augmentation_setup_s"]["mean"] == 0
-        table = (tmp_path / "results.md").read_text()
-        assert table.strip() == format_table(results.methods)
-        lines = table.strip().splitlines()
-        assert len(lines) == 5 and lines[2].startswith("| none | 0 |")
-        assert "Δ vs none" in lines[0] and "aug ms/epoch" in lines[0] and " %" in lines[3]
-        assert "aug ms once" in lines[0]
-        assert "train s" not in format_table(results.methods, timings=False)
+    scenes = ["control", "timing"]
+    methods = ["none", "fs2", "fs-1"]
+    seeds = [0, 1, 2]
 
-    def test_resume_after_interruption_gives_same_table(self, data, tmp_path, monkeypatch):
-        methods, seeds = ["none", "resize"], [0, 1]
-        clean = run_protocol(methods, seeds, tmp_path / "clean", config=TINY, data=data)
+    def test_results_file(self, clean):
+        out, results = clean
+        saved = json.loads((out / "results.json").read_text())
+        _check_shape(saved, self.scenes, self.methods, self.seeds)
+        assert saved["scenes"]["control"]["gaps"] == [] and saved["scenes"]["timing"]["gaps"] == ["timing"]
+        for scene in saved["scenes"].values():
+            methods = scene["methods"]
+            assert all(m["steps"] == TINY.steps for m in methods.values())  # equal budgets
+            assert methods["fs2"]["train_items"] == 12 and methods["none"]["train_items"] == 6
+            assert methods["fs2"]["aug_s_once"] > 0 and methods["none"]["aug_s_once"] == 0
+            # Δ is paired seed by seed on test MSE, Wilcoxon p Holm-corrected within the scene
+            tests = {m: paired_t(methods["none"]["test_mse"], methods[m]["test_mse"]) for m in ("fs2", "fs-1")}
+            for m, test in tests.items():
+                assert methods[m]["delta_vs_none"]["mean"] == pytest.approx(test.mean)
+                assert methods[m]["delta_vs_none"]["ci95"] == pytest.approx(list(test.ci))
+            adjusted = holm([t.wilcoxon_p_value for t in tests.values()])
+            assert [methods[m]["delta_vs_none"]["p_holm"] for m in tests] == pytest.approx(adjusted)
+        report = (out / "results.md").read_text()
+        assert "### control" in report and "*cumulative-count-ridge* (baseline)" in report
+        assert "6 + 6 split" in report
 
-        real_fit, calls = training.fit, []
+    def test_paired_seeds_share_initial_weights(self, scene_data):
+        """Seed s gives every method the same start: with no step taken, equal predictions."""
+        config = ProtocolConfig(**{**TINY.__dict__, "steps": 1, "lr": 1e-12})
+        out = protocol.run_unit("control", ["none", "fs2"], [0, 1], config, scene_data["control"])
+        for a, b in zip(out["none"], out["fs2"]):
+            assert a["test_mse"] == pytest.approx(b["test_mse"], rel=1e-6)
+        assert out["none"][0]["test_mse"] != pytest.approx(out["none"][1]["test_mse"], rel=1e-6)
 
-        def killed_after_three(*args, **kwargs):
-            calls.append(kwargs["seed"])
-            if len(calls) == 4:
-                raise KeyboardInterrupt  # killed between resize seed 0 and seed 1
-            return real_fit(*args, **kwargs)
+    def test_resume_after_interruption_gives_same_results(self, clean, scene_data, tmp_path, monkeypatch):
+        _, expected = clean
+        real, calls = protocol.run_unit, []
 
-        monkeypatch.setattr(protocol, "fit", killed_after_three)
+        def killed_after_two(*args, **kwargs):
+            calls.append(args[:2])
+            if len(calls) == 3:
+                raise KeyboardInterrupt
+            return real(*args, **kwargs)
+
+        monkeypatch.setattr(protocol, "run_unit", killed_after_two)
         with pytest.raises(KeyboardInterrupt):
-            run_protocol(methods, seeds, tmp_path / "resumed", config=TINY, data=data)
-        monkeypatch.setattr(protocol, "fit", real_fit)
-        resumed = run_protocol(methods, seeds, tmp_path / "resumed", config=TINY, data=data)
-        assert format_table(resumed.methods, timings=False) == format_table(clean.methods, timings=False)
-        for name in methods:
-            for a, b in zip(resumed.per_seed[name], clean.per_seed[name]):
-                assert a["best_val_mse"] == b["best_val_mse"] and a["test_mse"] == b["test_mse"]
+            run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods, data=scene_data,
+                         group="method")
+        monkeypatch.setattr(protocol, "run_unit", real)
+        resumed = run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods,
+                               data=scene_data, group="method")
+        for scene in self.scenes:
+            for method in self.methods:
+                assert resumed["scenes"][scene]["methods"][method]["test_mse"] == \
+                    expected["scenes"][scene]["methods"][method]["test_mse"]
 
-    def test_online_augmentation_is_timed_per_epoch(self, data, tmp_path):
-        online = ProtocolConfig(**{**TINY.__dict__, "fixed": False})
-        results = run_protocol(["rot45"], [0], tmp_path, config=online, data=data)
-        run = results.per_seed["rot45"][0]
-        assert run["augmentation_setup_s"] == 0 and run["augmentation_s_per_epoch"] > 0
-        assert all(h["augmentation_s"] > 0 for h in run["history"])
+    def test_one_ensemble_per_scene_matches_one_per_method(self, clean, scene_data, tmp_path):
+        _, expected = clean
+        grouped = run_protocol(["control"], self.seeds, tmp_path, config=TINY, methods=self.methods,
+                               data={"control": scene_data["control"]}, group="scene")
+        for method in self.methods:
+            assert grouped["scenes"]["control"]["methods"][method]["test_mse"] == pytest.approx(
+                expected["scenes"]["control"]["methods"][method]["test_mse"], rel=1e-4)
 
-    def test_other_settings_do_not_reuse_results(self, data, tmp_path):
-        run_protocol(["none"], [0], tmp_path, config=TINY, data=data)
-        other = ProtocolConfig(**{**TINY.__dict__, "epochs": 1})
-        results = run_protocol(["none"], [0], tmp_path, config=other, data=data)
-        assert results.per_seed["none"][0]["epochs_run"] == 1
-        assert len(list((tmp_path / "runs").iterdir())) == 2
+    @pytest.mark.slow
+    def test_two_gloo_ranks_match_one_process(self, clean, scene_data, tmp_path):
+        """--jobs 2: two processes joined by torch.distributed (gloo) share the units."""
+        _, expected = clean
+        results = run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods,
+                               data=scene_data, group="method", jobs=2)
+        for scene in self.scenes:
+            for method in self.methods:
+                assert results["scenes"][scene]["methods"][method]["test_mse"] == \
+                    expected["scenes"][scene]["methods"][method]["test_mse"]
 
-    def test_duplicate_names(self, data, tmp_path):
+    def test_bad_arguments(self, scene_data, tmp_path):
         with pytest.raises(ValueError, match="distinct"):
-            run_protocol(["none", "none"], [0], tmp_path, config=TINY, data=data)
+            run_protocol(["control"], [0], tmp_path, config=TINY, methods=["none", "none"], data=scene_data)
+        with pytest.raises(ValueError, match="scene"):
+            run_protocol(["nowhere"], [0], tmp_path, config=TINY, data=scene_data)
+        with pytest.raises(ValueError, match="size"):
+            run_protocol(["control"], [0], tmp_path, config=TINY, methods=["resize"], data=scene_data)
+        with pytest.raises(ValueError, match="jobs"):
+            run_protocol(["control"], [0], tmp_path, config=TINY, methods=["none"], data=scene_data, jobs=0)
+
+    def test_one_seed_table_has_no_spread(self, clean):
+        _, results = clean
+        one = {**results["scenes"]["control"]}
+        one["methods"] = {m: {**v, "test_mse": v["test_mse"][:1], "converged": v["converged"][:1]}
+                          for m, v in one["methods"].items()}
+        assert "±" not in format_scene_table("control", one)
+        assert "±" in format_scene_table("control", results["scenes"]["control"])
 
 
 class TestCommandLine:
-    def test_reproduce_smoke(self, data, tmp_path, monkeypatch, capsys):
-        monkeypatch.setattr(protocol, "load_data", lambda root=None: data)
+    def test_reproduce_smoke(self, tmp_path, monkeypatch, capsys):
+        monkeypatch.setattr(protocol, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
         out = tmp_path / "res"
         code = cli.main([
-            "reproduce", "--methods", "none", "fs-1", "--seeds", "2", "--epochs", "2",
-            "--patience", "1", "--hidden-channels", "2", "--batch-size", "4", "--out", str(out),
+            "reproduce", "--scenes", "control", "--methods", "none", "fs-1", "--seeds", "0,1", "--steps", "2",
+            "--hidden-channels", "2", "--input-pool", "4", "--batch-size", "4", "--jobs", "1", "--out", str(out),
         ])
         assert code == 0
         printed = capsys.readouterr().out
-        assert "quick configuration" in printed and "seeds [0, 1]" in printed
-        assert "| none | 0 |" in printed and "| fs-1 | 1 |" in printed
+        assert "quick configuration" in printed and "seeds [0, 1]" in printed and "2 optimiser steps" in printed
+        assert "| none |" in printed and "| fs-1 |" in printed and "95 %" in printed
         saved = json.loads((out / "results.json").read_text())
-        assert saved["config"]["epochs"] == 2 and saved["seeds"] == [0, 1]
-        assert (out / "results.md").exists()
+        _check_shape(saved, ["control"], ["none", "fs-1"], [0, 1])
+        assert saved["config"]["steps"] == 2
         try:
             import matplotlib  # noqa: F401
         except ImportError:
             assert "no figures" in printed
         else:
-            assert (out / "mse_vs_time.png").exists() and (out / "predictions.png").exists()
+            assert (out / "accuracy_vs_time.png").exists()
 
     def test_arguments(self):
         parser = cli.build_parser()
         args = parser.parse_args(["reproduce", "--seeds", "0,4,7", "--full"])
-        assert args.seeds == [0, 4, 7] and args.full and args.methods is None  # the paper's list
-        assert str(args.out) == "results"
-        for bad in (["reproduce", "--seeds", "0"], ["reproduce", "--seeds", "1,1"],
-                    ["reproduce", "--epochs", "-3"], ["reproduce", "--hidden-channels", "a"], []):
+        assert args.seeds == [0, 4, 7] and args.full and args.methods is None
+        assert parser.parse_args(["reproduce", "--seeds", "0"]).seeds == [0]  # one seed: seed 0
+        assert parser.parse_args(["reproduce", "--seeds", "2-4"]).seeds == [2, 3, 4]
+        assert str(args.out) == "results" and args.device == "auto"
+        for bad in (["reproduce", "--seeds", "1,1"], ["reproduce", "--seeds", "-1"], ["reproduce", "--steps", "-3"],
+                    ["reproduce", "--hidden-channels", "a"], ["reproduce", "--device", "tpu"], []):
             with pytest.raises(SystemExit):
                 parser.parse_args(bad)
 
@@ -278,8 +378,9 @@ class TestCommandLine:
 
     def test_quick_configuration_is_stated(self):
         help_text = cli.build_parser()._subparsers._group_actions[0].choices["reproduce"].format_help()
-        assert f"{cli.QUICK['seeds']} seeds" in help_text and "--full" in help_text
-        assert cli.FULL["seeds"] == 10 and cli.FULL["patience"] == 20
+        help_text = " ".join(help_text.split())
+        assert f"{cli.QUICK['seeds']} paired seeds" in help_text and "--full" in help_text
+        assert cli.FULL["seeds"] == 10 and cli.QUICK["seeds"] >= 5
 
 
 @pytest.fixture(scope="module")
@@ -289,13 +390,7 @@ def cache(tmp_path_factory):
 
 @pytest.mark.slow
 class TestCommandLineRealData:
-    """simulate and show on the simulated grasps (a few seconds to simulate once)."""
-
-    def test_simulate(self, cache, capsys):
-        assert cli.main(["simulate", "--root", str(cache)]) == 0
-        printed = capsys.readouterr().out
-        assert "'train': 48" in printed and "'val': 6" in printed and "(360, 2, 70, 75)" in printed
-        assert any(cache.iterdir())
+    """show and show-scene on the simulated grasps (a few seconds to simulate a split)."""
 
     @pytest.mark.parametrize("method", ["fs-1", "none", "resize"])
     def test_show(self, cache, tmp_path, method, capsys):
@@ -307,3 +402,8 @@ class TestCommandLineRealData:
     def test_show_bad_index(self, cache, tmp_path):
         with pytest.raises(SystemExit, match="index"):
             cli.main(["show", "fs-1", "--root", str(cache), "--index", "48", "--out", str(tmp_path / "x.png")])
+
+    def test_show_scene(self, cache, tmp_path, capsys):
+        assert cli.main(["show-scene", "timing", "--root", str(cache), "--out", str(tmp_path)]) == 0
+        path = tmp_path / "scene_timing.png"
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "deployment" in capsys.readouterr().out

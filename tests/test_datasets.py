@@ -14,6 +14,7 @@ from event_transforms.tactile import datasets
 from event_transforms.data import AugmentedDataset
 from event_transforms.scenes import metadata_values
 from event_transforms.tactile.datasets import TactileGrasps, default_cache_dir, noise_bank
+from event_transforms.tactile.scenes import get_scene
 from event_transforms.tactile.simulation import SimulatorConfig
 
 
@@ -30,15 +31,31 @@ def train(root):
 class TestTactileGrasps:
     def test_split_sizes_and_bolts(self, root, train):
         val, test = TactileGrasps("val", root=root), TactileGrasps("test", root=root)
-        assert (len(train), len(val), len(test)) == (48, 6, 6)
+        assert (len(train), len(val), len(test)) == (48, 24, 96)
         diameters = [train.meta(i)["diameter_mm"] for i in range(48)]
         assert diameters.count(12.0) == 24 and diameters.count(18.0) == 24
-        assert {val.meta(i)["diameter_mm"] for i in range(6)} == {15.0}
-        assert {test.meta(i)["diameter_mm"] for i in range(6)} == {15.0}
-        grippers = [train.meta(i)["gripper"] for i in range(48)]
-        assert grippers.count(0) == grippers.count(1) == 24
+        assert {val.meta(i)["diameter_mm"] for i in range(24)} == {15.0}
+        assert {test.meta(i)["diameter_mm"] for i in range(96)} == {15.0}
         seeds = [d.meta(i)["seed"] for d in (train, val, test) for i in range(len(d))]
-        assert len(set(seeds)) == 60  # no sequence is shared between splits
+        assert len(set(seeds)) == 168  # no sequence is shared between splits
+        # continuous hold forces, spread over the range (no two gripper settings)
+        peaks = torch.cat([train.forces, test.forces]).amax(1)
+        assert peaks.min() < 5 and peaks.max() > 20 and len(set(peaks.round().tolist())) > 15
+
+    def test_paper_split_is_nested(self, root):
+        small, large = TactileGrasps("test", root=root, paper_split=True), TactileGrasps("test", root=root)
+        assert len(small) == 6 and small.path == large.path
+        assert torch.equal(small.frames, large.frames[:6])
+        assert len(TactileGrasps("train", root=root, paper_split=True)) == 48
+
+    def test_scenes_share_training_data(self, root, train):
+        timing = TactileGrasps("train", root=root, scene="timing")
+        assert timing.path == train.path  # same training session, same file
+        other = TactileGrasps("train", root=root, scene="size-extrapolation")
+        assert other.path != train.path
+        assert {other.meta(i)["diameter_mm"] for i in range(48)} == {12.0, 15.0}
+        deploy = TactileGrasps("val", root=root, scene="timing")
+        assert all(16.0 <= deploy.recording(i).grasp.delay_ms <= 24.0 for i in range(2))
 
     def test_item_contract(self, train):
         frames, force, meta = train[5]
@@ -46,8 +63,8 @@ class TestTactileGrasps:
         assert torch.equal(frames, frames.round()) and frames.min() >= 0 and frames.sum() > 0
         assert force.shape == (36,) and force.dtype == torch.float32
         assert 0 <= float(force.min()) and float(force.max()) <= 25.0
-        assert meta == {"diameter_mm": 12.0, "gripper": 1, "seed": 5, "index": 5}
-        assert [type(v) for v in meta.values()] == [float, int, int, int]
+        assert meta == {"diameter_mm": 18.0, "seed": 5, "index": 5}
+        assert [type(v) for v in meta.values()] == [float, int, int]
         assert train[-1][2]["index"] == 47
         with pytest.raises(IndexError):
             train[48]
@@ -73,15 +90,15 @@ class TestTactileGrasps:
         assert again.path == train.path and torch.equal(again[3][0], train[3][0])
 
     def test_cache_key_follows_settings(self, root, train):
-        other = TactileGrasps("val", root=root, config=SimulatorConfig(hot_pixels=False))
-        assert other.path != train.path and other.path.exists()
+        session = get_scene("control").train
         names = {
-            datasets._cache_name(SimulatorConfig(), 0, (140, 150), 2),
-            datasets._cache_name(SimulatorConfig(), 100, (140, 150), 2),
-            datasets._cache_name(SimulatorConfig(), 0, (140, 150), 1),
-            datasets._cache_name(SimulatorConfig(lag_ms=(1.0, 2.0)), 0, (140, 150), 2),
+            datasets._cache_name(session, range(0, 48), (140, 150), 2),
+            datasets._cache_name(session, range(100, 148), (140, 150), 2),
+            datasets._cache_name(session, range(0, 48), (140, 150), 1),
+            datasets._cache_name(session.replace(lag_ms=(1.0, 2.0)), range(0, 48), (140, 150), 2),
+            datasets._cache_name(session.replace(diameters_mm=(12.0,)), range(0, 48), (140, 150), 2),
         }
-        assert len(names) == 4 and train.path.name in names
+        assert len(names) == 5 and train.path.name in names
 
     def test_interrupted_generation_leaves_no_cache(self, tmp_path, monkeypatch):
         def interrupted(obj, stream):
@@ -90,11 +107,11 @@ class TestTactileGrasps:
 
         monkeypatch.setattr(datasets.torch, "save", interrupted)
         with pytest.raises(KeyboardInterrupt):
-            TactileGrasps("test", root=tmp_path, config=SimulatorConfig(n_frames=36, shot_noise=False))
+            TactileGrasps("val", root=tmp_path, scene="noise")
         assert list(tmp_path.iterdir()) == []  # neither the cache nor its temporary file
 
     def test_recording_resimulates_the_item(self, root):
-        test = TactileGrasps("test", root=root)
+        test = TactileGrasps("val", root=root)
         recording = test.recording(2)
         frames = recording.frames(crop=recording.contact_crop(), pool=2)
         assert torch.equal(frames, test[2][0])
@@ -105,9 +122,11 @@ class TestTactileGrasps:
         plain = TactileGrasps("val", root=root)
         torch.testing.assert_close(val[0][0], plain[0][0] * 15.0)
 
-    def test_bad_split_raises(self, root):
+    def test_bad_split_or_scene_raises(self, root):
         with pytest.raises(ValueError, match="split"):
             TactileGrasps("validation", root=root)
+        with pytest.raises(ValueError, match="scene"):
+            TactileGrasps("val", root=root, scene="tilted")
 
     def test_default_cache_dir(self, monkeypatch, tmp_path):
         monkeypatch.setenv("EVENT_TRANSFORMS_CACHE", str(tmp_path / "a"))

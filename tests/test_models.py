@@ -305,3 +305,88 @@ class TestStability:
             h, c = cell(torch.rand(1, 2, H, W))
             h, c = cell(torch.rand(1, 2, H, W), (h, c))
         assert h.dtype == torch.float32 and c.dtype == torch.float32
+
+
+def reference_cumulative_features(model: ForceRegressor, frames):
+    """A loop over sequences and frames: log1p pooled counts, log1p running sums, signed sum."""
+    out = []
+    for seq in frames:
+        running = None
+        rows = []
+        for frame in seq:
+            pooled = F.avg_pool2d(frame.double().unsqueeze(0), model.input_pool)[0]
+            running = pooled.clone() if running is None else running + pooled
+            parts = [torch.log1p(pooled), torch.log1p(running)]
+            if frame.shape[0] == 2:
+                d = running[0] - running[1]
+                parts.append((torch.sign(d) * torch.log1p(d.abs())).unsqueeze(0))
+            rows.append(torch.cat(parts))
+        out.append(torch.stack(rows))
+    return torch.stack(out)
+
+
+class TestCumulative:
+    def test_input_features_match_loop(self):
+        from event_transforms.tactile.models import _input_features, _pool_counts
+
+        model = small_model(cumulative=True)
+        x = counts(2, 7, 2, H, W, rate=1.5)
+        x[0, :, 1] *= 3  # more ON than OFF in one sequence: a negative signed sum
+        pooled = _pool_counts(x, model.input_pool, torch.float64)
+        got, last = _input_features(pooled, True)
+        want = reference_cumulative_features(model, x)
+        torch.testing.assert_close(got, want)
+        assert bool((got[0, -1, 4] < 0).all()) and got.shape[2] == 5
+        torch.testing.assert_close(last, pooled.sum(1))
+
+    def test_channels_and_config(self):
+        model = small_model(cumulative=True)
+        assert model.lstm.cells[0].in_channels == 5 and model.config["cumulative"] is True
+        single = small_model(cumulative=True, in_channels=1)
+        assert single.lstm.cells[0].in_channels == 2
+        assert single(counts(1, 3, 1, H, W)).shape == (1, 3)
+        assert ForceRegressor(**model.config).config == model.config
+        assert "cumulative" in repr(model)
+
+    def test_default_unchanged(self):
+        plain = small_model()
+        assert plain.lstm.cells[0].in_channels == 2 and plain.config["cumulative"] is False
+        assert set(plain.state_dict()) == set(small_model(cumulative=True).state_dict())
+        _, state = plain.step(counts(1, 2, H, W))
+        assert len(state) == 2  # one (h, c) per layer, nothing else
+
+    @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+    def test_streaming_equals_full_forward(self, dtype):
+        model = small_model(cumulative=True, hidden_channels=(4, 3)).to(dtype)
+        x = counts(2, 40, 2, H, W, rate=2.0)
+        full = model(x)
+        state, outs = None, []
+        for t in range(x.shape[1]):
+            force, state = model.step(x[:, t], state)
+            outs.append(force)
+        tol = 1e-12 if dtype == torch.float64 else 1e-5
+        torch.testing.assert_close(torch.stack(outs, 1), full, atol=tol, rtol=tol)
+        assert len(state) == 3 and state[-1][0].dtype == torch.float64
+        torch.testing.assert_close(state[-1][0], F.avg_pool2d(x.double().flatten(0, 1), 2).unflatten(0, (2, 40)).sum(1))
+
+    def test_running_sum_makes_history_matter(self):
+        model = small_model(cumulative=True, hidden_channels=(3,))
+        quiet, busy = counts(1, 4, 2, H, W, rate=0.1), counts(1, 4, 2, H, W, rate=5.0)
+        frame = counts(1, 2, H, W, rate=1.0, seed=3)
+        _, s_quiet = model.step(frame, model.step(quiet[:, 0])[1])
+        _, s_busy = model.step(frame, model.step(busy[:, 0])[1])
+        assert not torch.equal(s_quiet[-1][0], s_busy[-1][0])
+
+    def test_thousand_frames_finite(self):
+        model = small_model(cumulative=True, hidden_channels=(3,), input_pool=4)
+        x = counts(1, 1000, 2, 16, 12, rate=1.0)
+        x[..., 2:5, 2:5] = 1e4
+        TestStability.check_finite(model, x)
+
+    def test_bad_arguments(self):
+        with pytest.raises(TypeError, match="cumulative must be a bool, got 1"):
+            ForceRegressor(cumulative=1)
+        model = small_model(cumulative=True)
+        _, state = model.step(counts(1, 2, H, W))
+        with pytest.raises(ValueError, match=r"one \(h, c\) per layer \(2\) and the running sum, got 2 entries"):
+            model.step(counts(1, 2, H, W), state[:2])

@@ -18,6 +18,7 @@ from event_transforms import (
     RandomFrameShift,
     RandomRotation,
     RandomTemporalEventShift,
+    RandomTranslate,
 )
 from event_transforms import functional as F
 from event_transforms.data import AugmentedDataset
@@ -30,12 +31,14 @@ EFFECT_FIELDS = {
     "size": dict(training_sizes=(12.0, 18.0), target_size=15.0),
     "orientation": dict(orientation_deg=(30.0, 30.0 + 1e-9)),
     "noise": dict(noise=torch.ones(8, 2, H, W)),
+    "position": dict(contact_shift_px=(2, 3)),
 }
 EFFECT_TYPES = {
     "lag": RandomFrameShift,
     "size": ResizeToTarget,
     "orientation": RandomRotation,
     "noise": AddNoise,
+    "position": RandomTranslate,
 }
 
 
@@ -245,3 +248,13 @@ class TestScenePolicies:
         for i, beta in ((2, 1.25), (3, 15 / 18)):
             torch.testing.assert_close(data[i][0], F.resize(frames[i - 2], beta))
             assert data[i][2] == base[i - 2][2]
+
+
+def test_contact_shift_declares_a_translation():
+    scene = Scene(contact_shift_px=(2, 3), orientation_deg=10.0, noise=1.0)
+    assert scene.effects == ("orientation", "position", "noise")
+    (translate,) = [t for t in scene.transforms() if isinstance(t, RandomTranslate)]
+    assert translate.max_shift == (2, 3)
+    assert Scene(contact_shift_px=0).effects == ()
+    with pytest.raises(ValueError, match="contact_shift_px"):
+        Scene(contact_shift_px=-1)

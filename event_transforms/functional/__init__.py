@@ -15,4 +15,15 @@ from .noise import __all__ as _noise
 from .events import *  # noqa: F401,F403
 from .events import __all__ as _events
 
-__all__ = [*_spatial, *_temporal, *_noise, *_events]
+from .geometry import *  # noqa: F401,F403
+from .geometry import __all__ as _geometry
+from .polarity import *  # noqa: F401,F403
+from .polarity import __all__ as _polarity
+from .mixing import *  # noqa: F401,F403
+from .mixing import __all__ as _mixing
+from .cleaning import *  # noqa: F401,F403
+from .cleaning import __all__ as _cleaning
+from .representations import *  # noqa: F401,F403
+from .representations import __all__ as _representations
+
+__all__ = [*_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning, *_representations]

@@ -6,6 +6,8 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
   silicone membrane watched by a DVS;
 - :mod:`~event_transforms.tactile.datasets`: the simulated grasps as data sets, and noise banks;
 - :mod:`~event_transforms.tactile.models`: the reference ConvLSTM force regressor;
+- :mod:`~event_transforms.tactile.ensemble`: many force regressors trained in lockstep;
+- :mod:`~event_transforms.tactile.baselines`: trivial baselines the network must beat;
 - :mod:`~event_transforms.tactile.training`: the training loop;
 - :mod:`~event_transforms.tactile.protocol`: the paper's protocol and its tables;
 - :mod:`~event_transforms.tactile.cli`: the ``event-transforms`` command.
@@ -18,7 +20,9 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-_SUBMODULES = ("simulation", "datasets", "models", "training", "protocol", "cli")
+_SUBMODULES = (
+    "simulation", "datasets", "models", "ensemble", "baselines", "training", "protocol", "cli",
+)
 
 __all__ = list(_SUBMODULES)
 

@@ -1,14 +1,13 @@
-"""Data sets: the synthetic tactile grasps of the paper's protocol, and augmented copies.
+"""Data sets: the synthetic tactile grasps of the benchmark scenes.
 
-:class:`TactileGrasps` follows the paper's split: 48 training sequences (24 with the
-12 mm bolt, 24 with the 18 mm bolt), 6 validation and 6 test sequences with the unseen
-15 mm bolt, each sequence 36 frames of 10 ms cropped to 140×150 around the contact and
-pooled 2×2 to 70×75. The data come from :mod:`event_transforms.tactile.simulation` (the paper's
-recordings are not public), are generated once into a cache directory and reused.
-Results on them are results on synthetic data.
-
-:class:`AugmentedDataset` adds synthetic copies to any data set of ``(frames, label,
-meta)`` items, the paper's offline doubling of the training set.
+:class:`TactileGrasps` gives one split of one :class:`~event_transforms.tactile.scenes.BenchmarkScene`:
+``train`` (48 sequences from the training session) and ``val`` (24) and ``test`` (96) from
+the deployment session, each sequence 36 frames of 10 ms cropped to 140×150 around the
+contact and pooled 2×2 to 70×75. ``paper_split=True`` keeps the paper's 6 + 6 evaluation
+sequences (the first 6 of each, so the two splits are nested). The data come from
+:mod:`event_transforms.tactile.simulation` (the paper's recordings are not public), are
+generated once into a cache directory and reused. Results on them are results on
+synthetic data.
 """
 
 from __future__ import annotations
@@ -17,7 +16,8 @@ __all__ = [
     "TactileGrasps",
     "noise_bank",
     "default_cache_dir",
-    "SPLITS",
+    "SPLIT_SIZES",
+    "PAPER_SPLIT_SIZES",
 ]
 
 import dataclasses
@@ -25,7 +25,7 @@ import hashlib
 import json
 import os
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -37,6 +37,7 @@ from torch.utils.data import Dataset
 
 from ..transforms.base import as_transform
 from ..functional.events import events_to_frames
+from .scenes import BenchmarkScene, Session, get_scene
 from .simulation import (
     SIMULATOR_VERSION,
     Recording,
@@ -46,15 +47,15 @@ from .simulation import (
     simulate_static,
 )
 
-#: Layout of the data set: split -> list of (diameter_mm, number of sequences).
-#: Each block alternates the two gripper settings, so every block holds both equally.
-SPLITS: dict[str, list[tuple[float, int]]] = {
-    "train": [(12.0, 24), (18.0, 24)],
-    "val": [(15.0, 6)],
-    "test": [(15.0, 6)],
-}
+#: Sequences per split: large enough to resolve about 1 N² between methods.
+SPLIT_SIZES: dict[str, int] = {"train": 48, "val": 24, "test": 96}
+#: The paper's split sizes (48 / 6 / 6): the first sequences of each split.
+PAPER_SPLIT_SIZES: dict[str, int] = {"train": 48, "val": 6, "test": 6}
+#: Seed of sequence 0 of each split, relative to the data set's seed: no split shares a
+#: sequence, and a scene whose training session equals another's shares its training data.
+_SPLIT_SEED = {"train": 0, "val": 10_000, "test": 20_000}
 
-_CACHE_FORMAT = 1
+_CACHE_FORMAT = 2
 _NOISE_SEED_OFFSET = 1_000_000  # static-scene seeds never reuse a grasp's noise stream
 
 
@@ -66,15 +67,6 @@ def default_cache_dir() -> Path:
     if os.environ.get("XDG_CACHE_HOME"):
         return Path(os.environ["XDG_CACHE_HOME"]) / "event-transforms"
     return Path.home() / ".cache" / "event-transforms"
-
-
-def _layout(seed: int) -> list[tuple[str, float, int, int]]:
-    """(split, diameter, gripper, grasp seed) of every sequence, in storage order."""
-    rows = []
-    for split, blocks in SPLITS.items():
-        for diameter, count in blocks:
-            rows.extend((split, diameter, i % 2, 0) for i in range(count))
-    return [(split, d, g, seed + i) for i, (split, d, g, _) in enumerate(rows)]
 
 
 def _atomic_save(obj: object, path: Path) -> None:
@@ -95,13 +87,14 @@ def _atomic_save(obj: object, path: Path) -> None:
         raise
 
 
-def _cache_name(config: SimulatorConfig, seed: int, crop_size: tuple[int, int], pool: int) -> str:
+def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool: int) -> str:
     """File name keyed by a hash of everything that determines the data."""
     description = {
         "format": _CACHE_FORMAT,
         "simulator": SIMULATOR_VERSION,
-        "config": dataclasses.asdict(config),
-        "layout": _layout(seed),
+        "diameters_mm": list(session.diameters_mm),
+        "config": dataclasses.asdict(session.config),
+        "seeds": [seeds.start, seeds.stop],
         "crop_size": list(crop_size),
         "pool": pool,
     }
@@ -115,27 +108,52 @@ def _check_seed(seed: object) -> int:
     return int(seed)
 
 
-class TactileGrasps(Dataset):
-    """Synthetic grasps of bolts on a DVS tactile sensor, split as in the paper.
+def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (140, 150), pool: int = 2) -> dict[str, Tensor]:
+    """Simulate sequences ``seeds`` of ``session``: frames (int16/int32), force, sizes, seeds.
 
-    Items are ``frames, force, meta``: ``frames`` a float32 tensor ``(36, 2, 70, 75)`` of
+    Sequence ``seed`` uses ``session.diameter(seed - seeds.start)``: sizes alternate.
+    """
+    grasps = [
+        draw_grasp(session.diameter(k), seed=seed, config=session.config) for k, seed in enumerate(seeds)
+    ]
+    recordings = simulate_grasps(grasps, session.config)
+    frames = torch.stack(
+        [r.frames(crop=r.contact_crop(crop_size), pool=pool, dtype=torch.int64) for r in recordings]
+    ) if recordings else torch.zeros(0, session.config.n_frames, 2, crop_size[0] // pool, crop_size[1] // pool, dtype=torch.int64)
+    storage = torch.int16 if frames.numel() == 0 or int(frames.max()) <= 32767 else torch.int32
+    return {
+        "frames": frames.to(storage),
+        "force": torch.from_numpy(np.stack([r.force for r in recordings])) if recordings else torch.zeros(0, session.config.n_frames),
+        "diameter_mm": torch.tensor([g.diameter_mm for g in grasps], dtype=torch.float64),
+        "seed": torch.tensor(list(seeds), dtype=torch.int64),
+    }
+
+
+class TactileGrasps(Dataset):
+    """Synthetic grasps of bolts on a DVS tactile sensor: one split of a benchmark scene.
+
+    ``train`` comes from the scene's training session, ``val`` and ``test`` from its
+    deployment session (see :mod:`event_transforms.tactile.scenes`). Items are
+    ``frames, force, meta``: ``frames`` a float32 tensor ``(36, 2, 70, 75)`` of
     integer-valued event counts (channel 0 OFF, 1 ON), ``force`` float32 ``(36,)`` in
     newtons (the force/torque reading at each frame's centre), and ``meta`` a dict
-    ``{"diameter_mm": float, "gripper": int, "seed": int, "index": int}`` of plain Python
-    numbers, so ``torch.utils.data.default_collate`` batches it.
+    ``{"diameter_mm": float, "seed": int, "index": int}`` of plain Python numbers, so
+    ``torch.utils.data.default_collate`` batches it.
 
-    The whole set (60 sequences) is simulated on first use, in a few seconds, and saved
-    as one file in ``root`` named by a hash of the simulator settings, the data-set
-    layout and the simulator version; the file is written to a temporary name and then
-    renamed, so an interrupted run never leaves a corrupt cache. Later instances
-    memory-map it.
+    A split is simulated on first use (about 0.1 s per sequence) and saved as one file in
+    ``root`` named by a hash of the session, the seeds, the crop and the simulator version;
+    the file is written to a temporary name and then renamed, so an interrupted run never
+    leaves a corrupt cache. Later instances memory-map it. Scenes whose sessions agree
+    share the file (every scene but ``size-extrapolation`` trains on the same data).
 
     Args:
-        split: ``"train"`` (12 and 18 mm bolts, 48 sequences), ``"val"`` or ``"test"``
-            (15 mm bolt, 6 each).
+        split: ``"train"`` (48 sequences), ``"val"`` (24) or ``"test"`` (96).
         root: cache directory (default :func:`default_cache_dir`).
-        config: simulator settings (default :class:`~event_transforms.tactile.simulation.SimulatorConfig`).
-        seed: seed of the first sequence; sequence ``k`` of the whole set uses ``seed + k``.
+        scene: a scene name of :data:`~event_transforms.tactile.scenes.SCENES` or a
+            :class:`~event_transforms.tactile.scenes.BenchmarkScene` (default ``"paper"``).
+        paper_split: the paper's sizes, 48 / 6 / 6 (the first sequences of each split).
+        seed: offset of every sequence seed (sequence ``k`` of split ``s`` uses
+            ``seed + offset(s) + k``).
         transform: optional event transform applied to the frames of each item, called
             with ``metadata=meta`` (a plain callable is called as ``transform(frames)``).
         crop_size: (height, width) of the window around the contact, in sensor pixels.
@@ -144,19 +162,18 @@ class TactileGrasps(Dataset):
     Attributes:
         frames: the split's frames, float32 ``(N, 36, 2, 70, 75)`` (made on first access).
         forces: the split's forces, float32 ``(N, 36)``.
+        session: the session the split is drawn from.
         path: the cache file.
 
     Example:
         >>> import tempfile
         >>> root = tempfile.mkdtemp()
-        >>> train = TactileGrasps("train", root=root)
-        >>> frames, force, meta = train[0]
-        >>> len(train), tuple(frames.shape), tuple(force.shape), frames.dtype
-        (48, (36, 2, 70, 75), (36,), torch.float32)
+        >>> test = TactileGrasps("test", root=root, paper_split=True)
+        >>> frames, force, meta = test[0]
+        >>> len(test), tuple(frames.shape), tuple(force.shape), frames.dtype
+        (6, (36, 2, 70, 75), (36,), torch.float32)
         >>> meta
-        {'diameter_mm': 12.0, 'gripper': 0, 'seed': 0, 'index': 0}
-        >>> len(TactileGrasps("test", root=root))  # reuses the cache
-        6
+        {'diameter_mm': 15.0, 'seed': 20000, 'index': 0}
     """
 
     def __init__(
@@ -164,55 +181,36 @@ class TactileGrasps(Dataset):
         split: str = "train",
         root: str | os.PathLike[str] | None = None,
         *,
-        config: SimulatorConfig | None = None,
+        scene: str | BenchmarkScene = "paper",
+        paper_split: bool = False,
         seed: int = 0,
         transform: Callable[..., Tensor] | None = None,
         crop_size: tuple[int, int] = (140, 150),
         pool: int = 2,
     ) -> None:
-        if split not in SPLITS:
-            raise ValueError(f"split must be one of {sorted(SPLITS)}, got {split!r}")
-        if config is not None and not isinstance(config, SimulatorConfig):
-            raise TypeError(f"config must be a SimulatorConfig, got {type(config).__name__}")
+        if split not in SPLIT_SIZES:
+            raise ValueError(f"split must be one of {sorted(SPLIT_SIZES)}, got {split!r}")
+        self.scene = get_scene(scene)
         self.split = split
-        self.config = config or SimulatorConfig()
+        self.session = self.scene.train if split == "train" else self.scene.deploy
+        self.config: SimulatorConfig = self.session.config
         self.seed = _check_seed(seed)
         self.crop_size = (int(crop_size[0]), int(crop_size[1]))
         self.pool = int(pool)
         self.transform = None if transform is None else as_transform(transform)
         self.root = Path(root) if root is not None else default_cache_dir()
-        self.path = self.root / _cache_name(self.config, self.seed, self.crop_size, self.pool)
+        first = self.seed + _SPLIT_SEED[split]
+        size = (PAPER_SPLIT_SIZES if paper_split else SPLIT_SIZES)[split]
+        # The cache always holds the full split; the paper split reads its first rows.
+        seeds = range(first, first + SPLIT_SIZES[split])
+        self.path = self.root / _cache_name(self.session, seeds, self.crop_size, self.pool)
         if not self.path.exists():
-            _atomic_save(self._generate(), self.path)
+            _atomic_save(generate(self.session, seeds, crop_size=self.crop_size, pool=self.pool), self.path)
         data = torch.load(self.path, mmap=True, weights_only=True)
-        rows = (data["split"] == list(SPLITS).index(split)).nonzero().squeeze(1)
-        start, stop = int(rows[0]), int(rows[-1]) + 1  # a split is one contiguous block
-        self._counts = data["frames"][start:stop]
-        self.forces = data["force"][start:stop]
-        self._diameter = data["diameter_mm"][start:stop].tolist()
-        self._gripper = data["gripper"][start:stop].tolist()
-        self._seeds = data["seed"][start:stop].tolist()
-
-    # ------------------------------------------------------------------ cache
-    def _generate(self) -> dict[str, Tensor]:
-        layout = _layout(self.seed)
-        grasps = [draw_grasp(d, gripper=g, seed=s, config=self.config) for _, d, g, s in layout]
-        recordings = simulate_grasps(grasps, self.config)
-        frames = torch.stack(
-            [
-                r.frames(crop=r.contact_crop(self.crop_size), pool=self.pool, dtype=torch.int64)
-                for r in recordings
-            ]
-        )
-        storage = torch.int16 if frames.numel() == 0 or int(frames.max()) <= 32767 else torch.int32
-        return {
-            "frames": frames.to(storage),
-            "force": torch.from_numpy(np.stack([r.force for r in recordings])),
-            "diameter_mm": torch.tensor([d for _, d, _, _ in layout], dtype=torch.float64),
-            "gripper": torch.tensor([g for _, _, g, _ in layout]),
-            "seed": torch.tensor([s for _, _, _, s in layout]),
-            "split": torch.tensor([list(SPLITS).index(split) for split, _, _, _ in layout]),
-        }
+        self._counts = data["frames"][:size]
+        self.forces = data["force"][:size]
+        self._diameter = data["diameter_mm"][:size].tolist()
+        self._seeds = data["seed"][:size].tolist()
 
     # ------------------------------------------------------------------ access
     def __len__(self) -> int:
@@ -220,12 +218,7 @@ class TactileGrasps(Dataset):
 
     def meta(self, index: int) -> dict[str, Any]:
         """The metadata dict of item ``index``."""
-        return {
-            "diameter_mm": float(self._diameter[index]),
-            "gripper": int(self._gripper[index]),
-            "seed": int(self._seeds[index]),
-            "index": int(index),
-        }
+        return {"diameter_mm": float(self._diameter[index]), "seed": int(self._seeds[index]), "index": int(index)}
 
     def __getitem__(self, index: int) -> tuple[Tensor, Tensor, dict[str, Any]]:
         if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
@@ -247,11 +240,14 @@ class TactileGrasps(Dataset):
     def recording(self, index: int) -> Recording:
         """Re-simulate item ``index`` as a raw event stream (same seed, same events)."""
         meta = self.meta(index)
-        grasp = draw_grasp(meta["diameter_mm"], gripper=meta["gripper"], seed=meta["seed"], config=self.config)
+        grasp = draw_grasp(meta["diameter_mm"], seed=meta["seed"], config=self.config)
         return simulate_grasps([grasp], self.config)[0]
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}(split={self.split!r}, n={len(self)}, path={str(self.path)!r})"
+        return (
+            f"{type(self).__name__}(split={self.split!r}, scene={self.scene.name!r}, n={len(self)}, "
+            f"path={str(self.path)!r})"
+        )
 
 
 def noise_bank(

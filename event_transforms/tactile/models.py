@@ -33,8 +33,9 @@ from torch import Tensor, nn
 
 __all__ = ["ConvLSTMCell", "ConvLSTM", "ForceRegressor", "State"]
 
-#: Recurrent state of a stack of ConvLSTM layers: one ``(h, c)`` pair per layer.
-State = list[tuple[Tensor, Tensor]]
+#: Recurrent state of a stack of ConvLSTM layers: one ``(h, c)`` pair per layer (and, for a
+#: ``ForceRegressor(cumulative=True)``, a last entry ``(running_sum,)``).
+State = list[tuple[Tensor, ...]]
 
 _ACTIVATIONS = ("sigmoid", "hard_sigmoid")
 
@@ -65,6 +66,50 @@ def _check_positive_int(value: object, name: str) -> int:
     if value < 1:
         raise ValueError(f"{name} must be a positive int, got {value!r}")
     return value
+
+
+def _feature_channels(in_channels: int, cumulative: bool) -> int:
+    """Channels the first ConvLSTM layer reads: log1p counts, plus the running sums."""
+    if not cumulative:
+        return in_channels
+    return 2 * in_channels + (1 if in_channels == 2 else 0)
+
+
+def _pool_counts(frames: Tensor, pool: int, dtype: torch.dtype) -> Tensor:
+    """``(..., C, H, W)`` counts -> ``(..., C, H // pool, W // pool)`` averages in ``dtype``."""
+    x = frames.to(dtype)
+    if pool > 1:
+        x = F.avg_pool2d(x.flatten(0, -4), pool).unflatten(0, x.shape[:-3])
+    return x
+
+
+def _input_features(
+    pooled: Tensor, cumulative: bool, running: Tensor | None = None
+) -> tuple[Tensor, Tensor | None]:
+    """Pooled counts ``(B, T, C, h, w)`` -> network input ``(B, T, C', h, w)``.
+
+    ``log1p`` of the pooled counts; with ``cumulative``, also ``log1p`` of each channel's
+    running sum over time and, for two polarities, ``sign(d) log1p(|d|)`` of the signed
+    running sum ``d = Σ OFF - Σ ON``. Sums run in float64 from ``running`` (``(B, C, h, w)``,
+    the sum before the first frame; ``None`` = zero). Returns the features and the running
+    sum after the last frame (``None`` without ``cumulative``).
+    """
+    features = torch.log1p(pooled)
+    if not cumulative:
+        return features, None
+    sums = pooled.double().cumsum(dim=1)
+    if running is not None:
+        sums = sums + running.to(sums.dtype).unsqueeze(1)
+    extra = [torch.log1p(sums)]
+    if pooled.shape[2] == 2:
+        signed = sums[:, :, :1] - sums[:, :, 1:]
+        extra.append(torch.sign(signed) * torch.log1p(signed.abs()))
+    features = torch.cat([features, *(e.to(features.dtype) for e in extra)], dim=2)
+    if pooled.shape[1]:
+        last = sums[:, -1]
+    else:
+        last = running if running is not None else sums.new_zeros(pooled.shape[:1] + pooled.shape[2:])
+    return features, last
 
 
 class ConvLSTMCell(nn.Module):
@@ -272,6 +317,17 @@ class ForceRegressor(nn.Module):
     trainer standardise the targets while the model keeps answering in newtons
     (:meth:`set_force_scaling`).
 
+    **Cumulative input** (``cumulative=True``, off by default). The membrane's indentation,
+    and so the force, is an integral of the events: a ridge model on the running event totals
+    beat this network (issue 9), which has to learn that integral in its LSTM cell. With the
+    option, the model computes, inside itself, the running sum over time of the pooled
+    counts of each polarity and feeds ``log1p`` of it as extra input channels, plus, for two
+    polarities, the signed running sum ``d = Σ OFF - Σ ON`` as ``sign(d) log1p(|d|)`` (the
+    log keeps a 1,000-frame stream in range). The sums run in float64; the first layer reads
+    ``2 * in_channels + 1`` channels (``2 * in_channels`` for other than two polarities).
+    :meth:`step` carries the running sum in its state, so streaming stays exact. With the
+    default ``cumulative=False`` the model, its parameters and its state are as before.
+
     :meth:`step` runs the same network one 10 ms frame at a time, for online use, and gives
     the same numbers as :meth:`forward` on the whole sequence.
 
@@ -281,6 +337,7 @@ class ForceRegressor(nn.Module):
         kernel_size: ConvLSTM kernel.
         input_pool: average-pool factor applied to every frame first (1 = none).
         recurrent_activation: ``"sigmoid"`` or ``"hard_sigmoid"`` (Keras 2 parity).
+        cumulative: add the running sums of the pooled counts as input channels.
 
     Shape:
         - frames: ``(B, T, 2, H, W)``, any real dtype, non-negative counts
@@ -298,6 +355,10 @@ class ForceRegressor(nn.Module):
         ...     steps.append(f)
         >>> tuple(force.shape), torch.allclose(torch.stack(steps, 1), force, atol=1e-5)
         ((1, 4), True)
+        >>> model = ForceRegressor(cumulative=True)
+        >>> # inputs: 2 log1p counts + 2 running sums + 1 signed sum; state: 2 layers + the sum
+        >>> model.lstm.cells[0].in_channels, len(model.step(frames[:, 0])[1])
+        (5, 3)
     """
 
     def __init__(
@@ -307,15 +368,33 @@ class ForceRegressor(nn.Module):
         kernel_size: int | Sequence[int] = 3,
         input_pool: int = 4,
         recurrent_activation: str = "sigmoid",
+        cumulative: bool = False,
     ) -> None:
         super().__init__()
         self.in_channels = _check_positive_int(in_channels, "in_channels")
         self.input_pool = _check_positive_int(input_pool, "input_pool")
-        self.lstm = ConvLSTM(in_channels, hidden_channels, kernel_size, True, recurrent_activation)
+        if not isinstance(cumulative, bool):
+            raise TypeError(f"cumulative must be a bool, got {cumulative!r}")
+        self.cumulative = cumulative
+        features = _feature_channels(in_channels, cumulative)
+        self.lstm = ConvLSTM(features, hidden_channels, kernel_size, True, recurrent_activation)
         last = self.lstm.cells[-1].hidden_channels
         self.head = nn.Linear(2 * last, 1)
         self.register_buffer("force_offset", torch.zeros(()))
         self.register_buffer("force_scale", torch.ones(()))
+
+    @property
+    def config(self) -> dict[str, object]:
+        """The constructor's keyword arguments: ``ForceRegressor(**model.config)`` rebuilds it."""
+        first = self.lstm.cells[0]
+        return {
+            "in_channels": self.in_channels,
+            "hidden_channels": tuple(cell.hidden_channels for cell in self.lstm.cells),
+            "kernel_size": first.kernel_size,
+            "input_pool": self.input_pool,
+            "recurrent_activation": first.recurrent_activation,
+            "cumulative": self.cumulative,
+        }
 
     def set_force_scaling(self, offset: float, scale: float) -> None:
         """Set the affine map from the head's output to newtons (e.g. target mean and std)."""
@@ -325,13 +404,6 @@ class ForceRegressor(nn.Module):
             )
         self.force_offset.fill_(offset)
         self.force_scale.fill_(scale)
-
-    def _preprocess(self, frames: Tensor) -> Tensor:
-        """``(N, C, H, W)`` counts -> log1p of the pooled counts, in the model's dtype."""
-        x = frames.to(self.head.weight.dtype)
-        if self.input_pool > 1:
-            x = F.avg_pool2d(x, self.input_pool)
-        return torch.log1p(x)
 
     def _check(self, frames: Tensor, rank: int, layout: str) -> None:
         if not isinstance(frames, Tensor):
@@ -347,16 +419,17 @@ class ForceRegressor(nn.Module):
     def _readout(self, h: Tensor) -> Tensor:
         """``(N, C, H, W)`` last hidden state -> force ``(N,)``."""
         features = torch.cat([h.mean(dim=(-2, -1)), h.amax(dim=(-2, -1))], dim=-1)
-        out = self.head(features.to(self.head.weight.dtype)).squeeze(-1).float()
-        if self.head.weight.dtype == torch.float64:
-            out = out.double()
+        out = self.head(features.to(self.head.weight.dtype)).squeeze(-1)
+        # float32 (under autocast too), but a float64 model's output stays float64 throughout
+        out = out.double() if self.head.weight.dtype == torch.float64 else out.float()
         return self.force_offset.to(out.dtype) + self.force_scale.to(out.dtype) * out
 
     def forward(self, frames: Tensor) -> Tensor:
         """Force per frame for a batch of sequences."""
         self._check(frames, 5, f"(B, T, {self.in_channels}, H, W)")
         batch, steps = frames.shape[:2]
-        x = self._preprocess(frames.flatten(0, 1)).unflatten(0, (batch, steps))
+        pooled = _pool_counts(frames, self.input_pool, self.head.weight.dtype)
+        x, _ = _input_features(pooled, self.cumulative)
         for index, cell in enumerate(self.lstm.cells):
             if index:
                 x = F.avg_pool2d(x.flatten(0, 1), 2).unflatten(0, (batch, steps))
@@ -367,14 +440,21 @@ class ForceRegressor(nn.Module):
         """One frame ``(B, 2, H, W)`` -> force ``(B,)`` and the new state.
 
         ``state=None`` starts a new sequence. Feeding the frames of a sequence one by one
-        gives the numbers :meth:`forward` gives for the whole sequence.
+        gives the numbers :meth:`forward` gives for the whole sequence. The state holds one
+        ``(h, c)`` per layer and, with ``cumulative=True``, a last entry ``(running_sum,)``:
+        the pooled counts summed over the frames so far, float64 ``(B, C, h, w)``.
         """
         self._check(frame, 4, f"(B, {self.in_channels}, H, W)")
-        if state is not None and len(state) != len(self.lstm.cells):
+        layers = len(self.lstm.cells)
+        if state is not None and len(state) != layers + self.cumulative:
+            extra = " and the running sum" if self.cumulative else ""
             raise ValueError(
-                f"state must hold one (h, c) per layer ({len(self.lstm.cells)}), got {len(state)}"
+                f"state must hold one (h, c) per layer ({layers}){extra}, got {len(state)} entries"
             )
-        x = self._preprocess(frame)
+        pooled = _pool_counts(frame, self.input_pool, self.head.weight.dtype)
+        running = state[-1][0] if state is not None and self.cumulative else None
+        x, running = _input_features(pooled.unsqueeze(1), self.cumulative, running)
+        x = x[:, 0]
         new_state: State = []
         for index, cell in enumerate(self.lstm.cells):
             if index:
@@ -383,7 +463,10 @@ class ForceRegressor(nn.Module):
             hx = cell.step_gates(cell.input_conv(x), hx)
             new_state.append(hx)
             x = hx[0]
+        if running is not None:
+            new_state.append((running,))
         return self._readout(x), new_state
 
     def extra_repr(self) -> str:
-        return f"input_pool={self.input_pool}, log1p input, mean+max readout"
+        inputs = "log1p input + cumulative sums" if self.cumulative else "log1p input"
+        return f"input_pool={self.input_pool}, {inputs}, mean+max readout"

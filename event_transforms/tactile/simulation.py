@@ -61,7 +61,7 @@ from torch import Tensor
 from ..functional.events import events_to_frames
 
 #: Bumped whenever the model changes what a seed produces (keys the data-set cache).
-SIMULATOR_VERSION = 1
+SIMULATOR_VERSION = 2
 
 #: Structured dtype of simulated event streams (tonic's field names; t in microseconds).
 EVENT_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
@@ -87,9 +87,20 @@ class SimulatorConfig:
         sensor_seed: seed of the camera's fixed pixel properties.
         gripper_force_n: nominal hold force of each gripper setting, newtons.
         force_variation: relative standard deviation of the hold force between experiments.
-        max_force_n: the gripper's limit; hold forces (plus vibration) are capped there.
-        grasp_ms, release_ms: nominal ramp durations (±20 % per experiment).
+        hold_force_n: ``(min, max)``: draw every experiment's hold force uniformly from this
+            range instead of around a gripper setting (continuous forces; ``gripper`` is
+            then only a label). ``None``: gripper settings.
+        max_force_n: the gripper's limit; hold forces (plus drift and vibration) are capped
+            there.
+        grasp_ms, release_ms: nominal ramp durations.
+        ramp_variation: the ramps last ``(1 ± ramp_variation)`` times nominal (uniform).
         timing_jitter_ms: the grasp starts and the release ends up to this late/early.
+        hold_drift: the force drifts linearly over the grasp by up to ± this fraction
+            (uniform per experiment): the grip relaxes or tightens during the hold.
+        delay_ms: ``(min, max)`` range of a transport delay between the force reading and
+            the membrane (per experiment): the membrane sees the force of ``delay_ms``
+            earlier, as with a clock offset between the F/T sensor and the camera or a
+            viscous membrane. The recorded force (the label) is not delayed.
         vibration: add a sinusoidal vibration to the hold force.
         vibration_fraction: vibration amplitude relative to the force.
         vibration_hz: range of the vibration frequency (drawn per experiment).
@@ -105,6 +116,8 @@ class SimulatorConfig:
         lag_ms: range of the lag time constant τ (drawn per experiment).
         orientation: rotate the strip by an angle drawn per experiment.
         angle_deg: range of that angle, degrees (counter-clockwise in the image).
+        angle_symmetric: the angle's sign is drawn too (so ``angle_deg=(25, 45)`` gives
+            angles in [-45, -25] ∪ [25, 45]).
         threshold: nominal log-intensity contrast threshold (ON and OFF).
         threshold_mismatch: relative standard deviation of per-pixel thresholds.
         refractory_us: a pixel is blind this long after it fires (its reference follows
@@ -124,10 +137,14 @@ class SimulatorConfig:
     sensor_seed: int = 0
     gripper_force_n: tuple[float, ...] = (12.0, 20.0)
     force_variation: float = 0.1
+    hold_force_n: tuple[float, float] | None = None
     max_force_n: float = 25.0
     grasp_ms: float = 50.0
     release_ms: float = 50.0
+    ramp_variation: float = 0.2
     timing_jitter_ms: float = 5.0
+    hold_drift: float = 0.0
+    delay_ms: tuple[float, float] = (0.0, 0.0)
     vibration: bool = True
     vibration_fraction: float = 0.03
     vibration_hz: tuple[float, float] = (15.0, 40.0)
@@ -144,6 +161,7 @@ class SimulatorConfig:
     lag_ms: tuple[float, float] = (2.0, 25.0)
     orientation: bool = True
     angle_deg: tuple[float, float] = (-20.0, 20.0)
+    angle_symmetric: bool = False
     threshold: float = 0.2
     threshold_mismatch: float = 0.03
     refractory_us: float = 200.0
@@ -170,7 +188,21 @@ class SimulatorConfig:
             raise ValueError(f"threshold must be positive, got {self.threshold!r}")
         if min(self.gripper_force_n, default=0) <= 0:
             raise ValueError(f"gripper_force_n must be positive, got {self.gripper_force_n!r}")
-        for name in ("vibration_hz", "lag_ms", "angle_deg", "shot_noise_hz", "hot_pixel_hz"):
+        ranges = ["vibration_hz", "lag_ms", "angle_deg", "shot_noise_hz", "hot_pixel_hz", "delay_ms"]
+        if self.hold_force_n is not None:
+            ranges.append("hold_force_n")
+            if not 0 <= self.hold_force_n[0] <= self.hold_force_n[1] <= self.max_force_n:
+                raise ValueError(
+                    f"hold_force_n must be a (min, max) range in [0, max_force_n={self.max_force_n}], "
+                    f"got {self.hold_force_n!r}"
+                )
+        if not 0 <= self.ramp_variation < 1:
+            raise ValueError(f"ramp_variation must lie in [0, 1), got {self.ramp_variation!r}")
+        if not 0 <= self.hold_drift < 1:
+            raise ValueError(f"hold_drift must lie in [0, 1), got {self.hold_drift!r}")
+        if self.delay_ms[0] < 0:
+            raise ValueError(f"delay_ms must be non-negative, got {self.delay_ms!r}")
+        for name in ranges:
             low, high = getattr(self, name)
             if low > high:
                 raise ValueError(f"{name} must be a (min, max) pair, got {(low, high)!r}")
@@ -207,6 +239,8 @@ class Grasp:
     lag_ms: float
     angle_deg: float
     center_yx: tuple[float, float]
+    hold_drift: float = 0.0
+    delay_ms: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -310,37 +344,50 @@ def draw_grasp(
             f"gripper must index gripper_force_n {config.gripper_force_n}, got {gripper!r}"
         )
     rng = _streams(seed)[0]
-    # Always draw every number in the same order so switches do not shift the others.
+    # Always draw every number in the same order so switches do not shift the others
+    # (numbers added in later versions are drawn after the older ones).
     force_z = float(rng.standard_normal())
     start_u, grasp_u, release_u, end_u, vib_u, phase_u, lag_u, angle_u = rng.random(8)
     center_u = rng.random(2)
+    force_u, drift_u, delay_u, sign_u = rng.random(4)
 
-    hold = config.gripper_force_n[gripper] * (1.0 + config.force_variation * force_z)
-    # The gripper's limit applies to the peak, vibration included.
-    peak = config.max_force_n / (1.0 + (config.vibration_fraction if config.vibration else 0.0))
+    drift = config.hold_drift * (2 * drift_u - 1)
+    if config.hold_force_n is None:
+        hold = config.gripper_force_n[gripper] * (1.0 + config.force_variation * force_z)
+    else:
+        low_force, high_force = config.hold_force_n
+        hold = low_force + (high_force - low_force) * force_u
+    # The gripper's limit applies to the peak, drift and vibration included.
+    peak = config.max_force_n / (
+        (1.0 + (config.vibration_fraction if config.vibration else 0.0)) * (1.0 + abs(drift))
+    )
     hold = float(min(max(hold, 0.0), peak))
     jitter = config.timing_jitter_ms
+    ramp = config.ramp_variation
     low, high = config.vibration_hz
     cy, cx = _sensor_center(config)
     shift = config.center_jitter_px * (2 * center_u - 1)
+    angle = config.angle_deg[0] + (config.angle_deg[1] - config.angle_deg[0]) * angle_u
+    if config.angle_symmetric and sign_u < 0.5:
+        angle = -angle
     return Grasp(
         diameter_mm=float(diameter_mm),
         gripper=int(gripper),
         seed=int(seed),
         hold_force_n=hold,
         grasp_start_ms=float(jitter * start_u),
-        grasp_ms=float(config.grasp_ms * (0.8 + 0.4 * grasp_u)),
-        release_ms=float(config.release_ms * (0.8 + 0.4 * release_u)),
+        grasp_ms=float(config.grasp_ms * (1 - ramp + 2 * ramp * grasp_u)),
+        release_ms=float(config.release_ms * (1 - ramp + 2 * ramp * release_u)),
         release_end_ms=float(config.duration_ms - jitter * end_u),
         vibration_hz=float(low + (high - low) * vib_u) if config.vibration else 0.0,
         vibration_phase=float(2 * np.pi * phase_u),
         lag_ms=float(config.lag_ms[0] + (config.lag_ms[1] - config.lag_ms[0]) * lag_u)
         if config.lag
         else 0.0,
-        angle_deg=float(config.angle_deg[0] + (config.angle_deg[1] - config.angle_deg[0]) * angle_u)
-        if config.orientation
-        else 0.0,
+        angle_deg=float(angle) if config.orientation else 0.0,
         center_yx=(float(cy + shift[0]), float(cx + shift[1])),
+        hold_drift=float(drift),
+        delay_ms=float(config.delay_ms[0] + (config.delay_ms[1] - config.delay_ms[0]) * delay_u),
     )
 
 
@@ -351,15 +398,20 @@ def _smoothstep(u: np.ndarray) -> np.ndarray:
 def force_profile(grasps: Sequence[Grasp], times_ms: np.ndarray, config: SimulatorConfig) -> np.ndarray:
     """The gripper force (newtons) of each grasp at ``times_ms``, shape (len(grasps), len(times)).
 
-    A raised-cosine ramp up over ``grasp_ms``, a hold with a sinusoidal vibration (if
-    switched on), and a raised-cosine ramp down ending at ``release_end_ms``.
+    A raised-cosine ramp up over ``grasp_ms``, a hold that drifts linearly by
+    ``hold_drift`` (relative, from the start of the grasp to the end of the release) with a
+    sinusoidal vibration (if switched on), and a raised-cosine ramp down ending at
+    ``release_end_ms``. ``times_ms`` is ``(S,)`` (shared) or ``(len(grasps), S)``.
     """
-    times = np.asarray(times_ms, dtype=np.float64)[None, :]
+    times = np.asarray(times_ms, dtype=np.float64)
+    if times.ndim == 1:
+        times = times[None, :]
     column = lambda name: np.array([getattr(g, name) for g in grasps], dtype=np.float64)[:, None]  # noqa: E731
     start, ramp_up = column("grasp_start_ms"), column("grasp_ms")
     end, ramp_down = column("release_end_ms"), column("release_ms")
     envelope = _smoothstep((times - start) / ramp_up) * (1.0 - _smoothstep((times - end + ramp_down) / ramp_down))
-    force = column("hold_force_n") * envelope
+    progress = np.clip((times - start) / np.maximum(end - start, 1e-9), 0.0, 1.0)
+    force = column("hold_force_n") * envelope * (1.0 + column("hold_drift") * (2 * progress - 1))
     if config.vibration:
         wave = np.sin(2 * np.pi * column("vibration_hz") * times / 1000.0 + column("vibration_phase"))
         force = force * (1.0 + config.vibration_fraction * wave)
@@ -607,7 +659,8 @@ def simulate_grasps(grasps: Sequence[Grasp], config: SimulatorConfig | None = No
     if config.contact and grasps:
         steps = int(round(config.duration_ms / config.substep_ms))
         fine_ms = np.arange(steps + 1) * config.substep_ms
-        fine = force_profile(grasps, fine_ms, config)
+        delay = np.array([g.delay_ms for g in grasps])[:, None]
+        fine = force_profile(grasps, fine_ms[None, :] - delay, config)
         lag = np.array([g.lag_ms for g in grasps])
         lagged = membrane_force(fine, lag, config.substep_ms) if config.lag else fine
         diameter = np.array([g.diameter_mm for g in grasps])[:, None]

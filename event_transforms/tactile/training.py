@@ -43,6 +43,7 @@ __all__ = [
     "EpochRecord",
     "TrainResult",
     "seed_everything",
+    "rank_seed",
     "collate",
     "fit",
     "predict",
@@ -183,12 +184,35 @@ def collate(items: Sequence[tuple]) -> tuple[Tensor, Tensor, list]:
     return frames, force, metas
 
 
-def _loader(data: Dataset, batch_size: int, shuffle: bool, seed: int) -> DataLoader:
+def _loader(data: Dataset, batch_size: int, shuffle: bool, seed: int, sampler: Any = None) -> DataLoader:
+    if sampler is not None:
+        return DataLoader(data, batch_size=batch_size, sampler=sampler, num_workers=0, collate_fn=collate)
     generator = torch.Generator().manual_seed(seed) if shuffle else None
     return DataLoader(
         data, batch_size=batch_size, shuffle=shuffle, generator=generator,
         num_workers=0, collate_fn=collate,
     )
+
+
+def rank_seed(seed: int, rank: int) -> int:
+    """The augmentation seed of ``rank`` in a run seeded ``seed``: distinct per rank, fixed per run.
+
+    Example:
+        >>> rank_seed(0, 0) != rank_seed(0, 1), rank_seed(3, 1) == rank_seed(3, 1)
+        (True, True)
+    """
+    import numpy as np
+
+    return int(np.random.SeedSequence([int(seed), int(rank)]).generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+def _distributed() -> tuple[int, int]:
+    """(rank, world size) of the initialised process group, or (0, 1)."""
+    import torch.distributed as dist
+
+    if dist.is_available() and dist.is_initialized():
+        return dist.get_rank(), dist.get_world_size()
+    return 0, 1
 
 
 def _model_device(model: nn.Module) -> torch.device:
@@ -262,6 +286,7 @@ def fit(
     stopwatch: Stopwatch | None = None,
     progress: bool | None = None,
     description: str = "train",
+    distributed: bool | None = None,
 ) -> TrainResult:
     """Train ``model`` with Adam on the MSE, early stopping on the validation MSE.
 
@@ -282,6 +307,15 @@ def fit(
             its seconds per epoch are recorded as ``augmentation_s``.
         progress: show a tqdm bar; ``None`` shows it only when stderr is a terminal.
         description: label of the progress bar.
+        distributed: data-parallel training over the initialised :mod:`torch.distributed`
+            group (gloo on the CPU, nccl on GPUs), e.g. under ``torchrun``; ``None`` uses it
+            when a group of more than one rank is initialised. The model is wrapped in
+            ``DistributedDataParallel`` (rank 0's initial weights are broadcast), each rank
+            reads its share of every epoch through a ``DistributedSampler`` seeded with
+            ``seed``, and each rank's on-the-fly augmentation draws from torch's global RNG
+            seeded with :func:`rank_seed` ``(seed, rank)``: ranks draw differently and a run
+            is reproducible. Every rank validates on the whole validation set, so all ranks
+            stop at the same epoch and keep the same weights.
 
     Example:
         >>> from torch.utils.data import TensorDataset
@@ -301,10 +335,23 @@ def fit(
         raise ValueError(f"lr must be a positive number, got {lr!r}")
     from tqdm.auto import tqdm
 
-    torch.manual_seed(seed)
+    rank, world = _distributed()
+    if distributed is None:
+        distributed = world > 1
+    elif distributed and world == 1:
+        raise ValueError("distributed=True needs an initialised torch.distributed group of more than one rank")
+    torch.manual_seed(rank_seed(seed, rank) if distributed else seed)
     device = _model_device(model)
+    network: nn.Module = model
+    sampler = None
+    if distributed:
+        from torch.nn.parallel import DistributedDataParallel
+        from torch.utils.data.distributed import DistributedSampler
+
+        network = DistributedDataParallel(model, device_ids=None if device.type == "cpu" else [device])
+        sampler = DistributedSampler(train_data, num_replicas=world, rank=rank, shuffle=True, seed=seed)
     optimiser = torch.optim.Adam(model.parameters(), lr=lr)
-    loader = _loader(train_data, batch_size, True, seed)
+    loader = _loader(train_data, batch_size, True, seed, sampler)
     watch = stopwatch if stopwatch is not None else Stopwatch()
     best_loss, best_epoch, best_state = math.inf, -1, None
     history: list[EpochRecord] = []
@@ -314,17 +361,25 @@ def fit(
                leave=False, dynamic_ncols=True)
     for epoch in bar:
         model.train()
+        if sampler is not None:
+            sampler.set_epoch(epoch)
         aug_before, tick = watch.seconds, time.perf_counter()
         total, count = 0.0, 0
         for frames, force, _ in loader:
             frames, force = frames.to(device), force.to(device)
-            pred = model(frames)
+            pred = network(frames)
             loss = F.mse_loss(pred, force.to(pred.dtype))
             optimiser.zero_grad(set_to_none=True)
             loss.backward()
             optimiser.step()
             total += float(loss.detach()) * force.numel()
             count += force.numel()
+        if distributed:
+            import torch.distributed as dist
+
+            sums = torch.tensor([total, float(count)], dtype=torch.float64, device=device)
+            dist.all_reduce(sums)
+            total, count = float(sums[0]), int(sums[1])
         train_s = time.perf_counter() - tick
         augmentation_s = watch.seconds - aug_before
         tick = time.perf_counter()

@@ -9,9 +9,17 @@ from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
 from .noise import *  # noqa: F401,F403
 from .noise import __all__ as _noise
+from .geometry import *  # noqa: F401,F403
+from .geometry import __all__ as _geometry
+from .polarity import *  # noqa: F401,F403
+from .polarity import __all__ as _polarity
+from .mixing import *  # noqa: F401,F403
+from .mixing import __all__ as _mixing
+from .cleaning import *  # noqa: F401,F403
+from .cleaning import __all__ as _cleaning
 from .containers import *  # noqa: F401,F403
 from .containers import __all__ as _containers
 from .events import *  # noqa: F401,F403
 from .events import __all__ as _events
 
-__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_containers, *_events]
+__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_containers, *_events]

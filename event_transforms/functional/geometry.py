@@ -1,0 +1,400 @@
+"""Geometry kernels: a general affine warp, integer translation (rolling), crops, sum-pooling.
+
+:func:`affine` composes rotation, scale, translation and shear in one 2×3 matrix per
+sequence and samples all T·2 frames of a sequence with one kornia ``warp_affine`` (the
+frames folded into channels), about the same centre as :func:`~event_transforms.functional.rotate`
+and :func:`~event_transforms.functional.resize`, which are its special cases
+(``affine(angle=a)`` equals ``rotate(a)``, ``affine(scale=s)`` equals ``resize(s)``).
+:func:`translate` moves whole pixels (counts and dtype kept), :func:`crop` cuts a window
+and optionally resizes it back to H×W, and :func:`downsample` sums k×k blocks (the
+paper's "adding the closest neighbourhoods"). None of them reads the values, so none waits
+for an accelerator, except :func:`downsample` on 8/16-bit integer frames, which checks once
+that the block sums fit the dtype. Per-sample parameters are CPU tensors; they reach the
+frames' device by non-blocking copies (the same holds for the polarity, mixing and cleaning
+kernels).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor
+
+from .._validation import INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, per_sample
+from .spatial import Center, _check_center, _output_dtype, _resolve_center, _work_dtype
+
+__all__ = ["affine", "translate", "crop", "center_crop", "downsample"]
+
+Scalars = float | Sequence[float] | Tensor
+Pairs = Sequence[float] | Tensor
+#: How :func:`downsample` treats the rows and columns left over when H or W is not a multiple.
+REMAINDERS = ("drop", "keep")
+_NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
+
+
+# --------------------------------------------------------------------------- affine
+
+
+def _pairs(value: object, batch: int, name: str, *, dtype: torch.dtype = torch.float64) -> Tensor:
+    """A ``(a, b)`` pair or a ``(B, 2)`` tensor of pairs as a (B, 2) CPU tensor."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, Tensor)) and not hasattr(value, "__array__"):
+        raise TypeError(f"{name} must be a (y, x) pair or a ({batch}, 2) tensor, got {describe(value)}")
+    try:
+        out = torch.as_tensor(value).detach().cpu()
+    except (TypeError, ValueError, RuntimeError):
+        raise TypeError(f"{name} must hold real numbers, got {value!r}") from None
+    if out.dtype == torch.bool or out.is_complex():
+        raise TypeError(f"{name} must hold real numbers, got dtype {out.dtype}")
+    if tuple(out.shape) == (2,):
+        out = out.expand(batch, 2)
+    if tuple(out.shape) != (batch, 2):
+        raise ValueError(f"{name} must be a (y, x) pair or a ({batch}, 2) tensor, got {describe(value)}")
+    if not dtype.is_floating_point and out.is_floating_point():
+        if out.numel() and not bool((out.isfinite() & (out == out.round())).all()):
+            raise TypeError(f"{name} must hold integers, got {describe(value)}")
+    out = out.to(dtype)
+    if out.is_floating_point() and out.numel() and not bool(out.isfinite().all()):
+        raise ValueError(f"{name} must be finite, got {describe(value)}")
+    return out
+
+
+def affine_matrix(angle: Tensor, scale: Tensor, translate: Tensor, shear: Tensor, center: Tensor) -> Tensor:
+    """The (B, 2, 3) forward maps ``dst = A (src - c) + c + t`` in (x, y) pixel coordinates.
+
+    ``A = scale · R(angle) · Shear_x(shear_x) · Shear_y(shear_y)`` with ``R`` kornia's
+    counter-clockwise rotation on the displayed image (row 0 at the top). ``angle``,
+    ``scale`` (B,) and ``translate``, ``shear`` (B, 2) are float64 CPU tensors (translate as
+    (dy, dx) pixels, shear as (x, y) degrees); the linear part is built on the host, and
+    only the centre (B, 2) (y, x), which may live on the device, is combined there.
+    """
+    radians = torch.deg2rad(angle)
+    cos, sin = torch.cos(radians), torch.sin(radians)
+    shear_x, shear_y = torch.tan(torch.deg2rad(shear[:, 0])), torch.tan(torch.deg2rad(shear[:, 1]))
+    # R = [[cos, sin], [-sin, cos]], Shx = [[1, tx], [0, 1]], Shy = [[1, 0], [ty, 1]]
+    rotation = torch.stack([torch.stack([cos, sin], 1), torch.stack([-sin, cos], 1)], 1)
+    one, zero = torch.ones_like(cos), torch.zeros_like(cos)
+    shear_matrix = torch.stack([torch.stack([one + shear_x * shear_y, shear_x], 1), torch.stack([shear_y, one], 1)], 1)
+    linear = scale.view(-1, 1, 1) * rotation @ shear_matrix  # (B, 2, 2), host
+    linear = linear.to(center.device, non_blocking=True)
+    cxy = center.flip(1).to(torch.float64)  # (B, 2) as (x, y)
+    offset = cxy + translate.flip(1).to(center.device, non_blocking=True) - (linear @ cxy.unsqueeze(2)).squeeze(2)
+    return torch.cat([linear, offset.unsqueeze(2)], dim=2)
+
+
+def _affine(
+    batch: Tensor, angle: Tensor, scale: Tensor, translate: Tensor, shear: Tensor, center: Center, mode: str
+) -> Tensor:
+    """:func:`affine` on a (B, T, 2, H, W) batch with checked CPU parameters."""
+    b, t, p, height, width = batch.shape
+    out_dtype = _output_dtype(batch.dtype, mode)
+    if batch.numel() == 0:
+        return batch.to(out_dtype, copy=True)
+    from kornia.geometry.transform import warp_affine  # imported on first use: keeps imports light
+
+    work = _work_dtype(batch.dtype, mode)
+    matrix = affine_matrix(angle, scale, translate, shear, _resolve_center(batch, center)).to(work)
+    folded = batch.reshape(b, t * p, height, width).to(work)
+    warped = warp_affine(folded, matrix, (height, width), mode=mode, padding_mode="zeros", align_corners=True)
+    return warped.reshape(b, t, p, height, width).to(out_dtype)
+
+
+def affine(
+    frames: Tensor,
+    *,
+    angle: Scalars = 0.0,
+    translate: Pairs = (0.0, 0.0),
+    scale: Scalars = 1.0,
+    shear: Pairs = (0.0, 0.0),
+    center: Center = "mass",
+    mode: str = "bilinear",
+) -> Tensor:
+    """Rotate, scale, shear and translate every frame of each sequence with one warp.
+
+    The forward map of sample b is ``dst = s·R(θ)·Sh_x·Sh_y·(src - c) + c + t`` (OpenCV's
+    and kornia's convention, the same as :func:`~event_transforms.functional.rotate` and
+    :func:`~event_transforms.functional.resize`, which it generalises). Pixels that come
+    from outside the frame are zero.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        angle: degrees, counter-clockwise on the displayed image; a number or ``(B,)``.
+        translate: ``(dy, dx)`` in pixels (down, right), or a ``(B, 2)`` tensor.
+        scale: zoom factor > 0, a number or ``(B,)``.
+        shear: ``(x, y)`` shear angles in degrees (each in (-90, 90)), or ``(B, 2)``.
+        center: ``"mass"`` (event centroid of the whole sequence, image centre when
+            empty), ``"image"``, a ``(y, x)`` pair, or a ``(B, 2)`` tensor of pairs.
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Returns:
+        The warped frames, same shape and device. ``bilinear`` returns the input dtype
+        for float input and float32 for integer input; ``nearest`` keeps the dtype.
+
+    Shape:
+        ``(T, 2, H, W)`` -> ``(T, 2, H, W)``; ``(B, T, 2, H, W)`` -> same.
+
+    Example:
+        >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
+        >>> frames[0, 1, 2, 2] = 3
+        >>> out = affine(frames, translate=(1, -2), center="image", mode="nearest")
+        >>> out.dtype, out[0, 1].nonzero().tolist()
+        (torch.int16, [[3, 0]])
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    b = batch.shape[0]
+    angle_t = per_sample(angle, b, "angle")
+    scale_t = per_sample(scale, b, "scale")
+    if not bool(angle_t.isfinite().all()):
+        raise ValueError(f"angle must be finite, got {describe(angle)}")
+    if not bool((scale_t.isfinite() & (scale_t > 0)).all()):
+        raise ValueError(f"scale must be finite and > 0, got {describe(scale)}")
+    translate_t = _pairs(translate, b, "translate")
+    shear_t = _pairs(shear, b, "shear")
+    if not bool((shear_t.abs() < 90).all()):
+        raise ValueError(f"shear must lie in (-90, 90) degrees, got {describe(shear)}")
+    check_choice(mode, "mode", INTERPOLATIONS)
+    center = _check_center(center, b)
+    return unbatch(_affine(batch, angle_t, scale_t, translate_t, shear_t, center, mode))
+
+
+# --------------------------------------------------------------------------- translate
+
+
+def _translate(batch: Tensor, shift: Tensor) -> Tensor:
+    """:func:`translate` on a batch with a (B, 2) int64 CPU ``shift`` of (dy, dx)."""
+    b, t, p, height, width = batch.shape
+    if batch.numel() == 0:
+        return batch.clone()
+    device = batch.device
+    shift = shift.to(device, non_blocking=True)
+    rows = torch.arange(height, device=device) - shift[:, :1]  # (B, H) source rows
+    cols = torch.arange(width, device=device) - shift[:, 1:]  # (B, W)
+    valid = ((rows >= 0) & (rows < height)).unsqueeze(2) & ((cols >= 0) & (cols < width)).unsqueeze(1)
+    source = rows.clamp(0, height - 1).unsqueeze(2) * width + cols.clamp(0, width - 1).unsqueeze(1)
+    return _gather_pixels(batch, source, valid)
+
+
+def _gather_pixels(batch: Tensor, source: Tensor, valid: Tensor | None = None) -> Tensor:
+    """``out[b, ..., i, j] = batch[b, ..., source[b, i, j]]`` (flat pixel index), zero where not ``valid``.
+
+    One gather over the flattened pixels serves all T·2 frames of a sequence (twice as
+    fast on the CPU as a gather per axis).
+    """
+    b, t, p = batch.shape[:3]
+    h, w = source.shape[1:]
+    flat = batch.reshape(b, t * p, batch.shape[-2] * batch.shape[-1])
+    out = flat.gather(2, source.reshape(b, 1, h * w).expand(b, t * p, h * w))
+    if valid is not None:
+        out.masked_fill_(~valid.reshape(b, 1, h * w), 0)
+    return out.view(b, t, p, h, w)
+
+
+def translate(frames: Tensor, shift: Pairs) -> Tensor:
+    """Move every frame of each sequence by whole pixels, filling the vacated border with zeros.
+
+    Neuromorphic Data Augmentation's "rolling", without the wrap-around: events moved past
+    the border are dropped, so the count can only fall. Counts and dtype are kept.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        shift: ``(dy, dx)`` integer pixels (down, right), or a ``(B, 2)`` integer tensor.
+
+    Returns:
+        The moved frames, same shape, dtype and device.
+
+    Example:
+        >>> frames = torch.arange(1, 7).reshape(1, 1, 2, 3).expand(1, 2, 2, 3)
+        >>> translate(frames, (1, -1))[0, 0].tolist()
+        [[0, 0, 0], [2, 3, 0]]
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    return unbatch(_translate(batch, _pairs(shift, batch.shape[0], "shift", dtype=torch.int64)))
+
+
+# --------------------------------------------------------------------------- crop
+
+
+def _size(value: object, name: str) -> tuple[int, int]:
+    """``n`` or ``(h, w)`` positive integers as (h, w)."""
+    if isinstance(value, (Sequence, Tensor)) and not isinstance(value, (str, bytes)):
+        if len(value) != 2:
+            raise ValueError(f"{name} must be a positive integer or an (h, w) pair, got {describe(value)}")
+        pair = tuple(as_number(v, name, integer=True) for v in value)
+    else:
+        number = as_number(value, name, integer=True)
+        pair = (number, number)
+    if min(pair) < 1:
+        raise ValueError(f"{name} must be positive, got {describe(value)}")
+    return pair  # type: ignore[return-value]
+
+
+def _crop(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool, mode: str) -> Tensor:
+    """Crop ``size`` at per-sample (B,) int64 CPU ``top``/``left``; optionally resize back to H×W."""
+    b, t, p, height, width = batch.shape
+    h, w = size
+    device = batch.device
+    rows = top.to(device, non_blocking=True).unsqueeze(1) + torch.arange(h, device=device)  # (B, h)
+    cols = left.to(device, non_blocking=True).unsqueeze(1) + torch.arange(w, device=device)  # (B, w)
+    out = _gather_pixels(batch, rows.unsqueeze(2) * width + cols.unsqueeze(1))
+    if not resize:
+        return out
+    out_dtype = _output_dtype(batch.dtype, mode)
+    if out.numel() == 0:
+        return batch.new_zeros(batch.shape, dtype=out_dtype)
+    work = _work_dtype(batch.dtype, mode)
+    folded = out.reshape(b, t * p, h, w).to(work)
+    if mode == "bilinear":
+        grown = torch.nn.functional.interpolate(folded, size=(height, width), mode="bilinear", align_corners=False)
+    else:
+        grown = torch.nn.functional.interpolate(folded, size=(height, width), mode="nearest")
+    return grown.reshape(b, t, p, height, width).to(out_dtype)
+
+
+def _check_corner(value: Scalars, batch: int, name: str, room: int) -> Tensor:
+    corner = per_sample(value, batch, name, dtype=torch.int64)
+    if corner.numel() and bool(((corner < 0) | (corner > room)).any()):
+        raise ValueError(f"{name} must lie in [0, {room}] for the crop to fit, got {describe(value)}")
+    return corner
+
+
+def _check_fits(size: tuple[int, int], height: int, width: int) -> None:
+    if size[0] > height or size[1] > width:
+        raise ValueError(f"size must fit in the frames' (H, W) = ({height}, {width}), got {size}")
+
+
+def crop(
+    frames: Tensor,
+    top: Scalars,
+    left: Scalars,
+    size: int | Sequence[int],
+    *,
+    resize: bool = False,
+    mode: str = "bilinear",
+) -> Tensor:
+    """Cut an ``(h, w)`` window at ``(top, left)`` out of every frame of each sequence.
+
+    By default the output is ``(…, h, w)`` (torchvision's ``crop``). With ``resize=True``
+    the window is resized back to H×W (torchvision's ``resized_crop``): values are
+    interpolated as an image, so the total count grows by about ``H·W / (h·w)``.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        top, left: the window's first row and column, integers or ``(B,)``; the window
+            must fit inside the frame.
+        size: ``n`` or ``(h, w)``, the window's size.
+        resize: resize the window back to H×W.
+        mode: ``"bilinear"`` or ``"nearest"``, for ``resize=True``.
+
+    Returns:
+        The cropped frames on the same device. Without resizing the dtype is kept; with
+        it, as in :func:`~event_transforms.functional.resize` (float32 for integer input
+        under ``bilinear``).
+
+    Shape:
+        ``(B, T, 2, H, W)`` -> ``(B, T, 2, h, w)``, or unchanged with ``resize=True``.
+
+    Example:
+        >>> frames = torch.arange(12).reshape(1, 1, 3, 4).expand(1, 2, 3, 4)
+        >>> crop(frames, 1, 2, 2)[0, 0].tolist()
+        [[6, 7], [10, 11]]
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    b, _, _, height, width = batch.shape
+    hw = _size(size, "size")
+    _check_fits(hw, height, width)
+    check_choice(mode, "mode", INTERPOLATIONS)
+    top_t = _check_corner(top, b, "top", height - hw[0])
+    left_t = _check_corner(left, b, "left", width - hw[1])
+    return unbatch(_crop(batch, top_t, left_t, hw, bool(resize), mode))
+
+
+def center_crop(frames: Tensor, size: int | Sequence[int], *, resize: bool = False, mode: str = "bilinear") -> Tensor:
+    """:func:`crop` at the image centre (the top-left corner rounds down, as in torchvision).
+
+    Example:
+        >>> center_crop(torch.ones(3, 2, 7, 8), (3, 4)).shape
+        torch.Size([3, 2, 3, 4])
+    """
+    batch = check_frames(frames)
+    height, width = batch.shape[-2:]
+    hw = _size(size, "size")
+    _check_fits(hw, height, width)
+    return crop(frames, (height - hw[0]) // 2, (width - hw[1]) // 2, hw, resize=resize, mode=mode)
+
+
+# --------------------------------------------------------------------------- downsample
+
+
+def downsampled_size(height: int, width: int, factor: tuple[int, int], remainder: str) -> tuple[int, int]:
+    """The (H', W') that :func:`downsample` returns."""
+    rounding = math.floor if remainder == "drop" else math.ceil
+    return rounding(height / factor[0]), rounding(width / factor[1])
+
+
+def _downsample(batch: Tensor, factor: tuple[int, int], remainder: str) -> Tensor:
+    b, t, p, height, width = batch.shape
+    fy, fx = factor
+    h, w = downsampled_size(height, width, factor, remainder)
+    if remainder == "drop":
+        body = batch[..., : h * fy, : w * fx]
+    else:
+        body = torch.nn.functional.pad(batch, (0, w * fx - width, 0, h * fy - height)) if batch.numel() else batch.new_zeros(
+            b, t, p, h * fy, w * fx
+        )
+    return _sum_in(body.reshape(b, t, p, h, fy, w, fx), (4, 6), "downsample")
+
+
+def _sum_in(values: Tensor, dim: int | tuple[int, ...], owner: str, *, keepdim: bool = False) -> Tensor:
+    """Sum counts over ``dim`` in a wide dtype and return them in ``values``' dtype.
+
+    8/16-bit integer sums that would not fit raise (one host synchronisation, those dtypes
+    only) instead of wrapping.
+    """
+    dtype = values.dtype
+    if dtype.is_floating_point:
+        acc = torch.float64 if dtype == torch.float64 else torch.float32
+    else:
+        acc = torch.int64
+    total = values.to(acc).sum(dim=dim, keepdim=keepdim)
+    if dtype in _NARROW_INTEGERS and total.numel():
+        info = torch.iinfo(dtype)
+        high = total.max()
+        if bool(high > info.max):
+            raise ValueError(
+                f"{owner}: a sum ({int(high)}) does not fit frames of dtype {dtype} "
+                f"(max {info.max}); convert the frames to a wider dtype first"
+            )
+    return total.to(dtype)
+
+
+def _factor(value: object) -> tuple[int, int]:
+    return _size(value, "factor")
+
+
+def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = "drop") -> Tensor:
+    """Sum each ``fy × fx`` block of pixels into one (sum-pooling): counts are conserved.
+
+    The paper's "adding the closest neighbourhoods" (140×150 pooled 2×2 to 70×75). When H
+    or W is not a multiple of the factor, ``remainder="drop"`` (default, as in pooling with
+    floor rounding) discards the last ``H mod fy`` rows and ``W mod fx`` columns and their
+    events; ``"keep"`` sums them into a last, partial block (ceil rounding), so every event
+    is kept. The sums are taken in int64/float32/float64 and returned in the input dtype;
+    8/16-bit integer frames whose block sums would overflow raise instead of wrapping.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        factor: ``k`` or ``(fy, fx)``, positive integers.
+        remainder: ``"drop"`` or ``"keep"``.
+
+    Returns:
+        ``(…, H', W')`` with ``H' = H // fy`` (``"drop"``) or ``ceil(H / fy)`` (``"keep"``);
+        dtype and device kept.
+
+    Example:
+        >>> frames = torch.ones(1, 2, 5, 4, dtype=torch.int32)
+        >>> downsample(frames, 2)[0, 0].tolist(), downsample(frames, 2, remainder="keep")[0, 0].tolist()
+        ([[4, 4], [4, 4]], [[4, 4], [4, 4], [2, 2]])
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    return unbatch(_downsample(batch, _factor(factor), check_choice(remainder, "remainder", REMAINDERS)))

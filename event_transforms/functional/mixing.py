@@ -1,0 +1,197 @@
+"""Mixing kernels: Cutout (a box emptied), CutMix (a box pasted from a partner) and MixUp
+(a convex blend with a partner), and the label mixing that goes with them.
+
+Boxes are per sample, the same in every frame of a sequence, given as ``(B,)`` integer
+``top, left, height, width`` already clipped to the frame. Partners are ``(B,)`` indices into
+the same batch. Cutout and CutMix move whole counts (dtype kept); MixUp blends values
+(input dtype for float input, float32 for integer input).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor
+
+from .._validation import as_batch, as_number, check_frames, describe, per_sample
+
+__all__ = ["cutout", "cutmix", "mixup", "mix_labels"]
+
+Scalars = float | Sequence[float] | Tensor
+
+
+def _box_mask(top: Tensor, left: Tensor, height: Tensor, width: Tensor, size: Sequence[int], device) -> Tensor:
+    """(B, 1, 1, H, W) bool: True inside each sample's box."""
+    h, w = size
+    rows = torch.arange(h, device=device)
+    cols = torch.arange(w, device=device)
+    top, left = top.to(device, non_blocking=True).unsqueeze(1), left.to(device, non_blocking=True).unsqueeze(1)
+    inside_rows = (rows >= top) & (rows < top + height.to(device, non_blocking=True).unsqueeze(1))
+    inside_cols = (cols >= left) & (cols < left + width.to(device, non_blocking=True).unsqueeze(1))
+    return (inside_rows.unsqueeze(2) & inside_cols.unsqueeze(1)).unsqueeze(1).unsqueeze(1)
+
+
+def _check_box(batch: Tensor, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> list[Tensor]:
+    b = batch.shape[0]
+    box = []
+    for value, name in ((top, "top"), (left, "left"), (height, "height"), (width, "width")):
+        t = per_sample(value, b, name, dtype=torch.int64)
+        if t.numel() and bool((t < 0).any()):
+            raise ValueError(f"{name} must be non-negative integers, got {describe(value)}")
+        box.append(t)
+    return box
+
+
+def _check_partner(partner: object, batch: int) -> Tensor:
+    index = per_sample(partner, batch, "partner", dtype=torch.int64)
+    if index.numel() and bool(((index < 0) | (index >= batch)).any()):
+        raise ValueError(f"partner must hold sample indices in [0, {batch}), got {describe(partner)}")
+    return index
+
+
+def cutout(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> Tensor:
+    """Empty a box of every frame of each sequence (DeVries & Taylor's Cutout, used by NDA).
+
+    The box is the same in all frames of a sequence; a box past the border stops there.
+    Counts outside it and the dtype are kept.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        top, left: the box's first row and column, integers >= 0 or ``(B,)``.
+        height, width: its size in pixels.
+
+    Example:
+        >>> cutout(torch.ones(1, 2, 3, 4, dtype=torch.int16), 1, 1, 2, 2)[0, 0].tolist()
+        [[1, 1, 1, 1], [1, 0, 0, 1], [1, 0, 0, 1]]
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    return unbatch(_cutout(batch, *_check_box(batch, top, left, height, width)))
+
+
+def _cutout(batch: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
+    mask = _box_mask(top, left, height, width, batch.shape[-2:], batch.device)
+    return batch.masked_fill(mask, 0)
+
+
+def cutmix(frames: Tensor, partner: Scalars, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> Tensor:
+    """Paste a box of each sample's partner (all frames) into the sample (Yun et al.'s CutMix).
+
+    Sample b takes the box ``[top, top + height) × [left, left + width)`` from sample
+    ``partner[b]`` of the same batch, in every frame and polarity. Counts are moved, not
+    interpolated: the dtype is kept. Mix the labels with :func:`mix_labels` and the weight
+    ``1 - height·width / (H·W)`` (the share of the sample's own pixels).
+
+    Args:
+        frames: a batch ``(B, T, 2, H, W)`` (or one sequence, its own partner).
+        partner: ``(B,)`` sample indices in ``[0, B)``.
+        top, left, height, width: the box per sample, as in :func:`cutout`.
+
+    Example:
+        >>> frames = torch.stack([torch.zeros(1, 2, 2, 3), torch.ones(1, 2, 2, 3)])
+        >>> cutmix(frames, [1, 0], 0, 1, 2, 1)[0, 0, 0].tolist()
+        [[0.0, 1.0, 0.0], [0.0, 1.0, 0.0]]
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    partner_t = _check_partner(partner, batch.shape[0])
+    return unbatch(_cutmix(batch, partner_t, *_check_box(batch, top, left, height, width)))
+
+
+def _cutmix(batch: Tensor, partner: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
+    mask = _box_mask(top, left, height, width, batch.shape[-2:], batch.device)
+    return torch.where(mask, batch.index_select(0, partner.to(batch.device, non_blocking=True)), batch)
+
+
+def mixup(frames: Tensor, partner: Scalars, weight: Scalars) -> Tensor:
+    """Blend each sample with its partner: ``w · x_b + (1 - w) · x_partner[b]`` (Zhang et al.'s MixUp).
+
+    Args:
+        frames: a batch ``(B, T, 2, H, W)`` (or one sequence, its own partner).
+        partner: ``(B,)`` sample indices in ``[0, B)``.
+        weight: the sample's own share ``w`` in [0, 1], a number or ``(B,)``.
+
+    Returns:
+        Blended frames: the input dtype for float input, float32 for integer input.
+
+    Example:
+        >>> frames = torch.stack([torch.zeros(1, 2, 1, 1), torch.ones(1, 2, 1, 1)]).to(torch.int32)
+        >>> mixup(frames, [1, 0], [0.75, 0.5]).flatten().tolist()
+        [0.25, 0.25, 0.5, 0.5]
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    partner_t = _check_partner(partner, batch.shape[0])
+    weight_t = _check_weight(weight, batch.shape[0])
+    return unbatch(_mixup(batch, partner_t, weight_t))
+
+
+def _check_weight(weight: object, batch: int) -> Tensor:
+    weight_t = per_sample(weight, batch, "weight")
+    if weight_t.numel() and not bool(((weight_t >= 0) & (weight_t <= 1)).all()):
+        raise ValueError(f"weight must lie in [0, 1], got {describe(weight)}")
+    return weight_t
+
+
+def _mixup(batch: Tensor, partner: Tensor, weight: Tensor) -> Tensor:
+    out_dtype = batch.dtype if batch.dtype.is_floating_point else torch.float32
+    work = torch.float64 if batch.dtype == torch.float64 else torch.float32
+    w = weight.to(batch.device, work, non_blocking=True).view(-1, 1, 1, 1, 1)
+    own = batch.to(work)
+    other = own.index_select(0, partner.to(batch.device, non_blocking=True))
+    return (other + w * (own - other)).to(out_dtype)
+
+
+def mix_labels(labels: Tensor, partner: Scalars, weight: Scalars, *, num_classes: int | None = None) -> Tensor:
+    """Mix targets as their frames were mixed: ``w · y_b + (1 - w) · y_partner[b]``.
+
+    - Float targets of any shape ``(B, ...)`` are mixed as they are: regression targets
+      such as force per frame ``(B, T)``, or soft/one-hot class targets ``(B, C)``. The
+      dtype is kept.
+    - Integer class indices ``(B,)`` need ``num_classes``: they become one-hot and then
+      soft targets ``(B, num_classes)`` in float32 (what ``cross_entropy`` accepts).
+
+    Args:
+        labels: ``(B, ...)`` float targets or ``(B,)`` integer class indices.
+        partner: ``(B,)`` sample indices, as given to the frames' kernel.
+        weight: the sample's own share, a number or ``(B,)``.
+        num_classes: number of classes, for integer labels.
+
+    Example:
+        >>> mix_labels(torch.tensor([0, 2]), [1, 0], [0.75, 1.0], num_classes=3).tolist()
+        [[0.75, 0.0, 0.25], [0.0, 0.0, 1.0]]
+        >>> mix_labels(torch.tensor([[10.0, 20.0], [0.0, 0.0]]), [1, 0], 0.5).tolist()
+        [[5.0, 10.0], [5.0, 10.0]]
+    """
+    if not isinstance(labels, Tensor):
+        raise TypeError(f"labels must be a tensor of targets, got {type(labels).__name__}")
+    if labels.dim() == 0:
+        raise ValueError(f"labels must have a batch axis (B, ...), got {describe(labels)}")
+    b = labels.shape[0]
+    return _mix_labels(labels, _check_partner(partner, b), _check_weight(weight, b), _check_classes(labels, num_classes))
+
+
+def _check_classes(labels: Tensor, num_classes: int | None) -> int | None:
+    if num_classes is not None:
+        num_classes = as_number(num_classes, "num_classes", integer=True, low=1)
+    if labels.dtype == torch.bool or labels.is_complex():
+        raise TypeError(f"labels must be float targets or integer class indices, got dtype {labels.dtype}")
+    if not labels.is_floating_point():
+        if num_classes is None:
+            raise TypeError(
+                f"labels of dtype {labels.dtype} are class indices: give num_classes to mix them as "
+                "soft targets (or pass float targets)"
+            )
+        if labels.dim() != 1:
+            raise ValueError(f"class indices must have shape (B,), got {tuple(labels.shape)}")
+        if labels.numel() and bool(((labels < 0) | (labels >= num_classes)).any()):
+            raise ValueError(f"class indices must lie in [0, {num_classes}), got {describe(labels)}")
+    return num_classes
+
+
+def _mix_labels(labels: Tensor, partner: Tensor, weight: Tensor, num_classes: int | None) -> Tensor:
+    if not labels.is_floating_point():
+        labels = torch.nn.functional.one_hot(labels.long(), num_classes).to(torch.float32)
+    work = torch.float64 if labels.dtype == torch.float64 else torch.float32
+    w = weight.to(labels.device, work, non_blocking=True).view(-1, *([1] * (labels.dim() - 1)))
+    own = labels.to(work)
+    other = own.index_select(0, partner.to(labels.device, non_blocking=True))
+    return (other + w * (own - other)).to(labels.dtype)

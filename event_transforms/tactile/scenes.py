@@ -1,0 +1,310 @@
+"""Benchmark scenes: a training session, a deployment session, and the gaps between them.
+
+An augmentation earns its place only where the data a model meets in deployment differ
+from its training data in the effect the augmentation simulates. So every experiment's
+nuisance factors (bolt size, grasp timing and shape, the delay and lag between force and
+events, contact orientation, background activity, sensor thresholds) are drawn from the
+distributions of a :class:`Session` — one setup on one day — and a
+:class:`BenchmarkScene` pairs a training session with a deployment session. The *factors*
+whose settings differ between the two are the scene's *gaps*; each gap has *matched*
+augmentations, the ones that simulate it:
+
+==========================  ============================  ================================
+scene                       gap (train → deploy)          matched augmentations
+==========================  ============================  ================================
+``paper``                   size: 12 + 18 mm → 15 mm      ``resize``, ``resize-hertz``
+``size-extrapolation``      size: 12 + 15 mm → 18 mm      ``resize``, ``resize-hertz``
+``timing``                  delay: 0–4 ms → 16–24 ms      ``fs2``, ``tes2:0.5``
+``orientation``             angle: ±10° → ±(30–50)°       ``rot50``
+``noise``                   background 3×, hot pixels 10× ``noise``
+``control``                 none                          (none: every method is a control)
+==========================  ============================  ================================
+
+The timing gap is a transport delay (the membrane sees the force ``delay`` ms after the
+force sensor reads it): events arrive about two frames later in deployment, which
+``FrameShift(2)`` (events of frame t moved to t + 2) simulates. The noise method adds
+frames of a static scene recorded with the deployment camera (a recording anyone can make
+without a force sensor). ``resize`` uses the paper's β = D_target / D_source;
+``resize-hertz`` the physically matched β = (D_target / D_source)^½, since the Hertz contact
+strip grows as √D.
+
+Every session shares :data:`BASE_SESSION`'s force model: continuous hold forces over
+1–24 N, grasp start and release end jittered over 60 ms, ramps of ±50 % length, a linear
+drift of up to ±25 % over the hold and a vibration; so the force must be read from the
+events, not guessed from a setting.
+
+Results on these scenes are results on synthetic data, never the paper's.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "FACTORS",
+    "Session",
+    "BenchmarkScene",
+    "BASE_SESSION",
+    "SCENES",
+    "get_scene",
+]
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from torch import Tensor
+
+from .simulation import Grasp, SimulatorConfig, draw_grasp
+
+#: Which settings belong to which nuisance factor. A scene's gaps are the factors whose
+#: settings differ between its training and deployment sessions.
+FACTORS: dict[str, tuple[str, ...]] = {
+    "size": ("diameters_mm",),
+    "timing": ("delay_ms", "lag", "lag_ms"),
+    "orientation": ("orientation", "angle_deg", "angle_symmetric"),
+    "noise": ("shot_noise", "shot_noise_hz", "noise_on_fraction", "hot_pixels", "hot_pixel_fraction", "hot_pixel_hz"),
+    "sensor": ("threshold", "threshold_mismatch", "refractory_us", "sensor_seed"),
+    "force": (
+        "gripper_force_n", "force_variation", "hold_force_n", "max_force_n", "grasp_ms", "release_ms",
+        "ramp_variation", "timing_jitter_ms", "hold_drift", "vibration", "vibration_fraction", "vibration_hz",
+    ),
+    "center": ("center_jitter_px",),
+    "contact": (
+        "contact", "width_exponent", "reference_half_width_px", "reference_force_n",
+        "reference_diameter_mm", "strip_half_length_px", "edge_px", "contrast",
+    ),
+    "recording": ("sensor_size", "n_frames", "frame_ms", "substep_ms"),
+}
+
+_FIELD_FACTOR = {name: factor for factor, names in FACTORS.items() for name in names}
+_missing = {f.name for f in dataclasses.fields(SimulatorConfig)} - set(_FIELD_FACTOR)
+if _missing:  # pragma: no cover - a new simulator setting must be given a factor
+    raise RuntimeError(f"simulator settings without a factor: {sorted(_missing)}")
+
+
+@dataclass(frozen=True)
+class Session:
+    """The distributions an experiment's nuisance factors are drawn from.
+
+    Attributes:
+        diameters_mm: bolt sizes of the session; sequence ``k`` uses
+            ``diameters_mm[k % len(diameters_mm)]``, so every size is equally represented.
+        config: simulator settings: every other factor's distribution (force, timing,
+            delay and lag, orientation, background, sensor).
+
+    Example:
+        >>> session = BASE_SESSION.replace(diameters_mm=(15.0,), delay_ms=(16.0, 24.0))
+        >>> [g.diameter_mm for g in session.grasps(3, seed=0)]
+        [15.0, 15.0, 15.0]
+        >>> 16.0 <= session.grasps(1, seed=0)[0].delay_ms <= 24.0
+        True
+    """
+
+    diameters_mm: tuple[float, ...]
+    config: SimulatorConfig
+
+    def __post_init__(self) -> None:
+        sizes = tuple(float(d) for d in self.diameters_mm)
+        if not sizes or not all(d > 0 and math.isfinite(d) for d in sizes):
+            raise ValueError(f"diameters_mm must hold positive sizes, got {self.diameters_mm!r}")
+        if not isinstance(self.config, SimulatorConfig):
+            raise TypeError(f"config must be a SimulatorConfig, got {type(self.config).__name__}")
+        object.__setattr__(self, "diameters_mm", sizes)
+
+    def replace(self, **changes: Any) -> Session:
+        """A copy with ``diameters_mm`` and/or simulator settings changed."""
+        diameters = changes.pop("diameters_mm", self.diameters_mm)
+        return Session(diameters, self.config.replace(**changes) if changes else self.config)
+
+    def setting(self, name: str) -> Any:
+        """The value of one setting (``diameters_mm`` or a :class:`SimulatorConfig` field)."""
+        if name == "diameters_mm":
+            return self.diameters_mm
+        return getattr(self.config, name)
+
+    def diameter(self, index: int) -> float:
+        """The bolt size of sequence ``index``."""
+        return self.diameters_mm[index % len(self.diameters_mm)]
+
+    def grasps(self, n: int, *, seed: int = 0) -> list[Grasp]:
+        """``n`` experiments with seeds ``seed, seed + 1, ...``, sizes in turn."""
+        return [draw_grasp(self.diameter(k), seed=seed + k, config=self.config) for k in range(n)]
+
+
+#: The force model and nuisance ranges every benchmark session starts from.
+BASE_SESSION = Session(
+    (12.0, 18.0),
+    SimulatorConfig(
+        hold_force_n=(1.0, 24.0),
+        timing_jitter_ms=60.0,
+        ramp_variation=0.5,
+        hold_drift=0.25,
+        delay_ms=(0.0, 4.0),
+        lag_ms=(2.0, 8.0),
+        angle_deg=(-10.0, 10.0),
+    ),
+)
+
+
+@dataclass(frozen=True)
+class BenchmarkScene:
+    """A controlled experiment: train on one session, deploy on another.
+
+    Attributes:
+        name: the scene's name in tables and on the command line.
+        description: one line for people.
+        train: the training session.
+        deploy: the deployment session (validation and test data come from it).
+        matched_methods: augmentation methods (names of
+            :func:`event_transforms.tactile.protocol.parse_method`) that simulate the gaps.
+
+    Example:
+        >>> scene = get_scene("timing")
+        >>> scene.gaps
+        ('timing',)
+        >>> scene.gap_sizes()["timing"]["delay_ms"]
+        ((0.0, 4.0), (16.0, 24.0))
+        >>> get_scene("control").gaps
+        ()
+    """
+
+    name: str
+    description: str
+    train: Session
+    deploy: Session
+    matched_methods: tuple[str, ...] = ()
+
+    @classmethod
+    def from_gaps(
+        cls,
+        name: str,
+        description: str,
+        base: Session,
+        gaps: Mapping[str, Mapping[str, Any]],
+        matched_methods: tuple[str, ...] = (),
+        *,
+        train: Mapping[str, Any] | None = None,
+    ) -> BenchmarkScene:
+        """A scene from a gap specification: factor -> the deployment's settings.
+
+        ``train`` changes the training session too (before the gaps are applied to the
+        deployment). A setting named under the wrong factor is refused.
+        """
+        train_session = base.replace(**dict(train or {}))
+        changes: dict[str, Any] = {}
+        for factor, settings in gaps.items():
+            if factor not in FACTORS:
+                raise ValueError(f"gaps: unknown factor {factor!r}; expected one of {sorted(FACTORS)}")
+            for setting, value in settings.items():
+                if _FIELD_FACTOR.get(setting) != factor:
+                    raise ValueError(
+                        f"gaps: setting {setting!r} does not belong to factor {factor!r} "
+                        f"(it belongs to {_FIELD_FACTOR.get(setting)!r})"
+                    )
+                changes[setting] = value
+        return cls(name, description, train_session, train_session.replace(**changes), tuple(matched_methods))
+
+    @property
+    def gaps(self) -> tuple[str, ...]:
+        """The factors whose settings differ between training and deployment."""
+        return tuple(self.gap_sizes())
+
+    def gap_sizes(self) -> dict[str, dict[str, tuple[Any, Any]]]:
+        """factor -> setting -> (training value, deployment value), differing settings only."""
+        out: dict[str, dict[str, tuple[Any, Any]]] = {}
+        for factor, names in FACTORS.items():
+            for name in names:
+                before, after = self.train.setting(name), self.deploy.setting(name)
+                if before != after:
+                    out.setdefault(factor, {})[name] = (before, after)
+        return out
+
+    @property
+    def target_size(self) -> float | None:
+        """The deployment's bolt size when it differs from every training size."""
+        sizes = self.deploy.diameters_mm
+        if len(set(sizes)) == 1 and sizes[0] not in self.train.diameters_mm:
+            return sizes[0]
+        return None
+
+    @property
+    def lag_frames(self) -> int:
+        """The mean extra delay of the deployment's events, in whole frames (rounded)."""
+        mean = lambda session: (  # noqa: E731
+            sum(session.config.delay_ms) / 2 + (sum(session.config.lag_ms) / 2 if session.config.lag else 0.0)
+        )
+        return int(round((mean(self.deploy) - mean(self.train)) / self.train.config.frame_ms))
+
+    @property
+    def orientation_range_deg(self) -> float:
+        """The largest contact angle of the deployment, in degrees."""
+        config = self.deploy.config
+        return max(abs(config.angle_deg[0]), abs(config.angle_deg[1])) if config.orientation else 0.0
+
+    def library_scene(self, noise_bank: Tensor | None = None, *, size_exponent: float = 1.0):
+        """The :class:`event_transforms.Scene` declaring this scene's gaps.
+
+        Its :meth:`~event_transforms.Scene.policy` builds the matched augmentations:
+        size → resize to the deployment size, timing → frame shift by the extra delay,
+        orientation → rotation over the deployment's angles, noise → ``noise_bank``
+        (static-scene frames of the deployment camera). Gaps of other factors (force,
+        sensor) have no matched augmentation and build nothing.
+        """
+        from ..scenes import Scene
+
+        gaps = self.gaps
+        kwargs: dict[str, Any] = {}
+        if "size" in gaps and self.target_size is not None:
+            kwargs.update(
+                training_sizes=self.train.diameters_mm, target_size=self.target_size, size_exponent=size_exponent
+            )
+        if "timing" in gaps and self.lag_frames != 0:
+            kwargs["lag_shifts"] = (self.lag_frames,)
+        if "orientation" in gaps:
+            kwargs["orientation_deg"] = self.orientation_range_deg
+        if "noise" in gaps and noise_bank is not None:
+            kwargs["noise"] = noise_bank
+        return Scene(frame_ms=self.train.config.frame_ms, **kwargs)
+
+
+def _scenes() -> dict[str, BenchmarkScene]:
+    base = BASE_SESSION
+    scenes = [
+        BenchmarkScene.from_gaps(
+            "paper", "the paper's split: train on 12 and 18 mm bolts, deploy on the unseen 15 mm bolt",
+            base, {"size": {"diameters_mm": (15.0,)}}, ("resize", "resize-hertz"),
+        ),
+        BenchmarkScene.from_gaps(
+            "size-extrapolation", "train on 12 and 15 mm bolts, deploy on an 18 mm bolt (outside the range)",
+            base, {"size": {"diameters_mm": (18.0,)}}, ("resize", "resize-hertz"),
+            train={"diameters_mm": (12.0, 15.0)},
+        ),
+        BenchmarkScene.from_gaps(
+            "timing", "events reach the deployment camera 16-24 ms after the force (0-4 ms in training)",
+            base, {"timing": {"delay_ms": (16.0, 24.0)}}, ("fs2", "tes2:0.5"),
+        ),
+        BenchmarkScene.from_gaps(
+            "orientation", "contact angles of ±10° in training, ±(30-50)° in deployment",
+            base, {"orientation": {"angle_deg": (30.0, 50.0), "angle_symmetric": True}}, ("rot50",),
+        ),
+        BenchmarkScene.from_gaps(
+            "noise", "a deployment camera with 3x the background activity and 10x the hot pixels",
+            base, {"noise": {"shot_noise_hz": (0.3, 30.0), "hot_pixel_fraction": 1e-3}}, ("noise",),
+        ),
+        BenchmarkScene("control", "deployment drawn like training: no gap", base, base, ()),
+    ]
+    return {scene.name: scene for scene in scenes}
+
+
+#: The benchmark scenes by name, in table order.
+SCENES: dict[str, BenchmarkScene] = _scenes()
+
+
+def get_scene(scene: str | BenchmarkScene) -> BenchmarkScene:
+    """A scene by name (see :data:`SCENES`), or the scene itself."""
+    if isinstance(scene, BenchmarkScene):
+        return scene
+    if not isinstance(scene, str) or scene not in SCENES:
+        raise ValueError(f"scene must be one of {list(SCENES)} or a BenchmarkScene, got {scene!r}")
+    return SCENES[scene]

@@ -1,0 +1,115 @@
+"""Polarity and time: flip, time reversal, merged polarities, temporal crop, against slow
+references (Python loops over frames and channels)."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+import event_transforms as et
+from event_transforms import functional as F
+
+from .checkers import H, W, check_not_modified, sparse_frames
+
+
+def _g(seed=0):
+    return torch.Generator().manual_seed(seed)
+
+
+class TestFlipPolarity:
+    def test_against_reference(self):
+        frames = sparse_frames(2, 4, 2, H, W, density=0.3, dtype=torch.int16)
+        out = check_not_modified(F.flip_polarity, frames)
+        for n in range(2):
+            for t in range(4):
+                assert torch.equal(out[n, t, 0], frames[n, t, 1]) and torch.equal(out[n, t, 1], frames[n, t, 0])
+
+    def test_random_flips_the_drawn_samples(self):
+        frames = sparse_frames(8, 3, 2, H, W, density=0.3)
+        module = et.RandomFlipPolarity()
+        params = module.make_params(frames.shape, generator=_g(2))
+        out = module(frames, params=params)
+        for n in range(8):
+            assert torch.equal(out[n], frames[n].flip(1) if params["apply"][n] else frames[n])
+
+
+class TestTimeReversal:
+    def test_against_reference(self):
+        frames = sparse_frames(2, 5, 2, H, W, density=0.3, dtype=torch.uint8)
+        out = check_not_modified(F.time_reversal, frames)
+        for t in range(5):
+            for p in range(2):
+                assert torch.equal(out[:, t, p], frames[:, 4 - t, 1 - p])
+
+    def test_twice_is_identity(self):
+        frames = sparse_frames(5, 2, H, W, density=0.3)
+        assert torch.equal(et.TimeReversal()(et.TimeReversal()(frames)), frames)
+
+
+class TestMergePolarities:
+    @pytest.mark.parametrize("dtype", [torch.uint8, torch.int64, torch.bfloat16, torch.float64])
+    def test_against_reference(self, dtype):
+        frames = sparse_frames(2, 3, 2, H, W, density=0.3, dtype=dtype)
+        out = check_not_modified(et.MergePolarities(), frames)
+        assert out.shape == frames.shape and out.dtype == dtype
+        for n in range(2):
+            for t in range(3):
+                assert torch.equal(out[n, t, 0], frames[n, t, 0] + frames[n, t, 1])
+                assert not out[n, t, 1].any()
+        one = F.merge_polarities(frames, keepdim=False)
+        assert one.shape == (2, 3, 1, H, W) and torch.equal(one[:, :, 0], out[:, :, 0])
+
+    def test_equals_tonic_merge_then_to_frame(self):
+        pytest.importorskip("tonic")
+        import numpy as np
+        import tonic.transforms as T
+
+        rng = np.random.default_rng(0)
+        events = np.zeros(200, dtype=[("x", "<i8"), ("y", "<i8"), ("t", "<i8"), ("p", "<i8")])
+        events["x"], events["y"] = rng.integers(0, 9, 200), rng.integers(0, 7, 200)
+        events["t"], events["p"] = np.sort(rng.integers(0, 30_000, 200)), rng.integers(0, 2, 200)
+        to_frame = T.ToFrame(sensor_size=(9, 7, 2), time_window=10_000)
+        merged = to_frame(T.MergePolarities()(events.copy()))
+        ours = F.merge_polarities(torch.from_numpy(to_frame(events.copy()).astype(np.int64)))
+        assert np.array_equal(ours.numpy(), merged)
+
+    def test_overflow_raises(self):
+        frames = torch.full((1, 2, 1, 1), 200, dtype=torch.uint8)
+        with pytest.raises(ValueError, match="wider dtype"):
+            F.merge_polarities(frames)
+        with pytest.raises(TypeError, match="keepdim"):
+            F.merge_polarities(frames, keepdim=1)
+
+
+class TestCropTime:
+    def test_against_reference(self):
+        frames = sparse_frames(3, 8, 2, H, W, density=0.3, dtype=torch.int32)
+        start = [0, 2, 5]
+        out = F.crop_time(frames, torch.tensor(start), 3)
+        assert out.shape == (3, 3, 2, H, W)
+        for n in range(3):
+            for i in range(3):
+                assert torch.equal(out[n, i], frames[n, start[n] + i])
+
+    def test_random_window_and_labels(self):
+        frames = sparse_frames(4, 10, 2, H, W, density=0.3)
+        force = torch.arange(40.0).view(4, 10)
+        module = et.RandomCropTime(6)
+        params = module.make_params(frames.shape, generator=_g(1))
+        out = module(frames, params=params)
+        assert out.shape == (4, 6, 2, H, W) and module.output_shape(frames.shape) == out.shape
+        cut = force.gather(1, params["start"].view(-1, 1) + torch.arange(6))  # the documented recipe
+        for n in range(4):
+            s = int(params["start"][n])
+            assert torch.equal(out[n], frames[n, s : s + 6]) and torch.equal(cut[n], force[n, s : s + 6])
+        assert set(module.make_params((300, 10, 2, 1, 1), generator=_g())["start"].tolist()) == set(range(5))
+
+    def test_named_errors(self):
+        with pytest.raises(ValueError, match="length"):
+            F.crop_time(torch.zeros(4, 2, 1, 1), 0, 5)
+        with pytest.raises(ValueError, match="start"):
+            F.crop_time(torch.zeros(4, 2, 1, 1), 2, 3)
+        with pytest.raises(ValueError, match="exceeds"):
+            et.CropTime(2, 3)(torch.zeros(4, 2, 1, 1))
+        with pytest.raises(ValueError, match="length"):
+            et.RandomCropTime(5)(torch.zeros(4, 2, 1, 1))

@@ -1,0 +1,138 @@
+"""Benchmark scenes: each declared gap exists in the simulator's output with its configured size.
+
+Measured from simulated events (background noise switched off where it would only blur the
+measurement), not from the settings.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from event_transforms.tactile.scenes import BASE_SESSION, FACTORS, SCENES, BenchmarkScene, Session, get_scene
+from event_transforms.tactile.simulation import simulate_grasps, simulate_static
+
+QUIET = {"shot_noise": False, "hot_pixels": False}
+
+
+def _recordings(session: Session, n: int, seed: int = 0, **changes):
+    session = session.replace(**changes)
+    return simulate_grasps(session.grasps(n, seed=seed), session.config)
+
+
+class TestDeclarations:
+    def test_gaps_of_every_scene(self):
+        expected = {
+            "paper": ("size",), "size-extrapolation": ("size",), "timing": ("timing",),
+            "orientation": ("orientation",), "noise": ("noise",), "control": (),
+        }
+        assert {name: scene.gaps for name, scene in SCENES.items()} == expected
+        for scene in SCENES.values():
+            assert all(m for m in scene.matched_methods)
+            assert bool(scene.gaps) == bool(scene.matched_methods)
+
+    def test_gap_specification_is_checked(self):
+        with pytest.raises(ValueError, match="factor"):
+            BenchmarkScene.from_gaps("x", "", BASE_SESSION, {"weather": {"delay_ms": (1.0, 2.0)}})
+        with pytest.raises(ValueError, match="belong"):
+            BenchmarkScene.from_gaps("x", "", BASE_SESSION, {"noise": {"delay_ms": (1.0, 2.0)}})
+        with pytest.raises(ValueError, match="scene"):
+            get_scene("nowhere")
+        with pytest.raises(ValueError, match="diameters"):
+            Session((), BASE_SESSION.config)
+        assert sum(len(v) for v in FACTORS.values()) == len(set().union(*FACTORS.values()))
+
+    def test_library_policies_build_the_matched_transforms(self):
+        import event_transforms as et
+
+        def kinds(name, bank=None):
+            return [type(t) for t in get_scene(name).library_scene(bank).policy().transforms]
+
+        assert kinds("paper") == [et.ResizeToTarget]
+        assert kinds("timing") == [et.RandomFrameShift]
+        assert kinds("orientation") == [et.RandomRotation]
+        assert kinds("noise", torch.zeros(4, 2, 70, 75)) == [et.AddNoise]
+        assert get_scene("control").library_scene().effects == ()
+        assert get_scene("timing").lag_frames == 2 and get_scene("orientation").orientation_range_deg == 50.0
+
+
+class TestMeasuredGaps:
+    def test_timing_gap(self):
+        """Events start later in deployment by the drawn difference of delays (±0.5 ms)."""
+        scene = get_scene("timing")
+        train = _recordings(scene.train, 4, **QUIET)
+        deploy = _recordings(scene.deploy, 4, **QUIET)
+        for a, b in zip(train, deploy):
+            onset = (b.events["t"][0] - a.events["t"][0]) / 1000.0
+            assert onset == pytest.approx(b.grasp.delay_ms - a.grasp.delay_ms, abs=1.0)
+            assert 12.0 <= onset <= 24.0
+            assert np.array_equal(a.force, b.force)  # the label is not delayed
+
+    def test_size_gap(self):
+        """Contact events grow as the Hertz strip width, √D: 18 mm / 12 mm ≈ √1.5."""
+        scene = get_scene("size-extrapolation")
+        small = _recordings(scene.train.replace(diameters_mm=(12.0,)), 6, **QUIET)
+        large = _recordings(scene.deploy, 6, **QUIET)
+        ratio = sum(len(r.events) for r in large) / sum(len(r.events) for r in small)
+        assert ratio == pytest.approx(math.sqrt(1.5), rel=0.06)
+        assert {r.grasp.diameter_mm for r in large} == {18.0}
+
+    def test_orientation_gap(self):
+        """The strip's axis, measured from the events, lies within ±10° in training and
+        30–50° away from horizontal in deployment."""
+        scene = get_scene("orientation")
+
+        def axis_deg(recording):
+            e = recording.events
+            x, y = e["x"].astype(float), e["y"].astype(float)
+            cov = np.cov(np.stack([x - x.mean(), -(y - y.mean())]))
+            vals, vecs = np.linalg.eigh(cov)
+            major = vecs[:, np.argmax(vals)]
+            return math.degrees(math.atan2(major[1], major[0]))
+
+        for recording in _recordings(scene.train, 6, **QUIET):
+            measured = (axis_deg(recording) + 90) % 180 - 90
+            assert abs(measured - recording.grasp.angle_deg) < 3.0 and abs(measured) <= 13.0
+        signs = set()
+        for recording in _recordings(scene.deploy, 6, **QUIET):
+            measured = (axis_deg(recording) + 90) % 180 - 90
+            assert abs(measured - recording.grasp.angle_deg) < 3.0 and 27.0 <= abs(measured) <= 53.0
+            signs.add(measured > 0)
+        assert signs == {True, False}
+
+    def test_noise_gap(self):
+        """The deployment camera's static background is about 3× the training camera's, with
+        10× the hot pixels."""
+        scene = get_scene("noise")
+        rates = []
+        for session in (scene.train, scene.deploy):
+            events = simulate_static(2000.0, seed=0, config=session.config.replace(hot_pixels=False))
+            rates.append(len(events) / (180 * 240 * 2.0))
+        assert rates[1] / rates[0] == pytest.approx(3.0, rel=0.1)
+        hot = []
+        for session in (scene.train, scene.deploy):
+            events = simulate_static(500.0, seed=0, config=session.config.replace(shot_noise=False))
+            pixels, counts = np.unique(events["y"].astype(int) * 240 + events["x"], return_counts=True)
+            hot.append(int((counts >= 10).sum()))
+        assert hot[1] / max(hot[0], 1) == pytest.approx(10.0, rel=0.35)
+
+    def test_control_deployment_is_drawn_like_training(self):
+        scene = get_scene("control")
+        assert scene.train == scene.deploy and scene.gaps == ()
+        # independent draws of one session: event totals and forces agree within their spread
+        a = _recordings(scene.train, 12, seed=0)
+        b = _recordings(scene.deploy, 12, seed=500)
+        for stat in (lambda r: len(r.events), lambda r: float(r.force.max())):
+            x, y = np.array([stat(r) for r in a]), np.array([stat(r) for r in b])
+            spread = math.sqrt(x.var(ddof=1) / len(x) + y.var(ddof=1) / len(y))
+            assert abs(x.mean() - y.mean()) < 3 * spread
+
+    def test_force_is_continuous_and_varied(self):
+        grasps = BASE_SESSION.grasps(40, seed=0)
+        holds = np.array([g.hold_force_n for g in grasps])
+        assert holds.min() < 4 and holds.max() > 20 and len(np.unique(holds.round(1))) > 30
+        assert np.ptp([g.grasp_ms for g in grasps]) > 30 and np.ptp([g.grasp_start_ms for g in grasps]) > 30
+        assert np.ptp([g.hold_drift for g in grasps]) > 0.3
