@@ -1,7 +1,7 @@
 """Accuracy against cost: each protocol method's MSE next to its time, and TES's three modes.
 
 Part 1 reads a protocol ``results.json`` (written by ``event-transforms reproduce``) and
-places every method by its best validation MSE (mean ± std over seeds) against its total
+places every method of one scene (``paper`` by default) by its test MSE (mean ± sd over seeds) against its total
 time cost (training + augmentation, mean over seeds, seconds); the methods on the Pareto
 front (no other method is both more accurate and cheaper) are marked. With matplotlib
 installed, the same is drawn to a PNG.
@@ -47,31 +47,40 @@ __all__ = ["load_methods", "pareto_front", "method_table", "plot", "tes_modes", 
 MODES = ("exact", "binomial", "expected")
 
 
-def load_methods(path: str | Path) -> list[dict[str, Any]]:
-    """One row per method of a protocol ``results.json``: name, MSEs (mean, std) and costs."""
+def load_methods(path: str | Path, scene: str | None = None) -> list[dict[str, Any]]:
+    """One row per method of one scene of a protocol ``results.json``: test MSE (mean, sd) and costs.
+
+    ``scene`` defaults to ``paper`` when present, else the first scene.
+    """
     data = json.loads(Path(path).read_text())
-    if "methods" not in data:
-        raise ValueError(f"{path}: not a protocol results.json (no 'methods' key); keys: {sorted(data)}")
+    if "scenes" not in data or not data["scenes"]:
+        raise ValueError(f"{path}: not a protocol results.json (no 'scenes' key); keys: {sorted(data)}")
+    name = scene or ("paper" if "paper" in data["scenes"] else next(iter(data["scenes"])))
+    if name not in data["scenes"]:
+        raise ValueError(f"scene {name!r} is not in {path}; it holds {sorted(data['scenes'])}")
     rows = []
-    for name, s in data["methods"].items():
+    for method, s in data["scenes"][name]["methods"].items():
+        values = s["test_mse"]
+        mean = sum(values) / len(values)
+        std = (sum((v - mean) ** 2 for v in values) / (len(values) - 1)) ** 0.5 if len(values) > 1 else 0.0
+        val = s["val_mse"]
         rows.append(
             {
-                "method": name,
+                "method": method,
                 "copies": s.get("copies"),
-                "val_mean": s["best_val_mse"]["mean"],
-                "val_std": s["best_val_mse"]["std"],
-                "test_mean": s["test_mse"]["mean"],
-                "test_std": s["test_mse"]["std"],
-                "time_s": s["train_s_total"]["mean"],
-                "aug_once_s": s["augmentation_setup_s"]["mean"],
-                "aug_epoch_s": s["augmentation_s_per_epoch"]["mean"],
+                "val_mean": sum(val) / len(val),
+                "test_mean": mean,
+                "test_std": std,
+                "time_s": s["train_s"] + s["aug_s_once"],
+                "aug_once_s": s["aug_s_once"],
+                "aug_epoch_s": s["aug_s_per_epoch"],
                 "seeds": len(s.get("seeds", [])),
             }
         )
     return rows
 
 
-def pareto_front(rows: Sequence[dict[str, Any]], x: str = "time_s", y: str = "val_mean") -> set[str]:
+def pareto_front(rows: Sequence[dict[str, Any]], x: str = "time_s", y: str = "test_mean") -> set[str]:
     """Names of the rows not dominated (another row ≤ in both and < in one) on (x, y), both minimised."""
     front = set()
     for r in rows:
@@ -89,7 +98,7 @@ def method_table(rows: Sequence[dict[str, Any]]) -> str:
         [
             r["method"],
             str(r["copies"]),
-            f"{r['val_mean']:.2f} ± {r['val_std']:.2f}",
+            f"{r['test_mean']:.2f} ± {r['test_std']:.2f}",
             f"{r['test_mean']:.2f} ± {r['test_std']:.2f}",
             f"{r['time_s']:.1f}",
             f"{1000 * r['aug_once_s']:.0f}",
@@ -117,11 +126,11 @@ def plot(rows: Sequence[dict[str, Any]], path: str | Path) -> Path | None:
     fig, ax = plt.subplots(figsize=(6.5, 4.5), dpi=120)
     for r in rows:
         on = r["method"] in front
-        ax.errorbar(r["time_s"], r["val_mean"], yerr=r["val_std"], fmt="o", capsize=3,
+        ax.errorbar(r["time_s"], r["test_mean"], yerr=r["test_std"], fmt="o", capsize=3,
                     color="tab:red" if on else "tab:gray")
-        ax.annotate(r["method"], (r["time_s"], r["val_mean"]), textcoords="offset points", xytext=(5, 4), fontsize=8)
+        ax.annotate(r["method"], (r["time_s"], r["test_mean"]), textcoords="offset points", xytext=(5, 4), fontsize=8)
     line = sorted((r for r in rows if r["method"] in front), key=lambda r: r["time_s"])
-    ax.step([r["time_s"] for r in line], [r["val_mean"] for r in line], where="post", color="tab:red",
+    ax.step([r["time_s"] for r in line], [r["test_mean"] for r in line], where="post", color="tab:red",
             linewidth=1, label="Pareto front")
     times = [r["time_s"] for r in rows if r["time_s"] > 0]
     if times and max(times) > 10 * min(times):
@@ -131,7 +140,7 @@ def plot(rows: Sequence[dict[str, Any]], path: str | Path) -> Path | None:
         ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
         ax.xaxis.set_minor_formatter(FormatStrFormatter("%g"))
     ax.set_xlabel("total time per training run (s)")
-    ax.set_ylabel("best validation MSE (N²), mean ± std over seeds")
+    ax.set_ylabel("test MSE (N²), mean ± sd over seeds")
     ax.set_title("Augmentation methods: accuracy against cost (synthetic data)")
     ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
@@ -189,7 +198,7 @@ def tes_table(modes: dict[str, Any], rows: Sequence[dict[str, Any]] | None) -> s
     for r in rows or []:
         for mode in MODES:
             if r["method"].startswith("tes") and (mode in r["method"] or (mode == "exact" and not any(m in r["method"] for m in MODES[1:]))):
-                mse.setdefault(mode, []).append(f"{r['method']}: {r['val_mean']:.2f} ± {r['val_std']:.2f}")
+                mse.setdefault(mode, []).append(f"{r['method']}: {r['test_mean']:.2f} ± {r['test_std']:.2f}")
     body = []
     for mode in MODES:
         m = modes[mode]
@@ -226,7 +235,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     if rows is not None:
         parts.append(
             f"From `{args.results_json}` ({rows[0]['seeds'] if rows else 0} seeds; synthetic data, not the paper's). "
-            "MSE is the best validation MSE; total time is training plus augmentation per run; "
+            "MSE is the test MSE of the final weights; total time is training plus augmentation per run; "
             "'Pareto' marks methods no other method beats on both."
         )
         parts.append(method_table(rows))

@@ -9,7 +9,8 @@ per-member gradient clipping at 1.0, Adam) of
   convolution), one Adam, ``clip_grad_norm_per_member_``,
 
 is timed on the same batch (8 sequences per member of 36 frames of 70×75, sparse counts),
-interleaved in rounds so drift on a shared machine stays out of the ratio.
+interleaved in rounds so drift on a shared machine stays out of the ratio; ratios are given in
+wall time and in this thread's CPU time.
 Ratio < 1 means the ensemble is faster.
 
 Run: ``python benchmarks/ensemble.py --threads 1`` (``--quick`` for a smoke run).
@@ -17,6 +18,8 @@ Run: ``python benchmarks/ensemble.py --threads 1`` (``--quick`` for a smoke run)
 
 from __future__ import annotations
 
+import statistics
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -26,12 +29,12 @@ import torch.nn.functional as F
 if __package__:
     from ._common import (
         apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table, publish,
-        synthetic_frames, time_interleaved,
+        synthetic_frames,
     )
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
         apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table, publish,
-        synthetic_frames, time_interleaved,
+        synthetic_frames,
     )
 
 from event_transforms.tactile.ensemble import EnsembleForceRegressor, clip_grad_norm_per_member_
@@ -70,6 +73,36 @@ def ensemble_step(model: EnsembleForceRegressor, frames: torch.Tensor, force: to
     return step
 
 
+def _time_rounds(
+    cases: dict[str, Callable[[], None]], *, rounds: int, min_run_time: float, device: str
+) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
+    """Per round and case, the mean wall and thread-CPU seconds per call, cases interleaved.
+
+    On a shared CPU, other processes stretch wall time but not this thread's CPU time
+    (``time.thread_time``), so the CPU-time ratio is the steadier one there; on a GPU only
+    wall time means anything (the device is synchronised around each block of calls).
+    """
+    sync = torch.cuda.synchronize if device.startswith("cuda") else (lambda: None)
+    for fn in cases.values():  # warm up (allocator, lazy initialisation, Adam state)
+        fn()
+        fn()
+    sync()
+    wall: dict[str, list[float]] = {name: [] for name in cases}
+    cpu: dict[str, list[float]] = {name: [] for name in cases}
+    for _ in range(rounds):
+        for name, fn in cases.items():
+            calls, start_wall, start_cpu = 0, time.perf_counter(), time.thread_time()
+            while True:
+                fn()
+                calls += 1
+                sync()
+                if time.perf_counter() - start_wall >= min_run_time:
+                    break
+            wall[name].append((time.perf_counter() - start_wall) / calls)
+            cpu[name].append((time.thread_time() - start_cpu) / calls)
+    return wall, cpu
+
+
 def run(
     *,
     pools: Sequence[int] = (5, 10),
@@ -79,45 +112,49 @@ def run(
     steps: int = 36,
     size: tuple[int, int] = (70, 75),
     rounds: int = 3,
-    min_run_time: float = 0.2,
+    min_run_time: float = 0.5,
+    device: str = "cpu",
 ) -> list[dict[str, Any]]:
     rows = []
     for pool in pools:
         for count in members:
-            frames = synthetic_frames((count, batch, steps, 2, *size), seed=count)
-            force = torch.rand(count, batch, steps, generator=torch.Generator().manual_seed(1)) * 20
+            frames = synthetic_frames((count, batch, steps, 2, *size), seed=count).to(device)
+            force = (torch.rand(count, batch, steps, generator=torch.Generator().manual_seed(1)) * 20).to(device)
             models = []
             for seed in range(count):
                 torch.manual_seed(seed)
-                models.append(ForceRegressor(hidden_channels=hidden_channels, input_pool=pool))
+                models.append(ForceRegressor(hidden_channels=hidden_channels, input_pool=pool).to(device))
             ensemble = EnsembleForceRegressor.from_models(models)
-            timings, ratios = time_interleaved(
-                {"loop": loop_step(models, frames, force), "ensemble": ensemble_step(ensemble, frames, force)},
-                baseline="loop", rounds=rounds, min_run_time=min_run_time, progress=False,
-            )
-            rows.append({
-                "input_pool": pool, "members": count,
-                "loop_s": timings["loop"].median, "ensemble_s": timings["ensemble"].median,
-                "ratio": ratios["ensemble"],
-            })
-            print(f"  pool {pool}, M={count}: ratio {ratios['ensemble']:.2f}", flush=True)
+            cases = {"loop": loop_step(models, frames, force), "ensemble": ensemble_step(ensemble, frames, force)}
+            wall, cpu = _time_rounds(cases, rounds=rounds, min_run_time=min_run_time, device=device)
+            row = {"input_pool": pool, "members": count}
+            for name, table in (("wall", wall), ("cpu", cpu)):
+                row[f"loop_{name}_s"] = statistics.median(table["loop"])
+                row[f"ensemble_{name}_s"] = statistics.median(table["ensemble"])
+                row[f"{name}_ratio"] = statistics.median(e / l for e, l in zip(table["ensemble"], table["loop"]))
+            rows.append(row)
+            print(f"  pool {pool}, M={count}: wall ratio {row['wall_ratio']:.2f}, "
+                  f"CPU-time ratio {row['cpu_ratio']:.2f}", flush=True)
     return rows
 
 
 def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
     parser = base_parser(__doc__.splitlines()[0], "ensemble")
+    parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (default: %(default)s)")
+    parser.add_argument("--device", default="cpu", help="torch device (default: %(default)s)")
     args = parser.parse_args(argv)
     apply_threads(args.threads)
     if args.quick:
+        args.rounds = 1
         rows = run(pools=(2,), members=(1, 2), hidden_channels=(2,), batch=2, steps=4, size=(12, 10),
-                   rounds=1, min_run_time=0.01)
+                   rounds=1, min_run_time=0.01, device=args.device)
     else:
-        rows = run()
+        rows = run(rounds=args.rounds, device=args.device)
     table = markdown_table(
-        ["input_pool", "members M", "loop of M models / step", "ensemble / step", "ensemble per member",
-         "ensemble / loop"],
-        [[r["input_pool"], r["members"], fmt_ms(r["loop_s"]), fmt_ms(r["ensemble_s"]),
-          fmt_ms(r["ensemble_s"] / r["members"]), fmt_ratio(r["ratio"])] for r in rows],
+        ["input_pool", "members M", "loop of M models / step", "ensemble / step", "ensemble / loop (wall)",
+         "ensemble / loop (CPU time)"],
+        [[r["input_pool"], r["members"], fmt_ms(r["loop_wall_s"]), fmt_ms(r["ensemble_wall_s"]),
+          fmt_ratio(r["wall_ratio"]), fmt_ratio(r["cpu_ratio"])] for r in rows],
     )
     body = "\n".join([
         "## Ensemble training step: grouped convolutions vs a loop of models",
@@ -126,8 +163,11 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
         "",
         "One optimiser step (forward, MSE, backward, gradient clipping per member, Adam) of "
         "`ForceRegressor(hidden_channels=(8,))` at batch 8 per member, T = 36, 70×75 frames: M separate "
-        "models stepped in a Python loop against one `EnsembleForceRegressor(M)`; median of interleaved "
-        f"rounds, ratio = ensemble / loop measured in the same round. Command: `{command('ensemble.py', argv)}`.",
+        f"models stepped in a Python loop against one `EnsembleForceRegressor(M)` on {args.device}. "
+        f"Cases interleaved in {args.rounds} rounds; times are medians over rounds of wall time per step; "
+        "ratios are medians over rounds of ensemble / loop measured in the same round, in wall time and in "
+        "this thread's CPU time (steadier on a shared CPU, where other processes stretch wall time). "
+        f"Ratio < 1: the ensemble is faster. Command: `{command('ensemble.py', argv)}`.",
         "",
         table,
     ])

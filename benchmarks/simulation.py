@@ -2,14 +2,16 @@
 
 Times, in one run:
 
-* generating the full 60-sequence ``TactileGrasps`` set into an empty cache (simulation,
-  events to frames, atomic save), against simulating the same 60 grasps one call at a
-  time (the baseline: no vectorisation across grasps);
-* opening the cached set and reading all 60 items;
-* ``events_to_frames`` on the 60 recordings' events, against ``numpy.add.at``.
+* generating every benchmark scene (48 train + 24 val + 96 test sequences, simulation,
+  events to frames, atomic save) into an empty cache, scene by scene;
+* simulating the paper scene's 48 training grasps in one call, against one call per grasp
+  (the baseline: no vectorisation across grasps);
+* opening the cached paper scene and reading all of its items;
+* ``events_to_frames`` on the 48 recordings' events, against ``numpy.add.at``.
 
-Writes one PNG of a grasp per bolt size (12, 15, 18 mm) and replaces the
-``simulation`` section of ``benchmarks/RESULTS.md``.
+Writes one PNG of a grasp per bolt size (12, 15, 18 mm) and one per scene (training grasps
+above deployment grasps, ``scene_<name>.png``) and replaces the ``simulation`` section of
+``benchmarks/RESULTS.md``.
 
     python benchmarks/simulation.py [--quick] [--out DIR] [--no-write]
 """
@@ -34,13 +36,12 @@ else:  # run as a script: python benchmarks/simulation.py
         markdown_table, time_repeated, publish,
     )
 
-from event_transforms.tactile.datasets import SPLITS, TactileGrasps
-from event_transforms.tactile.simulation import (
-    SimulatorConfig,
-    draw_grasp,
-    simulate_grasp,
-    simulate_grasps,
-)
+import time
+
+from event_transforms.tactile import cli
+from event_transforms.tactile.datasets import SPLIT_SIZES, TactileGrasps
+from event_transforms.tactile.scenes import SCENES, get_scene
+from event_transforms.tactile.simulation import simulate_grasp, simulate_grasps
 from event_transforms.viz import save_event_grid
 
 
@@ -69,33 +70,33 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     apply_threads(args.threads)
     repeats = 1 if args.quick else 3
-    config = SimulatorConfig()
+    session = get_scene("paper").train
+    config = session.config
+    grasps = session.grasps(8 if args.quick else SPLIT_SIZES["train"], seed=0)
+    n = len(grasps)
 
-    def generate() -> TactileGrasps:
-        with tempfile.TemporaryDirectory() as root:
-            return TactileGrasps("train", root=root)
-
-    grasps = [
-        draw_grasp(d, gripper=i % 2, seed=i, config=config)
-        for i, d in enumerate(d for blocks in SPLITS.values() for d, n in blocks for _ in range(n))
-    ]
-    full = time_repeated(generate, repeats=repeats)
+    scene_seconds = {}
+    with tempfile.TemporaryDirectory() as root:
+        for name in (["control"] if args.quick else list(SCENES)):
+            tick = time.perf_counter()
+            sizes = [len(TactileGrasps(split, root=root, scene=name)) for split in ("train", "val", "test")]
+            scene_seconds[name] = (time.perf_counter() - tick, sizes)
     batched = time_repeated(lambda: simulate_grasps(grasps, config), repeats=repeats)
     one_by_one = time_repeated(
         lambda: [simulate_grasps([g], config) for g in grasps], repeats=1 if args.quick else 2
     )
 
     with tempfile.TemporaryDirectory() as root:
-        TactileGrasps("train", root=root)
-        splits = list(SPLITS)
+        for split in ("train", "val", "test"):
+            TactileGrasps(split, root=root)
 
         def read_all() -> None:
-            for split in splits:
+            for split in ("train", "val", "test"):
                 data = TactileGrasps(split, root=root)
                 for i in range(len(data)):
                     data[i]
 
-        reading = time_repeated(read_all, repeats=5 if args.quick else 20)
+        reading = time_repeated(read_all, repeats=2 if args.quick else 10)
 
     recordings = simulate_grasps(grasps, config)
     crops = [r.contact_crop() for r in recordings]
@@ -112,22 +113,28 @@ def main(argv: Sequence[str] | None = None) -> None:
     out = Path(args.out)
     pictures = []
     for diameter in (12.0, 15.0, 18.0):
-        recording = simulate_grasp(diameter, gripper=1, seed=0, config=config)
+        recording = simulate_grasp(diameter, seed=0, config=config)
         path = out / f"grasp_{int(diameter)}mm.png"
         save_event_grid(recording.frames(crop=recording.contact_crop(), pool=2), path, upscale=2)
         pictures.append(path)
+    if not args.quick:
+        cli.main(["show-scene", "--out", str(out)])
+        pictures += [out / f"scene_{name}.png" for name in SCENES]
 
     rows = [
-        ["TactileGrasps: simulate + bin + save all 60 sequences", fmt_ms(full.median), fmt_ms(full.iqr), "—"],
-        ["simulate_grasps, 60 grasps in one call", fmt_ms(batched.median), fmt_ms(batched.iqr), "1.00×"],
+        [f"scene {name!r}: simulate + bin + save {'/'.join(map(str, sizes))} sequences (train/val/test)",
+         fmt_ms(seconds), "—", "—"]
+        for name, (seconds, sizes) in scene_seconds.items()
+    ] + [
+        [f"simulate_grasps, {n} grasps in one call", fmt_ms(batched.median), fmt_ms(batched.iqr), "1.00×"],
         [
-            "baseline: 60 calls of one grasp each",
+            f"baseline: {n} calls of one grasp each",
             fmt_ms(one_by_one.median),
             fmt_ms(one_by_one.iqr),
             fmt_ratio(one_by_one.ratio(batched)),
         ],
-        ["open the cache and read all 60 items", fmt_ms(reading.median), fmt_ms(reading.iqr), "—"],
-        [f"events_to_frames, 60 recordings ({n_events / 1e6:.2f} M events)", fmt_ms(binning.median),
+        ["open the cached paper scene and read all 168 items", fmt_ms(reading.median), fmt_ms(reading.iqr), "—"],
+        [f"events_to_frames, {n} recordings ({n_events / 1e6:.2f} M events)", fmt_ms(binning.median),
          fmt_ms(binning.iqr), "1.00×"],
         ["baseline: numpy.add.at", fmt_ms(numpy_binning.median), fmt_ms(numpy_binning.iqr),
          fmt_ratio(numpy_binning.ratio(binning))],
@@ -143,7 +150,11 @@ def main(argv: Sequence[str] | None = None) -> None:
             "",
             table,
             "",
-            "Pictures (OFF red, ON blue, 12 frames per row, 140×150 crop pooled 2×2): "
+            "Scene generation times are single runs into an empty cache (scenes that share a session share its "
+            "file, so a later scene can reuse an earlier one's training split).",
+            "",
+            "Pictures (OFF red, ON blue, 12 frames per row, 140×150 crop pooled 2×2; scene pictures: training "
+            "grasps above deployment grasps): "
             + ", ".join(f"`{p.name}`" for p in pictures),
             "",
             "Synthetic data from `event_transforms.tactile.simulation`, not the paper's recordings.",

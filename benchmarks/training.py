@@ -1,10 +1,10 @@
 """Share of a training epoch spent in augmentation, for each of the paper's methods.
 
-Uses the protocol's own bookkeeping: :func:`event_transforms.tactile.protocol.run_method` trains
-the reference :class:`~event_transforms.tactile.models.ForceRegressor` on the simulated grasps
-(48 training sequences + synthetic copies, validation on the 15 mm bolt) and records, per
-epoch, the wall time of the training pass and the time spent inside the augmentation (a
-``TimedTransform`` around each method's transform, data loaded in the main process).
+Uses the protocol's own bookkeeping: :func:`event_transforms.tactile.protocol.run_unit` trains
+the reference :class:`~event_transforms.tactile.models.ForceRegressor` on the simulated
+``paper`` scene (48 training sequences + synthetic copies) and records the training time and
+the time spent inside the augmentation (a ``TimedTransform`` around each method's transform,
+data loaded in the main process); an epoch is one pass over a method's training set.
 
 Two ways of making the copies:
 
@@ -13,7 +13,7 @@ Two ways of making the copies:
 - **fixed copies** (``fixed=True``, the paper's offline doubling): copies made once before
   training; we report that one-off cost and its size relative to one training epoch.
 
-Only a couple of epochs per method are run (the share per epoch does not depend on how
+Only a few optimiser steps per method are run (the share per epoch does not depend on how
 many); the model's accuracy is not the point here. Goal: ≤ 5 % of an epoch.
 
 Run: ``python benchmarks/training.py`` (``--quick`` for a smoke run).
@@ -43,9 +43,11 @@ __all__ = ["run", "main"]
 SHARE_GOAL = 0.05
 
 
-def _tiny_data() -> protocol.ProtocolData:
+def _tiny_data() -> protocol.SceneData:
     """A few small random sequences standing in for the data set (smoke runs only)."""
     from torch.utils.data import Dataset
+
+    from event_transforms.tactile.scenes import get_scene
 
     class Items(Dataset):
         def __init__(self, n: int, diameters: Sequence[float], seed: int) -> None:
@@ -57,44 +59,40 @@ def _tiny_data() -> protocol.ProtocolData:
         def __len__(self) -> int:
             return len(self.diameters)
 
-        def meta(self, index: int) -> dict[str, Any]:
-            return {"diameter_mm": self.diameters[index]}
-
         def __getitem__(self, index: int) -> tuple[Any, ...]:
-            return self.frames[index], self.force[index], self.meta(index)
+            return self.frames[index], self.force[index], {"diameter_mm": self.diameters[index]}
 
     bank = torch.poisson(torch.full((20, 2, 16, 16), 0.05))
-    return protocol.ProtocolData(Items(4, (12.0, 18.0), 0), Items(2, (15.0,), 1), Items(2, (15.0,), 2), bank, "tiny random data")
+    return protocol.SceneData(get_scene("paper"), Items(4, (12.0, 18.0), 0), Items(2, (15.0,), 1),
+                              Items(2, (15.0,), 2), bank)
 
 
 def run(
     methods: Sequence[str] = protocol.PAPER_METHODS,
     *,
-    epochs: int = 2,
+    steps: int = 12,
     quick: bool = False,
 ) -> dict[str, Any]:
-    data = _tiny_data() if quick else protocol.load_data()
-    base = protocol.ProtocolConfig(epochs=epochs, patience=epochs)
+    data = _tiny_data() if quick else protocol.load_scene_data("paper")
+    base = protocol.ProtocolConfig(steps=steps, eval_every=steps, hidden_channels=(8,), input_pool=10)
     if quick:
         base = dataclasses.replace(base, hidden_channels=(2,), input_pool=2, batch_size=2)
     rows: dict[str, dict[str, Any]] = {}
-    with tempfile.TemporaryDirectory() as directory:
-        for name in methods:
-            row: dict[str, Any] = {}
-            for fixed in (False, True):
-                config = dataclasses.replace(base, fixed=fixed)
-                (result,) = protocol.run_method(name, data, config, [0], f"{directory}/{fixed}", progress=False)
-                epochs_seen = result["history"]
-                train_s = statistics.median(r["train_s"] for r in epochs_seen)
-                aug_s = statistics.median(r["augmentation_s"] for r in epochs_seen)
-                row["fixed" if fixed else "on_the_fly"] = {
-                    "items": result["train_items"],
-                    "train_s_per_epoch": train_s,
-                    "augmentation_s_per_epoch": aug_s,
-                    "augmentation_setup_s": result["augmentation_setup_s"],
-                }
-            rows[name] = row
-    return {"methods": rows, "epochs": epochs, "data": data.description, "config": dataclasses.asdict(base)}
+    for name in methods:
+        row: dict[str, Any] = {}
+        for fixed in (False, True):
+            config = dataclasses.replace(base, fixed=fixed)
+            (result,) = protocol.run_unit("paper", [name], [0], config, data, progress=False)[name]
+            epoch_s = result["train_s"] * result["train_items"] / (config.steps * config.batch_size)
+            row["fixed" if fixed else "on_the_fly"] = {
+                "items": result["train_items"],
+                "train_s_per_epoch": epoch_s,
+                "augmentation_s_per_epoch": result["aug_s_per_epoch"],
+                "augmentation_setup_s": result["aug_s_once"],
+            }
+        rows[name] = row
+    description = "tiny random data" if quick else "the simulated paper scene (synthetic data)"
+    return {"methods": rows, "steps": steps, "data": description, "config": dataclasses.asdict(base)}
 
 
 def table(result: dict[str, Any]) -> str:
@@ -134,21 +132,22 @@ def table(result: dict[str, Any]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser = base_parser(__doc__.splitlines()[0], "training")
-    parser.add_argument("--epochs", type=int, default=None, help="epochs per method and mode (default 2, quick 1)")
+    parser.add_argument("--steps", type=int, default=None, help="optimiser steps per method and mode (default 24, quick 4)")
     parser.add_argument("--methods", nargs="*", default=None, help=f"protocol method names (default: {' '.join(protocol.PAPER_METHODS)})")
     args = parser.parse_args(argv)
     apply_threads(args.threads)
     methods = args.methods or (["none", "fs-1", "tes-2:0.5", "noise"] if args.quick else list(protocol.PAPER_METHODS))
-    epochs = args.epochs or (1 if args.quick else 2)
-    result = run(methods, epochs=epochs, quick=args.quick)
+    steps = args.steps or (4 if args.quick else 24)
+    result = run(methods, steps=steps, quick=args.quick)
     config = result["config"]
     body = "\n\n".join(
         [
             "## Training: share of an epoch spent in augmentation",
             f"Data: {result['data']}. Reference `ForceRegressor(hidden_channels={tuple(config['hidden_channels'])}, "
-            f"input_pool={config['input_pool']})`, Adam, batch {config['batch_size']}, {epochs} epoch(s) per method "
-            f"and mode, seed 0, data in the main process; per-epoch times are the medians over epochs of the times "
-            f"`event_transforms.tactile.protocol.run_method` records. Command: `{command('training.py', argv)}`.",
+            f"input_pool={config['input_pool']}, cumulative=True)`, Adam, batch {config['batch_size']}, {steps} "
+            f"optimiser steps per method and mode, seed 0, data in the main process; an epoch is one pass over the "
+            f"method's training set, timed from what `event_transforms.tactile.protocol.run_unit` records. "
+            f"Command: `{command('training.py', argv)}`.",
             "\n".join(environment_lines()),
             table(result),
         ]

@@ -157,26 +157,25 @@ class TestTraining:
 
 
 def _fake_results(path):
-    def stat(mean, std=0.1):
-        return {"mean": mean, "std": std, "values": [mean]}
-
     methods = {}
     for name, mse, cost in (("none", 8.0, 10.0), ("fs-1", 5.5, 11.0), ("hybrid", 7.2, 12.0), ("tes-2:0.5", 6.0, 10.5)):
         methods[name] = {
-            "method": name, "copies": 1, "seeds": [0, 1], "best_val_mse": stat(mse), "test_mse": stat(mse + 1),
-            "train_s_total": stat(cost), "augmentation_setup_s": stat(0.01), "augmentation_s_per_epoch": stat(0.0),
+            "seeds": [0, 1], "copies": 1, "test_mse": [mse + 1, mse + 1.2], "val_mse": [mse, mse + 0.2],
+            "converged": [True, True], "steps": 10, "delta_vs_none": None,
+            "train_s": cost, "aug_s_once": 0.01, "aug_s_per_epoch": 0.0,
         }
-    path.write_text(json.dumps({"config": {}, "seeds": [0, 1], "methods": methods, "per_seed": {}}))
+    scene = {"gaps": ["size"], "matched_methods": [], "split_sizes": {}, "baselines": {}, "methods": methods}
+    path.write_text(json.dumps({"config": {}, "wall_s": 1.0, "scenes": {"paper": scene}}))
     return path
 
 
 class TestAccuracy:
     def test_pareto_front(self):
         rows = [
-            {"method": "a", "time_s": 1.0, "val_mean": 5.0},
-            {"method": "b", "time_s": 2.0, "val_mean": 4.0},
-            {"method": "c", "time_s": 3.0, "val_mean": 6.0},  # dominated by a and b
-            {"method": "d", "time_s": 1.0, "val_mean": 5.0},  # ties with a: neither dominates
+            {"method": "a", "time_s": 1.0, "test_mean": 5.0},
+            {"method": "b", "time_s": 2.0, "test_mean": 4.0},
+            {"method": "c", "time_s": 3.0, "test_mean": 6.0},  # dominated by a and b
+            {"method": "d", "time_s": 1.0, "test_mean": 5.0},  # ties with a: neither dominates
         ]
         assert accuracy.pareto_front(rows) == {"a", "b", "d"}
 

@@ -312,6 +312,24 @@ class TestRunProtocol:
                 assert results["scenes"][scene]["methods"][method]["test_mse"] == \
                     expected["scenes"][scene]["methods"][method]["test_mse"]
 
+    def test_online_copies_are_made_per_batch_on_the_device_and_reproducible(self, scene_data):
+        online = ProtocolConfig(**{**TINY.__dict__, "fixed": False})
+        first = protocol.run_unit("control", ["none", "rot45"], [0, 1], online, scene_data["control"])
+        again = protocol.run_unit("control", ["none", "rot45"], [0, 1], online, scene_data["control"])
+        for a, b in zip(first["rot45"], again["rot45"]):
+            assert a["test_mse"] == b["test_mse"]
+            assert a["aug_s_once"] == 0 and a["aug_s_per_epoch"] > 0 and a["train_items"] == 12
+        assert all(r["aug_s_per_epoch"] == 0 for r in first["none"])
+
+    def test_device_augment_transforms_only_copies(self):
+        frames = torch.poisson(torch.full((4, 14, 2, 16, 12), 0.5))
+        metas = [{"copy": c, "diameter_mm": 12.0} for c in (0, 1, 0, 2)]
+        out = protocol.DeviceAugment(et.FrameShift(1), seed=0)(frames, metas)
+        assert torch.equal(out[[0, 2]], frames[[0, 2]])
+        assert torch.equal(out[[1, 3]], et.FrameShift(1)(frames[[1, 3]]))
+        copies = protocol.OnlineCopies(FakeGrasps(3, seed=1), 2)
+        assert len(copies) == 9 and copies[7][2]["copy"] == 2 and torch.equal(copies[7][0], copies[1][0])
+
     def test_bad_arguments(self, scene_data, tmp_path):
         with pytest.raises(ValueError, match="distinct"):
             run_protocol(["control"], [0], tmp_path, config=TINY, methods=["none", "none"], data=scene_data)

@@ -50,9 +50,9 @@ class TestTactileGrasps:
 
     def test_scenes_share_training_data(self, root, train):
         timing = TactileGrasps("train", root=root, scene="timing")
-        assert timing.path == train.path  # same training session, same file
+        assert timing.path == TactileGrasps("train", root=root, scene="control").path  # one session, one file
+        assert timing.path != train.path and {timing.meta(i)["diameter_mm"] for i in range(48)} == {15.0}
         other = TactileGrasps("train", root=root, scene="size-extrapolation")
-        assert other.path != train.path
         assert {other.meta(i)["diameter_mm"] for i in range(48)} == {12.0, 15.0}
         deploy = TactileGrasps("val", root=root, scene="timing")
         assert all(16.0 <= deploy.recording(i).grasp.delay_ms <= 24.0 for i in range(2))

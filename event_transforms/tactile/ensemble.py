@@ -16,8 +16,27 @@ grouped convolution differs from a plain one).
 own data set, shuffled with its own seed, with a one-cycle (or cosine) learning rate,
 per-member gradient clipping, periodic validation and optional per-member early stopping.
 
-Measured cost (CPU, one thread): see ``benchmarks/ensemble.py`` and the table in
-``benchmarks/RESULTS.md``.
+Measured cost of one optimiser step, ensemble / loop of M separate models (CPU, one
+thread, 2-core machine shared with other jobs; ``hidden_channels=(8,)``, batch 8 per
+member, T = 36, 70x75 frames; ``python benchmarks/ensemble.py --threads 1``, ratios of
+thread CPU time, wall-time ratios within 0.05 of them):
+
+=============  ======  ======  ======
+input_pool     M = 1   M = 5   M = 15
+=============  ======  ======  ======
+5              1.01    0.97    0.90
+10             1.04    0.50    0.42
+=============  ======  ======  ======
+
+At ``input_pool=5`` the step is bound by convolution arithmetic and grouping buys nothing
+on the CPU (grouped convolutions with 2-8 channels per group are no faster in oneDNN than
+separate ones); at ``input_pool=10`` the per-call overhead dominates and M members cost
+about half of M separate steps. In thread CPU time, a single-model step at pool 10 cost
+0.52x one at pool 5, and a member-step in an ensemble of 15 at pool 10 cost 0.23x a single
+pool-5 step (59, 31 and 206 / 15 ms; absolute times on this loaded machine vary 2-3x
+between runs, the ratios far less). On a GPU the ensemble should win at any
+pool (DESIGN.md measured 10 members in about the time of one with ``vmap``); run
+``benchmarks/ensemble.py --device cuda`` there.
 
 Example:
     >>> from event_transforms.tactile.models import ForceRegressor
@@ -35,6 +54,7 @@ Example:
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -120,7 +140,8 @@ class EnsembleForceRegressor(nn.Module):
     Args:
         members: number of members ``M``.
         **kwargs: the arguments of :class:`ForceRegressor` (``in_channels``,
-            ``hidden_channels``, ``kernel_size``, ``input_pool``, ``recurrent_activation``).
+            ``hidden_channels``, ``kernel_size``, ``input_pool``, ``recurrent_activation``,
+            ``cumulative``).
 
     Shape:
         - frames: ``(M, B, T, 2, H, W)`` (member ``m`` reads batch ``frames[m]``) or
@@ -402,9 +423,9 @@ class EnsembleResult:
 
 def _stack_member_batch(
     data: Any, indices: Tensor, collate: Callable[[Sequence[Any]], tuple]
-) -> tuple[Tensor, Tensor]:
-    frames, force, *_ = collate([data[int(i)] for i in indices])
-    return frames, force
+) -> tuple[Tensor, Tensor, list]:
+    frames, force, metas = collate([data[int(i)] for i in indices])
+    return frames, force, metas
 
 
 @torch.no_grad()
@@ -440,6 +461,7 @@ def fit_ensemble(
     progress: bool | None = None,
     stopwatch: Any | None = None,
     description: str = "ensemble",
+    augment: Sequence[Callable[[Tensor, list], Tensor] | None] | None = None,
 ) -> EnsembleResult:
     """Train every member of ``model`` for exactly ``steps`` optimiser steps, in lockstep.
 
@@ -483,6 +505,12 @@ def fit_ensemble(
         stopwatch: the :class:`~event_transforms.tactile.training.Stopwatch` of a
             ``TimedTransform`` inside the data sets; reported as ``augmentation_s``.
         description: label of the progress bar.
+        augment: per member, ``None`` or a callable ``(frames, metas) -> frames`` applied to
+            the member's batch ``(B, T, 2, H, W)`` after it is moved to ``device``: on-the-fly
+            augmentation on the training device (its time is counted in ``train_s``).
+
+    With ``progress=None`` and stderr not a terminal, one plain line per validation pass
+    (step, training loss, validation MSE range, elapsed time and ETA) replaces the bar.
 
     Example:
         >>> from torch.utils.data import TensorDataset
@@ -510,6 +538,8 @@ def fit_ensemble(
     eval_every = max(1, steps // 20) if eval_every is None else _check_positive_int(eval_every, "eval_every")
     if patience is not None:
         _check_positive_int(patience, "patience")
+    if augment is not None and len(augment) != members:
+        raise ValueError(f"augment must hold one callable or None per member ({members}), got {len(augment)}")
     if isinstance(train_sets, (str, bytes)) or not isinstance(train_sets, Sequence) or len(train_sets) != members:
         raise ValueError(f"train_sets must hold one Dataset per member ({members}), got {train_sets!r:.80}")
     seeds = list(seeds)
@@ -554,11 +584,18 @@ def fit_ensemble(
     aug_start, start = watch.seconds, time.perf_counter()
     bar = tqdm(range(steps), desc=description, disable=None if progress is None else not progress,
                leave=False, dynamic_ncols=True)
+    plain = progress is None and bool(bar.disable)  # not a terminal: plain progress lines
     model.train()
     step = 0
     for step in bar:
         tick = time.perf_counter()
         pairs = [_stack_member_batch(train_sets[m], batches[m][step], collate) for m in range(members)]
+        if augment is not None:
+            pairs = [
+                (p[0].to(device, non_blocking=True), p[1]) if augment[m] is None
+                else (augment[m](p[0].to(device, non_blocking=True), p[2]), p[1])
+                for m, p in enumerate(pairs)
+            ]
         frames = torch.stack([p[0] for p in pairs]).to(device, non_blocking=True)
         force = torch.stack([p[1] for p in pairs]).to(device, non_blocking=True)
         pred = model(frames)
@@ -611,7 +648,14 @@ def fit_ensemble(
                 frozen[newly_frozen] = True
         val_s += time.perf_counter() - tick
         active = [val[m] for m in range(members) if not frozen_host[m]]
-        bar.set_postfix(val=f"{min(val):.3g}-{max(val):.3g}", active=len(active))
+        train_now = sum(history[-1]) / max(len(history[-1]), 1) if history else math.nan
+        bar.set_postfix(loss=f"{train_now:.3g}", val=f"{min(val):.3g}-{max(val):.3g}", active=len(active))
+        if plain:
+            elapsed = time.perf_counter() - start
+            eta = elapsed / (step + 1) * (steps - step - 1)
+            print(f"{description}: step {step + 1}/{steps}, train loss {train_now:.3g}, "
+                  f"val MSE {min(val):.3g}-{max(val):.3g}, {elapsed:.0f} s elapsed, ETA {eta:.0f} s",
+                  file=sys.stderr, flush=True)
         if all(frozen_host):
             break
     bar.close()

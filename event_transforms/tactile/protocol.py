@@ -75,6 +75,8 @@ __all__ = [
     "SceneData",
     "load_scene_data",
     "MaterializedDataset",
+    "OnlineCopies",
+    "DeviceAugment",
     "build_training_set",
     "run_unit",
     "run_protocol",
@@ -259,7 +261,8 @@ class ProtocolConfig:
         input_pool: the regressor's first average-pool factor.
         cumulative: the regressor also reads running event totals (see ``ForceRegressor``).
         fixed: the synthetic copies are made once before training (the paper's offline
-            doubling; timed as "aug once") rather than drawn afresh at every access.
+            doubling; timed as "aug once") rather than drawn afresh for every batch, on the
+            training device (timed as "aug s/epoch").
         copies: synthetic copies per item for names without ``x<k>``.
         paper_split: evaluate on the paper's 6 + 6 sequences instead of 24 + 96.
     """
@@ -357,6 +360,51 @@ def build_training_set(
     return MaterializedDataset(augmented) if fixed else augmented
 
 
+class OnlineCopies(Dataset):
+    """The training items followed by ``copies`` *untransformed* copies of each, marked in the
+    metadata (``meta["copy"]``: 0 for originals, c ≥ 1 for copy c), so that a
+    :class:`DeviceAugment` can transform the copies of each batch on the training device."""
+
+    def __init__(self, base: Dataset, copies: int) -> None:
+        self.base, self.copies = base, int(copies)
+
+    def __len__(self) -> int:
+        return len(self.base) * (1 + self.copies)
+
+    def __getitem__(self, index: int) -> tuple[Any, ...]:
+        copy, item = divmod(int(index), len(self.base))
+        frames, force, *rest = self.base[item]
+        meta = dict(rest[0]) if rest else {}
+        meta["copy"] = copy
+        return frames, force, meta
+
+
+class DeviceAugment:
+    """Transform the copies of a batch on its device, per sample, with a seeded CPU generator.
+
+    Called as ``(frames (B, T, 2, H, W), metas) -> frames`` by
+    :func:`~event_transforms.tactile.ensemble.fit_ensemble`: the rows whose metadata say
+    ``copy >= 1`` go through ``transform`` (its parameters drawn from a CPU generator seeded
+    with ``seed``, so a run is reproducible and the device never waits for a draw), the
+    originals pass unchanged.
+    """
+
+    def __init__(self, transform: nn.Module, seed: int, stopwatch: Stopwatch | None = None) -> None:
+        self.transform = transform
+        self.generator = torch.Generator().manual_seed(int(seed))
+        self.stopwatch = stopwatch if stopwatch is not None else Stopwatch()
+
+    def __call__(self, frames: torch.Tensor, metas: list) -> torch.Tensor:
+        rows = [i for i, meta in enumerate(metas) if meta.get("copy", 0) >= 1]
+        if not rows:
+            return frames
+        with self.stopwatch:
+            index = torch.tensor(rows, device=frames.device)
+            metadata = [{k: v for k, v in metas[i].items() if k != "copy"} for i in rows]
+            changed = self.transform(frames.index_select(0, index), generator=self.generator, metadata=metadata)
+            return frames.index_copy(0, index, changed.to(frames.dtype))
+
+
 def _force_stats(data: Dataset) -> tuple[float, float]:
     forces = torch.stack([torch.as_tensor(data[i][1]).double() for i in range(len(data))])
     return float(forces.mean()), float(forces.std()) if forces.numel() > 1 else 1.0
@@ -401,7 +449,7 @@ def run_unit(
     scene = get_scene(scene)
     parsed = [parse_method(m, copies=config.copies, scene=scene) for m in methods]
     offset, scale = _force_stats(data.train)
-    models, train_sets, member_seeds, aug_once = [], [], [], []
+    models, train_sets, member_seeds, aug_once, augment = [], [], [], [], []
     watch = Stopwatch()
     for method in parsed:
         for seed in seeds:
@@ -411,20 +459,23 @@ def run_unit(
                 ForceRegressor(hidden_channels=config.hidden_channels, input_pool=config.input_pool, **extra)
             )
             before = watch.seconds
-            train_sets.append(build_training_set(method, data, seed=seed, fixed=config.fixed, stopwatch=watch))
-            aug_once.append(watch.seconds - before if config.fixed else 0.0)
+            transform = method.build(data.noise_bank)
+            if config.fixed or transform is None:
+                train_sets.append(build_training_set(method, data, seed=seed, fixed=True, stopwatch=watch))
+                augment.append(None)
+            else:  # on the fly: copies are transformed batch by batch on the training device
+                train_sets.append(OnlineCopies(data.train, method.copies))
+                augment.append(DeviceAugment(transform.to(device), seed))
+            aug_once.append(watch.seconds - before)
             member_seeds.append(int(seed))
     ensemble = EnsembleForceRegressor.from_models(models).to(device)
     ensemble.set_force_scaling([offset] * len(models), [max(scale, 1e-6)] * len(models))
-    online_before = watch.seconds
-    torch.manual_seed(member_seeds[0])  # on-the-fly copies draw from the global RNG
     result = fit_ensemble(
         ensemble, train_sets, data.val, steps=config.steps, batch_size=config.batch_size, seeds=member_seeds,
         lr_max=config.lr, clip=config.clip, schedule="one-cycle", eval_every=config.eval_every, select="final",
-        device=device, progress=progress, stopwatch=watch,
+        device=device, progress=progress, augment=augment,
         description=description or f"{scene.name}: {', '.join(methods)}",
     )
-    online_s = watch.seconds - online_before
     val_pred, val_target = _evaluate(ensemble, data.val)
     test_pred, test_target = _evaluate(ensemble, data.test)
     passes = config.steps * config.batch_size  # sequences read per member
@@ -449,8 +500,10 @@ def run_unit(
                 "final_train_loss": record.train_loss[-1] if record.train_loss else math.nan,
                 "val_history": {"steps": record.val_steps, "mse": record.val_loss},
                 "aug_s_once": aug_once[index],
-                # online copies: the augmentation time of the whole run, per pass over the set
-                "aug_s_per_epoch": (online_s / len(result.members)) * size / max(passes, 1),
+                # online copies: this member's augmentation time, per pass over its set
+                "aug_s_per_epoch": (
+                    augment[index].stopwatch.seconds * size / max(passes, 1) if augment[index] is not None else 0.0
+                ),
                 # one ensemble trains every member at once: its time is shared equally
                 "train_s": result.train_s / len(result.members),
                 "ensemble_members": len(result.members),
