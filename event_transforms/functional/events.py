@@ -192,9 +192,6 @@ def _source(events: Any) -> _Source:
     return _Source(int(rows.shape[0]), int(rows.shape[1]), batched, read_rows, device)
 
 
-# --------------------------------------------------------------------------- options
-
-
 def _columns(events: Any) -> tuple[list[Tensor], bool]:
     """All of x, y, t, p as (B, N) columns at once, and whether the input was a batch.
 
@@ -216,6 +213,9 @@ def _pair(value: object, name: str) -> tuple[Any, Any]:
 def _positive_int(value: object, name: str) -> int:
     """An integer >= 1 (Python, numpy or 0-d tensor)."""
     return _integer(value, name)
+
+
+# --------------------------------------------------------------------------- options
 
 
 def _integer(value: object, name: str, *, low: int = 1) -> int:
