@@ -3,7 +3,8 @@
 The library:
 
 - :mod:`event_transforms.functional`: pure kernels (tensor first, options keyword-only);
-- :mod:`event_transforms.transforms`: ``nn.Module`` transforms and the containers
+- :mod:`event_transforms.transforms`: ``nn.Module`` transforms, :class:`EventsToFrames`
+  (event streams, tonic's arrays included, to frames) and the containers
   :class:`Compose`, :class:`OneOf`, :class:`RandomApply` (all re-exported here);
 - :mod:`event_transforms.scenes`: :class:`Scene`, which builds only the transforms for the
   physical effects a setup declares;
@@ -31,7 +32,7 @@ _TRANSFORMS = (
     "HorizontalFlip", "VerticalFlip", "RandomHorizontalFlip", "RandomVerticalFlip",
     "FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift",
     "AddNoise", "AddPoissonNoise", "RandomEventDrop",
-    "Compose", "OneOf", "RandomApply",
+    "Compose", "OneOf", "RandomApply", "EventsToFrames",
     # transform coverage (issue 13)
     "Affine", "RandomAffine", "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample",
     "FlipPolarity", "RandomFlipPolarity", "TimeReversal", "RandomTimeReversal", "MergePolarities",

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 import torch
 
@@ -208,3 +209,30 @@ class TestImports:
         assert not result["help_imports_torch"]
         assert set(result["medians"]) == set(imports.COMMANDS)
         assert "--help" in _section(path, "imports")
+
+
+class TestEvents:
+    def test_chunks_are_sorted_absolute_and_tonic_typed(self):
+        from benchmarks import events
+
+        pieces = list(events.chunks(3 * events.CHUNK // 2))
+        assert [len(c) for c in pieces] == [events.CHUNK, events.CHUNK // 2]
+        t = np.concatenate([c["t"] for c in pieces])
+        assert pieces[0].dtype == events.AEDAT4 and bool((np.diff(t.astype(np.int64)) >= 0).all())
+        assert int(t[0]) >= events.START_US
+
+    def test_child_bins_every_event(self, tmp_path):
+        from benchmarks import events
+
+        assert events.child("stream", 5_000, "", None)["events_binned"] == 5_000
+        path = tmp_path / "e.npy"
+        events.write_file(path, 5_000)
+        assert events.child("mmap", 5_000, str(path), None)["events_binned"] == 5_000
+
+    @pytest.mark.slow
+    def test_quick_run(self, tmp_path):
+        from benchmarks import events
+
+        path = _results(tmp_path)
+        result = events.main(["--quick", "--results", str(path)])
+        assert len(result["rows"]) == 10 and "peak RSS" in _section(path, "events")

@@ -288,6 +288,7 @@ def noise_bank(
     events = simulate_static(n_frames * config.frame_ms, seed=_check_seed(seed) + _NOISE_SEED_OFFSET, config=config)
     return events_to_frames(
         events,
+        t_start=0,
         frame_ms=config.frame_ms,
         n_frames=int(n_frames),
         sensor_size=config.sensor_size,

@@ -19,5 +19,7 @@ from .cleaning import *  # noqa: F401,F403
 from .cleaning import __all__ as _cleaning
 from .containers import *  # noqa: F401,F403
 from .containers import __all__ as _containers
+from .events import *  # noqa: F401,F403
+from .events import __all__ as _events
 
-__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_containers]
+__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_containers, *_events]

@@ -17,7 +17,8 @@ Subclasses override :meth:`~EventTransform.sample_params` and :meth:`~EventTrans
 
 The calling convention (owned here and nowhere else): every module is called as
 ``module(*inputs, generator=None, params=None, metadata=None)``. The frames are the first
-input: a tensor, a ``torchvision.tv_tensors.Video`` (returned as a ``Video``) or a dict
+input (an event stream instead for a module whose :attr:`~EventTransform.takes_events` is
+true: :class:`~event_transforms.EventsToFrames`, or a ``Compose`` starting with one): a tensor, a ``torchvision.tv_tensors.Video`` (returned as a ``Video``) or a dict
 holding them under ``"frames"``. Any further inputs (labels, ...) and the dict's other
 entries pass through unchanged, as in torchvision's v2 transforms. Anything else a
 container or data set is handed (a plain function, a torchvision transform) is wrapped by
@@ -253,6 +254,8 @@ class EventTransform(nn.Module):
         if not inputs:
             raise TypeError(f"{type(self).__name__} needs frames as its first input, got no inputs")
         first, rest = inputs[0], inputs[1:]
+        if self.takes_events:
+            first = self.events_to_frames(first)  # events in, frames from here on
         frames = first
         if isinstance(first, Mapping):
             if FRAMES_KEY not in first:
@@ -313,6 +316,20 @@ class EventTransform(nn.Module):
     def output_shape(self, shape: torch.Size) -> torch.Size:
         """The batch shape this transform returns for input ``shape`` (the same by default)."""
         return shape
+
+    @property
+    def takes_events(self) -> bool:
+        """Whether a call's first input is an event stream, not frames.
+
+        True for :class:`~event_transforms.EventsToFrames` and for a ``Compose`` that
+        starts with one: ``forward`` then makes the frames with :meth:`events_to_frames`
+        before drawing parameters, and the rest of the call sees frames.
+        """
+        return False
+
+    def events_to_frames(self, events: Any) -> Tensor:
+        """Override with :attr:`takes_events`: turn a call's first input into frames."""
+        raise TypeError(f"{type(self).__name__} takes frames, not events")
 
     def _run(self, frames: Tensor, params: Params) -> Tensor:
         """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``."""

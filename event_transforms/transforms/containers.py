@@ -27,19 +27,31 @@ __all__ = ["Compose", "OneOf", "RandomApply"]
 Metadata = Mapping[str, Any] | Sequence[Mapping[str, Any]] | None
 
 
-def _members(transforms: object, name: str) -> nn.ModuleList:
+def _members(transforms: object, name: str, *, events_first: bool = False) -> nn.ModuleList:
     if isinstance(transforms, (nn.Module, str, bytes)) or not isinstance(transforms, Sequence):
         raise TypeError(
             f"{name} must be a sequence of transforms or callables, got {type(transforms).__name__}"
         )
-    return nn.ModuleList(as_transform(t, f"{name}[{i}]") for i, t in enumerate(transforms))
+    members = nn.ModuleList(as_transform(t, f"{name}[{i}]") for i, t in enumerate(transforms))
+    for i, member in enumerate(members):
+        if member.takes_events and (i > 0 or not events_first):
+            where = "only as the first member of a Compose" if events_first else "only first in a Compose"
+            raise TypeError(
+                f"{name}[{i}] ({type(member).__name__}) turns events into frames and can stand {where}; "
+                "here it would be handed frames"
+            )
+    return members
 
 
 class Compose(EventTransform):
     """Apply transforms one after another to every sample: the paper's *hybrid* combination.
 
+    The first member may be :class:`~event_transforms.EventsToFrames`: the pipeline then
+    takes an event stream (a tonic-style dataset transform) and the rest sees its frames.
+
     Args:
-        transforms: event transforms or callables ``frames -> frames``.
+        transforms: event transforms or callables ``frames -> frames``; an
+            ``EventsToFrames`` only first.
 
     Example:
         >>> from event_transforms import FrameShift, HorizontalFlip, RandomRotation
@@ -54,7 +66,14 @@ class Compose(EventTransform):
 
     def __init__(self, transforms: Sequence[EventTransform | Callable[[Tensor], Tensor]]) -> None:
         super().__init__()
-        self.transforms = _members(transforms, "transforms")
+        self.transforms = _members(transforms, "transforms", events_first=True)
+
+    @property
+    def takes_events(self) -> bool:
+        return len(self.transforms) > 0 and self.transforms[0].takes_events
+
+    def events_to_frames(self, events: Any) -> Tensor:
+        return self.transforms[0].events_to_frames(events)
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Metadata = None) -> Params:
         params: Params = {}
@@ -158,6 +177,11 @@ class RandomApply(EventTransform):
     def __init__(self, transform: EventTransform | Callable[[Tensor], Tensor], p: float = 0.5) -> None:
         super().__init__(p=check_probability(p, "p"))
         self.transform = as_transform(transform)
+        if self.transform.takes_events:
+            raise TypeError(
+                f"transform ({type(self.transform).__name__}) turns events into frames and can stand only "
+                "first in a Compose; here it would be handed frames"
+            )
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Metadata = None) -> Params:
         return {"0": self.transform.make_params(shape, generator=generator, metadata=metadata)}

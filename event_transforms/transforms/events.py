@@ -1,0 +1,134 @@
+"""``EventsToFrames``: an event stream in, frames ``(T, 2, H, W)`` out, as a module."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+from torch import Tensor
+
+from .._validation import FRAME_DTYPES
+from ..functional.events import CHUNK_EVENTS, _grid, _integer, _T_STARTS, _explicit_starts, events_to_frames
+from .base import EventTransform, Params
+
+__all__ = ["EventsToFrames"]
+
+
+class EventsToFrames(EventTransform):
+    """Count an event stream into frames: :func:`~event_transforms.functional.events_to_frames` as a module.
+
+    Takes what tonic hands a dataset transform (a structured array, tonic's titled
+    ``('p', 'on')`` field and absolute uint64 timestamps included), a ``(N, 4)`` array or
+    tensor, or a mapping of ``x, y, t, p`` columns, and returns ``(T, 2, H', W')`` counts
+    ready for the frame transforms. It holds settings only, draws nothing and is
+    picklable, so it runs as a tonic dataset ``transform=`` or in a ``DataLoader`` worker.
+    Put it first in a :class:`~event_transforms.Compose` to make the whole pipeline take
+    events. With ``n_frames=None`` the number of frames follows the recording; give
+    ``n_frames`` when a ``DataLoader`` must stack samples.
+
+    Args:
+        sensor_size: ``(H, W)`` of the sensor, height first (required, or give
+            ``tonic_sensor_size``); events outside it are dropped with an
+            :class:`~event_transforms.functional.EventsOutsideSensorWarning`.
+        tonic_sensor_size: tonic's ``(W, H, P)`` (``dataset.sensor_size``) instead.
+        frame_ms: bin width in milliseconds.
+        n_frames: number of frames T, or ``None`` for as many as the recording needs.
+        t_start: ``"floor"`` (the first event rounded down to a multiple of the bin
+            width), ``"first"``, or a time in microseconds.
+        crop: ``(top, left, height, width)`` window inside the sensor, or ``None``.
+        pool: side of the square blocks summed into one output pixel.
+        dtype: dtype of the counts.
+        chunk_size: events read at a time (bounds the extra memory).
+
+    Shape:
+        - input: an event stream of N events (or a ``(B, N, 4)`` batch of equally long
+          streams).
+        - output: ``(T, 2, H', W')`` (``(B, T, 2, H', W')`` for a batch), then any
+          further inputs unchanged.
+
+    Example:
+        >>> import numpy as np
+        >>> import event_transforms as et
+        >>> events = np.zeros(3, dtype=[("t", "<u8"), ("x", "<u2"), ("y", "<u2"), (("p", "on"), "?")])
+        >>> events["t"] = [1_700_000_000_000_000, 1_700_000_000_012_000, 1_700_000_000_025_000]
+        >>> events["x"], events["y"], events["p"] = [0, 1, 2], [1, 1, 0], [True, False, True]
+        >>> to_frames = et.EventsToFrames(tonic_sensor_size=(3, 2, 2), n_frames=4)
+        >>> to_frames
+        EventsToFrames(sensor_size=(2, 3), frame_ms=10.0, n_frames=4, t_start='floor')
+        >>> to_frames(events).shape
+        torch.Size([4, 2, 2, 3])
+        >>> pipeline = et.Compose([to_frames, et.HorizontalFlip()])
+        >>> pipeline(events)[0, 1].tolist()  # frame 0, ON channel, flipped left-right
+        [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    """
+
+    def __init__(
+        self,
+        sensor_size: tuple[int, int] | None = None,
+        *,
+        tonic_sensor_size: tuple[int, int, int] | None = None,
+        frame_ms: float = 10.0,
+        n_frames: int | None = None,
+        t_start: str | float = "floor",
+        crop: tuple[int, int, int, int] | None = None,
+        pool: int = 1,
+        dtype: torch.dtype = torch.float32,
+        chunk_size: int = CHUNK_EVENTS,
+    ) -> None:
+        super().__init__()
+        if sensor_size is None and tonic_sensor_size is None:
+            raise TypeError(
+                "EventsToFrames needs sensor_size=(H, W) or tonic_sensor_size=(W, H, P): real sensors "
+                "differ (DAVIS240 (180, 240), DVXplorer (240, 320)), and a wrong size drops events"
+            )
+        grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
+        self.sensor_size = (grid.height, grid.width)
+        self.frame_ms = float(frame_ms)
+        self.n_frames = None if n_frames is None else _integer(n_frames, "n_frames")
+        if isinstance(t_start, str):
+            if t_start not in _T_STARTS:
+                raise ValueError(f"t_start must be 'floor', 'first' or a number, got {t_start!r}")
+        else:
+            t_start = _explicit_starts(t_start, 1).item()
+        self.t_start = t_start
+        self.crop = None if crop is None else (grid.top, grid.left, grid.crop_h, grid.crop_w)
+        self.pool = grid.pool
+        if grid.dtype not in FRAME_DTYPES:
+            raise TypeError(f"dtype must be one of the frame dtypes {FRAME_DTYPES}, got {dtype!r}")
+        self.dtype = grid.dtype
+        self.chunk_size = _integer(chunk_size, "chunk_size")
+
+    @property
+    def takes_events(self) -> bool:
+        return True
+
+    def events_to_frames(self, events: Any) -> Tensor:
+        if isinstance(events, Tensor) and events.dim() in (4, 5) and events.shape[-3] == 2:
+            raise TypeError(
+                f"EventsToFrames takes an event stream, got what looks like frames of shape {tuple(events.shape)}"
+            )
+        return events_to_frames(
+            events,
+            sensor_size=self.sensor_size,
+            t_start=self.t_start,
+            frame_ms=self.frame_ms,
+            n_frames=self.n_frames,
+            crop=self.crop,
+            pool=self.pool,
+            dtype=self.dtype,
+            chunk_size=self.chunk_size,
+        )
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return frames  # made from the events in forward, before the parameters were drawn
+
+    def _settings(self) -> str:
+        parts = [f"sensor_size={self.sensor_size}", f"frame_ms={self.frame_ms}", f"n_frames={self.n_frames}",
+                 f"t_start={self.t_start!r}"]
+        if self.crop is not None:
+            parts.append(f"crop={self.crop}")
+        if self.pool != 1:
+            parts.append(f"pool={self.pool}")
+        if self.dtype != torch.float32:
+            parts.append(f"dtype={self.dtype}")
+        return ", ".join(parts)
