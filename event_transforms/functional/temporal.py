@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -92,29 +93,30 @@ def frame_shift(frames: Tensor, shift: ShiftArg) -> Tensor:
 
 
 def _frame_shift(batch: Tensor, shifts: Tensor) -> Tensor:
-    """``frame_shift`` on a (B, T, 2, H, W) batch with (B,) int64 CPU shifts."""
+    """``frame_shift`` on a (B, T, 2, H, W) batch with (B,) int64 CPU shifts.
+
+    The shifts are read on the host (no device synchronisation). One shift for the whole
+    batch: one concatenation with zero frames. Per-sample shifts: one gather of whole
+    frames by a host-built row index, then zeroing the few vacated frames.
+    """
     b, t = batch.shape[:2]
     if batch.numel() == 0:
         return batch.clone()
-    shifts = shifts.clamp(-t, t)
-    values = shifts.tolist()
-    first = values[0]
-    if values.count(first) == len(values):
+    values = np.clip(np.asarray(shifts.tolist(), dtype=np.int64).reshape(b), -t, t)
+    first = int(values[0])
+    if (values == first).all():
         if first == 0:
-            return batch.clone()
-        zeros = batch.new_zeros((b, min(abs(first), t), *batch.shape[2:]))
+            return batch.clone(memory_format=torch.contiguous_format)
+        zeros = batch.new_zeros((b, abs(first), *batch.shape[2:]))
         if first > 0:
             return torch.cat([zeros, batch[:, : t - first]], dim=1)
         return torch.cat([batch[:, -first:], zeros], dim=1)
-    # Per-sample shifts: gather whole frames with clamped source indices, then zero the
-    # vacated (b, t) frames (a few per sample); no full-size mask or index tensor.
-    time = torch.arange(t)
-    source = time.unsqueeze(0) - shifts.unsqueeze(1)  # (B, T)
-    vacated = (source < 0) | (source >= t)
-    rows = (source.clamp(0, t - 1) + t * torch.arange(b).unsqueeze(1)).flatten()
-    flat = batch.reshape(b * t, -1)
-    out = flat.index_select(0, rows.to(batch.device))
-    out.index_fill_(0, vacated.flatten().nonzero().squeeze(1).to(batch.device), 0)
+    source = np.arange(t)[None, :] - values[:, None]  # (B, T)
+    vacated = np.flatnonzero((source < 0) | (source >= t))
+    rows = (np.clip(source, 0, t - 1) + t * np.arange(b)[:, None]).reshape(-1)
+    out = batch.reshape(b * t, -1).index_select(0, torch.from_numpy(rows).to(batch.device))
+    if vacated.size:
+        out.index_fill_(0, torch.from_numpy(vacated).to(batch.device), 0)
     return out.view(batch.shape)
 
 

@@ -159,7 +159,9 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
 
     Each function gets the sub-batch and the (CPU) indices of its samples, and is called
     even on an empty sub-batch, so the output dtype (promoted over every branch) does not
-    depend on the random draw. Samples are gathered once per group, not looped over.
+    depend on the random draw. Samples are gathered once per group, not looped over. The
+    groups are read on the host (``group`` is a CPU tensor from ``make_params``): no host
+    synchronisation, and a group that holds the whole batch is not gathered at all.
 
     Args:
         frames: batch ``(B, T, 2, H, W)``.
@@ -167,13 +169,21 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
         functions: one callable ``(sub_batch, indices) -> sub_batch`` or ``None`` per group.
     """
     device = frames.device
-    results: list[tuple[Tensor, Tensor]] = []
+    batch = frames.shape[0]
+    labels = np.asarray(group.tolist(), dtype=np.int64).reshape(batch)
+    results: list[tuple[Tensor, int, Tensor]] = []
     out_dtype = frames.dtype if any(f is None for f in functions) else None
     for g, function in enumerate(functions):
         if function is None:
             continue
-        index = (group == g).nonzero().squeeze(1)
-        sub = frames if index.numel() == frames.shape[0] else frames.index_select(0, index.to(device))
+        members = np.flatnonzero(labels == g)
+        index = torch.from_numpy(members)
+        if members.size == batch:
+            sub = frames
+        elif members.size == 0:
+            sub = frames[:0]
+        else:
+            sub = frames.index_select(0, index.to(device))
         result = function(sub, index)
         if result.shape[1:] != frames.shape[1:]:
             raise ValueError(
@@ -181,15 +191,16 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
                 f"got {tuple(result.shape[1:])}"
             )
         out_dtype = result.dtype if out_dtype is None else torch.promote_types(out_dtype, result.dtype)
-        results.append((index, result))
+        results.append((index, int(members.size), result))
     if out_dtype is None:
         raise ValueError("apply_by_group needs at least one function or None")
-    for index, result in results:
-        if index.numel() == frames.shape[0]:
+    for index, size, result in results:
+        if size == batch:
             return result.to(out_dtype)
-    out = frames.to(out_dtype, copy=True)
-    for index, result in results:
-        if index.numel():
+    covered = sum(size for _, size, _ in results)
+    out = frames.to(out_dtype, copy=True) if covered < batch else torch.empty(frames.shape, dtype=out_dtype, device=device)
+    for index, size, result in results:
+        if size:
             out.index_copy_(0, index.to(device), result.to(out_dtype))
     return out
 
@@ -220,6 +231,10 @@ class EventTransform(nn.Module):
         >>> torch.equal(rotation(frames, params=params), rotation(frames, params=params))
         True
     """
+
+    #: Set by transforms whose :meth:`apply` honours ``params["apply"]`` itself (in one
+    #: pass, e.g. flips), so the base class does not gather the gated samples.
+    _gates_itself = False
 
     def __init__(self, *, p: float = 1.0) -> None:
         super().__init__()
@@ -317,9 +332,9 @@ class EventTransform(nn.Module):
     def _run(self, frames: Tensor, params: Params) -> Tensor:
         """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``."""
         gate = params["apply"] if self.p < 1 else params.get("apply")
-        if gate is None:
+        if gate is None or self._gates_itself:
             return self.apply(frames, params)
-        if bool(gate.all()):
+        if all(gate.tolist()):  # a CPU tensor from make_params: read on the host, no sync
             return self.apply(frames, params)
         return apply_by_group(
             frames, gate.long(), [None, lambda sub, index: self.apply(sub, slice_params(params, index))]
