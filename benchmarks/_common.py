@@ -317,19 +317,25 @@ class OpCounts:
 
 
 def _is_sync(name: str) -> bool:
-    return name in HOST_SYNC_OPS or name.startswith("aten::unique") or name.startswith("aten::_unique")
+    from event_transforms._validation import HOST_READ
+
+    return name in HOST_SYNC_OPS or name == HOST_READ or name.startswith(("aten::unique", "aten::_unique"))
 
 
 def count_ops(fn: Callable[[], Any], *, warmup: bool = True) -> OpCounts:
     """Count the host syncs and top-level aten ops of ``fn()`` with ``torch.profiler`` (CPU).
 
     *Ops* are the aten calls made directly from Python (events whose parent is not an aten
-    call): each is at least one dispatch and, on an accelerator, at least one kernel launch.
-    *Host syncs* are calls, at any depth, of ``_local_scalar_dense`` (``.item()``,
-    ``bool(tensor)``, ``int(tensor)``), ``nonzero``, ``masked_select`` or ``unique*``: on an
-    accelerator each makes the host wait for the device. On the CPU these counts are
-    deterministic for a given input and parameters, so they serve as a device-free proxy
-    for launch overhead.
+    call), views and metadata calls (``view``, ``slice``, ``resolve_conj``) included: each
+    is at least one dispatch, and most are a kernel launch on an accelerator, so the count
+    is an upper bound of the launches. *Host syncs* are calls, at any depth, of
+    ``_local_scalar_dense`` (``.item()``, ``bool(tensor)``, ``int(tensor)``), ``nonzero``,
+    ``masked_select`` or ``unique*``, plus the library's own reads of device values
+    (``event_transforms._validation.read_host``, a profiler range: ``tolist`` dispatches
+    nothing countable on the CPU): on an accelerator each makes the host wait for the
+    device. Reads of parameters drawn on the CPU are not syncs and are not counted. On
+    the CPU these counts are deterministic for a given input and parameters, so they serve
+    as a device-free proxy for launch overhead.
 
     ``fn`` is called once first (``warmup``) so lazy imports and caches are not counted.
     """
@@ -339,7 +345,8 @@ def count_ops(fn: Callable[[], Any], *, warmup: bool = True) -> OpCounts:
         fn()
     with profile(activities=[ProfilerActivity.CPU]) as prof:
         fn()
-    events = [e for e in prof.events() if e.name.startswith("aten::")]
+    everything = list(prof.events())
+    events = [e for e in everything if e.name.startswith("aten::")]
 
     def top_level(event: Any) -> bool:
         parent = event.cpu_parent
@@ -349,6 +356,6 @@ def count_ops(fn: Callable[[], Any], *, warmup: bool = True) -> OpCounts:
             parent = parent.cpu_parent
         return True
 
-    syncs = tuple(e.name for e in events if _is_sync(e.name))
+    syncs = tuple(e.name for e in everything if _is_sync(e.name))
     ops = tuple(e.name for e in events if top_level(e))
     return OpCounts(syncs=len(syncs), ops=len(ops), sync_names=syncs, op_names=ops)

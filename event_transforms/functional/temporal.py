@@ -15,8 +15,10 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import TES_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, describe, per_sample
-from ._hypergeometric import binomial_counts, multivariate_hypergeometric, segment_sum
+from .._validation import (
+    TES_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, count_stats, describe, per_sample,
+)
+from ._hypergeometric import _EXPAND_MAX, binomial_counts, multivariate_hypergeometric, segment_sum
 
 __all__ = ["frame_shift", "temporal_event_shift"]
 
@@ -208,39 +210,41 @@ def _temporal_event_shift(
     hint: str = _TES_HINT,
 ) -> Tensor:
     """``temporal_event_shift`` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters;
-    ``hint`` ends the error raised for fractional counts."""
-    index, sample, values = _entries(batch, whole=mode != "expected", hint=hint)
+    ``hint`` ends the error raised for fractional counts.
+
+    Host synchronisations: one ``nonzero`` (the active pixels), then one read that checks
+    their values and brings back what the sampler needs (the largest count; in exact mode
+    also the largest draw of any frame), then in exact mode the sampler's own (see
+    :func:`~._hypergeometric.multivariate_hypergeometric`).
+    """
+    index, sample, values = _entries(batch)
     if mode == "expected":
+        check_counts(values, "frames")
         dtype = batch.dtype if batch.is_floating_point() else torch.float32
         out = batch.to(dtype, memory_format=torch.contiguous_format, copy=True)
         values = values.to(dtype)
         moved = values * fractions.to(device=batch.device, dtype=dtype).index_select(0, sample)
-    else:
-        out = batch.clone(memory_format=torch.contiguous_format)
-        moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
+        return _move(out, index, sample, values, moved, shifts)
+    out = batch.clone(memory_format=torch.contiguous_format)
+    if index.numel() == 0:
+        return out
+    moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator, hint)
     return _move(out, index, sample, values, moved, shifts)
 
 
-def _entries(batch: Tensor, *, whole: bool, hint: str = _TES_HINT) -> tuple[Tensor, Tensor, Tensor]:
-    """The non-zero pixels of a (B, T, 2, H, W) batch, checked.
+def _entries(batch: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """The non-zero pixels of a (B, T, 2, H, W) batch: sorted flat indices, sample indices
+    and values (one ``nonzero``, the only data-dependent size of the kernel).
 
-    Returns their sorted flat indices, their sample indices and their values. Only these
-    values can be negative, NaN or fractional, so the checks cost O(non-zero pixels).
-    The float bits are read as integers of the same width (faster ``nonzero``); -0.0
-    becomes an entry holding 0, harmlessly.
+    The float bits are read as integers of the same width (a faster ``nonzero``); -0.0
+    becomes an entry holding 0, harmlessly. Only these values can be negative, NaN or
+    fractional, so checking them costs O(non-zero pixels).
     """
+    b, t, p, h, w = batch.shape
     flat = batch.reshape(-1)
     bits = flat.view(_BITS[flat.dtype]) if flat.dtype in _BITS else flat
     index = bits.nonzero().squeeze(1)
-    values = flat.index_select(0, index)
-    if index.numel():
-        check_counts(values, "frames", whole=hint if whole else None)
-        if whole:
-            limit = min(2**53, 2**62 // batch.shape[-1] // batch.shape[-2])
-            high = float(values.max())
-            if high > limit:  # float64-exact counts; row totals fit in int64
-                raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
-    return index, index // math.prod(batch.shape[1:]), values
+    return index, index.div(t * p * h * w, rounding_mode="floor"), flat.index_select(0, index)
 
 
 def _draw_moved(
@@ -251,19 +255,42 @@ def _draw_moved(
     fractions: Tensor,
     mode: str,
     generator: torch.Generator | None,
+    hint: str = _TES_HINT,
 ) -> Tensor:
-    """Draw the int64 moved counts Z (0 <= Z <= X) of the non-zero pixels ``index``."""
+    """Check the values X of the non-zero pixels ``index`` (whole, non-negative, finite) and
+    draw the int64 moved counts Z (0 <= Z <= X), ``mode`` ``"exact"`` or ``"binomial"``.
+
+    One host synchronisation checks the values and reads what the sampler needs (the
+    largest count and the events to expand; in exact mode also the largest draw and the
+    widest frame), so the sampler's top level asks the device for nothing.
+    """
     b, t, p, h, w = shape
-    counts = values.to(torch.int64)
-    fractions = fractions.to(values.device)
+    counts = values.to(torch.int64)  # used only once the check below has passed
     if index.numel() == 0:
         return counts
+    limit = min(2**53, 2**62 // (h * w))  # float64-exact counts; row totals fit in int64
     if mode == "binomial":
-        return binomial_counts(counts, fractions, sample, generator=generator)
-    row = index // (h * w)  # (sample, frame, polarity), sorted
+        high, events = count_stats(values, counts, hint=hint, extra=[counts.clamp_max(_EXPAND_MAX).sum()])
+        _check_limit(high, limit)
+        prob = fractions.to(values.device, torch.float64)
+        return binomial_counts(counts, prob, sample, generator=generator, largest=high, events=events)
+    row = index.div(h * w, rounding_mode="floor")  # (sample, frame, polarity), sorted
     total = segment_sum(counts, row, b * t * p)
-    size = torch.round(fractions.repeat_interleave(t * p) * total.to(torch.float64)).to(torch.int64)
-    return multivariate_hypergeometric(counts, row, size, total=total, generator=generator)
+    row_fraction = fractions.to(torch.float64).repeat_interleave(t * p)  # ζ per row, on the host
+    size = torch.round(row_fraction.to(values.device) * total).to(torch.int64)
+    draw, widest = torch.minimum(size, total - size).max(), total.max()
+    events = counts.clamp_max(_EXPAND_MAX).sum()
+    high, *stats = count_stats(values, counts, hint=hint, extra=[draw, widest, events])
+    _check_limit(high, limit)
+    draw, widest, events = stats
+    return multivariate_hypergeometric(
+        counts, row, size, total=total, generator=generator, stats=(draw, widest, high, events)
+    )
+
+
+def _check_limit(high: float, limit: int) -> None:
+    if high > limit:
+        raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
 
 
 def _move(
@@ -277,11 +304,11 @@ def _move(
     if index.numel() == 0:
         return out
     t = out.shape[1]
-    frame = out[0, 0].numel()
+    frame = math.prod(out.shape[2:])
     flat = out.view(-1)
     moved = moved.to(out.dtype)
-    flat.scatter_(0, index, torch.sub(values, moved).to(out.dtype))
-    step = (shifts.clamp(-t, t) * frame).to(out.device)
+    flat.scatter_(0, index, values - moved)  # values are in the output dtype
+    step = (shifts.clamp(-t, t) * frame).to(out.device)  # CPU parameters, moved once
     target = index + step.index_select(0, sample)
     dropped = target.div(t * frame, rounding_mode="floor") != sample
     # Dropped events add 0 to their own pixel (no data-dependent shapes, no sync).
