@@ -54,6 +54,7 @@ def binomial_counts(
     generator: torch.Generator | None = None,
     largest: int | None = None,
     events: int | None = None,
+    dtype: torch.dtype | None = None,
 ) -> Tensor:
     """Draw ``Binomial(counts[i], prob[key[i]])`` for every entry.
 
@@ -72,12 +73,13 @@ def binomial_counts(
         generator: source of randomness, on the counts' device.
         largest: the largest count (an upper bound is not enough: it decides the clamp).
         events: ``counts.clamp_max(_EXPAND_MAX).sum()``.
+        dtype: of the result (default int64), e.g. the frames' dtype.
 
     Returns:
-        int64 (n,), ``0 <= out <= counts``.
+        (n,) ``dtype``, ``0 <= out <= counts``.
     """
     if counts.numel() == 0:
-        return counts.clone()
+        return counts.to(dtype or counts.dtype, copy=True)
     if largest is None or events is None:
         largest, events = (int(v) for v in read_host(torch.stack(expansion_stats(counts))))
     small = counts if largest <= _EXPAND_MAX else counts.clamp_max(_EXPAND_MAX)
@@ -85,7 +87,8 @@ def binomial_counts(
     u = torch.rand(events, dtype=torch.float64, device=counts.device, generator=generator)
     prob = prob if prob.dtype == torch.float64 else prob.to(torch.float64)
     hit = u < prob.index_select(0, key).index_select(0, owner)
-    out = torch.zeros_like(counts).index_add_(0, owner, hit.to(counts.dtype))
+    dtype = counts.dtype if dtype is None else dtype
+    out = torch.zeros(counts.shape, dtype=dtype, device=counts.device).index_add_(0, owner, hit.to(dtype))
     if largest > _EXPAND_MAX:
         large = (counts > _EXPAND_MAX).nonzero().squeeze(1)
         drawn = torch.binomial(
@@ -93,15 +96,26 @@ def binomial_counts(
             prob.to(torch.float64).index_select(0, key.index_select(0, large)),
             generator=generator,
         )
-        out.index_copy_(0, large, drawn.to(torch.int64))
+        out.index_copy_(0, large, drawn.to(dtype))
     return out
 
 
-def level_stats(pool: Tensor, size: Tensor, total: Tensor) -> list[Tensor]:
+def direct_finish(device: torch.device) -> bool:
+    """Whether :func:`multivariate_hypergeometric` finishes by smallest keys at any draw size.
+
+    On an accelerator, yes: one ``topk`` over (rows, widest row) keys replaces a binomial
+    level and its correction (about 35 launches and one host synchronisation). On the CPU,
+    no: the ``topk`` of a few hundred keys per row costs more arithmetic than the level
+    (measured 1.4x slower on the benchmark batch), so a binomial level first shrinks the
+    draws to about their square root.
+    """
+    return torch.device(device).type != "cpu"
+
+
+def level_stats(size: Tensor, total: Tensor) -> list[Tensor]:
     """0-d tensors :func:`multivariate_hypergeometric` needs on the host, to be read in one
-    synchronisation: the largest draw ``min(size, total - size)``, the widest row, and
-    :func:`expansion_stats` of the pool."""
-    return [torch.minimum(size, total - size).max(), total.max(), *expansion_stats(pool)]
+    synchronisation: the largest draw ``min(size, total - size)`` and the widest row."""
+    return [torch.minimum(size, total - size).max(), total.max()]
 
 
 def multivariate_hypergeometric(
@@ -111,7 +125,8 @@ def multivariate_hypergeometric(
     *,
     total: Tensor | None = None,
     generator: torch.Generator | None = None,
-    stats: tuple[int, int, int, int] | None = None,
+    stats: tuple[int, int] | None = None,
+    expansion: tuple[int, int] | None = None,
 ) -> Tensor:
     """Per-entry counts of a uniformly random ``size[r]``-subset of each row's events.
 
@@ -129,7 +144,8 @@ def multivariate_hypergeometric(
     under permutations of the events and always has exactly ``size`` events, so it is a
     uniform size-subset: exact. The correction is of order sqrt(total q (1 - q)), so each
     level shrinks the problem from ~N to ~sqrt(N) events (10**7 -> ~1600 -> ~40). Once
-    every row needs at most ``_SMALL`` events (or all but that many), the residual is
+    every row needs at most ``_SMALL`` events (or all but that many; at any size on an
+    accelerator, see :func:`direct_finish`), the residual is
     drawn as a set of distinct event *positions* that map to entries by ``searchsorted``
     on the int64 cumsum of the pool: the ``d`` smallest of independent uniform keys, one
     per position of the row (:func:`_smallest_keys`, when rows × widest row is within a
@@ -138,7 +154,8 @@ def multivariate_hypergeometric(
     Cost: per level one binomial draw and a few passes over the pool (length n); the
     finish works on (rows, widest row) keys or (rows, <= _SMALL) positions. Memory O(n),
     independent of the counts. Host synchronisations: one per level (:func:`level_stats`,
-    none at the top level when ``stats`` is given); the rejection finish adds about one
+    none at the top level when ``stats`` is given), one per binomial draw unless
+    ``expansion`` gives its numbers (the top level's); the rejection finish adds about one
     per round.
 
     Args:
@@ -148,6 +165,7 @@ def multivariate_hypergeometric(
         total: int64 (R,) row totals if already known.
         generator: source of randomness, on the pool's device.
         stats: :func:`level_stats` as host ints, if already read.
+        expansion: :func:`expansion_stats` of the pool as host ints, if already read.
 
     Returns:
         int64 (n,).
@@ -157,14 +175,16 @@ def multivariate_hypergeometric(
     if pool.numel() == 0:
         return pool.clone()
     if stats is None:
-        stats = tuple(int(v) for v in read_host(torch.stack(level_stats(pool, size, total))))
-    draw, widest, largest, events = stats
+        stats = tuple(int(v) for v in read_host(torch.stack(level_stats(size, total))))
+    draw, widest = stats
+    direct = direct_finish(pool.device)
+    if (draw <= _SMALL or direct) and size.numel() * widest <= 4 * pool.numel() + 2**16:
+        return _smallest_keys(pool, segment, size, total, generator, draw, widest)
     if draw <= _SMALL:
-        if size.numel() * widest <= 4 * pool.numel() + 2**16:
-            return _smallest_keys(pool, segment, size, total, generator, draw, widest)
         return _small_subsets(pool, segment, size, total, generator, draw)
     # size / total is 0 / 1 = 0 for an empty row.
     prob = size.to(torch.float64) / total.clamp_min(1).to(torch.float64)
+    largest, events = (None, None) if expansion is None else expansion
     kept = binomial_counts(pool, prob, segment, generator=generator, largest=largest, events=events)
     kept_total = segment_sum(kept, segment, size.numel())
     excess = kept_total - size

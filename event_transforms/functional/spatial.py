@@ -10,6 +10,7 @@ sampling grid serves every frame of a sequence (the grasp keeps its orientation)
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -166,7 +167,12 @@ def _affine(batch: Tensor, angle: Tensor | None, scale: Tensor | None, center: C
             yx = torch.as_tensor(center, dtype=torch.float64).cpu().numpy()
         ones_yx = np.concatenate([np.ones((b, 1)), np.broadcast_to(yx, (b, 2))], axis=1)
         theta = torch.from_numpy((matrix @ ones_yx[:, :, None]).reshape(b, 2, 3)).to(batch.device, work)
-    grid = torch.nn.functional.affine_grid(theta, [b, t * p, height, width], align_corners=True)
+    if height == 1 or width == 1:
+        with warnings.catch_warnings():  # unit-size axes map to pixel 0, as intended here
+            warnings.filterwarnings("ignore", message="Since version 1.3.0, affine_grid")
+            grid = torch.nn.functional.affine_grid(theta, [b, t * p, height, width], align_corners=True)
+    else:
+        grid = torch.nn.functional.affine_grid(theta, [b, t * p, height, width], align_corners=True)
     folded = batch.reshape(b, t * p, height, width).to(work)
     warped = torch.nn.functional.grid_sample(folded, grid, mode=mode, padding_mode="zeros", align_corners=True)
     return warped.view(b, t, p, height, width).to(out_dtype)

@@ -18,7 +18,9 @@ from torch import Tensor
 from .._validation import (
     TES_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, count_stats, describe, per_sample,
 )
-from ._hypergeometric import _EXPAND_MAX, binomial_counts, multivariate_hypergeometric, segment_sum
+from ._hypergeometric import (
+    _EXPAND_MAX, binomial_counts, direct_finish, expansion_stats, level_stats, multivariate_hypergeometric, segment_sum,
+)
 
 __all__ = ["frame_shift", "temporal_event_shift"]
 
@@ -258,7 +260,8 @@ def _draw_moved(
     hint: str = _TES_HINT,
 ) -> Tensor:
     """Check the values X of the non-zero pixels ``index`` (whole, non-negative, finite) and
-    draw the int64 moved counts Z (0 <= Z <= X), ``mode`` ``"exact"`` or ``"binomial"``.
+    draw the moved counts Z (0 <= Z <= X), ``mode`` ``"exact"`` (int64) or ``"binomial"``
+    (in the values' dtype, ready to subtract).
 
     One host synchronisation checks the values and reads what the sampler needs (the
     largest count and the events to expand; in exact mode also the largest draw and the
@@ -273,18 +276,20 @@ def _draw_moved(
         high, events = count_stats(values, counts, hint=hint, extra=[counts.clamp_max(_EXPAND_MAX).sum()])
         _check_limit(high, limit)
         prob = fractions.to(values.device, torch.float64)
-        return binomial_counts(counts, prob, sample, generator=generator, largest=high, events=events)
+        return binomial_counts(
+            counts, prob, sample, generator=generator, largest=high, events=events, dtype=values.dtype
+        )
     row = index.div(h * w, rounding_mode="floor")  # (sample, frame, polarity), sorted
     total = segment_sum(counts, row, b * t * p)
-    row_fraction = fractions.to(torch.float64).repeat_interleave(t * p)  # ζ per row, on the host
-    size = torch.round(row_fraction.to(values.device) * total).to(torch.int64)
-    draw, widest = torch.minimum(size, total - size).max(), total.max()
-    events = counts.clamp_max(_EXPAND_MAX).sum()
-    high, *stats = count_stats(values, counts, hint=hint, extra=[draw, widest, events])
+    row_fraction = fractions.repeat_interleave(t * p)  # ζ per row (float64), on the host
+    size = torch.round(row_fraction.to(values.device, torch.float64) * total).to(torch.int64)
+    # The top level's numbers come with the check; the binomial level's only where it runs.
+    needs = level_stats(size, total) + ([] if direct_finish(values.device) else [counts.clamp_max(_EXPAND_MAX).sum()])
+    high, *stats = count_stats(values, counts, hint=hint, extra=needs)
     _check_limit(high, limit)
-    draw, widest, events = stats
+    expansion = (high, stats[2]) if len(stats) == 3 else None
     return multivariate_hypergeometric(
-        counts, row, size, total=total, generator=generator, stats=(draw, widest, high, events)
+        counts, row, size, total=total, generator=generator, stats=(stats[0], stats[1]), expansion=expansion
     )
 
 
@@ -306,10 +311,10 @@ def _move(
     t = out.shape[1]
     frame = math.prod(out.shape[2:])
     flat = out.view(-1)
-    moved = moved.to(out.dtype)
+    moved = moved if moved.dtype == out.dtype else moved.to(out.dtype)
     flat.scatter_(0, index, values - moved)  # values are in the output dtype
-    step = (shifts.clamp(-t, t) * frame).to(out.device)  # CPU parameters, moved once
-    target = index + step.index_select(0, sample)
+    step = shifts.clamp(-t, t).to(out.device)  # CPU parameters, moved once
+    target = torch.add(index, step.index_select(0, sample), alpha=frame)
     dropped = target.div(t * frame, rounding_mode="floor") != sample
     # Dropped events add 0 to their own pixel (no data-dependent shapes, no sync).
     flat.index_add_(0, torch.where(dropped, index, target), moved.masked_fill_(dropped, 0))

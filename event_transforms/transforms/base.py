@@ -171,37 +171,46 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
     device = frames.device
     batch = frames.shape[0]
     labels = np.asarray(group.tolist(), dtype=np.int64).reshape(batch)
-    results: list[tuple[Tensor, int, Tensor]] = []
+    results: list[tuple[Tensor | None, int, Tensor]] = []
     out_dtype = frames.dtype if any(f is None for f in functions) else None
     for g, function in enumerate(functions):
         if function is None:
             continue
         members = np.flatnonzero(labels == g)
         index = torch.from_numpy(members)
+        on_device = None
         if members.size == batch:
             sub = frames
         elif members.size == 0:
             sub = frames[:0]
         else:
-            sub = frames.index_select(0, index.to(device))
+            on_device = index.to(device)
+            sub = frames.index_select(0, on_device)
         result = function(sub, index)
         if result.shape[1:] != frames.shape[1:]:
             raise ValueError(
                 f"every branch must keep the frames' shape {tuple(frames.shape[1:])}, "
                 f"got {tuple(result.shape[1:])}"
             )
-        out_dtype = result.dtype if out_dtype is None else torch.promote_types(out_dtype, result.dtype)
-        results.append((index, int(members.size), result))
+        if out_dtype is None:
+            out_dtype = result.dtype
+        elif result.dtype != out_dtype:
+            out_dtype = torch.promote_types(out_dtype, result.dtype)
+        results.append((on_device, int(members.size), result))
     if out_dtype is None:
         raise ValueError("apply_by_group needs at least one function or None")
-    for index, size, result in results:
+
+    def cast(tensor: Tensor) -> Tensor:
+        return tensor if tensor.dtype == out_dtype else tensor.to(out_dtype)
+
+    for _, size, result in results:
         if size == batch:
-            return result.to(out_dtype)
+            return cast(result)
     covered = sum(size for _, size, _ in results)
     out = frames.to(out_dtype, copy=True) if covered < batch else torch.empty(frames.shape, dtype=out_dtype, device=device)
-    for index, size, result in results:
+    for on_device, size, result in results:
         if size:
-            out.index_copy_(0, index.to(device), result.to(out_dtype))
+            out.index_copy_(0, on_device, cast(result))
     return out
 
 

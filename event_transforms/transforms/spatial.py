@@ -178,10 +178,11 @@ class RandomResize(_Zoom):
             if isinstance(choices, (str, bytes)) or not isinstance(choices, Sequence) or not choices:
                 raise TypeError(f"choices must be a non-empty sequence of factors > 0, got {choices!r}")
             self.choices = tuple(check_positive(c, "choices") for c in choices)
+            self._choices = torch.tensor(self.choices, dtype=torch.float64)  # CPU, drawn from in make_params
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         if self.choices is not None:
-            return {"scale": choice(torch.tensor(self.choices, dtype=torch.float64), shape[0], generator)}
+            return {"scale": choice(self._choices, shape[0], generator)}
         assert self.scale is not None
         return {"scale": uniform(*self.scale, shape[0], generator)}
 
