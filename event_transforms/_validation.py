@@ -33,6 +33,7 @@ __all__ = [
     "check_counts",
     "count_stats",
     "read_host",
+    "on_host",
     "HOST_READ",
     "check_shape",
     "check_choice",
@@ -75,6 +76,16 @@ def read_host(values: Tensor) -> list[Any]:
     device. Parameters drawn on the CPU are read with plain ``tolist``: no wait."""
     with torch.profiler.record_function(HOST_READ):
         return values.tolist()
+
+
+def on_host(*params: Tensor | None) -> bool:
+    """Whether a kernel may read its parameters on the host: they are CPU tensors (as
+    ``make_params`` draws them) and no ``torch.compile`` trace is running. Otherwise (params
+    already on an accelerator, e.g. for CUDA-graph capture, or compiling) kernels take
+    their all-tensor path, which reads nothing on the host and gives the same result."""
+    if torch.compiler.is_compiling():
+        return False
+    return all(p is None or p.device.type == "cpu" for p in params)
 
 
 def describe(value: object) -> str:
@@ -170,7 +181,7 @@ def count_stats(
     low, high = torch.aminmax(counts)
     parts = [low, high, *extra]
     if values.is_floating_point():
-        parts.append((counts.to(values.dtype) != values).sum())
+        parts.append((values != counts).sum())  # compared in the values' float dtype
     stats = read_host(torch.stack(parts))  # the one synchronisation
     if values.is_floating_point() and stats[-1]:
         check_counts(values, name, whole=hint)  # finds and names the offending value

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, per_sample
+from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, on_host, per_sample
 
 __all__ = [
     "center_of_mass",
@@ -93,8 +93,27 @@ def _mass_moments(batch: Tensor) -> Tensor:
     ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
     weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc)).view(b, height, width)
     margins = torch.cat([weight.sum(dim=2, dtype=torch.float64), weight.sum(dim=1, dtype=torch.float64)], dim=1)
-    prior, weights = (torch.from_numpy(a).to(batch.device) for a in _moment_weights(height, width))
+    if torch.compiler.is_compiling():
+        prior, weights = _moment_weights_tensors(height, width, batch.device)
+    else:
+        prior, weights = (torch.from_numpy(a).to(batch.device) for a in _moment_weights(height, width))
     return torch.addmm(prior, margins, weights)
+
+
+def _moment_weights_tensors(height: int, width: int, device: torch.device) -> tuple[Tensor, Tensor]:
+    """:func:`_moment_weights` built with tensor ops on ``device`` (for ``torch.compile``)."""
+    f64 = torch.float64
+    rows, cols = torch.zeros(width, dtype=f64, device=device), torch.zeros(height, dtype=f64, device=device)
+    weights = torch.stack(
+        [
+            torch.cat([torch.ones(height, dtype=f64, device=device), rows]),
+            torch.cat([torch.arange(height, dtype=f64, device=device), rows]),
+            torch.cat([cols, torch.arange(width, dtype=f64, device=device)]),
+        ],
+        dim=1,
+    )
+    prior = torch.tensor([_PRIOR, _PRIOR * (height - 1) / 2, _PRIOR * (width - 1) / 2], dtype=f64, device=device)
+    return prior, weights
 
 
 def _check_center(center: object, batch: int | None = None) -> Center:
@@ -153,14 +172,19 @@ def _affine(batch: Tensor, angle: Tensor | None, scale: Tensor | None, center: C
     if batch.numel() == 0:
         return batch.to(out_dtype, copy=True)
     work = _work_dtype(batch.dtype, mode)
-    angle_np = np.zeros(b) if angle is None else np.array(angle.tolist(), dtype=np.float64)
-    scale_np = np.ones(b) if scale is None else np.array(scale.tolist(), dtype=np.float64)
-    matrix = _sampling_matrices(angle_np, scale_np, height, width)  # (B, 6, 3) host float64
-    if isinstance(center, str) and center == "mass":
+    if not on_host(angle, scale):
+        theta = _theta_on_device(batch, angle, scale, center).to(work)
+    elif isinstance(center, str) and center == "mass":
+        angle_np = np.zeros(b) if angle is None else np.array(angle.tolist(), dtype=np.float64)
+        scale_np = np.ones(b) if scale is None else np.array(scale.tolist(), dtype=np.float64)
+        matrix = _sampling_matrices(angle_np, scale_np, height, width)  # (B, 6, 3) host float64
         moments = _mass_moments(batch)  # (B, 3): [M, M y, M x] on the device
         theta = torch.bmm(torch.from_numpy(matrix).to(batch.device), moments.unsqueeze(2)) / moments[:, :1, None]
         theta = theta.view(b, 2, 3).to(work)
     else:
+        angle_np = np.zeros(b) if angle is None else np.array(angle.tolist(), dtype=np.float64)
+        scale_np = np.ones(b) if scale is None else np.array(scale.tolist(), dtype=np.float64)
+        matrix = _sampling_matrices(angle_np, scale_np, height, width)
         if isinstance(center, str):  # "image"
             yx = np.array([(height - 1) / 2, (width - 1) / 2])
         else:
@@ -176,6 +200,33 @@ def _affine(batch: Tensor, angle: Tensor | None, scale: Tensor | None, center: C
     folded = batch.reshape(b, t * p, height, width).to(work)
     warped = torch.nn.functional.grid_sample(folded, grid, mode=mode, padding_mode="zeros", align_corners=True)
     return warped.view(b, t, p, height, width).to(out_dtype)
+
+
+def _theta_on_device(batch: Tensor, angle: Tensor | None, scale: Tensor | None, center: Center) -> Tensor:
+    """(B, 2, 3) float64 sampling matrices built with tensor ops only, on the frames'
+    device (the path for ``torch.compile`` and for parameters already on an accelerator):
+    the same numbers as :func:`_sampling_matrices`, up to float64 rounding."""
+    b, _, _, height, width = batch.shape
+    f64, device = torch.float64, batch.device
+    angle = torch.zeros(b, dtype=f64, device=device) if angle is None else angle.to(device, f64)
+    scale = torch.ones(b, dtype=f64, device=device) if scale is None else scale.to(device, f64)
+    radians = torch.deg2rad(angle)
+    cos, sin = torch.cos(radians) / scale, torch.sin(radians) / scale
+    a = torch.stack([torch.stack([cos, -sin], 1), torch.stack([sin, cos], 1)], 1)  # (B, 2, 2), (x, y)
+    d = torch.tensor([2.0 / (width - 1) if width > 1 else 1.0, 2.0 / (height - 1) if height > 1 else 1.0], dtype=f64, device=device)
+    e = torch.tensor([-1.0 if width > 1 else 0.0, -1.0 if height > 1 else 0.0], dtype=f64, device=device)
+    linear = d.view(1, 2, 1) * a / d.view(1, 1, 2)
+    per_centre = d.view(1, 2, 1) * (torch.eye(2, dtype=f64, device=device) - a)  # on (c_x, c_y)
+    constant = e - linear @ e
+    if isinstance(center, str) and center == "mass":
+        moments = _mass_moments(batch)
+        yx = moments[:, 1:] / moments[:, :1]
+    elif isinstance(center, str):
+        yx = torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=f64, device=device).expand(b, 2)
+    else:
+        yx = torch.as_tensor(center, dtype=f64).to(device).expand(b, 2)
+    shift = constant + per_centre[:, :, 1] * yx[:, :1] + per_centre[:, :, 0] * yx[:, 1:]  # (B, 2)
+    return torch.cat([linear, shift.unsqueeze(2)], dim=2)
 
 
 def _sampling_matrices(angle: np.ndarray, scale: np.ndarray, height: int, width: int) -> np.ndarray:

@@ -16,7 +16,8 @@ import torch
 from torch import Tensor
 
 from .._validation import (
-    TES_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, count_stats, describe, per_sample,
+    TES_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, count_stats, describe, on_host,
+    per_sample,
 )
 from ._hypergeometric import (
     _EXPAND_MAX, binomial_counts, direct_finish, expansion_stats, level_stats, multivariate_hypergeometric, segment_sum,
@@ -106,6 +107,12 @@ def _frame_shift(batch: Tensor, shifts: Tensor) -> Tensor:
     b, t = batch.shape[:2]
     if batch.numel() == 0:
         return batch.clone()
+    if not on_host(shifts):  # compiling, or shifts on an accelerator: tensor ops only
+        source = torch.arange(t, device=batch.device) - shifts.to(batch.device).view(b, 1)  # (B, T)
+        vacated = (source < 0) | (source >= t)
+        rows = (source.clamp(0, t - 1) + t * torch.arange(b, device=batch.device).view(b, 1)).view(-1)
+        out = batch.reshape(b * t, -1).index_select(0, rows).view(batch.shape)
+        return out.masked_fill(vacated.view(b, t, *([1] * (batch.dim() - 2))), 0)
     values = np.clip(np.asarray(shifts.tolist(), dtype=np.int64).reshape(b), -t, t)
     first = int(values[0])
     if (values == first).all():
@@ -245,7 +252,7 @@ def _entries(batch: Tensor) -> tuple[Tensor, Tensor, Tensor]:
     b, t, p, h, w = batch.shape
     flat = batch.reshape(-1)
     bits = flat.view(_BITS[flat.dtype]) if flat.dtype in _BITS else flat
-    index = bits.nonzero().squeeze(1)
+    index = bits.nonzero(as_tuple=True)[0]
     return index, index.div(t * p * h * w, rounding_mode="floor"), flat.index_select(0, index)
 
 
@@ -312,7 +319,7 @@ def _move(
     frame = math.prod(out.shape[2:])
     flat = out.view(-1)
     moved = moved if moved.dtype == out.dtype else moved.to(out.dtype)
-    flat.scatter_(0, index, values - moved)  # values are in the output dtype
+    flat.index_add_(0, index, moved, alpha=-1)  # X - Z on the non-zero pixels
     step = shifts.clamp(-t, t).to(out.device)  # CPU parameters, moved once
     target = torch.add(index, step.index_select(0, sample), alpha=frame)
     dropped = target.div(t * frame, rounding_mode="floor") != sample

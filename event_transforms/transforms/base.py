@@ -107,14 +107,14 @@ def _draw_device(generator: torch.Generator | None) -> torch.device:
 def uniform(low: float, high: float, batch: int, generator: torch.Generator | None) -> Tensor:
     """``batch`` draws from U[low, high) as a float64 CPU tensor."""
     u = torch.rand(batch, generator=generator, device=_draw_device(generator), dtype=torch.float64)
-    return (low + (high - low) * u).cpu()
+    return _cpu(u.mul_(high - low).add_(low))
 
 
 def choice(values: Sequence[Any] | Tensor, batch: int, generator: torch.Generator | None) -> Tensor:
     """``batch`` uniform draws from ``values`` (a 1-D tensor or sequence), on the CPU."""
     values = torch.as_tensor(values)
     index = torch.randint(len(values), (batch,), generator=generator, device=_draw_device(generator))
-    return values[index.cpu()]
+    return values[_cpu(index)]
 
 
 def bernoulli(p: float, batch: int, generator: torch.Generator | None) -> Tensor:
@@ -131,9 +131,14 @@ def integers(high: Tensor | int, batch: int, generator: torch.Generator | None) 
 
 def seeds(batch: int, generator: torch.Generator | None) -> Tensor:
     """``batch`` independent 63-bit seeds (int64, CPU), one per sample."""
-    return torch.randint(
-        0, 2**63 - 1, (batch,), generator=generator, device=_draw_device(generator), dtype=torch.int64
-    ).cpu()
+    return _cpu(
+        torch.randint(0, 2**63 - 1, (batch,), generator=generator, device=_draw_device(generator), dtype=torch.int64)
+    )
+
+
+def _cpu(tensor: Tensor) -> Tensor:
+    """``tensor`` on the CPU (a draw from an accelerator generator is copied once)."""
+    return tensor if tensor.device.type == "cpu" else tensor.cpu()
 
 
 def kernel_generator(seed: Tensor, device: torch.device) -> torch.Generator:

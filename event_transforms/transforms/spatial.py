@@ -15,7 +15,7 @@ import torch
 from torch import Tensor
 
 from .. import functional as F
-from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
+from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, on_host
 from ..functional.spatial import Center, _affine, _check_center
 from .base import EventTransform, Params, choice, uniform
 
@@ -197,6 +197,9 @@ def _flip(frames: Tensor, params: Params, axis: int) -> Tensor:
     mirrored, else one gather of whole rows (H) or of columns (W) by a per-sample index
     built on the host. No host synchronisation."""
     gate = params.get("apply")
+    if gate is not None and not on_host(gate):  # compiling, or a gate on an accelerator
+        flip = gate.to(frames.device, torch.bool).view(-1, 1, 1, 1, 1)
+        return torch.where(flip, frames.flip(axis), frames)
     flags = None if gate is None else np.asarray(gate.tolist(), dtype=bool).reshape(frames.shape[0])
     if flags is None or flags.all():
         return frames.flip(axis)
