@@ -112,6 +112,11 @@ def direct_finish(device: torch.device) -> bool:
     return torch.device(device).type != "cpu"
 
 
+def _keys_budget(entries: int) -> int:
+    """Most (rows × widest row) keys of the smallest-keys finish: memory O(entries)."""
+    return 4 * entries + 2**16
+
+
 def level_stats(size: Tensor, total: Tensor) -> list[Tensor]:
     """0-d tensors :func:`multivariate_hypergeometric` needs on the host, to be read in one
     synchronisation: the largest draw ``min(size, total - size)`` and the widest row."""
@@ -178,7 +183,7 @@ def multivariate_hypergeometric(
         stats = tuple(int(v) for v in read_host(torch.stack(level_stats(size, total))))
     draw, widest = stats
     direct = direct_finish(pool.device)
-    if (draw <= _SMALL or direct) and size.numel() * widest <= 4 * pool.numel() + 2**16:
+    if (draw <= _SMALL or direct) and size.numel() * widest <= _keys_budget(pool.numel()):
         return _smallest_keys(pool, segment, size, total, generator, draw, widest)
     if draw <= _SMALL:
         return _small_subsets(pool, segment, size, total, generator, draw)
