@@ -20,7 +20,7 @@ from .._validation import (
     per_sample,
 )
 from ._hypergeometric import (
-    _EXPAND_MAX, binomial_counts, direct_finish, expansion_stats, level_stats, multivariate_hypergeometric, segment_sum,
+    _EXPAND_MAX, binomial_counts, direct_finish, level_stats, multivariate_hypergeometric, segment_sum,
 )
 
 __all__ = ["frame_shift", "temporal_event_shift"]
@@ -233,12 +233,12 @@ def _temporal_event_shift(
         out = batch.to(dtype, memory_format=torch.contiguous_format, copy=True)
         values = values.to(dtype)
         moved = values * fractions.to(device=batch.device, dtype=dtype).index_select(0, sample)
-        return _move(out, index, sample, values, moved, shifts)
+        return _move(out, index, sample, moved, shifts)
     out = batch.clone(memory_format=torch.contiguous_format)
     if index.numel() == 0:
         return out
     moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator, hint)
-    return _move(out, index, sample, values, moved, shifts)
+    return _move(out, index, sample, moved, shifts)
 
 
 def _entries(batch: Tensor) -> tuple[Tensor, Tensor, Tensor]:
@@ -305,13 +305,12 @@ def _check_limit(high: float, limit: int) -> None:
         raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
 
 
-def _move(
-    out: Tensor, index: Tensor, sample: Tensor, values: Tensor, moved: Tensor, shifts: Tensor
-) -> Tensor:
+def _move(out: Tensor, index: Tensor, sample: Tensor, moved: Tensor, shifts: Tensor) -> Tensor:
     """Turn ``out`` (a contiguous copy of X) into ``X - Z + frame_shift(Z)`` in place.
 
-    X (``values``) and Z (``moved``) are given on the non-zero pixels ``index``; Z moves
-    to ``index + j * frame`` unless that leaves the sample's sequence (then it is dropped).
+    Z (``moved``) is given on the non-zero pixels ``index``; it moves to
+    ``index + j * frame`` unless that leaves the sample's sequence (then it is dropped).
+    Two ``index_add_`` calls; no data-dependent shape, no host synchronisation.
     """
     if index.numel() == 0:
         return out
