@@ -75,14 +75,15 @@ def _moment_weights(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     return prior, weights
 
 
-def _mass_moments(batch: Tensor) -> Tensor:
+def _mass_moments(batch: Tensor, *, host: bool = True) -> Tensor:
     """(B, 3) float64 ``[M, M·y, M·x]`` of each sequence: its event mass M and first
     moments, plus a prior of mass 2**-900 at the image centre.
 
     The prior is far below float64 resolution beside any real mass, so
     ``moments[:, 1:] / moments[:, :1]`` is the centroid (to ~1e-250), and exactly the
     image centre for an empty sequence: no ``where``, no branch on the data.
-    About ten device ops and no host synchronisation.
+    About ten device ops and no host synchronisation; with ``host=False`` the constants are
+    made on the device (no host-to-device copy, as CUDA-graph capture requires).
     """
     b, t, p, height, width = batch.shape
     # Sum the T·2 frames of each sequence with one batched matrix product (much faster
@@ -93,7 +94,7 @@ def _mass_moments(batch: Tensor) -> Tensor:
     ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
     weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc)).view(b, height, width)
     margins = torch.cat([weight.sum(dim=2, dtype=torch.float64), weight.sum(dim=1, dtype=torch.float64)], dim=1)
-    if torch.compiler.is_compiling():
+    if not host or torch.compiler.is_compiling():
         prior, weights = _moment_weights_tensors(height, width, batch.device)
     else:
         prior, weights = (torch.from_numpy(a).to(batch.device) for a in _moment_weights(height, width))
@@ -101,7 +102,8 @@ def _mass_moments(batch: Tensor) -> Tensor:
 
 
 def _moment_weights_tensors(height: int, width: int, device: torch.device) -> tuple[Tensor, Tensor]:
-    """:func:`_moment_weights` built with tensor ops on ``device`` (for ``torch.compile``)."""
+    """:func:`_moment_weights` built with tensor ops on ``device`` (for ``torch.compile`` and
+    CUDA-graph capture: fills and ``arange``, no host-to-device copy)."""
     f64 = torch.float64
     rows, cols = torch.zeros(width, dtype=f64, device=device), torch.zeros(height, dtype=f64, device=device)
     weights = torch.stack(
@@ -112,8 +114,13 @@ def _moment_weights_tensors(height: int, width: int, device: torch.device) -> tu
         ],
         dim=1,
     )
-    prior = torch.tensor([_PRIOR, _PRIOR * (height - 1) / 2, _PRIOR * (width - 1) / 2], dtype=f64, device=device)
+    prior = _constants([_PRIOR, _PRIOR * (height - 1) / 2, _PRIOR * (width - 1) / 2], device)
     return prior, weights
+
+
+def _constants(values: Sequence[float], device: torch.device) -> Tensor:
+    """A float64 vector of host numbers made on ``device`` by fills (no host-to-device copy)."""
+    return torch.stack([torch.full((), v, dtype=torch.float64, device=device) for v in values])
 
 
 def _check_center(center: object, batch: int | None = None) -> Center:
@@ -213,16 +220,16 @@ def _theta_on_device(batch: Tensor, angle: Tensor | None, scale: Tensor | None, 
     radians = torch.deg2rad(angle)
     cos, sin = torch.cos(radians) / scale, torch.sin(radians) / scale
     a = torch.stack([torch.stack([cos, -sin], 1), torch.stack([sin, cos], 1)], 1)  # (B, 2, 2), (x, y)
-    d = torch.tensor([2.0 / (width - 1) if width > 1 else 1.0, 2.0 / (height - 1) if height > 1 else 1.0], dtype=f64, device=device)
-    e = torch.tensor([-1.0 if width > 1 else 0.0, -1.0 if height > 1 else 0.0], dtype=f64, device=device)
+    d = _constants([2.0 / (width - 1) if width > 1 else 1.0, 2.0 / (height - 1) if height > 1 else 1.0], device)
+    e = _constants([-1.0 if width > 1 else 0.0, -1.0 if height > 1 else 0.0], device)
     linear = d.view(1, 2, 1) * a / d.view(1, 1, 2)
     per_centre = d.view(1, 2, 1) * (torch.eye(2, dtype=f64, device=device) - a)  # on (c_x, c_y)
     constant = e - linear @ e
     if isinstance(center, str) and center == "mass":
-        moments = _mass_moments(batch)
+        moments = _mass_moments(batch, host=False)
         yx = moments[:, 1:] / moments[:, :1]
     elif isinstance(center, str):
-        yx = torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=f64, device=device).expand(b, 2)
+        yx = _constants([(height - 1) / 2, (width - 1) / 2], device).expand(b, 2)
     else:
         yx = torch.as_tensor(center, dtype=f64).to(device).expand(b, 2)
     shift = constant + per_centre[:, :, 1] * yx[:, :1] + per_centre[:, :, 0] * yx[:, 1:]  # (B, 2)
