@@ -293,3 +293,69 @@ def command(script: str, argv: Sequence[str] | None) -> str:
     env = " ".join(f"{k}={v}" for k, v in sorted(os.environ.items()) if k.startswith("MALLOC_"))
     args = " ".join(argv if argv is not None else sys.argv[1:])
     return " ".join(p for p in (env, f"python benchmarks/{script}", args) if p)
+
+
+# --------------------------------------------------------------------------- op counts
+
+#: aten calls that make the host wait for the device (they read a value or a
+#: data-dependent size): ``.item()``/``bool()``/``int()`` (``_local_scalar_dense``),
+#: ``nonzero``, ``masked_select`` and ``unique``.
+HOST_SYNC_OPS = ("aten::_local_scalar_dense", "aten::nonzero", "aten::masked_select")
+
+
+@dataclass(frozen=True)
+class OpCounts:
+    """Host synchronisations and top-level aten calls of one call, from ``torch.profiler``."""
+
+    syncs: int
+    ops: int
+    sync_names: tuple[str, ...] = ()
+    op_names: tuple[str, ...] = ()
+
+    def __str__(self) -> str:
+        return f"{self.syncs} syncs, {self.ops} ops"
+
+
+def _is_sync(name: str) -> bool:
+    from event_transforms._validation import HOST_READ
+
+    return name in HOST_SYNC_OPS or name == HOST_READ or name.startswith(("aten::unique", "aten::_unique"))
+
+
+def count_ops(fn: Callable[[], Any], *, warmup: bool = True) -> OpCounts:
+    """Count the host syncs and top-level aten ops of ``fn()`` with ``torch.profiler`` (CPU).
+
+    *Ops* are the aten calls made directly from Python (events whose parent is not an aten
+    call), views and metadata calls (``view``, ``slice``, ``resolve_conj``) included: each
+    is at least one dispatch, and most are a kernel launch on an accelerator, so the count
+    is an upper bound of the launches. *Host syncs* are calls, at any depth, of
+    ``_local_scalar_dense`` (``.item()``, ``bool(tensor)``, ``int(tensor)``), ``nonzero``,
+    ``masked_select`` or ``unique*``, plus the library's own reads of device values
+    (``event_transforms._validation.read_host``, a profiler range: ``tolist`` dispatches
+    nothing countable on the CPU): on an accelerator each makes the host wait for the
+    device. Reads of parameters drawn on the CPU are not syncs and are not counted. On
+    the CPU these counts are deterministic for a given input and parameters, so they serve
+    as a device-free proxy for launch overhead.
+
+    ``fn`` is called once first (``warmup``) so lazy imports and caches are not counted.
+    """
+    from torch.profiler import ProfilerActivity, profile
+
+    if warmup:
+        fn()
+    with profile(activities=[ProfilerActivity.CPU]) as prof:
+        fn()
+    everything = list(prof.events())
+    events = [e for e in everything if e.name.startswith("aten::")]
+
+    def top_level(event: Any) -> bool:
+        parent = event.cpu_parent
+        while parent is not None:
+            if parent.name.startswith("aten::"):
+                return False
+            parent = parent.cpu_parent
+        return True
+
+    syncs = tuple(e.name for e in everything if _is_sync(e.name))
+    ops = tuple(e.name for e in events if top_level(e))
+    return OpCounts(syncs=len(syncs), ops=len(ops), sync_names=syncs, op_names=ops)

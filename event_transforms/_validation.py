@@ -31,6 +31,10 @@ __all__ = [
     "DROP_MODES",
     "check_frames",
     "check_counts",
+    "count_stats",
+    "read_host",
+    "on_host",
+    "HOST_READ",
     "check_shape",
     "check_choice",
     "as_number",
@@ -57,6 +61,31 @@ FRAME_DTYPES = (
     torch.float16, torch.bfloat16, torch.float32, torch.float64,
 )
 INTEGER_DTYPES = (torch.uint8, torch.int8, torch.int16, torch.int32, torch.int64)
+
+
+#: Name of the profiler range around every read of device values on the host (see
+#: :func:`read_host`): such a read waits for the device, like ``.item()``, but ``tolist``
+#: on the CPU dispatches no ``aten`` op a profiler could count.
+HOST_READ = "event_transforms::host_read"
+
+
+def read_host(values: Tensor) -> list[Any]:
+    """``values.tolist()`` for a small tensor computed on the frames' device: the one way a
+    kernel reads device numbers on the host (a host synchronisation on an accelerator),
+    marked for ``torch.profiler`` so the synchronisations of a call can be counted on any
+    device. Parameters drawn on the CPU are read with plain ``tolist``: no wait."""
+    with torch.profiler.record_function(HOST_READ):
+        return values.tolist()
+
+
+def on_host(*params: Tensor | None) -> bool:
+    """Whether a kernel may read its parameters on the host: they are CPU tensors (as
+    ``make_params`` draws them) and no ``torch.compile`` trace is running. Otherwise (params
+    already on an accelerator, e.g. for CUDA-graph capture, or compiling) kernels take
+    their all-tensor path, which reads nothing on the host and gives the same result."""
+    if torch.compiler.is_compiling():
+        return False
+    return all(p is None or p.device.type == "cpu" for p in params)
 
 
 def describe(value: object) -> str:
@@ -127,7 +156,7 @@ def check_counts(values: Tensor, name: str = "frames", *, whole: str | None = No
     checks = [low.isfinite() & high.isfinite(), low >= 0]
     if whole is not None:
         checks.append((values == values.round()).all())
-    flags = torch.stack(checks).tolist()  # one synchronisation for every check
+    flags = read_host(torch.stack(checks))  # one synchronisation for every check
     if not flags[0]:
         raise ValueError(f"{name} must be finite, got NaN or Inf values")
     if not flags[1]:
@@ -135,6 +164,31 @@ def check_counts(values: Tensor, name: str = "frames", *, whole: str | None = No
     if whole is not None and not flags[2]:
         bad = values[values != values.round()].flatten()[0].item()
         raise ValueError(f"{name} must hold whole event counts, got {bad!r}; {whole}")
+
+
+def count_stats(
+    values: Tensor, counts: Tensor, name: str = "frames", *, hint: str, extra: Sequence[Tensor] = ()
+) -> list[int]:
+    """Check that ``values`` are whole, non-negative, finite event counts, given ``counts =
+    values.to(torch.int64)``, and read ``extra`` int64 0-d tensors, in one host
+    synchronisation.
+
+    A float value is a whole count exactly when it survives the round trip through int64
+    (NaN, Inf and fractions do not), so the fast path is one comparison, one sum and one
+    ``aminmax`` of the counts; the precise reason is worked out only on the error path.
+    ``hint`` ends the error for fractional counts. Returns ``[largest count, *extra]``.
+    """
+    low, high = torch.aminmax(counts)
+    parts = [low, high, *extra]
+    if values.is_floating_point():
+        parts.append((values != counts).sum())  # compared in the values' float dtype
+    stats = read_host(torch.stack(parts))  # the one synchronisation
+    if values.is_floating_point() and stats[-1]:
+        check_counts(values, name, whole=hint)  # finds and names the offending value
+        raise ValueError(f"{name}: counts above 2**63 per pixel are not supported")  # pragma: no cover
+    if stats[0] < 0:
+        raise ValueError(f"{name} must hold non-negative event counts, got minimum {stats[0]}")
+    return stats[1 : 2 + len(extra)]
 
 
 def check_shape(shape: object, name: str = "shape") -> torch.Size:

@@ -116,6 +116,19 @@ class TestBinomialCounts:
         assert hg.binomial_counts(empty, torch.tensor([0.5], dtype=torch.float64), empty).numel() == 0
 
 
+@pytest.fixture(params=["cpu", "direct", "rejection"])
+def finish(request, monkeypatch):
+    """Run a test with each exact finish: the CPU's choice (binomial levels, then smallest
+    keys), the accelerator's (smallest keys at any draw size), and the rejection finish
+    (taken when rows × widest row is too large for keys)."""
+    if request.param == "direct":
+        monkeypatch.setattr(hg, "direct_finish", lambda device: True)
+    elif request.param == "rejection":
+        monkeypatch.setattr(hg, "_keys_budget", lambda entries: -1)
+    return request.param
+
+
+@pytest.mark.usefixtures("finish")
 class TestMultivariateHypergeometric:
     def check_invariants(self, pool, segment, size, y):
         assert y.dtype == torch.int64

@@ -81,6 +81,39 @@ class TestAddNoiseModule:
         module = et.AddNoise(torch.ones(5, 2, H, W))
         assert "bank" in module.state_dict()
 
+    @pytest.mark.parametrize("dtype", [torch.float32, torch.int16, torch.int64])
+    def test_sparse_bank_equals_dense_sum(self, dtype):
+        """A sparse bank adds its non-zero entries only: same sum as the dense windows."""
+        bank = sparse_frames(12, 2, H, W, density=0.03, seed=4)
+        module = et.AddNoise(bank)
+        assert module._entries is not None  # the sparse path
+        frames = sparse_frames(6, 5, 2, H, W, density=0.2, dtype=dtype)
+        params = module.make_params(frames.shape, generator=gen())
+        out = check_not_modified(lambda x: module(x, params=params), frames)
+        windows = torch.stack([bank[o : o + 5] for o in params["offset"].tolist()])
+        assert out.dtype == dtype
+        assert torch.equal(out, frames + windows.to(dtype))
+
+    def test_sparse_bank_overflow_is_refused(self):
+        bank = torch.zeros(4, 2, H, W)
+        bank[1, 0, 2, 3] = 200.0
+        frames = torch.full((1, 3, 2, H, W), 100, dtype=torch.uint8)
+        with pytest.raises(ValueError, match="overflows"):
+            et.AddNoise(bank)(frames, params={"offset": torch.tensor([0])})
+
+    def test_loaded_bank_is_indexed_again(self):
+        module = et.AddNoise(torch.zeros(6, 2, H, W))
+        other = torch.zeros(6, 2, H, W)
+        other[2, 1, 4, 5] = 3.0
+        module.load_state_dict({"bank": other})
+        out = module(torch.zeros(1, 3, 2, H, W), params={"offset": torch.tensor([1])})
+        assert out.sum() == 3.0 and out[0, 1, 1, 4, 5] == 3.0
+
+    def test_offset_past_the_bank_is_refused(self):
+        module = et.AddNoise(torch.zeros(6, 2, H, W))
+        with pytest.raises(ValueError, match="params\\['offset'\\]"):
+            module(torch.zeros(1, 3, 2, H, W), params={"offset": torch.tensor([4])})
+
 
 class TestPoissonNoise:
     @pytest.mark.parametrize("rate_hz", [0.5, 5.0, 300.0])  # sparse and dense paths

@@ -43,7 +43,7 @@ def _moved_counts(frames, fraction, *, mode="exact", generator=None):
     """
     batch, unbatch = as_batch(frames)
     fractions = _fractions(fraction, batch.shape[0])
-    index, sample, values = _entries(batch, whole=True)
+    index, sample, values = _entries(batch)
     moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
     out = torch.zeros(batch.numel(), dtype=frames.dtype, device=frames.device)
     out[index] = moved.to(frames.dtype)

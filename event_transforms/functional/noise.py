@@ -49,9 +49,32 @@ def _add_counts(frames: Tensor, counts: Tensor, name: str) -> Tensor:
     return frames + counts.to(frames.dtype)
 
 
+def _add_entries(frames: Tensor, target: Tensor, values: Tensor, name: str) -> Tensor:
+    """A copy of ``frames`` with ``values`` added at the distinct flat positions ``target``.
+
+    Integer dtypes narrower than int64 are checked for overflow first (one host
+    synchronisation, for those dtypes only); float dtypes need none.
+    """
+    out = frames.clone(memory_format=torch.contiguous_format)
+    flat = out.view(-1)
+    if frames.dtype in _SMALL_INTEGERS and target.numel():
+        limit = torch.iinfo(frames.dtype).max
+        high = (flat.index_select(0, target).to(torch.int64) + values.to(torch.int64)).max()
+        if bool(high > limit):
+            raise ValueError(
+                f"adding {name} overflows {frames.dtype}: a pixel would hold {int(high)} > {limit}; "
+                "use a wider dtype"
+            )
+    return flat.index_add_(0, target, values.to(out.dtype)).view(frames.shape)
+
+
 def _add_events(batch: Tensor, flat_index: Tensor) -> Tensor:
-    """Add one event at each flat position (repeats accumulate): O(events) beyond a clone."""
-    out = batch.clone()
+    """Add one event at each flat position (repeats accumulate): O(events) beyond a clone.
+
+    No host synchronisation for float and int64 frames; narrower integer dtypes are
+    checked for overflow (``unique`` and one read).
+    """
+    out = batch.clone(memory_format=torch.contiguous_format)
     flat = out.view(-1)
     if batch.dtype in _SMALL_INTEGERS and flat_index.numel():
         cell, added = torch.unique(flat_index, return_counts=True)
@@ -62,8 +85,8 @@ def _add_events(batch: Tensor, flat_index: Tensor) -> Tensor:
                 f"adding Poisson noise overflows {batch.dtype}: a pixel would hold {int(high)} > {limit}; "
                 "use a wider dtype"
             )
-    flat.index_put_((flat_index,), torch.ones((), dtype=out.dtype, device=out.device).expand(flat_index.shape), accumulate=True)
-    return out
+    ones = torch.ones((), dtype=out.dtype, device=out.device).expand(flat_index.shape)
+    return flat.index_add_(0, flat_index, ones).view(batch.shape)
 
 
 def add_noise(frames: Tensor, noise: Tensor) -> Tensor:
@@ -142,7 +165,7 @@ def _poisson_totals(lam: Tensor, shape: torch.Size, generator: torch.Generator |
     ``lam`` is the (B,) mean count per cell (CPU float64). Below one event per cell the noise
     is placed event by event (the totals, then uniform positions); otherwise cell by cell.
     """
-    if lam.numel() == 0 or float(lam.max()) >= 1.0:
+    if lam.numel() == 0 or max(lam.tolist()) >= 1.0:
         return None
     cells = float(torch.Size(shape[1:]).numel())
     return torch.poisson(lam * cells, generator=generator).to(torch.int64)
@@ -162,10 +185,10 @@ def _add_poisson_noise(
         return batch.clone()
     device = batch.device
     cells = batch[0].numel()
-    if totals is None and lam.numel() and float(lam.max()) < 1.0:
+    if totals is None and lam.numel() and max(lam.tolist()) < 1.0:
         totals = torch.poisson((lam * cells).to(device), generator=generator).long().cpu()
     if totals is not None:
-        count = int(totals.sum())
+        count = sum(totals.tolist())  # a CPU tensor: read on the host
         position = torch.randint(cells, (count,), generator=generator, device=device)
         sample = torch.repeat_interleave(
             torch.arange(batch.shape[0], device=device), totals.to(device), output_size=count

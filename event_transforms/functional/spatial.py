@@ -1,18 +1,23 @@
 """Spatial kernels: rotation and resize about a centre (one affine warp per sequence), flips.
 
-Rotation and resize fold the T·2 frames of a sequence into channels and call kornia's
-``warp_affine`` once with a (B, 2, 3) matrix, so one sampling grid serves every frame of a
-sequence (the grasp keeps its orientation) and no (B·T) grids are built.
+Rotation and resize fold the T·2 frames of a sequence into channels and call
+``affine_grid`` and ``grid_sample`` once with a (B, 2, 3) matrix built on the host (the
+same sampling as kornia's ``warp_affine``, without its float64 matrix helpers), so one
+sampling grid serves every frame of a sequence (the grasp keeps its orientation), no
+(B·T) grids are built, and the device is never asked for a number.
 """
 
 from __future__ import annotations
 
+import functools
+import warnings
 from collections.abc import Sequence
 
+import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, per_sample
+from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, on_host, per_sample
 
 __all__ = [
     "center_of_mass",
@@ -50,6 +55,36 @@ def center_of_mass(frames: Tensor) -> Tensor:
 
 
 def _center_of_mass(batch: Tensor) -> Tensor:
+    moments = _mass_moments(batch)
+    return moments[:, 1:] / moments[:, :1]
+
+
+#: Mass of the prior at the image centre (a power of two, so scaling by it is exact).
+_PRIOR = 2.0**-900
+
+
+@functools.lru_cache(maxsize=32)
+def _moment_weights(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Host constants of :func:`_mass_moments`: the prior ``(3,)`` and the ``(H + W, 3)``
+    matrix taking row sums to ``[mass, y moment, 0]`` and column sums to ``[0, 0, x moment]``."""
+    weights = np.zeros((height + width, 3))
+    weights[:height, 0] = 1.0
+    weights[:height, 1] = np.arange(height)
+    weights[height:, 2] = np.arange(width)
+    prior = np.array([_PRIOR, _PRIOR * (height - 1) / 2, _PRIOR * (width - 1) / 2])
+    return prior, weights
+
+
+def _mass_moments(batch: Tensor, *, host: bool = True) -> Tensor:
+    """(B, 3) float64 ``[M, M·y, M·x]`` of each sequence: its event mass M and first
+    moments, plus a prior of mass 2**-900 at the image centre.
+
+    The prior is far below float64 resolution beside any real mass, so
+    ``moments[:, 1:] / moments[:, :1]`` is the centroid (to ~1e-250), and exactly the
+    image centre for an empty sequence: no ``where``, no branch on the data.
+    About ten device ops and no host synchronisation; with ``host=False`` the constants are
+    made on the device (no host-to-device copy, as CUDA-graph capture requires).
+    """
     b, t, p, height, width = batch.shape
     # Sum the T·2 frames of each sequence with one batched matrix product (much faster
     # than a strided reduction); float32 is exact for whole counts below 2**24 per pixel,
@@ -57,15 +92,35 @@ def _center_of_mass(batch: Tensor) -> Tensor:
     exact = batch.dtype in (torch.float64, torch.int32, torch.int64)
     acc = torch.float64 if exact else torch.float32
     ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
-    weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc))
-    weight = weight.reshape(b, height, width).to(torch.float64)
-    ys = torch.arange(height, dtype=torch.float64, device=batch.device)
-    xs = torch.arange(width, dtype=torch.float64, device=batch.device)
-    rows = weight.sum(dim=2)
-    total = rows.sum(dim=1, keepdim=True)
-    moments = torch.stack([rows @ ys, weight.sum(dim=1) @ xs], dim=1)  # (B, 2)
-    image = torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=torch.float64, device=batch.device)
-    return torch.where(total > 0, moments / total.clamp_min(1e-300), image)
+    weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc)).view(b, height, width)
+    margins = torch.cat([weight.sum(dim=2, dtype=torch.float64), weight.sum(dim=1, dtype=torch.float64)], dim=1)
+    if not host or torch.compiler.is_compiling():
+        prior, weights = _moment_weights_tensors(height, width, batch.device)
+    else:
+        prior, weights = (torch.from_numpy(a).to(batch.device) for a in _moment_weights(height, width))
+    return torch.addmm(prior, margins, weights)
+
+
+def _moment_weights_tensors(height: int, width: int, device: torch.device) -> tuple[Tensor, Tensor]:
+    """:func:`_moment_weights` built with tensor ops on ``device`` (for ``torch.compile`` and
+    CUDA-graph capture: fills and ``arange``, no host-to-device copy)."""
+    f64 = torch.float64
+    rows, cols = torch.zeros(width, dtype=f64, device=device), torch.zeros(height, dtype=f64, device=device)
+    weights = torch.stack(
+        [
+            torch.cat([torch.ones(height, dtype=f64, device=device), rows]),
+            torch.cat([torch.arange(height, dtype=f64, device=device), rows]),
+            torch.cat([cols, torch.arange(width, dtype=f64, device=device)]),
+        ],
+        dim=1,
+    )
+    prior = _constants([_PRIOR, _PRIOR * (height - 1) / 2, _PRIOR * (width - 1) / 2], device)
+    return prior, weights
+
+
+def _constants(values: Sequence[float], device: torch.device) -> Tensor:
+    """A float64 vector of host numbers made on ``device`` by fills (no host-to-device copy)."""
+    return torch.stack([torch.full((), v, dtype=torch.float64, device=device) for v in values])
 
 
 def _check_center(center: object, batch: int | None = None) -> Center:
@@ -108,36 +163,103 @@ def _output_dtype(dtype: torch.dtype, mode: str) -> torch.dtype:
     return torch.float32
 
 
-def _affine(batch: Tensor, angle: Tensor, scale: Tensor, center: Center, mode: str) -> Tensor:
+def _affine(batch: Tensor, angle: Tensor | None, scale: Tensor | None, center: Center, mode: str) -> Tensor:
     """Rotate by ``angle`` degrees and zoom by ``scale`` about ``center``, per sample.
 
-    ``angle`` and ``scale`` are (B,) float64 CPU tensors. The forward map of sample b is
-    ``dst = s R(θ) (src - c) + c`` (OpenCV's and kornia's convention); its 2×3 matrix is
-    built from host numbers and the device centre, and one kornia ``warp_affine`` samples
-    all T·2 frames of a sequence, folded into channels.
+    ``angle`` and ``scale`` are (B,) float64 CPU tensors (``None``: 0° and 1). The forward map of sample b is
+    ``dst = s R(θ) (src - c) + c`` (OpenCV's and kornia's convention). The sampling matrix
+    (its inverse, in the normalised coordinates of ``grid_sample`` with
+    ``align_corners=True``) is built on the host in float64 from the parameters; only the
+    centroid, when ``center="mass"``, comes from the device, and enters through one batched
+    matrix product. Then one ``affine_grid`` and one ``grid_sample`` serve all T·2 frames of
+    a sequence, folded into channels: about 25 device ops and no host synchronisation.
     """
     b, t, p, height, width = batch.shape
     out_dtype = _output_dtype(batch.dtype, mode)
     if batch.numel() == 0:
         return batch.to(out_dtype, copy=True)
-    from kornia.geometry.transform import warp_affine  # imported on first use: keeps imports light
-
     work = _work_dtype(batch.dtype, mode)
-    radians = torch.deg2rad(angle.to(torch.float64))
-    alpha = (scale * torch.cos(radians)).to(batch.device, work)  # (B,)
-    beta = (scale * torch.sin(radians)).to(batch.device, work)
-    yx = _resolve_center(batch, center).to(work)
-    cy, cx = yx[:, 0], yx[:, 1]
-    matrix = torch.stack(
-        [
-            torch.stack([alpha, beta, (1 - alpha) * cx - beta * cy], dim=1),
-            torch.stack([-beta, alpha, beta * cx + (1 - alpha) * cy], dim=1),
-        ],
-        dim=1,
-    )  # (B, 2, 3)
+    if not on_host(angle, scale):
+        theta = _theta_on_device(batch, angle, scale, center).to(work)
+    elif isinstance(center, str) and center == "mass":
+        angle_np = np.zeros(b) if angle is None else np.array(angle.tolist(), dtype=np.float64)
+        scale_np = np.ones(b) if scale is None else np.array(scale.tolist(), dtype=np.float64)
+        matrix = _sampling_matrices(angle_np, scale_np, height, width)  # (B, 6, 3) host float64
+        moments = _mass_moments(batch)  # (B, 3): [M, M y, M x] on the device
+        theta = torch.bmm(torch.from_numpy(matrix).to(batch.device), moments.unsqueeze(2)) / moments[:, :1, None]
+        theta = theta.view(b, 2, 3).to(work)
+    else:
+        angle_np = np.zeros(b) if angle is None else np.array(angle.tolist(), dtype=np.float64)
+        scale_np = np.ones(b) if scale is None else np.array(scale.tolist(), dtype=np.float64)
+        matrix = _sampling_matrices(angle_np, scale_np, height, width)
+        if isinstance(center, str):  # "image"
+            yx = np.array([(height - 1) / 2, (width - 1) / 2])
+        else:
+            yx = torch.as_tensor(center, dtype=torch.float64).cpu().numpy()
+        ones_yx = np.concatenate([np.ones((b, 1)), np.broadcast_to(yx, (b, 2))], axis=1)
+        theta = torch.from_numpy((matrix @ ones_yx[:, :, None]).reshape(b, 2, 3)).to(batch.device, work)
+    if height == 1 or width == 1:
+        with warnings.catch_warnings():  # unit-size axes map to pixel 0, as intended here
+            warnings.filterwarnings("ignore", message="Since version 1.3.0, affine_grid")
+            grid = torch.nn.functional.affine_grid(theta, [b, t * p, height, width], align_corners=True)
+    else:
+        grid = torch.nn.functional.affine_grid(theta, [b, t * p, height, width], align_corners=True)
     folded = batch.reshape(b, t * p, height, width).to(work)
-    warped = warp_affine(folded, matrix, (height, width), mode=mode, padding_mode="zeros", align_corners=True)
-    return warped.reshape(b, t, p, height, width).to(out_dtype)
+    warped = torch.nn.functional.grid_sample(folded, grid, mode=mode, padding_mode="zeros", align_corners=True)
+    return warped.view(b, t, p, height, width).to(out_dtype)
+
+
+def _theta_on_device(batch: Tensor, angle: Tensor | None, scale: Tensor | None, center: Center) -> Tensor:
+    """(B, 2, 3) float64 sampling matrices built with tensor ops only, on the frames'
+    device (the path for ``torch.compile`` and for parameters already on an accelerator):
+    the same numbers as :func:`_sampling_matrices`, up to float64 rounding."""
+    b, _, _, height, width = batch.shape
+    f64, device = torch.float64, batch.device
+    angle = torch.zeros(b, dtype=f64, device=device) if angle is None else angle.to(device, f64)
+    scale = torch.ones(b, dtype=f64, device=device) if scale is None else scale.to(device, f64)
+    radians = torch.deg2rad(angle)
+    cos, sin = torch.cos(radians) / scale, torch.sin(radians) / scale
+    a = torch.stack([torch.stack([cos, -sin], 1), torch.stack([sin, cos], 1)], 1)  # (B, 2, 2), (x, y)
+    d = _constants([2.0 / (width - 1) if width > 1 else 1.0, 2.0 / (height - 1) if height > 1 else 1.0], device)
+    e = _constants([-1.0 if width > 1 else 0.0, -1.0 if height > 1 else 0.0], device)
+    linear = d.view(1, 2, 1) * a / d.view(1, 1, 2)
+    per_centre = d.view(1, 2, 1) * (torch.eye(2, dtype=f64, device=device) - a)  # on (c_x, c_y)
+    constant = e - linear @ e
+    if isinstance(center, str) and center == "mass":
+        moments = _mass_moments(batch, host=False)
+        yx = moments[:, 1:] / moments[:, :1]
+    elif isinstance(center, str):
+        yx = _constants([(height - 1) / 2, (width - 1) / 2], device).expand(b, 2)
+    else:
+        yx = torch.as_tensor(center, dtype=f64).to(device).expand(b, 2)
+    shift = constant + per_centre[:, :, 1] * yx[:, :1] + per_centre[:, :, 0] * yx[:, 1:]  # (B, 2)
+    return torch.cat([linear, shift.unsqueeze(2)], dim=2)
+
+
+def _sampling_matrices(angle: np.ndarray, scale: np.ndarray, height: int, width: int) -> np.ndarray:
+    """(B, 6, 3) float64 host matrices: ``theta = (matrix @ [1, c_y, c_x]).reshape(2, 3)``.
+
+    In pixels, output pixel d samples ``c + A (d - c)`` with ``A = R(θ)^T / s`` in (x, y)
+    order (the inverse of the forward map). ``grid_sample`` with ``align_corners=True``
+    sees ``u = D x + e`` (D = 2 / (n - 1), e = -1; D = 1, e = 0 on a singleton axis, as
+    kornia does), so ``theta = [D A D^-1 | D (I - A) c + e - D A D^-1 e]``, which is linear
+    in ``[1, c_y, c_x]``. Each row of ``matrix`` holds one entry of theta as coefficients
+    of ``[1, c_y, c_x]``, so a device centroid enters through one ``bmm`` with the moments
+    ``[M, M c_y, M c_x]`` divided by M. NumPy, not torch: host numbers, no dispatch.
+    """
+    radians = np.deg2rad(angle.astype(np.float64))
+    cos, sin = np.cos(radians) / scale, np.sin(radians) / scale
+    a = np.stack([np.stack([cos, -sin], 1), np.stack([sin, cos], 1)], 1)  # (B, 2, 2), (x, y) order
+    d = np.array([2.0 / (width - 1) if width > 1 else 1.0, 2.0 / (height - 1) if height > 1 else 1.0])
+    e = np.array([-1.0 if width > 1 else 0.0, -1.0 if height > 1 else 0.0])
+    linear = d[None, :, None] * a / d[None, None, :]  # D A D^-1
+    per_centre = d[None, :, None] * (np.eye(2) - a)  # D (I - A), columns on (c_x, c_y)
+    matrix = np.zeros((angle.shape[0], 2, 3, 3))
+    matrix[:, :, :2, 0] = linear
+    matrix[:, :, 2, 0] = e - linear @ e
+    matrix[:, :, 2, 1] = per_centre[:, :, 1]
+    matrix[:, :, 2, 2] = per_centre[:, :, 0]
+    return matrix.reshape(-1, 6, 3)
 
 
 def rotate(
@@ -180,7 +302,7 @@ def rotate(
         raise ValueError(f"angle must be finite, got {describe(angle)}")
     check_choice(mode, "mode", INTERPOLATIONS)
     center = _check_center(center, batch.shape[0])
-    return unbatch(_affine(batch, angle_t, torch.ones_like(angle_t), center, mode))
+    return unbatch(_affine(batch, angle_t, None, center, mode))
 
 
 def resize(
@@ -221,7 +343,7 @@ def resize(
         raise ValueError(f"scale must be finite and > 0, got {describe(scale)}")
     check_choice(mode, "mode", INTERPOLATIONS)
     center = _check_center(center, batch.shape[0])
-    return unbatch(_affine(batch, torch.zeros_like(scale_t), scale_t, center, mode))
+    return unbatch(_affine(batch, None, scale_t, center, mode))
 
 
 def horizontal_flip(frames: Tensor) -> Tensor:

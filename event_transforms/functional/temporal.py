@@ -11,11 +11,17 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import TES_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, describe, per_sample
-from ._hypergeometric import binomial_counts, multivariate_hypergeometric, segment_sum
+from .._validation import (
+    TES_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, count_stats, describe, on_host,
+    per_sample,
+)
+from ._hypergeometric import (
+    _EXPAND_MAX, binomial_counts, direct_finish, level_stats, multivariate_hypergeometric, segment_sum,
+)
 
 __all__ = ["frame_shift", "temporal_event_shift"]
 
@@ -92,29 +98,36 @@ def frame_shift(frames: Tensor, shift: ShiftArg) -> Tensor:
 
 
 def _frame_shift(batch: Tensor, shifts: Tensor) -> Tensor:
-    """``frame_shift`` on a (B, T, 2, H, W) batch with (B,) int64 CPU shifts."""
+    """``frame_shift`` on a (B, T, 2, H, W) batch with (B,) int64 CPU shifts.
+
+    The shifts are read on the host (no device synchronisation). One shift for the whole
+    batch: one concatenation with zero frames. Per-sample shifts: one gather of whole
+    frames by a host-built row index, then zeroing the few vacated frames.
+    """
     b, t = batch.shape[:2]
     if batch.numel() == 0:
         return batch.clone()
-    shifts = shifts.clamp(-t, t)
-    values = shifts.tolist()
-    first = values[0]
-    if values.count(first) == len(values):
+    if not on_host(shifts):  # compiling, or shifts on an accelerator: tensor ops only
+        source = torch.arange(t, device=batch.device) - shifts.to(batch.device).view(b, 1)  # (B, T)
+        vacated = (source < 0) | (source >= t)
+        rows = (source.clamp(0, t - 1) + t * torch.arange(b, device=batch.device).view(b, 1)).view(-1)
+        out = batch.reshape(b * t, -1).index_select(0, rows).view(batch.shape)
+        return out.masked_fill(vacated.view(b, t, *([1] * (batch.dim() - 2))), 0)
+    values = np.clip(np.asarray(shifts.tolist(), dtype=np.int64).reshape(b), -t, t)
+    first = int(values[0])
+    if (values == first).all():
         if first == 0:
-            return batch.clone()
-        zeros = batch.new_zeros((b, min(abs(first), t), *batch.shape[2:]))
+            return batch.clone(memory_format=torch.contiguous_format)
+        zeros = batch.new_zeros((b, abs(first), *batch.shape[2:]))
         if first > 0:
             return torch.cat([zeros, batch[:, : t - first]], dim=1)
         return torch.cat([batch[:, -first:], zeros], dim=1)
-    # Per-sample shifts: gather whole frames with clamped source indices, then zero the
-    # vacated (b, t) frames (a few per sample); no full-size mask or index tensor.
-    time = torch.arange(t)
-    source = time.unsqueeze(0) - shifts.unsqueeze(1)  # (B, T)
-    vacated = (source < 0) | (source >= t)
-    rows = (source.clamp(0, t - 1) + t * torch.arange(b).unsqueeze(1)).flatten()
-    flat = batch.reshape(b * t, -1)
-    out = flat.index_select(0, rows.to(batch.device))
-    out.index_fill_(0, vacated.flatten().nonzero().squeeze(1).to(batch.device), 0)
+    source = np.arange(t)[None, :] - values[:, None]  # (B, T)
+    vacated = np.flatnonzero((source < 0) | (source >= t))
+    rows = (np.clip(source, 0, t - 1) + t * np.arange(b)[:, None]).reshape(-1)
+    out = batch.reshape(b * t, -1).index_select(0, torch.from_numpy(rows).to(batch.device))
+    if vacated.size:
+        out.index_fill_(0, torch.from_numpy(vacated).to(batch.device), 0)
     return out.view(batch.shape)
 
 
@@ -206,39 +219,41 @@ def _temporal_event_shift(
     hint: str = _TES_HINT,
 ) -> Tensor:
     """``temporal_event_shift`` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters;
-    ``hint`` ends the error raised for fractional counts."""
-    index, sample, values = _entries(batch, whole=mode != "expected", hint=hint)
+    ``hint`` ends the error raised for fractional counts.
+
+    Host synchronisations: one ``nonzero`` (the active pixels), then one read that checks
+    their values and brings back what the sampler needs (the largest count; in exact mode
+    also the largest draw of any frame), then in exact mode the sampler's own (see
+    :func:`~._hypergeometric.multivariate_hypergeometric`).
+    """
+    index, sample, values = _entries(batch)
     if mode == "expected":
+        check_counts(values, "frames")
         dtype = batch.dtype if batch.is_floating_point() else torch.float32
         out = batch.to(dtype, memory_format=torch.contiguous_format, copy=True)
         values = values.to(dtype)
         moved = values * fractions.to(device=batch.device, dtype=dtype).index_select(0, sample)
-    else:
-        out = batch.clone(memory_format=torch.contiguous_format)
-        moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
-    return _move(out, index, sample, values, moved, shifts)
+        return _move(out, index, sample, moved, shifts)
+    out = batch.clone(memory_format=torch.contiguous_format)
+    if index.numel() == 0:
+        return out
+    moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator, hint)
+    return _move(out, index, sample, moved, shifts)
 
 
-def _entries(batch: Tensor, *, whole: bool, hint: str = _TES_HINT) -> tuple[Tensor, Tensor, Tensor]:
-    """The non-zero pixels of a (B, T, 2, H, W) batch, checked.
+def _entries(batch: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """The non-zero pixels of a (B, T, 2, H, W) batch: sorted flat indices, sample indices
+    and values (one ``nonzero``, the only data-dependent size of the kernel).
 
-    Returns their sorted flat indices, their sample indices and their values. Only these
-    values can be negative, NaN or fractional, so the checks cost O(non-zero pixels).
-    The float bits are read as integers of the same width (faster ``nonzero``); -0.0
-    becomes an entry holding 0, harmlessly.
+    The float bits are read as integers of the same width (a faster ``nonzero``); -0.0
+    becomes an entry holding 0, harmlessly. Only these values can be negative, NaN or
+    fractional, so checking them costs O(non-zero pixels).
     """
+    b, t, p, h, w = batch.shape
     flat = batch.reshape(-1)
     bits = flat.view(_BITS[flat.dtype]) if flat.dtype in _BITS else flat
-    index = bits.nonzero().squeeze(1)
-    values = flat.index_select(0, index)
-    if index.numel():
-        check_counts(values, "frames", whole=hint if whole else None)
-        if whole:
-            limit = min(2**53, 2**62 // batch.shape[-1] // batch.shape[-2])
-            high = float(values.max())
-            if high > limit:  # float64-exact counts; row totals fit in int64
-                raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
-    return index, index // math.prod(batch.shape[1:]), values
+    index = bits.nonzero(as_tuple=True)[0]
+    return index, index.div(t * p * h * w, rounding_mode="floor"), flat.index_select(0, index)
 
 
 def _draw_moved(
@@ -249,38 +264,63 @@ def _draw_moved(
     fractions: Tensor,
     mode: str,
     generator: torch.Generator | None,
+    hint: str = _TES_HINT,
 ) -> Tensor:
-    """Draw the int64 moved counts Z (0 <= Z <= X) of the non-zero pixels ``index``."""
+    """Check the values X of the non-zero pixels ``index`` (whole, non-negative, finite) and
+    draw the moved counts Z (0 <= Z <= X), ``mode`` ``"exact"`` (int64) or ``"binomial"``
+    (in the values' dtype, ready to subtract).
+
+    One host synchronisation checks the values and reads what the sampler needs (the
+    largest count and the events to expand; in exact mode also the largest draw and the
+    widest frame), so the sampler's top level asks the device for nothing.
+    """
     b, t, p, h, w = shape
-    counts = values.to(torch.int64)
-    fractions = fractions.to(values.device)
+    counts = values.to(torch.int64)  # used only once the check below has passed
     if index.numel() == 0:
         return counts
+    limit = min(2**53, 2**62 // (h * w))  # float64-exact counts; row totals fit in int64
     if mode == "binomial":
-        return binomial_counts(counts, fractions, sample, generator=generator)
-    row = index // (h * w)  # (sample, frame, polarity), sorted
+        high, events = count_stats(values, counts, hint=hint, extra=[counts.clamp_max(_EXPAND_MAX).sum()])
+        _check_limit(high, limit)
+        prob = fractions.to(values.device, torch.float64)
+        return binomial_counts(
+            counts, prob, sample, generator=generator, largest=high, events=events, dtype=values.dtype
+        )
+    row = index.div(h * w, rounding_mode="floor")  # (sample, frame, polarity), sorted
     total = segment_sum(counts, row, b * t * p)
-    size = torch.round(fractions.repeat_interleave(t * p) * total.to(torch.float64)).to(torch.int64)
-    return multivariate_hypergeometric(counts, row, size, total=total, generator=generator)
+    row_fraction = fractions.repeat_interleave(t * p)  # ζ per row (float64), on the host
+    size = torch.round(row_fraction.to(values.device, torch.float64) * total).to(torch.int64)
+    # The top level's numbers come with the check; the binomial level's only where it runs.
+    needs = level_stats(size, total) + ([] if direct_finish(values.device) else [counts.clamp_max(_EXPAND_MAX).sum()])
+    high, *stats = count_stats(values, counts, hint=hint, extra=needs)
+    _check_limit(high, limit)
+    expansion = (high, stats[2]) if len(stats) == 3 else None
+    return multivariate_hypergeometric(
+        counts, row, size, total=total, generator=generator, stats=(stats[0], stats[1]), expansion=expansion
+    )
 
 
-def _move(
-    out: Tensor, index: Tensor, sample: Tensor, values: Tensor, moved: Tensor, shifts: Tensor
-) -> Tensor:
+def _check_limit(high: float, limit: int) -> None:
+    if high > limit:
+        raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
+
+
+def _move(out: Tensor, index: Tensor, sample: Tensor, moved: Tensor, shifts: Tensor) -> Tensor:
     """Turn ``out`` (a contiguous copy of X) into ``X - Z + frame_shift(Z)`` in place.
 
-    X (``values``) and Z (``moved``) are given on the non-zero pixels ``index``; Z moves
-    to ``index + j * frame`` unless that leaves the sample's sequence (then it is dropped).
+    Z (``moved``) is given on the non-zero pixels ``index``; it moves to
+    ``index + j * frame`` unless that leaves the sample's sequence (then it is dropped).
+    Two ``index_add_`` calls; no data-dependent shape, no host synchronisation.
     """
     if index.numel() == 0:
         return out
     t = out.shape[1]
-    frame = out[0, 0].numel()
+    frame = math.prod(out.shape[2:])
     flat = out.view(-1)
-    moved = moved.to(out.dtype)
-    flat.scatter_(0, index, torch.sub(values, moved).to(out.dtype))
-    step = (shifts.clamp(-t, t) * frame).to(out.device)
-    target = index + step.index_select(0, sample)
+    moved = moved if moved.dtype == out.dtype else moved.to(out.dtype)
+    flat.index_add_(0, index, moved, alpha=-1)  # X - Z on the non-zero pixels
+    step = shifts.clamp(-t, t).to(out.device)  # CPU parameters, moved once
+    target = torch.add(index, step.index_select(0, sample), alpha=frame)
     dropped = target.div(t * frame, rounding_mode="floor") != sample
     # Dropped events add 0 to their own pixel (no data-dependent shapes, no sync).
     flat.index_add_(0, torch.where(dropped, index, target), moved.masked_fill_(dropped, 0))

@@ -108,14 +108,14 @@ def _draw_device(generator: torch.Generator | None) -> torch.device:
 def uniform(low: float, high: float, batch: int, generator: torch.Generator | None) -> Tensor:
     """``batch`` draws from U[low, high) as a float64 CPU tensor."""
     u = torch.rand(batch, generator=generator, device=_draw_device(generator), dtype=torch.float64)
-    return (low + (high - low) * u).cpu()
+    return _cpu(u.mul_(high - low).add_(low))
 
 
 def choice(values: Sequence[Any] | Tensor, batch: int, generator: torch.Generator | None) -> Tensor:
     """``batch`` uniform draws from ``values`` (a 1-D tensor or sequence), on the CPU."""
     values = torch.as_tensor(values)
     index = torch.randint(len(values), (batch,), generator=generator, device=_draw_device(generator))
-    return values[index.cpu()]
+    return values[_cpu(index)]
 
 
 def bernoulli(p: float, batch: int, generator: torch.Generator | None) -> Tensor:
@@ -132,9 +132,14 @@ def integers(high: Tensor | int, batch: int, generator: torch.Generator | None) 
 
 def seeds(batch: int, generator: torch.Generator | None) -> Tensor:
     """``batch`` independent 63-bit seeds (int64, CPU), one per sample."""
-    return torch.randint(
-        0, 2**63 - 1, (batch,), generator=generator, device=_draw_device(generator), dtype=torch.int64
-    ).cpu()
+    return _cpu(
+        torch.randint(0, 2**63 - 1, (batch,), generator=generator, device=_draw_device(generator), dtype=torch.int64)
+    )
+
+
+def _cpu(tensor: Tensor) -> Tensor:
+    """``tensor`` on the CPU (a draw from an accelerator generator is copied once)."""
+    return tensor if tensor.device.type == "cpu" else tensor.cpu()
 
 
 def kernel_generator(seed: Tensor, device: torch.device) -> torch.Generator:
@@ -160,7 +165,9 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
 
     Each function gets the sub-batch and the (CPU) indices of its samples, and is called
     even on an empty sub-batch, so the output dtype (promoted over every branch) does not
-    depend on the random draw. Samples are gathered once per group, not looped over.
+    depend on the random draw. Samples are gathered once per group, not looped over. The
+    groups are read on the host (``group`` is a CPU tensor from ``make_params``): no host
+    synchronisation, and a group that holds the whole batch is not gathered at all.
 
     Args:
         frames: batch ``(B, T, 2, H, W)``.
@@ -168,30 +175,48 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
         functions: one callable ``(sub_batch, indices) -> sub_batch`` or ``None`` per group.
     """
     device = frames.device
-    results: list[tuple[Tensor, Tensor]] = []
+    batch = frames.shape[0]
+    labels = np.asarray(group.tolist(), dtype=np.int64).reshape(batch)
+    results: list[tuple[Tensor | None, int, Tensor]] = []
     out_dtype = frames.dtype if any(f is None for f in functions) else None
     for g, function in enumerate(functions):
         if function is None:
             continue
-        index = (group == g).nonzero().squeeze(1)
-        sub = frames if index.numel() == frames.shape[0] else frames.index_select(0, index.to(device))
+        members = np.flatnonzero(labels == g)
+        index = torch.from_numpy(members)
+        on_device = None
+        if members.size == batch:
+            sub = frames
+        elif members.size == 0:
+            sub = frames[:0]
+        else:
+            on_device = index.to(device)
+            sub = frames.index_select(0, on_device)
         result = function(sub, index)
         if result.shape[1:] != frames.shape[1:]:
             raise ValueError(
                 f"every branch must keep the frames' shape {tuple(frames.shape[1:])}, "
                 f"got {tuple(result.shape[1:])}"
             )
-        out_dtype = result.dtype if out_dtype is None else torch.promote_types(out_dtype, result.dtype)
-        results.append((index, result))
+        if out_dtype is None:
+            out_dtype = result.dtype
+        elif result.dtype != out_dtype:
+            out_dtype = torch.promote_types(out_dtype, result.dtype)
+        results.append((on_device, int(members.size), result))
     if out_dtype is None:
         raise ValueError("apply_by_group needs at least one function or None")
-    for index, result in results:
-        if index.numel() == frames.shape[0]:
-            return result.to(out_dtype)
-    out = frames.to(out_dtype, copy=True)
-    for index, result in results:
-        if index.numel():
-            out.index_copy_(0, index.to(device), result.to(out_dtype))
+
+    def cast(tensor: Tensor) -> Tensor:
+        return tensor if tensor.dtype == out_dtype else tensor.to(out_dtype)
+
+    for _, size, result in results:
+        if size == batch:
+            return cast(result)
+    covered = sum(size for _, size, _ in results)
+    out = frames.to(out_dtype, copy=True) if covered < batch else torch.empty(frames.shape, dtype=out_dtype, device=device)
+    for on_device, size, result in results:
+        if size:
+            out.index_copy_(0, on_device, cast(result))
     return out
 
 
@@ -221,6 +246,10 @@ class EventTransform(nn.Module):
         >>> torch.equal(rotation(frames, params=params), rotation(frames, params=params))
         True
     """
+
+    #: Set by transforms whose :meth:`apply` honours ``params["apply"]`` itself (in one
+    #: pass, e.g. flips), so the base class does not gather the gated samples.
+    _gates_itself = False
 
     def __init__(self, *, p: float = 1.0) -> None:
         super().__init__()
@@ -334,9 +363,9 @@ class EventTransform(nn.Module):
     def _run(self, frames: Tensor, params: Params) -> Tensor:
         """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``."""
         gate = params["apply"] if self.p < 1 else params.get("apply")
-        if gate is None:
+        if gate is None or self._gates_itself:
             return self.apply(frames, params)
-        if bool(gate.all()):
+        if all(gate.tolist()):  # a CPU tensor from make_params: read on the host, no sync
             return self.apply(frames, params)
         return apply_by_group(
             frames, gate.long(), [None, lambda sub, index: self.apply(sub, slice_params(params, index))]

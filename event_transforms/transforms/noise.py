@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
 
 import torch
 from torch import Tensor
 
-from .._validation import check_counts, check_frames, check_pair, check_positive
-from ..functional.noise import _add_counts, _add_poisson_noise, _drop_by_area, _drop_by_time, _drop_events, _poisson_totals
+from .._validation import check_counts, check_frames, check_pair, check_positive, describe
+from ..functional.noise import _add_counts, _add_entries, _add_poisson_noise, _drop_by_area, _drop_by_time, _drop_events, _poisson_totals
 from .base import EventTransform, Params, apply_by_group, choice, integers, kernel_generator, seeds, slice_params, uniform
 
 __all__ = ["AddNoise", "AddPoissonNoise", "RandomEventDrop"]
@@ -20,6 +23,11 @@ class AddNoise(EventTransform):
     The bank is one long static-scene recording ``(N, 2, H, W)``; each sample gets the
     ``T`` consecutive frames starting at its own random offset in ``[0, N - T]``
     (``params["offset"]``). The bank is a buffer, so ``.to(device)`` moves it with the module.
+
+    A sparse bank (at most a quarter of its pixels non-zero, as static scenes are) is also
+    kept as its non-zero entries, found once when the bank is set (and again when a state
+    dict is loaded): a call then costs one copy of the frames plus one ``index_add_`` of
+    the window's entries, with no host synchronisation. Do not modify ``bank`` in place.
 
     Args:
         bank: non-negative counts ``(N, 2, H, W)`` with ``N >= T`` of the frames it is
@@ -47,6 +55,25 @@ class AddNoise(EventTransform):
         if bank.shape[0] == 0:
             raise ValueError("bank must hold at least one frame, got N = 0")
         self.register_buffer("bank", bank.clone())
+        self._index_bank()
+
+    def _index_bank(self) -> None:
+        """Keep a sparse bank's non-zero entries: flat indices (host), values (buffer), and
+        where each bank frame's entries start (host), or ``None`` for a dense bank."""
+        flat = self.bank.reshape(-1)
+        index = flat.nonzero().squeeze(1)
+        frame = self.bank[0].numel()
+        if frame == 0 or 4 * index.numel() > flat.numel():
+            self._entries = None
+            self.register_buffer("_entry_values", None, persistent=False)
+            return
+        host = np.asarray(index.tolist(), dtype=np.int64)
+        self._entries = (host, np.searchsorted(host, np.arange(self.bank.shape[0] + 1) * frame))
+        self.register_buffer("_entry_values", flat.index_select(0, index), persistent=False)
+
+    def _load_from_state_dict(self, *args: Any, **kwargs: Any) -> None:
+        super()._load_from_state_dict(*args, **kwargs)
+        self._index_bank()
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         b, t, _, h, w = shape
@@ -60,12 +87,27 @@ class AddNoise(EventTransform):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         b, t = frames.shape[:2]
-        index = (params["offset"].unsqueeze(1) + torch.arange(t)).reshape(-1)  # (B·T,) CPU
-        if b and int(index.max()) >= self.bank.shape[0]:
-            raise ValueError(f"params['offset'] reaches past the bank's {self.bank.shape[0]} frames")
-        bank = self.bank.to(frames.device)
-        noise = bank.index_select(0, index.to(frames.device)).view(b, t, *bank.shape[1:])
-        return _add_counts(frames, noise, "noise")
+        offset = np.asarray(params["offset"].tolist(), dtype=np.int64).reshape(b)  # CPU: no sync
+        if b and (int(offset.max()) + t > self.bank.shape[0] or int(offset.min()) < 0):
+            raise ValueError(
+                f"params['offset'] must lie in [0, {self.bank.shape[0] - t}] for a bank of "
+                f"{self.bank.shape[0]} frames and T = {t}, got {describe(params['offset'])}"
+            )
+        if self._entries is None or b == 0:
+            index = torch.from_numpy((offset[:, None] + np.arange(t)).reshape(-1))
+            bank = self.bank.to(frames.device)
+            noise = bank.index_select(0, index.to(frames.device)).view(b, t, *bank.shape[1:])
+            return _add_counts(frames, noise, "noise")
+        # Sparse bank: entries of frames [offset, offset + T) of the bank, moved to sample b.
+        host, start = self._entries
+        frame = self.bank[0].numel()
+        low, high = start[offset], start[offset + t]
+        counts = high - low
+        select = np.repeat(low - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()))
+        target = host[select] + np.repeat(np.arange(b) * (t * frame) - offset * frame, counts)
+        target_t = torch.from_numpy(target).to(frames.device)
+        values = self._entry_values.index_select(0, torch.from_numpy(select).to(frames.device))
+        return _add_entries(frames, target_t, values, "noise")
 
     def _settings(self) -> str:
         return f"bank=({', '.join(map(str, self.bank.shape))})"

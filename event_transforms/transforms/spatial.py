@@ -10,11 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 import torch
 from torch import Tensor
 
 from .. import functional as F
-from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
+from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, on_host
 from ..functional.spatial import Center, _affine, _check_center
 from .base import EventTransform, Params, choice, uniform
 
@@ -39,10 +40,6 @@ class _Affine(EventTransform):
         self.mode = check_choice(mode, "mode", INTERPOLATIONS)
 
     def _warp(self, frames: Tensor, *, angle: Tensor | None = None, scale: Tensor | None = None) -> Tensor:
-        if angle is None:
-            angle = torch.zeros(frames.shape[0], dtype=torch.float64)
-        if scale is None:
-            scale = torch.ones(frames.shape[0], dtype=torch.float64)
         return _affine(frames, angle, scale, self.center, self.mode)
 
     def _common(self) -> str:
@@ -181,16 +178,43 @@ class RandomResize(_Zoom):
             if isinstance(choices, (str, bytes)) or not isinstance(choices, Sequence) or not choices:
                 raise TypeError(f"choices must be a non-empty sequence of factors > 0, got {choices!r}")
             self.choices = tuple(check_positive(c, "choices") for c in choices)
+            self._choices = torch.tensor(self.choices, dtype=torch.float64)  # CPU, drawn from in make_params
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         if self.choices is not None:
-            return {"scale": choice(torch.tensor(self.choices, dtype=torch.float64), shape[0], generator)}
+            return {"scale": choice(self._choices, shape[0], generator)}
         assert self.scale is not None
         return {"scale": uniform(*self.scale, shape[0], generator)}
 
     def _settings(self) -> str:
         setting = f"choices={self.choices}" if self.choices is not None else f"scale={self.scale}"
         return f"{setting}, {self._common()}"
+
+
+def _flip(frames: Tensor, params: Params, axis: int) -> Tensor:
+    """Mirror along ``axis`` (-1: W, -2: H) the samples whose ``params["apply"]`` is set
+    (all without a gate), in one pass over the batch: ``flip`` when every sample is
+    mirrored, else one gather of whole rows (H) or of columns (W) by a per-sample index
+    built on the host. No host synchronisation."""
+    gate = params.get("apply")
+    if gate is not None and not on_host(gate):  # compiling, or a gate on an accelerator
+        flip = gate.to(frames.device, torch.bool).view(-1, 1, 1, 1, 1)
+        return torch.where(flip, frames.flip(axis), frames)
+    flags = None if gate is None else np.asarray(gate.tolist(), dtype=bool).reshape(frames.shape[0])
+    if flags is None or flags.all():
+        return frames.flip(axis)
+    if not flags.any():
+        return frames.clone(memory_format=torch.contiguous_format)
+    b, t, p, h, w = frames.shape
+    if axis == -2:
+        # Rows of W values: out row (b, c, y) = in row (b, c, y or H - 1 - y).
+        ys = np.where(flags[:, None], np.arange(h)[::-1], np.arange(h))  # (B, H)
+        rows = (np.arange(b)[:, None, None] * (t * p * h) + np.arange(t * p)[None, :, None] * h + ys[:, None, :]).reshape(-1)
+        out = frames.reshape(b * t * p * h, w).index_select(0, torch.from_numpy(rows).to(frames.device))
+        return out.view(frames.shape)
+    xs = np.where(flags[:, None], np.arange(w)[::-1], np.arange(w))  # (B, W)
+    index = torch.from_numpy(xs).to(frames.device).view(b, 1, w).expand(b, t * p * h, w)
+    return frames.reshape(b, t * p * h, w).gather(2, index).view(frames.shape)
 
 
 class HorizontalFlip(EventTransform):
@@ -204,8 +228,10 @@ class HorizontalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
+    _gates_itself = True
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return frames.flip(-1)
+        return _flip(frames, params, -1)
 
 
 class VerticalFlip(EventTransform):
@@ -219,8 +245,10 @@ class VerticalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
+    _gates_itself = True
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return frames.flip(-2)
+        return _flip(frames, params, -2)
 
 
 class RandomHorizontalFlip(HorizontalFlip):

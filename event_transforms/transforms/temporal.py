@@ -112,9 +112,10 @@ class RandomFrameShift(_Shift):
     def __init__(self, shifts: Sequence[int], *, p: float = 1.0) -> None:
         super().__init__(p=p)
         self.shifts = _check_shifts(shifts)
+        self._choices = torch.tensor(self.shifts, dtype=torch.int64)  # CPU, drawn from in make_params
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
-        return {"shift": choice(torch.tensor(self.shifts, dtype=torch.int64), shape[0], generator)}
+        return {"shift": choice(self._choices, shape[0], generator)}
 
     def _settings(self) -> str:
         return f"shifts={self.shifts}"
