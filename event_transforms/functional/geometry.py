@@ -1,9 +1,10 @@
 """Geometry kernels: a general affine warp, integer translation (rolling), crops, sum-pooling.
 
 :func:`affine` composes rotation, scale, translation and shear in one 2×3 matrix per
-sequence and samples all T·2 frames of a sequence with one kornia ``warp_affine`` (the
-frames folded into channels), about the same centre as :func:`~event_transforms.functional.rotate`
-and :func:`~event_transforms.functional.resize`, which are its special cases
+sequence, built on the host, and samples all T·2 frames of a sequence with one
+``affine_grid`` + ``grid_sample`` (the frames folded into channels), about the same centre as
+:func:`~event_transforms.functional.rotate` and :func:`~event_transforms.functional.resize`,
+which are its special cases: all three go through one warp function
 (``affine(angle=a)`` equals ``rotate(a)``, ``affine(scale=s)`` equals ``resize(s)``).
 :func:`translate` moves whole pixels (counts and dtype kept), :func:`crop` cuts a window
 and optionally resizes it back to H×W, and :func:`downsample` sums k×k blocks (the
@@ -23,7 +24,8 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, per_sample
-from .spatial import Center, _check_center, _output_dtype, _resolve_center, _work_dtype
+from .spatial import Center, _check_center, _output_dtype, _work_dtype
+from .spatial import _affine as _spatial_affine
 
 __all__ = ["affine", "translate", "crop", "center_crop", "downsample"]
 
@@ -60,44 +62,13 @@ def _pairs(value: object, batch: int, name: str, *, dtype: torch.dtype = torch.f
     return out
 
 
-def affine_matrix(angle: Tensor, scale: Tensor, translate: Tensor, shear: Tensor, center: Tensor) -> Tensor:
-    """The (B, 2, 3) forward maps ``dst = A (src - c) + c + t`` in (x, y) pixel coordinates.
-
-    ``A = scale · R(angle) · Shear_x(shear_x) · Shear_y(shear_y)`` with ``R`` kornia's
-    counter-clockwise rotation on the displayed image (row 0 at the top). ``angle``,
-    ``scale`` (B,) and ``translate``, ``shear`` (B, 2) are float64 CPU tensors (translate as
-    (dy, dx) pixels, shear as (x, y) degrees); the linear part is built on the host, and
-    only the centre (B, 2) (y, x), which may live on the device, is combined there.
-    """
-    radians = torch.deg2rad(angle)
-    cos, sin = torch.cos(radians), torch.sin(radians)
-    shear_x, shear_y = torch.tan(torch.deg2rad(shear[:, 0])), torch.tan(torch.deg2rad(shear[:, 1]))
-    # R = [[cos, sin], [-sin, cos]], Shx = [[1, tx], [0, 1]], Shy = [[1, 0], [ty, 1]]
-    rotation = torch.stack([torch.stack([cos, sin], 1), torch.stack([-sin, cos], 1)], 1)
-    one, zero = torch.ones_like(cos), torch.zeros_like(cos)
-    shear_matrix = torch.stack([torch.stack([one + shear_x * shear_y, shear_x], 1), torch.stack([shear_y, one], 1)], 1)
-    linear = scale.view(-1, 1, 1) * rotation @ shear_matrix  # (B, 2, 2), host
-    linear = linear.to(center.device, non_blocking=True)
-    cxy = center.flip(1).to(torch.float64)  # (B, 2) as (x, y)
-    offset = cxy + translate.flip(1).to(center.device, non_blocking=True) - (linear @ cxy.unsqueeze(2)).squeeze(2)
-    return torch.cat([linear, offset.unsqueeze(2)], dim=2)
-
-
 def _affine(
     batch: Tensor, angle: Tensor, scale: Tensor, translate: Tensor, shear: Tensor, center: Center, mode: str
 ) -> Tensor:
-    """:func:`affine` on a (B, T, 2, H, W) batch with checked CPU parameters."""
-    b, t, p, height, width = batch.shape
-    out_dtype = _output_dtype(batch.dtype, mode)
-    if batch.numel() == 0:
-        return batch.to(out_dtype, copy=True)
-    from kornia.geometry.transform import warp_affine  # imported on first use: keeps imports light
-
-    work = _work_dtype(batch.dtype, mode)
-    matrix = affine_matrix(angle, scale, translate, shear, _resolve_center(batch, center)).to(work)
-    folded = batch.reshape(b, t * p, height, width).to(work)
-    warped = warp_affine(folded, matrix, (height, width), mode=mode, padding_mode="zeros", align_corners=True)
-    return warped.reshape(b, t, p, height, width).to(out_dtype)
+    """:func:`affine` on a (B, T, 2, H, W) batch with checked CPU parameters: the warp of
+    :func:`~event_transforms.functional.rotate` and :func:`~event_transforms.functional.resize`,
+    which are its special cases (one sampling-matrix builder, one ``grid_sample``)."""
+    return _spatial_affine(batch, angle, scale, center, mode, shear=shear, translate=translate)
 
 
 def affine(

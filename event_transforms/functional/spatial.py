@@ -163,11 +163,24 @@ def _output_dtype(dtype: torch.dtype, mode: str) -> torch.dtype:
     return torch.float32
 
 
-def _affine(batch: Tensor, angle: Tensor | None, scale: Tensor | None, center: Center, mode: str) -> Tensor:
-    """Rotate by ``angle`` degrees and zoom by ``scale`` about ``center``, per sample.
+def _affine(
+    batch: Tensor,
+    angle: Tensor | None,
+    scale: Tensor | None,
+    center: Center,
+    mode: str,
+    *,
+    shear: Tensor | None = None,
+    translate: Tensor | None = None,
+) -> Tensor:
+    """Rotate by ``angle`` degrees and zoom by ``scale`` about ``center``, per sample (and,
+    for :func:`~event_transforms.functional.affine`, shear and translate: rotate and resize
+    are its special cases, through this one function).
 
-    ``angle`` and ``scale`` are (B,) float64 CPU tensors (``None``: 0° and 1). The forward map of sample b is
-    ``dst = s R(θ) (src - c) + c`` (OpenCV's and kornia's convention). The sampling matrix
+    ``angle`` and ``scale`` are (B,) float64 CPU tensors (``None``: 0° and 1), ``shear``
+    (B, 2) (x, y) degrees and ``translate`` (B, 2) (dy, dx) pixels (``None``: none). The
+    forward map of sample b is ``dst = s R(θ) Sh (src - c) + c + t`` (OpenCV's and kornia's
+    convention). The sampling matrix
     (its inverse, in the normalised coordinates of ``grid_sample`` with
     ``align_corners=True``) is built on the host in float64 from the parameters; only the
     centroid, when ``center="mass"``, comes from the device, and enters through one batched
@@ -179,19 +192,23 @@ def _affine(batch: Tensor, angle: Tensor | None, scale: Tensor | None, center: C
     if batch.numel() == 0:
         return batch.to(out_dtype, copy=True)
     work = _work_dtype(batch.dtype, mode)
-    if not on_host(angle, scale):
+    extra = shear is not None or translate is not None
+    if extra:  # host-drawn by make_params; a device tensor here is read once
+        shear = None if shear is None else shear.detach().to("cpu", torch.float64)
+        translate = None if translate is None else translate.detach().to("cpu", torch.float64)
+    if not extra and not on_host(angle, scale):
         theta = _theta_on_device(batch, angle, scale, center).to(work)
     elif isinstance(center, str) and center == "mass":
         angle_np = np.zeros(b) if angle is None else np.array(angle.tolist(), dtype=np.float64)
         scale_np = np.ones(b) if scale is None else np.array(scale.tolist(), dtype=np.float64)
-        matrix = _sampling_matrices(angle_np, scale_np, height, width)  # (B, 6, 3) host float64
+        matrix = _sampling_matrices(angle_np, scale_np, height, width, shear=shear, translate=translate)
         moments = _mass_moments(batch)  # (B, 3): [M, M y, M x] on the device
         theta = torch.bmm(torch.from_numpy(matrix).to(batch.device), moments.unsqueeze(2)) / moments[:, :1, None]
         theta = theta.view(b, 2, 3).to(work)
     else:
         angle_np = np.zeros(b) if angle is None else np.array(angle.tolist(), dtype=np.float64)
         scale_np = np.ones(b) if scale is None else np.array(scale.tolist(), dtype=np.float64)
-        matrix = _sampling_matrices(angle_np, scale_np, height, width)
+        matrix = _sampling_matrices(angle_np, scale_np, height, width, shear=shear, translate=translate)
         if isinstance(center, str):  # "image"
             yx = np.array([(height - 1) / 2, (width - 1) / 2])
         else:
@@ -236,20 +253,37 @@ def _theta_on_device(batch: Tensor, angle: Tensor | None, scale: Tensor | None, 
     return torch.cat([linear, shift.unsqueeze(2)], dim=2)
 
 
-def _sampling_matrices(angle: np.ndarray, scale: np.ndarray, height: int, width: int) -> np.ndarray:
+def _sampling_matrices(
+    angle: np.ndarray,
+    scale: np.ndarray,
+    height: int,
+    width: int,
+    *,
+    shear: Tensor | None = None,
+    translate: Tensor | None = None,
+) -> np.ndarray:
     """(B, 6, 3) float64 host matrices: ``theta = (matrix @ [1, c_y, c_x]).reshape(2, 3)``.
 
-    In pixels, output pixel d samples ``c + A (d - c)`` with ``A = R(θ)^T / s`` in (x, y)
-    order (the inverse of the forward map). ``grid_sample`` with ``align_corners=True``
+    In pixels, output pixel d samples ``c + A (d - c - t)`` with ``A = L^-1`` in (x, y)
+    order, the inverse of the forward linear part ``L = s R(θ) Sh`` (for a pure rotation
+    and zoom ``A = R(θ)^T / s``, written out). ``grid_sample`` with ``align_corners=True``
     sees ``u = D x + e`` (D = 2 / (n - 1), e = -1; D = 1, e = 0 on a singleton axis, as
-    kornia does), so ``theta = [D A D^-1 | D (I - A) c + e - D A D^-1 e]``, which is linear
-    in ``[1, c_y, c_x]``. Each row of ``matrix`` holds one entry of theta as coefficients
-    of ``[1, c_y, c_x]``, so a device centroid enters through one ``bmm`` with the moments
-    ``[M, M c_y, M c_x]`` divided by M. NumPy, not torch: host numbers, no dispatch.
+    kornia does), so ``theta = [D A D^-1 | D (I - A) c + e - D A D^-1 e - D A t]``, which is
+    linear in ``[1, c_y, c_x]``. Each row of ``matrix`` holds one entry of theta as
+    coefficients of ``[1, c_y, c_x]``, so a device centroid enters through one ``bmm`` with
+    the moments ``[M, M c_y, M c_x]`` divided by M. NumPy, not torch: host numbers, no dispatch.
     """
     radians = np.deg2rad(angle.astype(np.float64))
-    cos, sin = np.cos(radians) / scale, np.sin(radians) / scale
-    a = np.stack([np.stack([cos, -sin], 1), np.stack([sin, cos], 1)], 1)  # (B, 2, 2), (x, y) order
+    if shear is None:
+        cos, sin = np.cos(radians) / scale, np.sin(radians) / scale
+        a = np.stack([np.stack([cos, -sin], 1), np.stack([sin, cos], 1)], 1)  # (B, 2, 2), (x, y) order
+    else:
+        cos, sin = np.cos(radians), np.sin(radians)
+        shear_np = np.tan(np.deg2rad(np.asarray(shear.tolist(), dtype=np.float64)))  # (B, 2): x, y
+        sx, sy = shear_np[:, 0], shear_np[:, 1]
+        rotation = np.stack([np.stack([cos, sin], 1), np.stack([-sin, cos], 1)], 1)
+        shears = np.stack([np.stack([1 + sx * sy, sx], 1), np.stack([sy, np.ones_like(sy)], 1)], 1)
+        a = np.linalg.inv(scale[:, None, None] * rotation @ shears)
     d = np.array([2.0 / (width - 1) if width > 1 else 1.0, 2.0 / (height - 1) if height > 1 else 1.0])
     e = np.array([-1.0 if width > 1 else 0.0, -1.0 if height > 1 else 0.0])
     linear = d[None, :, None] * a / d[None, None, :]  # D A D^-1
@@ -257,6 +291,9 @@ def _sampling_matrices(angle: np.ndarray, scale: np.ndarray, height: int, width:
     matrix = np.zeros((angle.shape[0], 2, 3, 3))
     matrix[:, :, :2, 0] = linear
     matrix[:, :, 2, 0] = e - linear @ e
+    if translate is not None:
+        shift_xy = np.asarray(translate.tolist(), dtype=np.float64)[:, ::-1]  # (B, 2) as (x, y)
+        matrix[:, :, 2, 0] -= d[None, :] * (a @ shift_xy[:, :, None])[:, :, 0]
     matrix[:, :, 2, 1] = per_centre[:, :, 1]
     matrix[:, :, 2, 2] = per_centre[:, :, 0]
     return matrix.reshape(-1, 6, 3)

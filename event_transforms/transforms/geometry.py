@@ -115,7 +115,7 @@ class RandomAffine(_AffineWarp):
     """Warp each sequence by its own random rotation, scale, translation and shear.
 
     Every parameter is drawn per sample on the CPU and shared by all frames of the
-    sample; one ``warp_affine`` serves the whole batch. Leave a range at its default to
+    sample; one ``grid_sample`` serves the whole batch (the warp of rotation and resize). Leave a range at its default to
     keep that part fixed.
 
     Args:
