@@ -27,12 +27,12 @@ __all__ = ["main", "build_parser", "QUICK", "FULL"]
 #: The quick configuration (default): stated in the output of every run.
 QUICK: dict[str, Any] = {
     "seeds": 5,
-    "steps": 600,
+    "steps": 400,
     "lr": 1e-2,
     "hidden_channels": (8,),
     "input_pool": 10,
     "batch_size": 8,
-    "eval_every": 75,
+    "eval_every": 50,
     "threads": 1,
     "jobs": 2,
 }

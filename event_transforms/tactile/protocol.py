@@ -746,10 +746,24 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def _die_with_parent() -> None:
+    """On Linux, have the kernel stop this worker when its parent dies (``PR_SET_PDEATHSIG``),
+    so a killed ``reproduce`` leaves no training processes behind."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+        import signal
+
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # 1 = PR_SET_PDEATHSIG
+        except (OSError, AttributeError):  # pragma: no cover - no prctl: nothing to do
+            pass
+
+
 def _spawned(rank: int, world: int, port: int, arguments: tuple) -> None:
     """Entry point of a ``--jobs`` worker: join the gloo group, work, gather to rank 0."""
     import torch.distributed as dist
 
+    _die_with_parent()
     dist.init_process_group("gloo", init_method=f"tcp://127.0.0.1:{port}", rank=rank, world_size=world)
     try:
         _work(rank, world, *arguments)
