@@ -221,7 +221,8 @@ def _check_shape(saved: dict, scenes: list[str], methods: list[str], seeds: list
                 assert m["delta_vs_none"] is None
             else:
                 delta = m["delta_vs_none"]
-                assert set(delta) >= {"mean", "ci95", "p_value", "p_holm"} and len(delta["ci95"]) == 2
+                assert set(delta) >= {"mean", "ci95", "p_value", "p_holm", "t_p_holm", "significant"}
+                assert len(delta["ci95"]) == 2
 
 
 @pytest.fixture(scope="module")
