@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from benchmarks import _common, accuracy, peers, scaling, streaming, training, transforms
+from benchmarks import _common, accuracy, peers, scaling, size_confound, streaming, training, transforms
 
 
 def _results(tmp_path):
@@ -236,3 +236,14 @@ class TestEvents:
         path = _results(tmp_path)
         result = events.main(["--quick", "--results", str(path)])
         assert len(result["rows"]) == 10 and "peak RSS" in _section(path, "events")
+
+
+class TestSizeConfound:
+    def test_quick_run(self, tmp_path):
+        """Mixed bolt sizes make force ambiguous from the events; knowing the size removes it."""
+        path = _results(tmp_path)
+        rows = size_confound.main(["--quick", "--results", str(path)])
+        mixed, single = rows["12 + 18 mm"], rows["15 mm only"]
+        assert mixed["events only"] > 3 * mixed["events + bolt size"]
+        assert single["events only"] < 2 * single["events + bolt size"]
+        assert "events + bolt size" in _section(path, "size_confound")
