@@ -22,8 +22,6 @@ Run: ``python benchmarks/training.py`` (``--quick`` for a smoke run).
 from __future__ import annotations
 
 import dataclasses
-import statistics
-import tempfile
 from collections.abc import Sequence
 from typing import Any
 

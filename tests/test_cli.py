@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import subprocess
 import sys
 
@@ -260,6 +259,12 @@ class TestRunProtocol:
                 assert methods[m]["delta_vs_none"]["ci95"] == pytest.approx(list(test.ci))
             adjusted = holm([t.wilcoxon_p_value for t in tests.values()])
             assert [methods[m]["delta_vs_none"]["p_holm"] for m in tests] == pytest.approx(adjusted)
+            # the paper's 6 + 6 split: its own pairs, Holm-corrected within the scene too
+            small = {m: paired_t(methods["none"]["test_mse_paper_split"], methods[m]["test_mse_paper_split"])
+                     for m in ("fs2", "fs-1")}
+            split = [methods[m]["delta_vs_none_paper_split"] for m in small]
+            assert [d["mean"] for d in split] == pytest.approx([t.mean for t in small.values()])
+            assert [d["t_p_holm"] for d in split] == pytest.approx(holm([t.t_p_value for t in small.values()]))
         report = (out / "results.md").read_text()
         assert "### control" in report and "*cumulative-count-ridge* (baseline)" in report
         assert "6 + 6 split" in report

@@ -123,6 +123,31 @@ class TestTimeSurface:
         torch.testing.assert_close(out[0], _reference_surface(a, 20.0, 10.0, 3, 7, 9))
         torch.testing.assert_close(out[1], _reference_surface(b, 20.0, 10.0, 3, 7, 9, t_start=10_000))
 
+    def test_absolute_timestamps_bin_like_relative_ones(self):
+        """The default t_start="floor" anchors at the first event's frame: a recording at
+        1.7e15 µs gives the surface of the same events at small times, not zeros."""
+        events = _events(span=50_000)
+        offset = 1_700_000_000_000_000  # a multiple of the 10 ms frame
+        shifted = events.copy()
+        shifted["t"] = shifted["t"].astype(np.int64) + offset
+        relative = F.to_time_surface(events, tau_ms=20.0, n_frames=5, sensor_size=(7, 9), t_start=0)
+        absolute = F.to_time_surface(shifted, tau_ms=20.0, n_frames=5, sensor_size=(7, 9))
+        torch.testing.assert_close(absolute, relative)
+        assert float(absolute.sum()) > 0
+        first = F.to_time_surface(shifted, tau_ms=20.0, n_frames=5, sensor_size=(7, 9), t_start="first")
+        anchored = F.to_time_surface(shifted, tau_ms=20.0, n_frames=5, sensor_size=(7, 9),
+                                     t_start=int(shifted["t"].min()))
+        torch.testing.assert_close(first, anchored)
+
+    def test_window_without_events_is_refused(self):
+        events = torch.tensor([[0, 0, 1_700_000_000_000_000, 1]], dtype=torch.int64)
+        with pytest.raises(ValueError, match="t_start.*frame_ms.*n_frames"):
+            F.to_time_surface(events, tau_ms=10.0, t_start=0, sensor_size=(1, 1))
+        with pytest.raises(ValueError, match="t_start"):
+            F.to_time_surface(events, tau_ms=10.0, t_start="last", sensor_size=(1, 1))
+        empty = F.to_time_surface(torch.zeros(0, 4, dtype=torch.int64), tau_ms=10.0, n_frames=2, sensor_size=(1, 1))
+        assert empty.shape == (2, 2, 1, 1) and float(empty.sum()) == 0  # no events: zeros, no error
+
     def test_named_errors(self):
         events = torch.tensor([[0, 0, 0, 1]])
         with pytest.raises(ValueError, match="tau_ms"):

@@ -115,7 +115,7 @@ def to_time_surface(
     events: Tensor | Mapping[str, Any] | np.ndarray,
     *,
     tau_ms: float,
-    t_start: float | Sequence[float] | Tensor = 0,
+    t_start: str | float | Sequence[float] | Tensor = "floor",
     frame_ms: float = 10.0,
     n_frames: int = 36,
     sensor_size: tuple[int, int] = (180, 240),
@@ -135,12 +135,21 @@ def to_time_surface(
     Args:
         events: events as :func:`~event_transforms.functional.events_to_frames` takes them.
         tau_ms: decay time constant in milliseconds (> 0).
-        t_start, frame_ms, n_frames, sensor_size, lengths, mask: as in
+        t_start: ``"floor"`` (default: each stream's first event rounded down to a multiple
+            of the frame length), ``"first"`` (its first event), or a number or one per
+            stream, in the events' microseconds — the rule of
+            :func:`~event_transforms.functional.events_to_frames`, so absolute timestamps
+            (1.7e15 µs) work without an offset.
+        frame_ms, n_frames, sensor_size, lengths, mask: as in
             :func:`~event_transforms.functional.events_to_frames`.
 
     Returns:
         float32 ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` in (0, 1], zero before a pixel's
         first event, on the events' device.
+
+    Raises:
+        ValueError: a stream holds events on the sensor but none in its window (naming
+            ``t_start``, ``frame_ms`` and ``n_frames``), rather than returning zeros.
 
     Example:
         >>> events = torch.tensor([[0, 0, 5_000, 1]])  # ON at 5 ms
@@ -154,13 +163,31 @@ def to_time_surface(
     n_frames = _positive_int(n_frames, "n_frames")
     batched, (b, height, width), t, channel, row, col, keep = _parse(events, sensor_size, lengths, mask)
     device = t.device
-    starts = per_sample(t_start, b, "t_start", dtype=torch.float64).to(device)
-    if b and not bool(torch.isfinite(starts).all()):
-        raise ValueError(f"t_start must be finite, got {starts.tolist()}")
     frame_us = float(frame_ms) * 1000.0
+    if isinstance(t_start, str):
+        if t_start not in ("floor", "first"):
+            raise ValueError(f"t_start must be 'floor', 'first', a number or one per stream, got {t_start!r}")
+        first = torch.where(keep, t, math.inf).amin(dim=1) if t.shape[1] else t.new_zeros(b)
+        starts = torch.where(torch.isfinite(first), first, 0.0)
+        if t_start == "floor":
+            starts = torch.floor(starts / frame_us) * frame_us
+    else:
+        starts = per_sample(t_start, b, "t_start", dtype=torch.float64).to(device)
+        if b and not bool(torch.isfinite(starts).all()):
+            raise ValueError(f"t_start must be finite, got {starts.tolist()}")
     since = t - starts.unsqueeze(1)
     time_bin = torch.floor(since / frame_us)
-    keep = keep & (time_bin >= 0) & (time_bin < n_frames)
+    in_window = keep & (time_bin >= 0) & (time_bin < n_frames)
+    lost = keep.any(dim=1) & ~in_window.any(dim=1)
+    if b and bool(lost.any()):  # one host read: never silent zeros for a stream with events
+        stream = int(lost.nonzero()[0, 0])
+        span = t[stream][keep[stream]]
+        raise ValueError(
+            f"no event of stream {stream} falls in the window t_start={float(starts[stream]):.0f} µs, "
+            f"frame_ms={frame_ms!r}, n_frames={n_frames} (its events span t = {float(span.min()):.0f} "
+            f"to {float(span.max()):.0f} µs)"
+        )
+    keep = in_window
     sample = torch.arange(b, device=device).unsqueeze(1).expand_as(row)
     index = (((sample * n_frames + time_bin.clamp(0, n_frames - 1).to(torch.int64)) * 2 + channel) * height + row.clamp(0, height - 1)) * width + col.clamp(0, width - 1)
     size = b * n_frames * 2 * height * width

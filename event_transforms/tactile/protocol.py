@@ -50,7 +50,7 @@ import statistics
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -528,14 +528,46 @@ def _mean_sd(values: Sequence[float]) -> tuple[float, float]:
     return statistics.fmean(values), (statistics.stdev(values) if len(values) > 1 else math.nan)
 
 
-def summarize_scene(
-    scene: BenchmarkScene, per_method: dict[str, list[dict[str, Any]]], baselines: dict[str, dict[str, float]],
-    split_sizes: dict[str, int], *, key: str = "test_mse",
-) -> dict[str, Any]:
-    """One scene's entry of ``results.json``: gaps, baselines, and per method the per-seed
-    values and Δ vs ``none`` on ``key`` (paired t-interval, Wilcoxon, Holm within the scene)."""
+def _deltas(methods: dict[str, Any], key: str) -> dict[str, dict[str, Any]]:
+    """Δ of ``key`` vs ``none`` for every other method, paired seed by seed: the paired
+    t-interval, the exact Wilcoxon p, and both Holm-corrected within the family given."""
     from .stats import holm, paired_t
 
+    reference = methods.get("none")
+    if reference is None:
+        return {}
+    base = dict(zip(reference["seeds"], reference[key]))
+    tests = {}
+    for name, method in methods.items():
+        if name == "none":
+            continue
+        pairs = [(base[s], v) for s, v in zip(method["seeds"], method[key]) if s in base]
+        if pairs:
+            tests[name] = paired_t([a for a, _ in pairs], [b for _, b in pairs])
+    adjusted = dict(zip(tests, holm([t.wilcoxon_p_value for t in tests.values()])))
+    adjusted_t = dict(zip(tests, holm([t.t_p_value for t in tests.values()])))
+    return {
+        name: {
+            "mean": test.mean,
+            "ci95": list(test.ci) if test.ci is not None else None,
+            "p_value": test.wilcoxon_p_value,
+            "p_holm": adjusted[name],
+            "t_p_value": test.t_p_value,
+            "t_p_holm": adjusted_t[name],
+            "significant": _significant({"ci95": test.ci, "t_p_holm": adjusted_t[name]}),
+            "n": test.n,
+        }
+        for name, test in tests.items()
+    }
+
+
+def summarize_scene(
+    scene: BenchmarkScene, per_method: dict[str, list[dict[str, Any]]], baselines: dict[str, dict[str, float]],
+    split_sizes: dict[str, int],
+) -> dict[str, Any]:
+    """One scene's entry of ``results.json``: gaps, baselines, and per method the per-seed
+    values and Δ vs ``none`` on test MSE (``delta_vs_none``) and on the paper's 6 + 6 split
+    (``delta_vs_none_paper_split``), each Holm-corrected within the scene."""
     methods: dict[str, Any] = {}
     for name, runs in per_method.items():
         runs = sorted(runs, key=lambda r: r["seed"])
@@ -550,6 +582,7 @@ def summarize_scene(
             "copies": runs[0]["copies"],
             "train_items": runs[0]["train_items"],
             "delta_vs_none": None,
+            "delta_vs_none_paper_split": None,
             "aug_s_once": statistics.fmean(r["aug_s_once"] for r in runs),
             "aug_s_per_epoch": statistics.fmean(r["aug_s_per_epoch"] for r in runs),
             "train_s": statistics.fmean(r["train_s"] for r in runs),
@@ -557,29 +590,9 @@ def summarize_scene(
                 phase: statistics.fmean(r["test_phase_mse"][phase] for r in runs) for phase in ("grasp", "hold", "release")
             },
         }
-    reference = methods.get("none")
-    compared = [n for n in methods if n != "none"] if reference else []
-    tests = {}
-    for name in compared:
-        by_seed = dict(zip(methods[name]["seeds"], methods[name][key]))
-        common = [s for s in reference["seeds"] if s in by_seed]
-        if not common:
-            continue
-        base_values = [dict(zip(reference["seeds"], reference[key]))[s] for s in common]
-        tests[name] = paired_t(base_values, [by_seed[s] for s in common])
-    adjusted = dict(zip(tests, holm([t.wilcoxon_p_value for t in tests.values()])))
-    adjusted_t = dict(zip(tests, holm([t.t_p_value for t in tests.values()])))
-    for name, test in tests.items():
-        methods[name]["delta_vs_none"] = {
-            "mean": test.mean,
-            "ci95": list(test.ci) if test.ci is not None else None,
-            "p_value": test.wilcoxon_p_value,
-            "p_holm": adjusted[name],
-            "t_p_value": test.t_p_value,
-            "t_p_holm": adjusted_t[name],
-            "significant": _significant({"ci95": test.ci, "t_p_holm": adjusted_t[name]}),
-            "n": test.n,
-        }
+    for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
+        for name, delta in _deltas(methods, key).items():
+            methods[name][field_name] = delta
     return {
         "description": scene.description,
         "gaps": list(scene.gaps),
@@ -622,20 +635,13 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
         rows.append("| " + " | ".join(cells + (["—"] * 3 if timings else [])) + " |")
     matched = set(summary["matched_methods"])
     for method, s in summary["methods"].items():
-        delta = s["delta_vs_none"] if key == "test_mse" else None
-        if key != "test_mse" and method != "none" and "none" in summary["methods"]:
-            from .stats import paired_t
-
-            test = paired_t(summary["methods"]["none"][key], s[key])
-            delta = {"mean": test.mean, "ci95": list(test.ci) if test.ci else None,
-                     "p_holm": test.wilcoxon_p_value, "t_p_holm": test.t_p_value}
+        delta = s["delta_vs_none" if key == "test_mse" else "delta_vs_none_paper_split"]
         if delta is None:
             delta_text, p_text = "—", "—"
         else:
             ci = delta["ci95"]
-            mark = " **" if _significant(delta) else ""
-            delta_text = (f"{mark.strip()}{delta['mean']:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}]{mark.strip()}"
-                          if ci else f"{delta['mean']:+.2f}")
+            mark = "**" if _significant(delta) else ""
+            delta_text = f"{mark}{delta['mean']:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}]{mark}" if ci else f"{delta['mean']:+.2f}"
             p_text = (f"{delta['t_p_holm']:.3f} / {delta['p_holm']:.3f}"
                       if not math.isnan(delta["p_holm"]) else "—")
         label = f"{method} (matched)" if method in matched else method
