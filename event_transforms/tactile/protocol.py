@@ -366,10 +366,19 @@ def build_training_set(
 class OnlineCopies(Dataset):
     """The training items followed by ``copies`` *untransformed* copies of each, marked in the
     metadata (``meta["copy"]``: 0 for originals, c ≥ 1 for copy c), so that a
-    :class:`DeviceAugment` can transform the copies of each batch on the training device."""
+    :class:`DeviceAugment` can transform the copies of each batch on the training device.
+
+    Example:
+        >>> base = [(torch.ones(2, 2, 3, 3), torch.zeros(2), {"diameter_mm": 12.0})]
+        >>> copies = OnlineCopies(base, 2)
+        >>> len(copies), copies[2][2]
+        (3, {'diameter_mm': 12.0, 'copy': 2})
+    """
 
     def __init__(self, base: Dataset, copies: int) -> None:
-        self.base, self.copies = base, int(copies)
+        if isinstance(copies, bool) or not isinstance(copies, int) or copies < 0:
+            raise ValueError(f"copies must be a non-negative int, got {copies!r}")
+        self.base, self.copies = base, copies
 
     def __len__(self) -> int:
         return len(self.base) * (1 + self.copies)
@@ -390,6 +399,13 @@ class DeviceAugment:
     ``copy >= 1`` go through ``transform`` (its parameters drawn from a CPU generator seeded
     with ``seed``, so a run is reproducible and the device never waits for a draw), the
     originals pass unchanged.
+
+    Example:
+        >>> from event_transforms import FrameShift
+        >>> frames = torch.ones(2, 3, 2, 1, 1)
+        >>> out = DeviceAugment(FrameShift(1), seed=0)(frames, [{"copy": 0}, {"copy": 1}])
+        >>> out[:, :, 0, 0, 0].tolist()
+        [[1.0, 1.0, 1.0], [0.0, 1.0, 1.0]]
     """
 
     def __init__(self, transform: nn.Module, seed: int, stopwatch: Stopwatch | None = None) -> None:

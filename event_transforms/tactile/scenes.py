@@ -310,7 +310,12 @@ SCENES: dict[str, BenchmarkScene] = _scenes()
 
 
 def get_scene(scene: str | BenchmarkScene) -> BenchmarkScene:
-    """A scene by name (see :data:`SCENES`), or the scene itself."""
+    """A scene by name (see :data:`SCENES`), or the scene itself.
+
+    Example:
+        >>> get_scene("noise").gaps, get_scene(get_scene("paper")).target_size
+        (('noise',), 15.0)
+    """
     if isinstance(scene, BenchmarkScene):
         return scene
     if not isinstance(scene, str) or scene not in SCENES:
