@@ -18,7 +18,7 @@ from event_transforms.transforms.base import slice_params
 from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse_frames
 
 INTERPOLATING = {"Rotate", "RandomRotation", "Resize", "RandomResize"}
-INTERPOLATING |= {"Affine", "RandomAffine", "RandomCropResize", "CenterCropResize"}
+INTERPOLATING |= {"Affine", "RandomAffine", "RandomCropResize", "CenterCropResize", "RandomPerspective", "RandomElastic"}
 # modules whose kernels need whole, non-negative counts and check them
 VALUE_CHECKED = {"TemporalEventShift", "TemporalEventShiftBinomial", "RandomTemporalEventShift", "RandomEventDrop"}
 
@@ -65,6 +65,9 @@ FACTORIES = {
     "DropHotPixels": lambda t, h, w: et.DropPixel(rate_hz=150.0),
     "RandomDropPixel": lambda t, h, w: et.RandomDropPixel((0.1, 0.3)),
     "Denoise": lambda t, h, w: et.Denoise(),
+    # sequence warps (issue 19)
+    "RandomPerspective": lambda t, h, w: et.RandomPerspective(0.3),
+    "RandomElastic": lambda t, h, w: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0, p=0.5),
 }
 
 NAMES = sorted(FACTORIES)
