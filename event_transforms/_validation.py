@@ -40,6 +40,7 @@ __all__ = [
     "as_number",
     "check_positive",
     "check_probability",
+    "check_seed",
     "check_pair",
     "check_generator",
     "as_batch",
@@ -257,6 +258,18 @@ def check_positive(value: object, name: str, *, integer: bool = False) -> Any:
     if number <= 0:
         raise ValueError(f"{name} must be > 0, got {value!r}")
     return number
+
+
+def check_seed(seed: object, name: str = "seed") -> int:
+    """A non-negative integer seed (Python or NumPy int, not a bool).
+
+    Example:
+        >>> check_seed(3)
+        3
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"{name} must be a non-negative integer, got {seed!r}")
+    return int(seed)
 
 
 def check_probability(value: object, name: str = "p") -> float:

@@ -10,7 +10,7 @@ import pytest
 import torch
 
 import event_transforms as et
-from event_transforms.tactile import cli, protocol
+from event_transforms.tactile import cli, experiment, protocol
 from event_transforms.tactile.protocol import (
     PAPER_METHODS,
     MaterializedDataset,
@@ -287,11 +287,11 @@ class TestRunProtocol:
                 raise KeyboardInterrupt
             return real(*args, **kwargs)
 
-        monkeypatch.setattr(protocol, "run_unit", killed_after_two)
+        monkeypatch.setattr(experiment, "run_unit", killed_after_two)
         with pytest.raises(KeyboardInterrupt):
             run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods, data=scene_data,
                          group="method")
-        monkeypatch.setattr(protocol, "run_unit", real)
+        monkeypatch.setattr(experiment, "run_unit", real)
         resumed = run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods,
                                data=scene_data, group="method")
         for scene in self.scenes:

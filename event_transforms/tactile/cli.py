@@ -1,6 +1,6 @@
 """Command line: ``event-transforms reproduce | simulate | show | show-scene``.
 
-``reproduce`` runs the benchmark protocol (:mod:`event_transforms.tactile.protocol`) on the
+``reproduce`` runs the benchmark protocol (:mod:`event_transforms.tactile.experiment`) on the
 simulated scenes (:mod:`event_transforms.tactile.scenes`). Without ``--full`` it runs a quick
 configuration (5 paired seeds, every scene, ``none`` and the matched methods, the paper's
 list on ``paper``; a narrower model and fewer steps) that finishes in minutes on a 2-core
@@ -192,25 +192,12 @@ def _print(*args: Any) -> None:
     print(*args, flush=True)
 
 
-def _distributed_from_env(device: str) -> bool:
-    """Join the process group ``torchrun`` describes (``WORLD_SIZE`` > 1); True if joined."""
-    if int(os.environ.get("WORLD_SIZE", "1")) <= 1:
-        return False
-    import torch
-    import torch.distributed as dist
-
-    if not dist.is_initialized():
-        backend = "nccl" if device == "cuda" else "gloo"
-        if backend == "nccl":
-            torch.cuda.set_device(int(os.environ.get("LOCAL_RANK", "0")))
-        dist.init_process_group(backend)
-    return True
-
-
 def _reproduce(args: argparse.Namespace) -> int:
     import torch
 
-    from .protocol import ProtocolConfig, format_report, run_protocol
+    from .distributed import join_from_env
+    from .experiment import ProtocolConfig, run_protocol
+    from .report import format_report
 
     base = FULL if args.full else QUICK
     device = args.device
@@ -219,7 +206,7 @@ def _reproduce(args: argparse.Namespace) -> int:
     if device == "cuda" and not torch.cuda.is_available():
         raise SystemExit("--device cuda: no CUDA device is available")
     threads = args.threads or base["threads"]
-    distributed = _distributed_from_env(device)
+    distributed = join_from_env(device)
     jobs = args.jobs or base["jobs"] or (torch.cuda.device_count() if device == "cuda" else os.cpu_count() or 1)
     if device == "cuda" and not distributed:
         jobs = 1  # one process drives the GPU; ensembles fill it
@@ -305,7 +292,7 @@ def _plots(results: dict[str, Any], out: Path) -> list[Path]:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from .protocol import load_scene_data
+    from .experiment import load_scene_data
     from .scenes import SCENES
 
     root = None if args.root is None else str(args.root)
@@ -343,7 +330,7 @@ def _show(args: argparse.Namespace) -> int:
 
     from .. import viz
     from . import datasets
-    from .protocol import parse_method
+    from .methods import parse_method
 
     root = None if args.root is None else str(args.root)
     train = datasets.TactileGrasps(split="train", root=root, scene=args.scene)

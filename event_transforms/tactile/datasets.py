@@ -35,6 +35,7 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset
 
+from .._validation import check_seed
 from ..transforms.base import as_transform
 from ..functional.events import events_to_frames
 from .scenes import BenchmarkScene, Session, get_scene
@@ -100,12 +101,6 @@ def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool
     }
     text = json.dumps(description, sort_keys=True)
     return f"tactile-grasps-v{SIMULATOR_VERSION}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.pt"
-
-
-def _check_seed(seed: object) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    return int(seed)
 
 
 def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (140, 150), pool: int = 2) -> dict[str, Tensor]:
@@ -194,7 +189,7 @@ class TactileGrasps(Dataset):
         self.split = split
         self.session = self.scene.train if split == "train" else self.scene.deploy
         self.config: SimulatorConfig = self.session.config
-        self.seed = _check_seed(seed)
+        self.seed = check_seed(seed)
         self.crop_size = (int(crop_size[0]), int(crop_size[1]))
         self.pool = int(pool)
         self.transform = None if transform is None else as_transform(transform)
@@ -285,7 +280,7 @@ def noise_bank(
     height, width = config.sensor_size
     crop_h, crop_w = crop_size
     top, left = (height - crop_h) // 2, (width - crop_w) // 2
-    events = simulate_static(n_frames * config.frame_ms, seed=_check_seed(seed) + _NOISE_SEED_OFFSET, config=config)
+    events = simulate_static(n_frames * config.frame_ms, seed=check_seed(seed) + _NOISE_SEED_OFFSET, config=config)
     return events_to_frames(
         events,
         t_start=0,
