@@ -81,7 +81,10 @@ class TestParseMethod:
         assert parse_method("resize", copies=4).copies == 4
         assert parse_method(" FS-1 ").copies == 1
 
-    @pytest.mark.parametrize("name", ["", "rot", "fs", "tes-2", "tes-2:", "fs-1x", "blur", "tes-1:1.5"])
+    @pytest.mark.parametrize(
+        "name", ["", "rot", "fs", "tes-2", "tes-2:", "fs-1x", "blur", "tes-1:1.5", "fs100", "fs-36", "tes36:0.5",
+                 "rot-45"],
+    )
     def test_bad_names(self, name):
         with pytest.raises(ValueError, match="method|fraction"):
             parse_method(name)
@@ -357,7 +360,7 @@ class TestRunProtocol:
 
 class TestCommandLine:
     def test_reproduce_smoke(self, tmp_path, monkeypatch, capsys):
-        monkeypatch.setattr(protocol, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
+        monkeypatch.setattr(experiment, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
         out = tmp_path / "res"
         code = cli.main([
             "reproduce", "--scenes", "control", "--methods", "none", "fs-1", "--seeds", "0,1", "--steps", "2",
@@ -405,6 +408,61 @@ class TestCommandLine:
         help_text = " ".join(help_text.split())
         assert f"{cli.QUICK['seeds']} paired seeds" in help_text and "--full" in help_text
         assert cli.FULL["seeds"] == 10 and cli.QUICK["seeds"] >= 5
+
+
+class TestCommandLineErrors:
+    """Mistakes a person makes reach them as one line naming the value, exit code 2, no traceback."""
+
+    def _error(self, argv, capsys) -> str:
+        assert cli.main(argv) == 2
+        captured = capsys.readouterr()
+        lines = captured.err.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+        return lines[0]
+
+    def test_unknown_scene_lists_the_valid_ones(self, tmp_path, capsys):
+        line = self._error(["reproduce", "--scenes", "nonexistent", "--out", str(tmp_path)], capsys)
+        assert "'nonexistent'" in line and all(name in line for name in SCENES)
+
+    def test_unknown_method_lists_the_valid_ones(self, tmp_path, capsys):
+        line = self._error(["reproduce", "--scenes", "control", "--methods", "bogus", "--out", str(tmp_path)], capsys)
+        assert "'bogus'" in line and "rot<deg>" in line and "tes<j>:<fraction>" in line
+
+    def test_show_unknown_method_before_any_simulation(self, tmp_path, capsys):
+        line = self._error(["show", "bogus", "--root", str(tmp_path / "cache"), "--out", str(tmp_path / "x.png")],
+                           capsys)
+        assert "'bogus'" in line and not (tmp_path / "cache").exists()
+        assert "'nowhere'" in self._error(["show-scene", "nowhere", "--out", str(tmp_path)], capsys)
+
+    def test_shift_past_the_sequence_is_refused_by_name(self, tmp_path, capsys):
+        line = self._error(["reproduce", "--scenes", "control", "--methods", "fs100", "--out", str(tmp_path)], capsys)
+        assert "'fs100'" in line and "36 frames" in line
+        line = self._error(["reproduce", "--scenes", "control", "--methods", "rot-45", "--out", str(tmp_path)], capsys)
+        assert "'rot-45'" in line and "-45" in line
+
+    @pytest.mark.parametrize("flag", ["--out", "--root"])
+    def test_unwritable_folder_is_refused_before_any_work(self, tmp_path, capsys, flag, monkeypatch):
+        blocker = tmp_path / "a-file"
+        blocker.write_text("")
+        called = []
+        monkeypatch.setattr(experiment, "load_scene_data", lambda *a, **k: called.append(a))
+        argv = ["reproduce", "--scenes", "control", "--methods", "none", "--out", str(tmp_path / "out")]
+        line = self._error([*argv, flag, str(blocker / "sub")], capsys)
+        assert flag in line and "a-file" in line and not called
+
+    def test_zero_copies_refused_by_name(self, capsys):
+        with pytest.raises(SystemExit) as exit_:
+            cli.build_parser().parse_args(["reproduce", "--copies", "0"])
+        assert exit_.value.code == 2 and "--copies" in capsys.readouterr().err
+        with pytest.raises(ValueError, match="copies"):
+            ProtocolConfig(copies=0)
+
+    def test_worker_error_reaches_the_user_as_itself(self, scene_data, tmp_path):
+        # the noise method needs the deployment camera's noise bank: the error is raised in a worker
+        no_bank = {"control": SceneData(**{**scene_data["control"].__dict__, "noise_bank": None})}
+        with pytest.raises(ValueError, match="noise bank"):
+            run_protocol(["control"], [0], tmp_path / "r", config=TINY, methods=["none", "noise"], data=no_bank,
+                         group="method", jobs=2)
 
 
 @pytest.fixture(scope="module")

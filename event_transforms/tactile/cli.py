@@ -147,7 +147,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--batch-size", type=_positive, help="sequences per training step")
     rep.add_argument("--no-cumulative", action="store_true",
                      help="the model reads only the per-frame counts, not their running sums (ablation)")
-    rep.add_argument("--copies", type=int, default=1, help="synthetic copies per item (default 1: doubles the set)")
+    rep.add_argument("--copies", type=_positive, default=1,
+                     help="synthetic copies per item, at least 1 (default 1: doubles the set)")
     rep.add_argument(
         "--online", action="store_true",
         help="redraw the augmentation at every access instead of making fixed copies once",
@@ -192,7 +193,23 @@ def _print(*args: Any) -> None:
     print(*args, flush=True)
 
 
+def _writable(path: Path | None, flag: str) -> None:
+    """Refuse a folder that cannot be created or written, before any work starts."""
+    if path is None:
+        return
+    import tempfile
+
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as error:
+        raise ValueError(f"{flag} {str(path)!r} is not a writable folder ({error.strerror or error})") from None
+
+
 def _reproduce(args: argparse.Namespace) -> int:
+    _writable(args.out, "--out")
+    _writable(args.root, "--root")
     import torch
 
     from .distributed import join_from_env
@@ -292,6 +309,7 @@ def _plots(results: dict[str, Any], out: Path) -> list[Path]:
 
 
 def _simulate(args: argparse.Namespace) -> int:
+    _writable(args.root, "--root")
     from .experiment import load_scene_data
     from .scenes import SCENES
 
@@ -312,9 +330,10 @@ def _show_scene(args: argparse.Namespace) -> int:
     from . import datasets
     from .scenes import SCENES, get_scene
 
-    root = None if args.root is None else str(args.root)
     names = [get_scene(args.scene).name] if args.scene else list(SCENES)
-    args.out.mkdir(parents=True, exist_ok=True)
+    _writable(args.root, "--root")
+    _writable(args.out, "--out")
+    root = None if args.root is None else str(args.root)
     for name in names:
         train = datasets.TactileGrasps("train", root=root, scene=name)
         test = datasets.TactileGrasps("test", root=root, scene=name)
@@ -332,12 +351,15 @@ def _show(args: argparse.Namespace) -> int:
     from . import datasets
     from .methods import parse_method
 
+    method = parse_method(args.method, scene=args.scene)  # names first, before any simulation
+    _writable(args.root, "--root")
+    if args.out is not None:
+        _writable(args.out.parent, "--out")
     root = None if args.root is None else str(args.root)
     train = datasets.TactileGrasps(split="train", root=root, scene=args.scene)
     if not 0 <= args.index < len(train):
         raise SystemExit(f"--index must lie in [0, {len(train) - 1}], got {args.index}")
     frames, _, meta = train[args.index]
-    method = parse_method(args.method, scene=args.scene)
     bank = datasets.noise_bank(config=train.scene.deploy.config) if method.needs_noise_bank else None
     transform = method.build(bank)
     generator = torch.Generator().manual_seed(args.seed)
@@ -352,7 +374,8 @@ def _show(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``event-transforms`` console script."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     handlers = {"reproduce": _reproduce, "simulate": _simulate, "show": _show, "show-scene": _show_scene}
     try:
         return handlers[args.command](args)
@@ -360,6 +383,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("interrupted: finished units are kept; rerun the same command to resume",
               file=sys.stderr)
         return 130
+    except ValueError as error:  # a name or setting the user gave (also from a worker): one line
+        message = " ".join(str(error).split())
+        print(f"{parser.prog} {args.command}: error: {message}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

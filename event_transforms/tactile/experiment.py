@@ -38,6 +38,7 @@ import torch
 from torch import nn
 from torch.utils.data import Dataset
 
+from .._validation import check_positive
 from ..data import AugmentedDataset
 from . import distributed
 from .methods import Method, methods_for, parse_method
@@ -90,6 +91,16 @@ class ProtocolConfig:
     fixed: bool = True
     copies: int = 1
     paper_split: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("steps", "batch_size", "eval_every", "input_pool", "copies"):
+            check_positive(getattr(self, name), name, integer=True)
+        for name in ("lr", "clip"):
+            check_positive(getattr(self, name), name)
+        channels = tuple(self.hidden_channels)
+        if not channels or any(isinstance(c, bool) or not isinstance(c, int) or c < 1 for c in channels):
+            raise ValueError(f"hidden_channels must be positive ints, got {self.hidden_channels!r}")
+        self.hidden_channels = channels
 
     def key(self) -> str:
         """A short hash of the settings, so results of different settings never mix."""

@@ -149,16 +149,28 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
         return Method(
             name, lambda bank: scene.library_scene(bank).policy(base), copies, needs_noise_bank=needs_bank
         )
+    frames = scene.train.config.n_frames
     if match["deg"] is not None:
         degrees = float(match["deg"])
-        return Method(name, lambda bank: RandomRotation(degrees), copies)
-    if match["fs"] is not None:
+        make = lambda bank: RandomRotation(degrees)  # noqa: E731
+    elif match["fs"] is not None:
         shift = int(match["fs"])
-        return Method(name, lambda bank: FrameShift(shift), copies)
-    shift, fraction = int(match["tes"]), float(match["frac"])
-    if not 0 <= fraction <= 1:
-        raise ValueError(f"TES fraction must lie in [0, 1], got {fraction!r} in {name!r}")
-    return Method(name, lambda bank: TemporalEventShift(shift, fraction), copies)
+        make = lambda bank: FrameShift(shift)  # noqa: E731
+    else:
+        shift, fraction = int(match["tes"]), float(match["frac"])
+        if not 0 <= fraction <= 1:
+            raise ValueError(f"TES fraction must lie in [0, 1], got {fraction!r} in {name!r}")
+        make = lambda bank: TemporalEventShift(shift, fraction)  # noqa: E731
+    if match["deg"] is None and abs(shift) >= frames:
+        raise ValueError(
+            f"method {name!r} shifts by {shift} frames, but scene {scene.name!r} has {frames} frames per "
+            f"sequence: every event would leave the sequence; use |shift| < {frames}"
+        )
+    try:
+        make(None)  # refuse bad settings (e.g. a negative angle) here, not inside a worker
+    except (ValueError, TypeError) as error:
+        raise ValueError(f"method {name!r}: {error}") from None
+    return Method(name, make, copies)
 
 
 #: Quick mode's methods of the scenes without a paper list: none and the matched ones;
