@@ -40,7 +40,7 @@ def fake_data(scene: str = "paper") -> SceneData:
     bank = torch.poisson(torch.full((40, 2, 16, 12), 0.2), generator=g)
     return SceneData(
         get_scene(scene), FakeGrasps(6, seed=1), FakeGrasps(7, diameters=(15.0,), seed=2),
-        FakeGrasps(8, diameters=(15.0,), seed=3), bank,
+        FakeGrasps(8, diameters=(15.0,), seed=3), bank, holdout=FakeGrasps(4, seed=4),
     )
 
 
@@ -202,20 +202,21 @@ class TestScenesAndMethods:
 
 def _check_shape(saved: dict, scenes: list[str], methods: list[str], seeds: list[int]) -> None:
     """The results.json contract of the protocol issue."""
-    assert set(saved) >= {"config", "wall_s", "scenes"} and isinstance(saved["wall_s"], float)
+    assert set(saved) >= {"config", "wall_s", "scenes", "commit", "plan"} and isinstance(saved["wall_s"], float)
+    assert saved["commit"] == "unknown" or len(saved["commit"].removesuffix("-dirty")) == 40
     assert list(saved["scenes"]) == scenes
     for name, scene in saved["scenes"].items():
         assert scene["gaps"] == list(get_scene(name).gaps)
         assert scene["matched_methods"] == list(get_scene(name).matched_methods)
-        assert set(scene["split_sizes"]) == {"train", "val", "test"}
+        assert set(scene["split_sizes"]) == {"train", "holdout", "val", "test"}
         assert set(scene["baselines"]) == {"global-mean", "per-frame-mean", "cumulative-count-ridge"}
         assert all(isinstance(b["test_mse"], float) for b in scene["baselines"].values())
         assert list(scene["methods"]) == methods
         for method, m in scene["methods"].items():
             assert m["seeds"] == seeds
-            for key in ("test_mse", "val_mse", "converged"):
+            for key in ("test_mse", "val_mse", "best_step", "holdout_mse"):
                 assert len(m[key]) == len(seeds)
-            assert all(isinstance(c, bool) for c in m["converged"])
+            assert all(isinstance(b, int) and 1 <= b <= m["steps"] for b in m["best_step"])
             assert isinstance(m["steps"], int)
             for key in ("aug_s_once", "aug_s_per_epoch", "train_s"):
                 assert isinstance(m[key], float) and m[key] >= 0
@@ -223,8 +224,17 @@ def _check_shape(saved: dict, scenes: list[str], methods: list[str], seeds: list
                 assert m["delta_vs_none"] is None
             else:
                 delta = m["delta_vs_none"]
-                assert set(delta) >= {"mean", "ci95", "p_value", "p_holm", "t_p_holm", "significant"}
+                assert set(delta) >= {"mean", "ci95", "p_value", "p_holm", "t_p_holm", "significant", "ci95_welch",
+                                      "correlation"}
                 assert len(delta["ci95"]) == 2
+        if scene["gaps"] and "none" in methods and len(methods) > 1 and saved["config"].get("budget_check", True):
+            check = scene["budget_check"]
+            assert set(check) >= {"method", "steps", "steps_2n", "delta", "delta_2n", "ci95_halfwidth", "robust"}
+            assert check["steps_2n"] == 2 * check["steps"] and check["method"] in methods
+            assert check["robust"] == ((check["delta"] > 0) == (check["delta_2n"] > 0)
+                                       and abs(check["delta"] - check["delta_2n"]) < check["ci95_halfwidth"])
+        else:
+            assert "budget_check" not in scene
 
 
 @pytest.fixture(scope="module")
@@ -270,7 +280,48 @@ class TestRunProtocol:
             assert [d["t_p_holm"] for d in split] == pytest.approx(holm([t.t_p_value for t in small.values()]))
         report = (out / "results.md").read_text()
         assert "### control" in report and "*cumulative-count-ridge* (baseline)" in report
-        assert "6 + 6 split" in report
+        assert "6 + 6 split" in report and f"commit `{saved['commit']}`" in report
+        assert "budget check: " in report and "unpaired CI" in report and "converged" not in report
+
+    def test_budget_check_is_delta_at_twice_the_steps(self, clean):
+        out, results = clean
+        check = results["scenes"]["timing"]["budget_check"]
+        deltas = results["scenes"]["timing"]["methods"]
+        largest = max((m for m in deltas if m != "none"), key=lambda m: abs(deltas[m]["delta_vs_none"]["mean"]))
+        assert check["method"] == largest and check["delta"] == deltas[largest]["delta_vs_none"]["mean"]
+        double = ProtocolConfig(**{**TINY.__dict__, "steps": 2 * TINY.steps})
+        runs = {m: json.loads((out / "runs" / double.key() / f"timing_{m}.json").read_text())[m]
+                for m in ("none", largest)}
+        assert all(r["steps"] == 2 * TINY.steps for rs in runs.values() for r in rs)
+        expected = paired_t([r["test_mse"] for r in runs["none"]], [r["test_mse"] for r in runs[largest]])
+        assert check["delta_2n"] == pytest.approx(expected.mean)
+        assert "budget_check" not in results["scenes"]["control"]  # no gap, no check
+
+    def test_stopping_rule_keeps_the_best_hold_out_weights(self, scene_data):
+        config = ProtocolConfig(**{**TINY.__dict__, "steps": 6, "eval_every": 2})
+        out = protocol.run_unit("control", ["none"], [0, 1], config, scene_data["control"])
+        for record in out["none"]:
+            history = record["holdout_history"]
+            assert history["steps"] == [2, 4, 6] and record["holdout_mse"] == min(history["mse"])
+            assert record["best_step"] == history["steps"][history["mse"].index(min(history["mse"]))]
+
+    def test_progress_lines_count_units_and_give_an_overall_eta(self, scene_data, tmp_path, capsys):
+        lines = []
+        run_protocol(["control"], [0], tmp_path, config=TINY, methods=["none", "fs2"], data=scene_data,
+                     group="method", log=lines.append)
+        err = capsys.readouterr().err
+        assert "unit 1/2 control" in err and "unit 2/2 control" in err and "overall ETA" in err
+        assert "hold-out MSE" in err and any(line.startswith("progress lines:") for line in lines)
+        assert any(line.startswith("plan: 2 units") for line in lines)
+
+    def test_paired_batches_share_the_originals(self):
+        none = protocol.paired_batches(6, 0, 4, 30, seed=3)
+        for copies in (1, 2, 10):
+            batches = protocol.paired_batches(6, copies, 4, 30, seed=3)
+            assert torch.equal(batches % 6, none)  # the same original at every step and slot
+            variants = torch.bincount((batches // 6).flatten(), minlength=copies + 1)
+            assert int(variants.max() - variants.min()) <= 6  # each variant read about equally often
+        assert not torch.equal(protocol.paired_batches(6, 1, 4, 30, seed=4) % 6, none)
 
     def test_paired_seeds_share_initial_weights(self, scene_data):
         """Seed s gives every method the same start: with no step taken, equal predictions."""
@@ -352,7 +403,7 @@ class TestRunProtocol:
     def test_one_seed_table_has_no_spread(self, clean):
         _, results = clean
         one = {**results["scenes"]["control"]}
-        one["methods"] = {m: {**v, "test_mse": v["test_mse"][:1], "converged": v["converged"][:1]}
+        one["methods"] = {m: {**v, "test_mse": v["test_mse"][:1], "best_step": v["best_step"][:1]}
                           for m, v in one["methods"].items()}
         assert "±" not in format_scene_table("control", one)
         assert "±" in format_scene_table("control", results["scenes"]["control"])

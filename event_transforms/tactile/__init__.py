@@ -12,7 +12,8 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
 - :mod:`~event_transforms.tactile.baselines`: trivial baselines the network must beat;
 - :mod:`~event_transforms.tactile.training`: timing, batching, scores, atomic result files;
 - :mod:`~event_transforms.tactile.methods`: method names and which methods a scene runs;
-- :mod:`~event_transforms.tactile.experiment`: the benchmark run (settings, data, units, resume);
+- :mod:`~event_transforms.tactile.copies`: a scene's data, synthetic copies, the paired batch order;
+- :mod:`~event_transforms.tactile.experiment`: the benchmark run (settings, units, resume, budget check);
 - :mod:`~event_transforms.tactile.stats`: paired t-intervals, Wilcoxon signed-rank, Holm, summaries;
 - :mod:`~event_transforms.tactile.report`: the benchmark's tables and findings;
 - :mod:`~event_transforms.tactile.distributed`: local ranks, ``torchrun``, worker errors;
@@ -29,15 +30,16 @@ from typing import Any
 
 _SUBMODULES = (
     "simulation", "scenes", "datasets", "models", "ensemble", "baselines", "training", "methods",
-    "experiment", "stats", "report", "distributed", "protocol", "cli",
+    "copies", "experiment", "stats", "report", "distributed", "protocol", "cli",
 )
 
 #: Public names of the protocol, importable from here (loaded on first use).
 _PROTOCOL_NAMES = (
     "PAPER_METHODS", "QUICK_METHODS", "PAPER_SCENE", "Method", "parse_method", "methods_for",
     "ProtocolConfig", "SceneData", "load_scene_data", "MaterializedDataset", "OnlineCopies",
-    "DeviceAugment", "build_training_set", "run_unit", "run_protocol", "summarize_scene",
-    "format_scene_table", "format_findings", "format_report",
+    "DeviceAugment", "build_training_set", "paired_batches", "run_unit", "run_protocol", "plan_run",
+    "PROGRESS_LEGEND", "summarize_scene", "format_scene_table", "format_budget_check", "format_findings",
+    "format_report",
 )
 
 __all__ = [*_SUBMODULES, *_PROTOCOL_NAMES]

@@ -20,7 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["spawn", "join_from_env", "current_group", "gather_to_rank0"]
+__all__ = ["spawn", "join_from_env", "current_group", "gather_to_rank0", "broadcast_from_rank0"]
 
 
 def _free_port() -> int:
@@ -138,3 +138,12 @@ def gather_to_rank0(mine: dict[str, Any]) -> dict[str, Any] | None:
     if rank != 0:
         return None
     return {k: v for part in gathered for k, v in part.items()}
+
+
+def broadcast_from_rank0(obj: Any) -> Any:
+    """Rank 0's ``obj`` on every rank of the initialised group."""
+    import torch.distributed as dist
+
+    box = [obj]
+    dist.broadcast_object_list(box, src=0)
+    return box[0]

@@ -39,25 +39,31 @@ from torch import nn
 from torch.utils.data import Dataset
 
 from .._validation import check_positive
-from ..data import AugmentedDataset
 from . import distributed
-from .methods import Method, methods_for, parse_method
+from .copies import DeviceAugment, OnlineCopies, SceneData, build_training_set, load_scene_data, paired_batches
+from .methods import methods_for, parse_method
 from .report import format_report
 from .scenes import SCENES, BenchmarkScene, get_scene
-from .stats import summarize_scene
-from .training import Stopwatch, TimedTransform, phase_mse, write_json_atomic
+from .stats import deltas_vs_none, paired_t, summarize_scene
+from .training import Stopwatch, phase_mse, write_json_atomic
 
 __all__ = [
     "ProtocolConfig",
-    "SceneData",
-    "load_scene_data",
-    "MaterializedDataset",
-    "OnlineCopies",
-    "DeviceAugment",
-    "build_training_set",
     "run_unit",
     "run_protocol",
+    "choose_methods",
+    "plan_run",
+    "PROGRESS_LEGEND",
 ]
+
+#: What the columns of the plain progress lines mean (printed once at the start of a run).
+PROGRESS_LEGEND = (
+    "progress lines: [rank r] unit k/N (this unit's place among all units of the run) scene: methods — "
+    "step s/S of this unit; train MSE = the last step's training MSE, mean over the unit's members "
+    "(each method × seed), N²; hold-out MSE a–b = lowest–highest member MSE on the hold-out sequences "
+    "of the training session (the stopping rule's data, never deployment data), N²; ETA = this unit's "
+    "time left, then the whole run's on this rank (budget check included)"
+)
 
 
 @dataclass
@@ -69,7 +75,9 @@ class ProtocolConfig:
         batch_size: sequences per step.
         lr: peak learning rate of the one-cycle schedule.
         clip: gradient-norm limit per model.
-        eval_every: steps between validation passes (recorded; the final weights are kept).
+        eval_every: steps between passes over the hold-out sequences of the training session;
+            the weights with the lowest hold-out MSE are kept (the stopping rule; every method
+            has the same step cap).
         hidden_channels: ConvLSTM channels per layer of the regressor.
         input_pool: the regressor's first average-pool factor.
         cumulative: the regressor also reads running event totals (see ``ForceRegressor``).
@@ -78,6 +86,9 @@ class ProtocolConfig:
             training device (timed as "aug s/epoch").
         copies: synthetic copies per item for names without ``x<k>``.
         paper_split: evaluate on the paper's 6 + 6 sequences instead of 24 + 96.
+        paired: for a seed, every method reads the same original items at the same steps
+            (:func:`~event_transforms.tactile.copies.paired_batches`); ``False`` shuffles each
+            method's own set (the pairing of earlier releases: initial weights only).
     """
 
     steps: int = 1500
@@ -91,6 +102,7 @@ class ProtocolConfig:
     fixed: bool = True
     copies: int = 1
     paper_split: bool = False
+    paired: bool = True
 
     def __post_init__(self) -> None:
         for name in ("steps", "batch_size", "eval_every", "input_pool", "copies"):
@@ -106,142 +118,6 @@ class ProtocolConfig:
         """A short hash of the settings, so results of different settings never mix."""
         text = json.dumps(asdict(self), sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:10]
-
-
-@dataclass
-class SceneData:
-    """Training, validation and test sets of one scene, and the deployment camera's noise bank."""
-
-    scene: BenchmarkScene
-    train: Dataset
-    val: Dataset
-    test: Dataset
-    noise_bank: torch.Tensor | None = None
-    seconds: float = 0.0
-
-
-def load_scene_data(
-    scene: str | BenchmarkScene, root: str | None = None, *, paper_split: bool = False, noise_frames: int = 360
-) -> SceneData:
-    """The simulated grasps of ``scene`` (generated into the cache on first use).
-
-    The noise bank is ``noise_frames`` frames of a simulated static scene seen by the
-    deployment camera.
-    """
-    from . import datasets
-
-    scene = get_scene(scene)
-    start = time.perf_counter()
-    splits = {
-        split: datasets.TactileGrasps(split, root=root, scene=scene, paper_split=paper_split)
-        for split in ("train", "val", "test")
-    }
-    bank = datasets.noise_bank(noise_frames, seed=0, config=scene.deploy.config)
-    return SceneData(scene, splits["train"], splits["val"], splits["test"], bank, time.perf_counter() - start)
-
-
-class MaterializedDataset(Dataset):
-    """Every item of ``data`` computed once and kept in memory: the paper's offline copies.
-
-    Integer-valued frames are stored as int16 when they fit (a quarter of float32's
-    memory) and returned as float32, so an item reads back exactly as it was computed.
-    """
-
-    def __init__(self, data: Dataset) -> None:
-        self.items = []
-        for index in range(len(data)):
-            frames, force, *rest = data[index]
-            frames = torch.as_tensor(frames)
-            compact = (
-                frames.numel() > 0
-                and bool((frames == frames.round()).all())
-                and float(frames.abs().max()) <= 32767
-            )
-            self.items.append((frames.to(torch.int16) if compact else frames, force, *rest))
-
-    def __len__(self) -> int:
-        return len(self.items)
-
-    def __getitem__(self, index: int) -> tuple[Any, ...]:
-        frames, *rest = self.items[index]
-        return (frames.to(torch.float32), *rest)
-
-
-def build_training_set(
-    method: Method, data: SceneData, *, seed: int, fixed: bool, stopwatch: Stopwatch
-) -> Dataset:
-    """The training items followed by ``method.copies`` synthetic copies of each.
-
-    One :class:`~event_transforms.AugmentedDataset` whose transform (wrapped in a
-    :class:`~event_transforms.tactile.training.TimedTransform` reporting to ``stopwatch``)
-    receives each item's metadata. Fixed copies are made here, once (timed).
-    """
-    transform = method.build(data.noise_bank)
-    if transform is None:
-        return data.train
-    augmented = AugmentedDataset(data.train, TimedTransform(transform, stopwatch), method.copies, fixed=fixed, seed=seed)
-    return MaterializedDataset(augmented) if fixed else augmented
-
-
-class OnlineCopies(Dataset):
-    """The training items followed by ``copies`` *untransformed* copies of each, marked in the
-    metadata (``meta["copy"]``: 0 for originals, c ≥ 1 for copy c), so that a
-    :class:`DeviceAugment` can transform the copies of each batch on the training device.
-
-    Example:
-        >>> base = [(torch.ones(2, 2, 3, 3), torch.zeros(2), {"diameter_mm": 12.0})]
-        >>> copies = OnlineCopies(base, 2)
-        >>> len(copies), copies[2][2]
-        (3, {'diameter_mm': 12.0, 'copy': 2})
-    """
-
-    def __init__(self, base: Dataset, copies: int) -> None:
-        if isinstance(copies, bool) or not isinstance(copies, int) or copies < 0:
-            raise ValueError(f"copies must be a non-negative int, got {copies!r}")
-        self.base, self.copies = base, copies
-
-    def __len__(self) -> int:
-        return len(self.base) * (1 + self.copies)
-
-    def __getitem__(self, index: int) -> tuple[Any, ...]:
-        copy, item = divmod(int(index), len(self.base))
-        frames, force, *rest = self.base[item]
-        meta = dict(rest[0]) if rest else {}
-        meta["copy"] = copy
-        return frames, force, meta
-
-
-class DeviceAugment:
-    """Transform the copies of a batch on its device, per sample, with a seeded CPU generator.
-
-    Called as ``(frames (B, T, 2, H, W), metas) -> frames`` by
-    :func:`~event_transforms.tactile.ensemble.fit_ensemble`: the rows whose metadata say
-    ``copy >= 1`` go through ``transform`` (its parameters drawn from a CPU generator seeded
-    with ``seed``, so a run is reproducible and the device never waits for a draw), the
-    originals pass unchanged.
-
-    Example:
-        >>> from event_transforms import FrameShift
-        >>> frames = torch.ones(2, 3, 2, 1, 1)
-        >>> out = DeviceAugment(FrameShift(1), seed=0)(frames, [{"copy": 0}, {"copy": 1}])
-        >>> out[:, :, 0, 0, 0].tolist()
-        [[1.0, 1.0, 1.0], [0.0, 1.0, 1.0]]
-    """
-
-    def __init__(self, transform: nn.Module, seed: int, stopwatch: Stopwatch | None = None) -> None:
-        self.transform = transform
-        self.generator = torch.Generator().manual_seed(int(seed))
-        self.stopwatch = stopwatch if stopwatch is not None else Stopwatch()
-
-    def __call__(self, frames: torch.Tensor, metas: list) -> torch.Tensor:
-        rows = [i for i, meta in enumerate(metas) if meta.get("copy", 0) >= 1]
-        if not rows:
-            return frames
-        with self.stopwatch:
-            index = torch.tensor(rows, device=frames.device)
-            metadata = [{k: v for k, v in metas[i].items() if k != "copy"} for i in rows]
-            changed = self.transform(frames.index_select(0, index), generator=self.generator, metadata=metadata)
-            return frames.index_copy(0, index, changed.to(frames.dtype))
 
 
 def _force_stats(data: Dataset) -> tuple[float, float]:
@@ -275,12 +151,16 @@ def run_unit(
     device: str | torch.device = "cpu",
     progress: bool | None = None,
     description: str | None = None,
+    on_validation: Callable[[dict[str, Any]], None] | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
     """Train ``methods`` × ``seeds`` of one scene as one ensemble; per-method, per-seed results.
 
     Member (method, seed) starts from the weights ``ForceRegressor`` draws after
-    ``torch.manual_seed(seed)`` (the same for every method), shuffles with ``seed`` and
-    makes its copies with ``seed``.
+    ``torch.manual_seed(seed)`` (the same for every method), reads the batches of
+    :func:`~event_transforms.tactile.copies.paired_batches` for ``seed`` (the same originals at
+    the same steps for every method) and makes its copies with ``seed``. Every member takes
+    ``config.steps`` steps; the weights with the lowest MSE on ``data.holdout`` (checked every
+    ``config.eval_every`` steps) are kept, then scored on validation and test.
     """
     from .ensemble import EnsembleForceRegressor, fit_ensemble
     from .models import ForceRegressor
@@ -288,7 +168,7 @@ def run_unit(
     scene = get_scene(scene)
     parsed = [parse_method(m, copies=config.copies, scene=scene) for m in methods]
     offset, scale = _force_stats(data.train)
-    models, train_sets, member_seeds, aug_once, augment = [], [], [], [], []
+    models, train_sets, member_seeds, aug_once, augment, batches = [], [], [], [], [], []
     watch = Stopwatch()
     for method in parsed:
         for seed in seeds:
@@ -307,12 +187,17 @@ def run_unit(
                 augment.append(DeviceAugment(transform.to(device), seed))
             aug_once.append(watch.seconds - before)
             member_seeds.append(int(seed))
+            copies = method.copies if transform is not None else 0
+            if config.paired:
+                batches.append(paired_batches(len(data.train), copies, config.batch_size, config.steps, seed=seed))
     ensemble = EnsembleForceRegressor.from_models(models).to(device)
     ensemble.set_force_scaling([offset] * len(models), [max(scale, 1e-6)] * len(models))
+    holdout = data.holdout is not None
     result = fit_ensemble(
-        ensemble, train_sets, data.val, steps=config.steps, batch_size=config.batch_size, seeds=member_seeds,
-        lr_max=config.lr, clip=config.clip, schedule="one-cycle", eval_every=config.eval_every, select="final",
-        device=device, progress=progress, augment=augment,
+        ensemble, train_sets, data.holdout if holdout else data.train, steps=config.steps,
+        batch_size=config.batch_size, seeds=member_seeds, lr_max=config.lr, clip=config.clip, schedule="one-cycle",
+        eval_every=config.eval_every, select="best" if holdout else "final", device=device, progress=progress,
+        augment=augment, batches=batches if config.paired else None, on_validation=on_validation,
         description=description or f"{scene.name}: {', '.join(methods)}",
     )
     val_pred, val_target = _evaluate(ensemble, data.val)
@@ -329,15 +214,18 @@ def run_unit(
                 "copies": method.copies,
                 "train_items": size,
                 "steps": result.steps,
+                # the stopping rule: the step whose weights were kept, and their hold-out MSE
+                "stopping": "best hold-out MSE" if holdout else "final weights (no hold-out)",
+                "best_step": record.best_step if holdout else result.steps,
+                "holdout_mse": record.selected_val_loss if holdout else math.nan,
                 "test_mse": test_phases["all"],
                 "test_phase_mse": test_phases,
                 "val_mse": phase_mse(val_pred[index], val_target)["all"],
                 # the paper's 6 + 6 split: the first 6 sequences of val and test
                 "val_mse_paper_split": phase_mse(val_pred[index, :6], val_target[:6])["all"],
                 "test_mse_paper_split": phase_mse(test_pred[index, :6], test_target[:6])["all"],
-                "converged": bool(record.converged),
                 "final_train_loss": record.train_loss[-1] if record.train_loss else math.nan,
-                "val_history": {"steps": record.val_steps, "mse": record.val_loss},
+                "holdout_history": {"steps": record.val_steps, "mse": record.val_loss},
                 "aug_s_once": aug_once[index],
                 # online copies: this member's augmentation time, per pass over its set
                 "aug_s_per_epoch": (
@@ -354,6 +242,9 @@ def run_unit(
             }
         )
     return out
+
+
+# --------------------------------------------------------------------------- running
 
 
 @dataclass
@@ -378,6 +269,69 @@ def _units(scenes: Sequence[str], methods: dict[str, Sequence[str]], group: str)
     return sorted(units, key=lambda u: -max(parse_method(m, scene=u.scene).copies for m in u.methods))
 
 
+def _budget_scenes(scenes: Sequence[str], chosen: dict[str, Sequence[str]]) -> list[str]:
+    """The scenes whose verdicts get a budget check: a gap, ``none`` and another method."""
+    return [s for s in scenes if get_scene(s).gaps and "none" in chosen[s] and len(chosen[s]) > 1]
+
+
+def choose_methods(
+    scenes: Sequence[str], methods: dict[str, Sequence[str]] | Sequence[str] | None = None, *, full: bool = False
+) -> dict[str, tuple[str, ...]]:
+    """Each scene's methods: given per scene, given for all, or :func:`methods_for`; every name
+    checked (:func:`parse_method`) before any work.
+
+    Example:
+        >>> choose_methods(["control"], ["none", "fs2"])
+        {'control': ('none', 'fs2')}
+    """
+    for scene in scenes:
+        get_scene(scene)
+    if isinstance(methods, dict):
+        chosen = {s: tuple(methods.get(s, methods_for(s, full=full))) for s in scenes}
+    elif methods is not None:
+        chosen = {s: tuple(methods) for s in scenes}
+    else:
+        chosen = {s: methods_for(s, full=full) for s in scenes}
+    for scene, names in chosen.items():
+        if len(set(names)) != len(names):
+            raise ValueError(f"methods must be distinct, got {names} for scene {scene!r}")
+        for name in names:
+            parse_method(name, scene=scene)  # fail before any training
+    return chosen
+
+
+def plan_run(
+    scenes: Sequence[str], methods: dict[str, Sequence[str]], seeds: Sequence[int], config: ProtocolConfig, *,
+    group: str = "method", budget_check: bool = True,
+) -> dict[str, Any]:
+    """What a run costs before it starts: units, members and member-steps (one member = one
+    method × seed trained for ``config.steps``), the budget check's share included.
+
+    Multiply ``member_steps`` by the measured seconds per member-step (printed after a unit:
+    ``ensemble_train_s / (ensemble_members · steps)`` in a unit file) for the run's time.
+
+    Example:
+        >>> plan = plan_run(["control", "timing"], {"control": ["none", "fs2"], "timing": ["none", "fs2"]},
+        ...                 range(8), ProtocolConfig(steps=100))
+        >>> plan["units"], plan["members"], plan["member_steps"], plan["budget_member_steps"]
+        (4, 32, 3200, 3200)
+    """
+    units = _units(scenes, methods, group)
+    members = sum(len(u.methods) for u in units) * len(seeds)
+    checked = _budget_scenes(scenes, methods) if budget_check else []
+    budget_members = 2 * len(checked) * len(seeds)
+    return {
+        "units": len(units),
+        "members": members,
+        "member_steps": members * config.steps,
+        "budget_check_scenes": checked,
+        "budget_units": len(checked) if group == "scene" else 2 * len(checked),
+        "budget_members": budget_members,
+        "budget_member_steps": budget_members * 2 * config.steps,
+        "total_member_steps": members * config.steps + budget_members * 2 * config.steps,
+    }
+
+
 def _environment() -> dict[str, Any]:
     return {
         "torch": torch.__version__,
@@ -388,6 +342,22 @@ def _environment() -> dict[str, Any]:
         "python": platform.python_version(),
         "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
     }
+
+
+def git_commit() -> str:
+    """The package checkout's ``git rev-parse HEAD`` (``-dirty`` when tracked files differ from
+    it), or ``"unknown"`` outside a git checkout."""
+    import subprocess
+
+    where = Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=where, capture_output=True, text=True, timeout=10)
+        if head.returncode != 0:
+            return "unknown"
+        dirty = subprocess.run(["git", "diff", "--quiet", "HEAD", "--", "."], cwd=where, timeout=10).returncode
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return head.stdout.strip() + ("-dirty" if dirty == 1 else "")
 
 
 def _baselines(data: SceneData) -> dict[str, dict[str, float]]:
@@ -402,34 +372,131 @@ def _baselines(data: SceneData) -> dict[str, dict[str, float]]:
     }
 
 
+class _Progress:
+    """Plain progress lines of one rank: unit k/N, this unit's ETA and the whole run's."""
+
+    def __init__(self, rank: int, costs: list[float], later: float, log: Callable[[str], None] | None) -> None:
+        self.rank, self.left, self.later, self.log = rank, sum(costs), later, log
+        self.done, self.start = 0.0, time.perf_counter()
+
+    def eta(self, done_now: float) -> float:
+        elapsed = time.perf_counter() - self.start
+        return elapsed / done_now * (self.left - done_now + self.later) if done_now > 0 else math.nan
+
+    def callback(self, label: str, cost: float) -> Callable[[dict[str, Any]], None]:
+        def report(info: dict[str, Any]) -> None:
+            fraction = info["step"] / info["steps"]
+            unit_eta = info["elapsed_s"] / fraction * (1 - fraction)
+            val = info["val_mse"]
+            import sys
+
+            print(f"{label}: step {info['step']}/{info['steps']}, train MSE {info['train_loss']:.3g}, "
+                  f"hold-out MSE {min(val):.3g}–{max(val):.3g}, unit ETA {unit_eta:.0f} s, "
+                  f"overall ETA {self.eta(self.done + fraction * cost) / 60:.1f} min", file=sys.stderr, flush=True)
+
+        return report
+
+    def finished(self, cost: float) -> str:
+        self.done += cost
+        return f"overall ETA {self.eta(self.done) / 60:.1f} min" if self.left - self.done + self.later > 0 else "rank done"
+
+
 def _work(
     rank: int, world: int, units: list[_Unit], seeds: list[int], config: ProtocolConfig, runs: Path,
     root: str | None, device: str, threads: int | None, log: Callable[[str], None] | None, progress: bool | None,
-    given: dict[str, SceneData] | None = None,
+    given: dict[str, SceneData] | None = None, phase: str = "unit", later_cost: float = 0.0,
 ) -> None:
-    """Rank ``rank``'s share of the units (every ``world``-th), each saved as it finishes."""
+    """Rank ``rank``'s share of the units (every ``world``-th), each saved as it finishes; a
+    unit whose file exists is read back instead (the one resume loop)."""
+    import sys
+
     if threads:
         torch.set_num_threads(threads)
     cache: dict[str, SceneData] = dict(given or {})
-    for index, unit in enumerate(units):
-        if index % world != rank:
-            continue
+    mine = [(index, unit) for index, unit in enumerate(units) if index % world == rank]
+    cost = {index: len(unit.methods) * len(seeds) * config.steps for index, unit in mine}
+    plain = progress is None and not sys.stderr.isatty()
+    tracker = _Progress(rank, list(cost.values()), later_cost / world, log)
+    for index, unit in mine:
+        label = f"[rank {rank}] {phase} {index + 1}/{len(units)} {unit.scene}: {', '.join(unit.methods)}"
         path = runs / f"{unit.slug}.json"
         if path.exists():
+            tracker.left -= cost[index]
             if log:
-                log(f"[rank {rank}] {unit.scene}: {', '.join(unit.methods)} — resumed from disk")
+                log(f"{label} — resumed from disk")
             continue
         if unit.scene not in cache:
             cache[unit.scene] = load_scene_data(unit.scene, root, paper_split=False)
         tick = time.perf_counter()
         result = run_unit(unit.scene, unit.methods, seeds, config, cache[unit.scene], device=device,
-                          progress=progress, description=f"[rank {rank}] {unit.scene}: {', '.join(unit.methods)}")
+                          progress=False if plain else progress, description=label,
+                          on_validation=tracker.callback(label, cost[index]) if plain else None)
         write_json_atomic(path, result)
+        eta = tracker.finished(cost[index])
         if log:
             scores = "; ".join(
                 f"{m} {statistics.fmean(r['test_mse'] for r in rs):.2f}" for m, rs in result.items()
             )
-            log(f"[rank {rank}] {unit.scene}: test MSE {scores} ({time.perf_counter() - tick:.0f} s)")
+            log(f"{label}: test MSE {scores} ({time.perf_counter() - tick:.0f} s; {eta})")
+
+
+def _run_units(
+    units: list[_Unit], seeds: list[int], config: ProtocolConfig, runs: Path, jobs: int, options: tuple,
+    phase: str, later_cost: float,
+) -> dict[str, Any] | None:
+    """Run ``units`` on the ranks (torchrun's, ``jobs`` spawned ones, or this process); every
+    unit's result on rank 0, ``None`` on the other ranks of a torchrun group."""
+    arguments = (units, seeds, config, runs, *options, phase, later_cost)
+    write_json_atomic(runs / "config.json", asdict(config))
+    group = distributed.current_group()
+    if group is not None:  # the ranks of torchrun
+        rank, world = group
+        _work(rank, world, *arguments)
+        mine = {u.slug: json.loads((runs / f"{u.slug}.json").read_text())
+                for i, u in enumerate(units) if i % world == rank}
+        return distributed.gather_to_rank0(mine)
+    if jobs > 1:
+        distributed.spawn(_work, arguments, jobs)
+    else:
+        _work(0, 1, *arguments)
+    return {u.slug: json.loads((runs / f"{u.slug}.json").read_text()) for u in units}
+
+
+def _per_method(units: list[_Unit], results: dict[str, Any], scene: str, names: Sequence[str]) -> dict[str, list]:
+    per_method: dict[str, list[dict[str, Any]]] = {}
+    for unit in units:
+        if unit.scene == scene:
+            for name, runs_ in results[unit.slug].items():
+                per_method.setdefault(name, []).extend(runs_)
+    return {m: sorted(per_method[m], key=lambda r: r["seed"]) for m in names if m in per_method}
+
+
+def _budget_choices(units: list[_Unit], results: dict[str, Any], scenes: list[str],
+                    chosen: dict[str, Sequence[str]]) -> dict[str, str]:
+    """Per checked scene, the method with the largest |Δ test MSE| vs ``none``."""
+    choices = {}
+    for scene in scenes:
+        per_method = _per_method(units, results, scene, chosen[scene])
+        methods = {m: {"seeds": [r["seed"] for r in rs], "test_mse": [r["test_mse"] for r in rs]}
+                   for m, rs in per_method.items()}
+        deltas = deltas_vs_none(methods, "test_mse")
+        if deltas:
+            choices[scene] = max(deltas, key=lambda m: abs(deltas[m]["mean"]))
+    return choices
+
+
+def _budget_check(method: str, steps: int, delta: dict[str, Any], runs_2n: dict[str, list]) -> dict[str, Any]:
+    """Δ at ``steps`` and at twice the steps; robust when the sign agrees and the change is
+    smaller than the CI half-width at ``steps``."""
+    none = {r["seed"]: r["test_mse"] for r in runs_2n["none"]}
+    pairs = [(none[r["seed"]], r["test_mse"]) for r in runs_2n[method] if r["seed"] in none]
+    test = paired_t([a for a, _ in pairs], [b for _, b in pairs])
+    ci = delta.get("ci95")
+    half = (ci[1] - ci[0]) / 2 if ci else math.nan
+    robust = bool(ci) and (delta["mean"] > 0) == (test.mean > 0) and abs(delta["mean"] - test.mean) < half
+    return {"method": method, "steps": steps, "steps_2n": 2 * steps, "delta": delta["mean"],
+            "delta_2n": test.mean, "ci95_2n": list(test.ci) if test.ci else None, "ci95_halfwidth": half,
+            "robust": robust}
 
 
 def run_protocol(
@@ -448,6 +515,7 @@ def run_protocol(
     data: dict[str, SceneData] | None = None,
     progress: bool | None = None,
     log: Callable[[str], None] | None = None,
+    budget_check: bool = True,
 ) -> dict[str, Any]:
     """Run every scene's methods for every seed; write ``results.json`` and ``results.md``.
 
@@ -456,37 +524,32 @@ def run_protocol(
     ``jobs`` local processes joined by :mod:`torch.distributed` (gloo), or the ranks of an
     already initialised process group (``torchrun``). Each finished unit is kept under
     ``out/runs/<settings hash>/`` so an interrupted run resumes; rank 0 gathers everything
-    (``dist.gather_object`` under torchrun) and writes the results.
+    and writes the results.
 
-    ``data`` (scene name -> :class:`SceneData`) replaces the simulated scenes, e.g. with your
-    own recordings; it is sent to every worker. Without it, workers read the data cache.
+    With ``budget_check``, every scene with a gap then trains ``none`` and the method with
+    the largest |Δ| again at twice the steps (its units kept under their own settings hash)
+    and records ``scenes.NAME.budget_check = {"method", "steps", "steps_2n", "delta",
+    "delta_2n", "ci95_halfwidth", "robust"}``: robust when Δ keeps its sign and moves by less
+    than the CI half-width.
+
+    ``data`` (scene name -> :class:`~event_transforms.tactile.copies.SceneData`) replaces the
+    simulated scenes, e.g. with your own recordings; it is sent to every worker. Without it,
+    workers read the data cache.
 
     Returns:
         The ``results.json`` dict (on rank 0; other ranks of a torchrun group get ``{}``).
     """
     config = config or ProtocolConfig()
     scenes = list(scenes or SCENES)
-    for scene in scenes:
-        get_scene(scene)
-    if isinstance(methods, dict):
-        chosen = {s: tuple(methods.get(s, methods_for(s, full=full))) for s in scenes}
-    elif methods is not None:
-        chosen = {s: tuple(methods) for s in scenes}
-    else:
-        chosen = {s: methods_for(s, full=full) for s in scenes}
-    for scene, names in chosen.items():
-        if len(set(names)) != len(names):
-            raise ValueError(f"methods must be distinct, got {names} for scene {scene!r}")
-        for name in names:
-            parse_method(name, scene=scene)  # fail before any training
+    chosen = choose_methods(scenes, methods, full=full)
     if group not in ("scene", "method"):
         raise ValueError(f"group must be 'scene' or 'method', got {group!r}")
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs must be a positive int, got {jobs!r}")
     out = Path(out)
-    runs = out / "runs" / config.key()
     seeds = [int(s) for s in seeds]
     units = _units(scenes, chosen, group)
+    plan = plan_run(scenes, chosen, seeds, config, group=group, budget_check=budget_check)
     start = time.perf_counter()
 
     # Data first, in this process: the cache is written once, workers only read it.
@@ -497,41 +560,53 @@ def run_protocol(
         raise ValueError(f"data must hold every scene, missing {missing}")
     if log:
         for scene, d in data.items():
-            log(f"data: scene {scene!r} ({d.scene.description}): {len(d.train)} train, {len(d.val)} val, "
+            holdout = f"{len(d.holdout)} hold-out (training session), " if d.holdout is not None else ""
+            log(f"data: scene {scene!r} ({d.scene.description}): {len(d.train)} train, {holdout}{len(d.val)} val, "
                 f"{len(d.test)} test sequences, ready in {d.seconds:.1f} s")
-    arguments = (units, seeds, config, runs, root, device, threads, log, progress, given)
-    write_json_atomic(runs / "config.json", asdict(config))
-    group_ = distributed.current_group()
-    if group_ is not None:  # the ranks of torchrun
-        rank, world = group_
-        _work(rank, world, *arguments)
-        mine = {u.slug: json.loads((runs / f"{u.slug}.json").read_text())
-                for i, u in enumerate(units) if i % world == rank}
-        results = distributed.gather_to_rank0(mine)
-        if results is None:
-            return {}
-    else:
-        if jobs > 1:
-            distributed.spawn(_work, arguments, jobs)
-        else:
-            _work(0, 1, *arguments)
-        results = {u.slug: json.loads((runs / f"{u.slug}.json").read_text()) for u in units}
+        log(f"plan: {plan['units']} units, {plan['members']} members × {config.steps} steps = "
+            f"{plan['member_steps']:,} member-steps; budget check of {len(plan['budget_check_scenes'])} gapped "
+            f"scene(s) at {2 * config.steps} steps: {plan['budget_units']} more units, "
+            f"{plan['budget_member_steps']:,} member-steps; total {plan['total_member_steps']:,}")
+        log(PROGRESS_LEGEND)
+    options = (root, device, threads, log, progress, given)
+    results = _run_units(units, seeds, config, out / "runs" / config.key(), jobs, options, "unit",
+                         plan["budget_member_steps"])
+
+    # The budget check: none and the method with the largest |Δ|, at twice the steps.
+    checked = plan["budget_check_scenes"]
+    choices: dict[str, str] = {}
+    if checked:
+        if results is not None:
+            choices = _budget_choices(units, results, checked, chosen)
+        if distributed.current_group() is not None:
+            choices = distributed.broadcast_from_rank0(choices)
+    double = ProtocolConfig(**{**asdict(config), "steps": 2 * config.steps})
+    budget_units = _units(list(choices), {s: ("none", m) for s, m in choices.items()}, group)
+    budget_results = (_run_units(budget_units, seeds, double, out / "runs" / double.key(), jobs, options,
+                                 "budget check", 0.0) if budget_units else {})
+    if results is None:  # a torchrun rank other than 0
+        return {}
 
     scene_results = {}
     for scene in scenes:
-        per_method: dict[str, list[dict[str, Any]]] = {}
-        for unit in units:
-            if unit.scene == scene:
-                for name, runs_ in results[unit.slug].items():
-                    per_method.setdefault(name, []).extend(runs_)
-        per_method = {m: per_method[m] for m in chosen[scene] if m in per_method}
         d = data[scene]
         sizes = {"train": len(d.train), "val": len(d.val), "test": len(d.test)}
-        scene_results[scene] = summarize_scene(d.scene, per_method, _baselines(d), sizes)
-        scene_results[scene]["generation_s"] = d.seconds
+        if d.holdout is not None:
+            sizes["holdout"] = len(d.holdout)
+        summary = summarize_scene(d.scene, _per_method(units, results, scene, chosen[scene]), _baselines(d), sizes)
+        summary["generation_s"] = d.seconds
+        if scene in choices:
+            method = choices[scene]
+            summary["budget_check"] = _budget_check(
+                method, config.steps, summary["methods"][method]["delta_vs_none"],
+                _per_method(budget_units, budget_results, scene, ("none", method)),
+            )
+        scene_results[scene] = summary
     results_json = {
+        "commit": git_commit(),
         "config": {**asdict(config), "seeds": seeds, "scenes": scenes, "jobs": jobs, "device": device,
-                   "threads_per_job": threads, "group": group, "full": full},
+                   "threads_per_job": threads, "group": group, "full": full, "budget_check": budget_check},
+        "plan": plan,
         "wall_s": time.perf_counter() - start,
         "environment": _environment(),
         "data": "simulated tactile grasps (synthetic data, not the paper's recordings)",
@@ -540,4 +615,3 @@ def run_protocol(
     write_json_atomic(out / "results.json", results_json)
     (out / "results.md").write_text(format_report(results_json) + "\n")
     return results_json
-

@@ -28,7 +28,15 @@ from ..scenes import ResizeToTarget, Scene
 from ..transforms import AddNoise, FrameShift, RandomRotation, TemporalEventShift
 from .scenes import SCENES, BenchmarkScene, get_scene
 
-__all__ = ["PAPER_METHODS", "QUICK_METHODS", "PAPER_SCENE", "Method", "parse_method", "methods_for"]
+__all__ = [
+    "PAPER_METHODS",
+    "QUICK_METHODS",
+    "EXTRA_METHODS",
+    "PAPER_SCENE",
+    "Method",
+    "parse_method",
+    "methods_for",
+]
 
 #: The methods the paper compares, in its order.
 PAPER_METHODS: tuple[str, ...] = (
@@ -180,12 +188,17 @@ QUICK_METHODS: dict[str, tuple[str, ...]] = {
     "control": ("none", "rot50", "fs2", "noise"),
 }
 
+#: Rows every scene runs after its own methods, in quick and full mode, where the scene can
+#: build them (``parse_method`` accepts them): adding a policy row is one name here.
+EXTRA_METHODS: tuple[str, ...] = ()
+
 
 def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str, ...]:
     """The methods a scene runs: quick — ``none`` + its matched methods (the paper's list on
     ``paper``, other scenes' matched methods on ``control``); full — the paper's list (where
     defined) and every scene's matched methods that the scene can build (``independent`` and
-    ``hybrid`` only where they combine two effects or more: on ``paper``).
+    ``hybrid`` only where they combine two effects or more: on ``paper``); both followed by
+    the :data:`EXTRA_METHODS` the scene can build.
 
     Example:
         >>> methods_for("timing")
@@ -193,16 +206,22 @@ def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str
     """
     scene = get_scene(scene)
     if not full:
-        return QUICK_METHODS.get(scene.name, ("none", *scene.matched_methods))
-    names = list(PAPER_METHODS) + [m for s in SCENES.values() for m in s.matched_methods]
+        names = list(QUICK_METHODS.get(scene.name, ("none", *scene.matched_methods)))
+        return tuple(dict.fromkeys(names + [m for m in EXTRA_METHODS if _buildable(m, scene)]))
+    names = list(PAPER_METHODS) + [m for s in SCENES.values() for m in s.matched_methods] + list(EXTRA_METHODS)
     usable = []
     for name in dict.fromkeys(names):
         if name in ("independent", "hybrid") and scene.name != "paper" and len(scene.gaps) < 2:
             continue  # with one effect or none, the combinations are the matched method or a copy
-        try:
-            parse_method(name, scene=scene)
-        except ValueError:
-            continue
-        usable.append(name)
+        if _buildable(name, scene):
+            usable.append(name)
     return tuple(usable)
+
+
+def _buildable(name: str, scene: BenchmarkScene) -> bool:
+    try:
+        parse_method(name, scene=scene)
+    except ValueError:
+        return False
+    return True
 

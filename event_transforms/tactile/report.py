@@ -11,44 +11,72 @@ import statistics
 from collections.abc import Sequence
 from typing import Any
 
-from .stats import _mean_sd, significant
+from .stats import mean_sd, significant
 
-__all__ = ["format_scene_table", "format_findings", "format_report"]
+__all__ = ["format_scene_table", "format_budget_check", "format_findings", "format_report"]
 
 
-def _fmt_mean_sd(values: Sequence[float]) -> str:
-    mean, sd = _mean_sd(values)
+def _format_mean_sd(values: Sequence[float]) -> str:
+    mean, sd = mean_sd(values)
     return f"{mean:.2f}" if len(values) < 2 else f"{mean:.2f} ± {sd:.2f}"
 
 
 def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = True, key: str = "test_mse") -> str:
-    """A markdown table of one scene: baselines, then methods (MSE in N²)."""
-    head = ["method", "test MSE", "Δ vs none [95 % CI]", "Holm p: t / Wilcoxon", "converged"]
+    """A markdown table of one scene: baselines, then methods (MSE in N²).
+
+    Columns: test MSE (mean ± sd over seeds); Δ vs none with its paired 95 % interval (bold
+    where significant after Holm); the unpaired (Welch) interval of the same Δ and the
+    correlation r of ``none``'s and the method's per-seed MSEs (what the pairing bought);
+    Holm-corrected p-values; the median step whose weights the stopping rule kept.
+    """
+    head = ["method", "test MSE", "Δ vs none [95 % CI]", "unpaired CI", "r", "Holm p: t / Wilcoxon", "kept step"]
     if timings:
         head += ["aug s once", "aug s/epoch", "train s"]
     rows = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * len(head)) + "|"]
     baseline_key = "test_mse_paper_split" if key.endswith("paper_split") else "test_mse"
     for base, values in summary["baselines"].items():
-        cells = [f"*{base}* (baseline)", f"{values[baseline_key]:.2f}", "—", "—", "—"]
+        cells = [f"*{base}* (baseline)", f"{values[baseline_key]:.2f}", "—", "—", "—", "—", "—"]
         rows.append("| " + " | ".join(cells + (["—"] * 3 if timings else [])) + " |")
     matched = set(summary["matched_methods"])
     for method, s in summary["methods"].items():
         delta = s["delta_vs_none" if key == "test_mse" else "delta_vs_none_paper_split"]
+        welch_text = r_text = "—"
         if delta is None:
             delta_text, p_text = "—", "—"
         else:
+            welch = delta.get("ci95_welch")
+            welch_text = f"[{welch[0]:+.2f}, {welch[1]:+.2f}]" if welch else "—"
+            r = delta.get("correlation")
+            r_text = f"{r:+.2f}" if r is not None and not math.isnan(r) else "—"
             ci = delta["ci95"]
             mark = "**" if significant(delta) else ""
             delta_text = f"{mark}{delta['mean']:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}]{mark}" if ci else f"{delta['mean']:+.2f}"
             p_text = (f"{delta['t_p_holm']:.3f} / {delta['p_holm']:.3f}"
                       if not math.isnan(delta["p_holm"]) else "—")
         label = f"{method} (matched)" if method in matched else method
-        cells = [label, _fmt_mean_sd(s[key]), delta_text, p_text,
-                 f"{sum(s['converged'])}/{len(s['converged'])}"]
+        kept = [step for step in s.get("best_step", []) if step is not None]
+        cells = [label, _format_mean_sd(s[key]), delta_text, welch_text, r_text, p_text,
+                 f"{statistics.median(kept):.0f}/{s['steps']}" if kept else "—"]
         if timings:
             cells += [f"{s['aug_s_once']:.2f}", f"{s['aug_s_per_epoch']:.3f}", f"{s['train_s']:.1f}"]
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join(rows)
+
+
+def format_budget_check(check: dict[str, Any] | None) -> str:
+    """One line: the verdict of the largest |Δ| at the run's steps and at twice as many.
+
+    Example:
+        >>> format_budget_check({"method": "fs2", "steps": 400, "steps_2n": 800, "delta": -4.21,
+        ...                      "delta_2n": -3.01, "ci95_halfwidth": 1.15, "robust": False})
+        'budget check: fs2 Δ -4.21 at 400 steps, -3.01 at 800 (CI half-width 1.15): not robust (the verdict moves with the budget)'
+    """
+    if not check:
+        return "budget check: not run (no gap, or no method beside none)"
+    verdict = ("robust (same sign, moved less than the CI half-width)" if check["robust"]
+               else "not robust (the verdict moves with the budget)")
+    return (f"budget check: {check['method']} Δ {check['delta']:+.2f} at {check['steps']} steps, "
+            f"{check['delta_2n']:+.2f} at {check['steps_2n']} (CI half-width {check['ci95_halfwidth']:.2f}): {verdict}")
 
 
 def format_findings(name: str, summary: dict[str, Any]) -> list[str]:
@@ -77,17 +105,23 @@ def format_findings(name: str, summary: dict[str, Any]) -> list[str]:
     return lines
 
 
-
 def format_report(results: dict[str, Any], *, timings: bool = True) -> str:
-    """Every scene's table and findings, and the paper-split tables, as markdown."""
-    parts = []
+    """Every scene's table, budget check and findings, and the paper-split tables, as markdown.
+
+    The first line names the commit that produced the results (``results["commit"]``).
+    """
+    parts = [f"Produced by commit `{results.get('commit', 'unknown')}`.\n"]
     for name, summary in results["scenes"].items():
         gaps = ", ".join(summary["gaps"]) or "none (control)"
         sizes = summary["split_sizes"]
+        holdout = f" ({sizes['holdout']} hold-out from the training session)" if "holdout" in sizes else ""
         parts.append(f"### {name}: {summary['description']}\n\ngaps: {gaps}; "
-                     f"{sizes['train']} train / {sizes['val']} val / {sizes['test']} test sequences\n")
+                     f"{sizes['train']} train{holdout} / {sizes['val']} val / {sizes['test']} test sequences\n")
         parts.append(format_scene_table(name, summary, timings=timings))
         parts.append("")
+        if summary["gaps"]:
+            parts.append(format_budget_check(summary.get("budget_check")))
+            parts.append("")
         parts.extend(f"- {line}" for line in format_findings(name, summary))
         parts.append("")
     parts.append("### The same runs scored on the paper's 6 + 6 split (first 6 val and test sequences)\n")

@@ -8,6 +8,8 @@ order), so methods are compared pairwise, seed by seed:
 - :func:`wilcoxon_signed_rank` — the exact two-sided signed-rank p-value (zero differences
   dropped, tied magnitudes given their average rank, the null distribution counted exactly);
 - :func:`holm` — Holm's step-down adjustment of a family of p-values;
+- :func:`welch_interval` and :func:`correlation` — the unpaired interval and the correlation of
+  the per-seed values, reported beside the paired interval to show what pairing bought;
 - :func:`summarize_scene` — one scene's entry of a protocol's ``results.json``: per method
   the per-seed values and Δ vs ``none``, Holm-corrected within the scene.
 
@@ -34,7 +36,11 @@ __all__ = [
     "paired_t",
     "wilcoxon_signed_rank",
     "holm",
+    "welch_interval",
+    "correlation",
+    "mean_sd",
     "significant",
+    "deltas_vs_none",
     "summarize_scene",
 ]
 
@@ -214,6 +220,49 @@ def holm(p_values: Sequence[float]) -> list[float]:
     return adjusted
 
 
+def welch_interval(a: Sequence[float], b: Sequence[float], *, level: float = 0.95) -> tuple[float, float] | None:
+    """The unpaired (Welch) ``level`` interval of ``mean(b) - mean(a)``, ignoring any pairing.
+
+    Standard error ``sqrt(s_a²/n_a + s_b²/n_b)``, Welch–Satterthwaite degrees of freedom;
+    ``None`` with fewer than two values on either side. Beside the paired interval it shows
+    what the pairing buys: the two agree when paired runs share no noise.
+
+    Example:
+        >>> lo, hi = welch_interval([1.0, 2.0, 3.0], [2.0, 3.0, 4.0])
+        >>> round(lo, 3), round(hi, 3)
+        (-1.267, 3.267)
+    """
+    a, b = [float(v) for v in a], [float(v) for v in b]
+    if len(a) < 2 or len(b) < 2:
+        return None
+    va, vb = statistics.variance(a) / len(a), statistics.variance(b) / len(b)
+    mean = statistics.fmean(b) - statistics.fmean(a)
+    se = math.sqrt(va + vb)
+    if se == 0:
+        return (mean, mean)
+    df = (va + vb) ** 2 / (va**2 / (len(a) - 1) + vb**2 / (len(b) - 1))
+    half = student_t_quantile(0.5 + level / 2, df) * se
+    return (mean - half, mean + half)
+
+
+def correlation(a: Sequence[float], b: Sequence[float]) -> float:
+    """Pearson's correlation of paired values (NaN with fewer than 3 pairs or no spread).
+
+    Example:
+        >>> round(correlation([1.0, 2.0, 3.0], [2.0, 4.1, 5.9]), 4)
+        0.999
+    """
+    a, b = [float(v) for v in a], [float(v) for v in b]
+    if len(a) != len(b):
+        raise ValueError(f"a and b must have the same length, got {len(a)} and {len(b)}")
+    if len(a) < 3:
+        return math.nan
+    ma, mb = statistics.fmean(a), statistics.fmean(b)
+    sab = sum((x - ma) * (y - mb) for x, y in zip(a, b))
+    saa, sbb = sum((x - ma) ** 2 for x in a), sum((y - mb) ** 2 for y in b)
+    return sab / math.sqrt(saa * sbb) if saa > 0 and sbb > 0 else math.nan
+
+
 # --------------------------------------------------------------------------- protocol summaries
 
 
@@ -230,25 +279,34 @@ def significant(delta: dict[str, Any] | None, alpha: float = 0.05) -> bool:
     return bool((hi < 0 or lo > 0) and p is not None and not math.isnan(p) and p <= alpha)
 
 
-def _mean_sd(values: Sequence[float]) -> tuple[float, float]:
+def mean_sd(values: Sequence[float]) -> tuple[float, float]:
+    """Mean and sample standard deviation (NaN for one value)."""
     values = [float(v) for v in values]
     return statistics.fmean(values), (statistics.stdev(values) if len(values) > 1 else math.nan)
 
 
-def _deltas(methods: dict[str, Any], key: str) -> dict[str, dict[str, Any]]:
+def deltas_vs_none(methods: dict[str, Any], key: str) -> dict[str, dict[str, Any]]:
     """Δ of ``key`` vs ``none`` for every other method, paired seed by seed: the paired
-    t-interval, the exact Wilcoxon p, and both Holm-corrected within the family given."""
+    t-interval, the exact Wilcoxon p, both Holm-corrected within the family given; beside
+    them the unpaired (Welch) interval and the correlation of the per-seed values, which
+    say what the pairing bought.
+
+    ``methods`` maps a name to ``{"seeds": [...], key: [...]}``.
+    """
     reference = methods.get("none")
     if reference is None:
         return {}
     base = dict(zip(reference["seeds"], reference[key]))
-    tests = {}
+    tests, unpaired = {}, {}
     for name, method in methods.items():
         if name == "none":
             continue
         pairs = [(base[s], v) for s, v in zip(method["seeds"], method[key]) if s in base]
         if pairs:
-            tests[name] = paired_t([a for a, _ in pairs], [b for _, b in pairs])
+            first, second = [a for a, _ in pairs], [b for _, b in pairs]
+            tests[name] = paired_t(first, second)
+            welch = welch_interval(first, second)
+            unpaired[name] = (list(welch) if welch is not None else None, correlation(first, second))
     adjusted = dict(zip(tests, holm([t.wilcoxon_p_value for t in tests.values()])))
     adjusted_t = dict(zip(tests, holm([t.t_p_value for t in tests.values()])))
     return {
@@ -261,6 +319,8 @@ def _deltas(methods: dict[str, Any], key: str) -> dict[str, dict[str, Any]]:
             "t_p_holm": adjusted_t[name],
             "significant": significant({"ci95": test.ci, "t_p_holm": adjusted_t[name]}),
             "n": test.n,
+            "ci95_welch": unpaired[name][0],
+            "correlation": unpaired[name][1],
         }
         for name, test in tests.items()
     }
@@ -282,7 +342,8 @@ def summarize_scene(
             "val_mse": [r["val_mse"] for r in runs],
             "test_mse_paper_split": [r["test_mse_paper_split"] for r in runs],
             "val_mse_paper_split": [r["val_mse_paper_split"] for r in runs],
-            "converged": [r["converged"] for r in runs],
+            "best_step": [r.get("best_step") for r in runs],
+            "holdout_mse": [r.get("holdout_mse") for r in runs],
             "steps": runs[0]["steps"],
             "copies": runs[0]["copies"],
             "train_items": runs[0]["train_items"],
@@ -296,7 +357,7 @@ def summarize_scene(
             },
         }
     for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
-        for name, delta in _deltas(methods, key).items():
+        for name, delta in deltas_vs_none(methods, key).items():
             methods[name][field_name] = delta
     return {
         "description": scene.description,
