@@ -283,6 +283,21 @@ class TestRunProtocol:
         assert "6 + 6 split" in report and f"commit `{saved['commit']}`" in report
         assert "budget check: " in report and "unpaired CI" in report and "converged" not in report
 
+    def test_summary_table_repeats_the_scene_tables(self, clean):
+        from tests.test_readme_table import markdown_tables, summary_table
+
+        out, _ = clean
+        report = (out / "results.md").read_text()
+        summary = summary_table(report)
+        scene_tables = [t for t in markdown_tables(report) if t[0][0] == "method" and "aug s once" in t[0]]
+        rows = [dict(zip(t[0], row)) for t in scene_tables for row in t[1:]]
+        assert len(summary) - 1 == len(rows) and len(scene_tables) == len(self.scenes)
+        for line, row in zip(summary[1:], rows):
+            cells = dict(zip(summary[0], line))
+            assert all(cells[k] == row[k] for k in row if k in cells), (cells, row)
+        checked = [dict(zip(summary[0], line)) for line in summary[1:] if line[-1] != "—"]
+        assert [c["scene"] for c in checked] == ["timing"] and "at 6 steps" in checked[0]["budget check"]
+
     def test_budget_check_is_delta_at_twice_the_steps(self, clean):
         out, results = clean
         check = results["scenes"]["timing"]["budget_check"]

@@ -13,7 +13,11 @@ from typing import Any
 
 from .stats import mean_sd, significant
 
-__all__ = ["format_scene_table", "format_budget_check", "format_findings", "format_report"]
+__all__ = ["format_summary_table", "format_scene_table", "format_budget_check", "format_findings", "format_report"]
+
+#: The columns of the summary table (the README's table), in order.
+SUMMARY_COLUMNS = ("scene", "method", "test MSE", "Δ vs none [95 % CI]", "unpaired CI", "r",
+                   "Holm p: t / Wilcoxon", "budget check")
 
 
 def _format_mean_sd(values: Sequence[float]) -> str:
@@ -60,6 +64,28 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
         if timings:
             cells += [f"{s['aug_s_once']:.2f}", f"{s['aug_s_per_epoch']:.3f}", f"{s['train_s']:.1f}"]
         rows.append("| " + " | ".join(cells) + " |")
+    return "\n".join(rows)
+
+
+def format_summary_table(results: dict[str, Any]) -> str:
+    """Every scene's rows in one markdown table: the table the README shows, printed by the run.
+
+    One row per baseline and per method; the cells are those of :func:`format_scene_table`
+    (same formatting), plus the scene and the budget check on the method it checked.
+    """
+    rows = ["| " + " | ".join(SUMMARY_COLUMNS) + " |", "|" + "|".join(["---"] * len(SUMMARY_COLUMNS)) + "|"]
+    for name, summary in results["scenes"].items():
+        table = format_scene_table(name, summary, timings=False).splitlines()
+        head = [c.strip() for c in table[0].strip("|").split("|")]
+        check = summary.get("budget_check")
+        for line in table[2:]:
+            cells = dict(zip(head, (c.strip() for c in line.strip("|").split("|"))))
+            method = cells["method"].removesuffix(" (matched)")
+            verdict = "—"
+            if check and method == check["method"]:
+                verdict = f"{'robust' if check['robust'] else 'not robust'}: Δ {check['delta_2n']:+.2f} at {check['steps_2n']} steps"
+            values = {**cells, "scene": name, "budget check": verdict}
+            rows.append("| " + " | ".join(values[c] for c in SUMMARY_COLUMNS) + " |")
     return "\n".join(rows)
 
 
@@ -110,7 +136,8 @@ def format_report(results: dict[str, Any], *, timings: bool = True) -> str:
 
     The first line names the commit that produced the results (``results["commit"]``).
     """
-    parts = [f"Produced by commit `{results.get('commit', 'unknown')}`.\n"]
+    parts = [f"Produced by commit `{results.get('commit', 'unknown')}`.\n",
+             "### Summary (the README's table)\n", format_summary_table(results), ""]
     for name, summary in results["scenes"].items():
         gaps = ", ".join(summary["gaps"]) or "none (control)"
         sizes = summary["split_sizes"]
