@@ -80,6 +80,7 @@ __all__ = [
     "clip_grad_norm_per_member_",
     "shuffled_batches",
     "fit_ensemble",
+    "predict_ensemble",
 ]
 
 
@@ -396,17 +397,28 @@ def _stack_member_batch(
 
 
 @torch.no_grad()
-def _validation_mse(model: EnsembleForceRegressor, frames: Tensor, force: Tensor, batch_size: int) -> Tensor:
-    """Per-member MSE over every frame of the shared validation set, ``(M,)`` float64."""
+def predict_ensemble(model: EnsembleForceRegressor, frames: Tensor, *, batch_size: int = 32) -> Tensor:
+    """Every member's force for frames ``(N, T, 2, H, W)`` shared by all: ``(M, N, T)``, in
+    batches of ``batch_size`` on the model's device, in eval mode (the mode is restored).
+
+    The one evaluation loop: the trainer's validation passes and the protocol's scores use it.
+    """
     was_training = model.training
     model.eval()
-    total = torch.zeros(model.members, dtype=torch.float64, device=force.device)
-    for start in range(0, frames.shape[0], batch_size):
-        pred = model(frames[start : start + batch_size])
-        err = (pred.double() - force[start : start + batch_size].double()).square()
-        total += err.sum(dim=(1, 2))
-    model.train(was_training)
-    return total / force.numel()
+    device = model.head_weight.device
+    try:
+        preds = [model(frames[start : start + batch_size].to(device)) for start in range(0, frames.shape[0], batch_size)]
+    finally:
+        model.train(was_training)
+    if not preds:
+        raise ValueError("frames must hold at least one sequence, got 0")
+    return torch.cat(preds, dim=1)
+
+
+def _validation_mse(model: EnsembleForceRegressor, frames: Tensor, force: Tensor, batch_size: int) -> Tensor:
+    """Per-member MSE over every frame of the shared validation set, ``(M,)`` float64."""
+    pred = predict_ensemble(model, frames, batch_size=batch_size)
+    return (pred.double() - force.double()).square().mean(dim=(1, 2))
 
 
 def fit_ensemble(

@@ -126,19 +126,12 @@ def _force_stats(data: Dataset) -> tuple[float, float]:
 
 
 def _evaluate(model: nn.Module, data: Dataset, batch_size: int = 16) -> tuple[torch.Tensor, torch.Tensor]:
-    """Predicted and measured force ``(M, N, T)`` / ``(N, T)`` (float64) of an ensemble."""
+    """Predicted and measured force ``(M, N, T)`` / ``(N, T)`` (float64, CPU) of an ensemble."""
     from .baselines import stack_items
+    from .ensemble import predict_ensemble
 
     frames, force = stack_items(data)
-    was_training = model.training
-    model.eval()
-    device = next(model.parameters()).device
-    preds = []
-    with torch.no_grad():
-        for start in range(0, frames.shape[0], batch_size):
-            preds.append(model(frames[start : start + batch_size].to(device)).double().cpu())
-    model.train(was_training)
-    return torch.cat(preds, dim=1), force.double()
+    return predict_ensemble(model, frames, batch_size=batch_size).double().cpu(), force.double()
 
 
 def run_unit(
