@@ -28,6 +28,7 @@ import os
 import platform
 import re
 import statistics
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
@@ -368,8 +369,8 @@ def _baselines(data: SceneData) -> dict[str, dict[str, float]]:
 class _Progress:
     """Plain progress lines of one rank: unit k/N, this unit's ETA and the whole run's."""
 
-    def __init__(self, rank: int, costs: list[float], later: float, log: Callable[[str], None] | None) -> None:
-        self.rank, self.left, self.later, self.log = rank, sum(costs), later, log
+    def __init__(self, costs: list[float], later: float) -> None:
+        self.left, self.later = sum(costs), later
         self.done, self.start = 0.0, time.perf_counter()
 
     def eta(self, done_now: float) -> float:
@@ -381,8 +382,6 @@ class _Progress:
             fraction = info["step"] / info["steps"]
             unit_eta = info["elapsed_s"] / fraction * (1 - fraction)
             val = info["val_mse"]
-            import sys
-
             print(f"{label}: step {info['step']}/{info['steps']}, train MSE {info['train_loss']:.3g}, "
                   f"hold-out MSE {min(val):.3g}–{max(val):.3g}, unit ETA {unit_eta:.0f} s, "
                   f"overall ETA {self.eta(self.done + fraction * cost) / 60:.1f} min", file=sys.stderr, flush=True)
@@ -401,15 +400,13 @@ def _work(
 ) -> None:
     """Rank ``rank``'s share of the units (every ``world``-th), each saved as it finishes; a
     unit whose file exists is read back instead (the one resume loop)."""
-    import sys
-
     if threads:
         torch.set_num_threads(threads)
     cache: dict[str, SceneData] = dict(given or {})
     mine = [(index, unit) for index, unit in enumerate(units) if index % world == rank]
     cost = {index: len(unit.methods) * len(seeds) * config.steps for index, unit in mine}
     plain = progress is None and not sys.stderr.isatty()
-    tracker = _Progress(rank, list(cost.values()), later_cost / world, log)
+    tracker = _Progress(list(cost.values()), later_cost / world)
     for index, unit in mine:
         label = f"[rank {rank}] {phase} {index + 1}/{len(units)} {unit.scene}: {', '.join(unit.methods)}"
         path = runs / f"{unit.slug}.json"
