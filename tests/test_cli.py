@@ -237,6 +237,20 @@ def _check_shape(saved: dict, scenes: list[str], methods: list[str], seeds: list
             assert "budget_check" not in scene
 
 
+def _group_rank(rank: int, world: int, port: int, scene_data: dict, out: str) -> None:
+    import torch.distributed as dist
+
+    torch.set_num_threads(1)
+    dist.init_process_group("gloo", init_method=f"tcp://127.0.0.1:{port}", rank=rank, world_size=world)
+    try:
+        run = TestRunProtocol
+        results = run_protocol(run.scenes, run.seeds, out, config=TINY, methods=run.methods, data=scene_data,
+                               group="method")
+        assert (results == {}) == (rank != 0)
+    finally:
+        dist.destroy_process_group()
+
+
 @pytest.fixture(scope="module")
 def scene_data():
     return {scene: fake_data(scene) for scene in TestRunProtocol.scenes}
@@ -382,6 +396,22 @@ class TestRunProtocol:
         _, expected = clean
         results = run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods,
                                data=scene_data, group="method", jobs=2)
+        for scene in self.scenes:
+            for method in self.methods:
+                assert results["scenes"][scene]["methods"][method]["test_mse"] == \
+                    expected["scenes"][scene]["methods"][method]["test_mse"]
+
+    def test_torchrun_style_group_gathers_and_broadcasts_the_budget_check(self, clean, scene_data, tmp_path):
+        """Ranks of an initialised group (as under torchrun): rank 0 gathers every unit and picks
+        the budget check's method for all ranks; the numbers are those of one process."""
+        import torch.multiprocessing as mp
+
+        from event_transforms.tactile.distributed import _free_port
+
+        _, expected = clean
+        mp.spawn(_group_rank, args=(2, _free_port(), scene_data, str(tmp_path)), nprocs=2, join=True)
+        results = json.loads((tmp_path / "results.json").read_text())
+        assert results["scenes"]["timing"]["budget_check"] == expected["scenes"]["timing"]["budget_check"]
         for scene in self.scenes:
             for method in self.methods:
                 assert results["scenes"][scene]["methods"][method]["test_mse"] == \
