@@ -488,6 +488,15 @@ class TestCommandLine:
             with pytest.raises(SystemExit):
                 parser.parse_args(bad)
 
+    def test_plan_prints_the_cost_without_training(self, tmp_path, capsys, monkeypatch):
+        monkeypatch.setattr(experiment, "run_unit", lambda *a, **k: pytest.fail("--plan trained"))
+        assert cli.main(["reproduce", "--plan", "--scenes", "control", "timing", "--seeds", "0-7",
+                         "--steps", "100", "--out", str(tmp_path)]) == 0
+        printed = capsys.readouterr().out
+        # control: 4 methods, timing: 3; budget check on timing only: none + one method at 200 steps
+        assert "7 units, 56 members" in printed and "5,600 member-steps" in printed
+        assert "budget check on ['timing']: 2 units, 3,200 member-steps at 200 steps" in printed
+
     def test_help_does_not_import_torch(self):
         code = (
             "import sys, contextlib, io\n"
@@ -503,7 +512,8 @@ class TestCommandLine:
         help_text = cli.build_parser()._subparsers._group_actions[0].choices["reproduce"].format_help()
         help_text = " ".join(help_text.split())
         assert f"{cli.QUICK['seeds']} paired seeds" in help_text and "--full" in help_text
-        assert cli.FULL["seeds"] == 10 and cli.QUICK["seeds"] >= 5
+        assert cli.FULL["seeds"] == 10 and cli.QUICK["seeds"] >= 8  # issue 17: ≥ 8 paired seeds
+        assert {"control", "paper", "timing"} <= set(cli.QUICK["scenes"]) and cli.FULL["scenes"] is None
 
 
 class TestCommandLineErrors:
