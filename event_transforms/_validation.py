@@ -40,6 +40,7 @@ __all__ = [
     "as_number",
     "check_positive",
     "check_probability",
+    "check_seed",
     "check_pair",
     "check_generator",
     "as_batch",

@@ -10,7 +10,7 @@ import pytest
 import torch
 
 import event_transforms as et
-from event_transforms.tactile import cli, protocol
+from event_transforms.tactile import cli, experiment, protocol
 from event_transforms.tactile.protocol import (
     PAPER_METHODS,
     MaterializedDataset,
@@ -40,7 +40,7 @@ def fake_data(scene: str = "paper") -> SceneData:
     bank = torch.poisson(torch.full((40, 2, 16, 12), 0.2), generator=g)
     return SceneData(
         get_scene(scene), FakeGrasps(6, seed=1), FakeGrasps(7, diameters=(15.0,), seed=2),
-        FakeGrasps(8, diameters=(15.0,), seed=3), bank,
+        FakeGrasps(8, diameters=(15.0,), seed=3), bank, holdout=FakeGrasps(4, seed=4),
     )
 
 
@@ -81,7 +81,10 @@ class TestParseMethod:
         assert parse_method("resize", copies=4).copies == 4
         assert parse_method(" FS-1 ").copies == 1
 
-    @pytest.mark.parametrize("name", ["", "rot", "fs", "tes-2", "tes-2:", "fs-1x", "blur", "tes-1:1.5"])
+    @pytest.mark.parametrize(
+        "name", ["", "rot", "fs", "tes-2", "tes-2:", "fs-1x", "blur", "tes-1:1.5", "fs100", "fs-36", "tes36:0.5",
+                 "rot-45"],
+    )
     def test_bad_names(self, name):
         with pytest.raises(ValueError, match="method|fraction"):
             parse_method(name)
@@ -199,20 +202,21 @@ class TestScenesAndMethods:
 
 def _check_shape(saved: dict, scenes: list[str], methods: list[str], seeds: list[int]) -> None:
     """The results.json contract of the protocol issue."""
-    assert set(saved) >= {"config", "wall_s", "scenes"} and isinstance(saved["wall_s"], float)
+    assert set(saved) >= {"config", "wall_s", "scenes", "commit", "plan"} and isinstance(saved["wall_s"], float)
+    assert saved["commit"] == "unknown" or len(saved["commit"].removesuffix("-dirty")) == 40
     assert list(saved["scenes"]) == scenes
     for name, scene in saved["scenes"].items():
         assert scene["gaps"] == list(get_scene(name).gaps)
         assert scene["matched_methods"] == list(get_scene(name).matched_methods)
-        assert set(scene["split_sizes"]) == {"train", "val", "test"}
+        assert set(scene["split_sizes"]) == {"train", "holdout", "val", "test"}
         assert set(scene["baselines"]) == {"global-mean", "per-frame-mean", "cumulative-count-ridge"}
         assert all(isinstance(b["test_mse"], float) for b in scene["baselines"].values())
         assert list(scene["methods"]) == methods
         for method, m in scene["methods"].items():
             assert m["seeds"] == seeds
-            for key in ("test_mse", "val_mse", "converged"):
+            for key in ("test_mse", "val_mse", "best_step", "holdout_mse"):
                 assert len(m[key]) == len(seeds)
-            assert all(isinstance(c, bool) for c in m["converged"])
+            assert all(isinstance(b, int) and 1 <= b <= m["steps"] for b in m["best_step"])
             assert isinstance(m["steps"], int)
             for key in ("aug_s_once", "aug_s_per_epoch", "train_s"):
                 assert isinstance(m[key], float) and m[key] >= 0
@@ -220,8 +224,31 @@ def _check_shape(saved: dict, scenes: list[str], methods: list[str], seeds: list
                 assert m["delta_vs_none"] is None
             else:
                 delta = m["delta_vs_none"]
-                assert set(delta) >= {"mean", "ci95", "p_value", "p_holm", "t_p_holm", "significant"}
+                assert set(delta) >= {"mean", "ci95", "p_value", "p_holm", "t_p_holm", "significant", "ci95_welch",
+                                      "correlation"}
                 assert len(delta["ci95"]) == 2
+        if scene["gaps"] and "none" in methods and len(methods) > 1 and saved["config"].get("budget_check", True):
+            check = scene["budget_check"]
+            assert set(check) >= {"method", "steps", "steps_2n", "delta", "delta_2n", "ci95_halfwidth", "robust"}
+            assert check["steps_2n"] == 2 * check["steps"] and check["method"] in methods
+            assert check["robust"] == ((check["delta"] > 0) == (check["delta_2n"] > 0)
+                                       and abs(check["delta"] - check["delta_2n"]) < check["ci95_halfwidth"])
+        else:
+            assert "budget_check" not in scene
+
+
+def _group_rank(rank: int, world: int, port: int, scene_data: dict, out: str) -> None:
+    import torch.distributed as dist
+
+    torch.set_num_threads(1)
+    dist.init_process_group("gloo", init_method=f"tcp://127.0.0.1:{port}", rank=rank, world_size=world)
+    try:
+        run = TestRunProtocol
+        results = run_protocol(run.scenes, run.seeds, out, config=TINY, methods=run.methods, data=scene_data,
+                               group="method")
+        assert (results == {}) == (rank != 0)
+    finally:
+        dist.destroy_process_group()
 
 
 @pytest.fixture(scope="module")
@@ -267,7 +294,63 @@ class TestRunProtocol:
             assert [d["t_p_holm"] for d in split] == pytest.approx(holm([t.t_p_value for t in small.values()]))
         report = (out / "results.md").read_text()
         assert "### control" in report and "*cumulative-count-ridge* (baseline)" in report
-        assert "6 + 6 split" in report
+        assert "6 + 6 split" in report and f"commit `{saved['commit']}`" in report
+        assert "budget check: " in report and "unpaired CI" in report and "converged" not in report
+
+    def test_summary_table_repeats_the_scene_tables(self, clean):
+        from tests.test_readme_table import markdown_tables, summary_table
+
+        out, _ = clean
+        report = (out / "results.md").read_text()
+        summary = summary_table(report)
+        scene_tables = [t for t in markdown_tables(report) if t[0][0] == "method" and "aug s once" in t[0]]
+        rows = [dict(zip(t[0], row)) for t in scene_tables for row in t[1:]]
+        assert len(summary) - 1 == len(rows) and len(scene_tables) == len(self.scenes)
+        for line, row in zip(summary[1:], rows):
+            cells = dict(zip(summary[0], line))
+            assert all(cells[k] == row[k] for k in row if k in cells), (cells, row)
+        checked = [dict(zip(summary[0], line)) for line in summary[1:] if line[-1] != "—"]
+        assert [c["scene"] for c in checked] == ["timing"] and "at 6 steps" in checked[0]["budget check"]
+
+    def test_budget_check_is_delta_at_twice_the_steps(self, clean):
+        out, results = clean
+        check = results["scenes"]["timing"]["budget_check"]
+        deltas = results["scenes"]["timing"]["methods"]
+        largest = max((m for m in deltas if m != "none"), key=lambda m: abs(deltas[m]["delta_vs_none"]["mean"]))
+        assert check["method"] == largest and check["delta"] == deltas[largest]["delta_vs_none"]["mean"]
+        double = ProtocolConfig(**{**TINY.__dict__, "steps": 2 * TINY.steps})
+        runs = {m: json.loads((out / "runs" / double.key() / f"timing_{m}.json").read_text())[m]
+                for m in ("none", largest)}
+        assert all(r["steps"] == 2 * TINY.steps for rs in runs.values() for r in rs)
+        expected = paired_t([r["test_mse"] for r in runs["none"]], [r["test_mse"] for r in runs[largest]])
+        assert check["delta_2n"] == pytest.approx(expected.mean)
+        assert "budget_check" not in results["scenes"]["control"]  # no gap, no check
+
+    def test_stopping_rule_keeps_the_best_hold_out_weights(self, scene_data):
+        config = ProtocolConfig(**{**TINY.__dict__, "steps": 6, "eval_every": 2})
+        out = protocol.run_unit("control", ["none"], [0, 1], config, scene_data["control"])
+        for record in out["none"]:
+            history = record["holdout_history"]
+            assert history["steps"] == [2, 4, 6] and record["holdout_mse"] == min(history["mse"])
+            assert record["best_step"] == history["steps"][history["mse"].index(min(history["mse"]))]
+
+    def test_progress_lines_count_units_and_give_an_overall_eta(self, scene_data, tmp_path, capsys):
+        lines = []
+        run_protocol(["control"], [0], tmp_path, config=TINY, methods=["none", "fs2"], data=scene_data,
+                     group="method", log=lines.append)
+        err = capsys.readouterr().err
+        assert "unit 1/2 control" in err and "unit 2/2 control" in err and "overall ETA" in err
+        assert "hold-out MSE" in err and any(line.startswith("progress lines:") for line in lines)
+        assert any(line.startswith("plan: 2 units") for line in lines)
+
+    def test_paired_batches_share_the_originals(self):
+        none = protocol.paired_batches(6, 0, 4, 30, seed=3)
+        for copies in (1, 2, 10):
+            batches = protocol.paired_batches(6, copies, 4, 30, seed=3)
+            assert torch.equal(batches % 6, none)  # the same original at every step and slot
+            variants = torch.bincount((batches // 6).flatten(), minlength=copies + 1)
+            assert int(variants.max() - variants.min()) <= 6  # each variant read about equally often
+        assert not torch.equal(protocol.paired_batches(6, 1, 4, 30, seed=4) % 6, none)
 
     def test_paired_seeds_share_initial_weights(self, scene_data):
         """Seed s gives every method the same start: with no step taken, equal predictions."""
@@ -287,11 +370,11 @@ class TestRunProtocol:
                 raise KeyboardInterrupt
             return real(*args, **kwargs)
 
-        monkeypatch.setattr(protocol, "run_unit", killed_after_two)
+        monkeypatch.setattr(experiment, "run_unit", killed_after_two)
         with pytest.raises(KeyboardInterrupt):
             run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods, data=scene_data,
                          group="method")
-        monkeypatch.setattr(protocol, "run_unit", real)
+        monkeypatch.setattr(experiment, "run_unit", real)
         resumed = run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods,
                                data=scene_data, group="method")
         for scene in self.scenes:
@@ -313,6 +396,22 @@ class TestRunProtocol:
         _, expected = clean
         results = run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods,
                                data=scene_data, group="method", jobs=2)
+        for scene in self.scenes:
+            for method in self.methods:
+                assert results["scenes"][scene]["methods"][method]["test_mse"] == \
+                    expected["scenes"][scene]["methods"][method]["test_mse"]
+
+    def test_torchrun_style_group_gathers_and_broadcasts_the_budget_check(self, clean, scene_data, tmp_path):
+        """Ranks of an initialised group (as under torchrun): rank 0 gathers every unit and picks
+        the budget check's method for all ranks; the numbers are those of one process."""
+        import torch.multiprocessing as mp
+
+        from event_transforms.tactile.distributed import _free_port
+
+        _, expected = clean
+        mp.spawn(_group_rank, args=(2, _free_port(), scene_data, str(tmp_path)), nprocs=2, join=True)
+        results = json.loads((tmp_path / "results.json").read_text())
+        assert results["scenes"]["timing"]["budget_check"] == expected["scenes"]["timing"]["budget_check"]
         for scene in self.scenes:
             for method in self.methods:
                 assert results["scenes"][scene]["methods"][method]["test_mse"] == \
@@ -349,7 +448,7 @@ class TestRunProtocol:
     def test_one_seed_table_has_no_spread(self, clean):
         _, results = clean
         one = {**results["scenes"]["control"]}
-        one["methods"] = {m: {**v, "test_mse": v["test_mse"][:1], "converged": v["converged"][:1]}
+        one["methods"] = {m: {**v, "test_mse": v["test_mse"][:1], "best_step": v["best_step"][:1]}
                           for m, v in one["methods"].items()}
         assert "±" not in format_scene_table("control", one)
         assert "±" in format_scene_table("control", results["scenes"]["control"])
@@ -357,7 +456,7 @@ class TestRunProtocol:
 
 class TestCommandLine:
     def test_reproduce_smoke(self, tmp_path, monkeypatch, capsys):
-        monkeypatch.setattr(protocol, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
+        monkeypatch.setattr(experiment, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
         out = tmp_path / "res"
         code = cli.main([
             "reproduce", "--scenes", "control", "--methods", "none", "fs-1", "--seeds", "0,1", "--steps", "2",
@@ -389,6 +488,15 @@ class TestCommandLine:
             with pytest.raises(SystemExit):
                 parser.parse_args(bad)
 
+    def test_plan_prints_the_cost_without_training(self, tmp_path, capsys, monkeypatch):
+        monkeypatch.setattr(experiment, "run_unit", lambda *a, **k: pytest.fail("--plan trained"))
+        assert cli.main(["reproduce", "--plan", "--scenes", "control", "timing", "--seeds", "0-7",
+                         "--steps", "100", "--out", str(tmp_path)]) == 0
+        printed = capsys.readouterr().out
+        # control: 4 methods, timing: 3; budget check on timing only: none + one method at 200 steps
+        assert "7 units, 56 members" in printed and "5,600 member-steps" in printed
+        assert "budget check on ['timing']: 2 units, 3,200 member-steps at 200 steps" in printed
+
     def test_help_does_not_import_torch(self):
         code = (
             "import sys, contextlib, io\n"
@@ -404,7 +512,63 @@ class TestCommandLine:
         help_text = cli.build_parser()._subparsers._group_actions[0].choices["reproduce"].format_help()
         help_text = " ".join(help_text.split())
         assert f"{cli.QUICK['seeds']} paired seeds" in help_text and "--full" in help_text
-        assert cli.FULL["seeds"] == 10 and cli.QUICK["seeds"] >= 5
+        assert cli.FULL["seeds"] == 10 and cli.QUICK["seeds"] >= 8  # issue 17: ≥ 8 paired seeds
+        assert {"control", "paper", "timing"} <= set(cli.QUICK["scenes"]) and cli.FULL["scenes"] is None
+
+
+class TestCommandLineErrors:
+    """Mistakes a person makes reach them as one line naming the value, exit code 2, no traceback."""
+
+    def _error(self, argv, capsys) -> str:
+        assert cli.main(argv) == 2
+        captured = capsys.readouterr()
+        lines = captured.err.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+        return lines[0]
+
+    def test_unknown_scene_lists_the_valid_ones(self, tmp_path, capsys):
+        line = self._error(["reproduce", "--scenes", "nonexistent", "--out", str(tmp_path)], capsys)
+        assert "'nonexistent'" in line and all(name in line for name in SCENES)
+
+    def test_unknown_method_lists_the_valid_ones(self, tmp_path, capsys):
+        line = self._error(["reproduce", "--scenes", "control", "--methods", "bogus", "--out", str(tmp_path)], capsys)
+        assert "'bogus'" in line and "rot<deg>" in line and "tes<j>:<fraction>" in line
+
+    def test_show_unknown_method_before_any_simulation(self, tmp_path, capsys):
+        line = self._error(["show", "bogus", "--root", str(tmp_path / "cache"), "--out", str(tmp_path / "x.png")],
+                           capsys)
+        assert "'bogus'" in line and not (tmp_path / "cache").exists()
+        assert "'nowhere'" in self._error(["show-scene", "nowhere", "--out", str(tmp_path)], capsys)
+
+    def test_shift_past_the_sequence_is_refused_by_name(self, tmp_path, capsys):
+        line = self._error(["reproduce", "--scenes", "control", "--methods", "fs100", "--out", str(tmp_path)], capsys)
+        assert "'fs100'" in line and "36 frames" in line
+        line = self._error(["reproduce", "--scenes", "control", "--methods", "rot-45", "--out", str(tmp_path)], capsys)
+        assert "'rot-45'" in line and "-45" in line
+
+    @pytest.mark.parametrize("flag", ["--out", "--root"])
+    def test_unwritable_folder_is_refused_before_any_work(self, tmp_path, capsys, flag, monkeypatch):
+        blocker = tmp_path / "a-file"
+        blocker.write_text("")
+        called = []
+        monkeypatch.setattr(experiment, "load_scene_data", lambda *a, **k: called.append(a))
+        argv = ["reproduce", "--scenes", "control", "--methods", "none", "--out", str(tmp_path / "out")]
+        line = self._error([*argv, flag, str(blocker / "sub")], capsys)
+        assert flag in line and "a-file" in line and not called
+
+    def test_zero_copies_refused_by_name(self, capsys):
+        with pytest.raises(SystemExit) as exit_:
+            cli.build_parser().parse_args(["reproduce", "--copies", "0"])
+        assert exit_.value.code == 2 and "--copies" in capsys.readouterr().err
+        with pytest.raises(ValueError, match="copies"):
+            ProtocolConfig(copies=0)
+
+    def test_worker_error_reaches_the_user_as_itself(self, scene_data, tmp_path):
+        # the noise method needs the deployment camera's noise bank: the error is raised in a worker
+        no_bank = {"control": SceneData(**{**scene_data["control"].__dict__, "noise_bank": None})}
+        with pytest.raises(ValueError, match="noise bank"):
+            run_protocol(["control"], [0], tmp_path / "r", config=TINY, methods=["none", "noise"], data=no_bank,
+                         group="method", jobs=2)
 
 
 @pytest.fixture(scope="module")

@@ -42,6 +42,15 @@ class TestTactileGrasps:
         peaks = torch.cat([train.forces, test.forces]).amax(1)
         assert peaks.min() < 5 and peaks.max() > 20 and len(set(peaks.round().tolist())) > 15
 
+    def test_holdout_from_training_session_and_a_fresh_test_block(self, root, train):
+        holdout, test = TactileGrasps("holdout", root=root), TactileGrasps("test", root=root)
+        assert len(holdout) == 24 and holdout.session == train.session  # the stopping rule's data
+        assert {holdout.meta(i)["diameter_mm"] for i in range(24)} == {12.0, 18.0}
+        train_seeds = {train.meta(i)["seed"] for i in range(48)}
+        assert not train_seeds & {holdout.meta(i)["seed"] for i in range(24)}  # new sequences
+        # the test block is drawn from seeds no earlier run used (the old block was 20000-20095)
+        assert [test.meta(i)["seed"] for i in (0, 95)] == [40_000, 40_095]
+
     def test_paper_split_is_nested(self, root):
         small, large = TactileGrasps("test", root=root, paper_split=True), TactileGrasps("test", root=root)
         assert len(small) == 6 and small.path == large.path

@@ -10,9 +10,14 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
 - :mod:`~event_transforms.tactile.models`: the reference ConvLSTM force regressor;
 - :mod:`~event_transforms.tactile.ensemble`: many force regressors trained in lockstep;
 - :mod:`~event_transforms.tactile.baselines`: trivial baselines the network must beat;
-- :mod:`~event_transforms.tactile.training`: the training loop;
-- :mod:`~event_transforms.tactile.stats`: paired t-intervals, Wilcoxon signed-rank, Holm;
-- :mod:`~event_transforms.tactile.protocol`: the benchmark protocol and its tables;
+- :mod:`~event_transforms.tactile.training`: timing, batching, scores, atomic result files;
+- :mod:`~event_transforms.tactile.methods`: method names and which methods a scene runs;
+- :mod:`~event_transforms.tactile.copies`: a scene's data, synthetic copies, the paired batch order;
+- :mod:`~event_transforms.tactile.experiment`: the benchmark run (settings, units, resume, budget check);
+- :mod:`~event_transforms.tactile.stats`: paired t-intervals, Wilcoxon signed-rank, Holm, summaries;
+- :mod:`~event_transforms.tactile.report`: the benchmark's tables and findings;
+- :mod:`~event_transforms.tactile.distributed`: local ranks, ``torchrun``, worker errors;
+- :mod:`~event_transforms.tactile.protocol`: every public name of the protocol in one place;
 - :mod:`~event_transforms.tactile.cli`: the ``event-transforms`` command.
 
 Results obtained on the simulated scenes are results on synthetic data, never the paper's.
@@ -24,18 +29,29 @@ import importlib
 from typing import Any
 
 _SUBMODULES = (
-    "simulation", "scenes", "datasets", "models", "ensemble", "baselines", "training", "stats", "protocol",
-    "cli",
+    "simulation", "scenes", "datasets", "models", "ensemble", "baselines", "training", "methods",
+    "copies", "experiment", "stats", "report", "distributed", "protocol", "cli",
 )
 
-__all__ = list(_SUBMODULES)
+#: Public names of the protocol, importable from here (loaded on first use).
+_PROTOCOL_NAMES = (
+    "PAPER_METHODS", "QUICK_METHODS", "PAPER_SCENE", "Method", "parse_method", "methods_for",
+    "ProtocolConfig", "SceneData", "load_scene_data", "MaterializedDataset", "OnlineCopies",
+    "DeviceAugment", "build_training_set", "paired_batches", "run_unit", "run_protocol", "plan_run",
+    "PROGRESS_LEGEND", "summarize_scene", "format_scene_table", "format_budget_check", "format_findings",
+    "format_report",
+)
+
+__all__ = [*_SUBMODULES, *_PROTOCOL_NAMES]
 
 
 def __getattr__(name: str) -> Any:
     if name in _SUBMODULES:
         return importlib.import_module(f"{__name__}.{name}")
+    if name in _PROTOCOL_NAMES:
+        return getattr(importlib.import_module(f"{__name__}.protocol"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_SUBMODULES))
+    return sorted(set(globals()) | set(__all__))

@@ -1,6 +1,6 @@
 """Command line: ``event-transforms reproduce | simulate | show | show-scene``.
 
-``reproduce`` runs the benchmark protocol (:mod:`event_transforms.tactile.protocol`) on the
+``reproduce`` runs the benchmark protocol (:mod:`event_transforms.tactile.experiment`) on the
 simulated scenes (:mod:`event_transforms.tactile.scenes`). Without ``--full`` it runs a quick
 configuration (5 paired seeds, every scene, ``none`` and the matched methods, the paper's
 list on ``paper``; a narrower model and fewer steps) that finishes in minutes on a 2-core
@@ -26,7 +26,10 @@ __all__ = ["main", "build_parser", "QUICK", "FULL"]
 
 #: The quick configuration (default): stated in the output of every run.
 QUICK: dict[str, Any] = {
-    "seeds": 5,
+    # the control, the paper's split, the lag scene and one other gapped scene (those that
+    # exist); the rest run with --full
+    "scenes": ("control", "paper", "paper-lag", "timing"),
+    "seeds": 8,
     "steps": 400,
     "lr": 1e-2,
     "hidden_channels": (8,),
@@ -38,6 +41,7 @@ QUICK: dict[str, Any] = {
 }
 #: The full configuration (``--full``): the paper's 10 seeds and layer sizes.
 FULL: dict[str, Any] = {
+    "scenes": None,  # every scene
     "seeds": 10,
     "steps": 1500,
     "lr": 1e-2,
@@ -122,17 +126,19 @@ def build_parser() -> argparse.ArgumentParser:
         "reproduce",
         help="train the ConvLSTM regressor with each augmentation on every scene and tabulate test MSE",
         description="Run the benchmark protocol on the simulated scenes (paper, size-extrapolation, "
-        "timing, orientation, noise, control). Default: a quick configuration "
-        f"({QUICK['seeds']} paired seeds, {QUICK['steps']} steps per run, ConvLSTM channels "
+        "timing, orientation, noise, control, ...). Default: a quick configuration "
+        f"({QUICK['seeds']} paired seeds, {QUICK['steps']} steps per run, the scenes {', '.join(QUICK['scenes'])}, "
+        "ConvLSTM channels "
         f"{QUICK['hidden_channels']}, input pool {QUICK['input_pool']}, {QUICK['jobs']} jobs); --full: "
         f"{FULL['seeds']} seeds, {FULL['steps']} steps, channels {FULL['hidden_channels']}, input pool "
         f"{FULL['input_pool']}, every method on every scene. Every run takes the same number of "
-        "optimiser steps (one-cycle lr, gradient clipping, final weights). Interrupted runs resume "
-        "from the finished units under OUT/runs.",
+        "optimiser steps (one-cycle lr, gradient clipping) and keeps the weights with the lowest MSE on "
+        "hold-out sequences of the training session; every gapped scene's largest |Δ| is rerun at twice "
+        "the steps (the budget check). Interrupted runs resume from the finished units under OUT/runs.",
     )
     rep.add_argument("--full", action="store_true", help="10 seeds, all methods, the paper-size model")
     rep.add_argument("--scenes", nargs="+", default=None, metavar="SCENE",
-                     help="scenes by name (default: all of paper size-extrapolation timing orientation noise control)")
+                     help="scenes by name (default: quick mode's scenes; --full: every scene)")
     rep.add_argument(
         "--methods", nargs="+", default=None, metavar="METHOD",
         help="methods by name for every scene (none rot45 resize resize-hertz noise fs-1 tes-2:0.5 "
@@ -147,7 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--batch-size", type=_positive, help="sequences per training step")
     rep.add_argument("--no-cumulative", action="store_true",
                      help="the model reads only the per-frame counts, not their running sums (ablation)")
-    rep.add_argument("--copies", type=int, default=1, help="synthetic copies per item (default 1: doubles the set)")
+    rep.add_argument("--copies", type=_positive, default=1,
+                     help="synthetic copies per item, at least 1 (default 1: doubles the set)")
     rep.add_argument(
         "--online", action="store_true",
         help="redraw the augmentation at every access instead of making fixed copies once",
@@ -164,6 +171,10 @@ def build_parser() -> argparse.ArgumentParser:
         "more threads than free cores make every step wait for descheduled threads)",
     )
     rep.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    rep.add_argument("--no-budget-check", action="store_true",
+                     help="skip rerunning none and the largest-|Δ| method at twice the steps on gapped scenes")
+    rep.add_argument("--plan", action="store_true",
+                     help="print the run's units and member-steps (its cost) and exit without training")
 
     sim = sub.add_parser("simulate", help="simulate every scene's data into the cache")
     sim.add_argument("--root", type=Path, help="cache folder (default: the package cache)")
@@ -192,25 +203,29 @@ def _print(*args: Any) -> None:
     print(*args, flush=True)
 
 
-def _distributed_from_env(device: str) -> bool:
-    """Join the process group ``torchrun`` describes (``WORLD_SIZE`` > 1); True if joined."""
-    if int(os.environ.get("WORLD_SIZE", "1")) <= 1:
-        return False
-    import torch
-    import torch.distributed as dist
+def _writable(path: Path | None, flag: str) -> None:
+    """Refuse a folder that cannot be created or written, before any work starts."""
+    if path is None:
+        return
+    import tempfile
 
-    if not dist.is_initialized():
-        backend = "nccl" if device == "cuda" else "gloo"
-        if backend == "nccl":
-            torch.cuda.set_device(int(os.environ.get("LOCAL_RANK", "0")))
-        dist.init_process_group(backend)
-    return True
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as error:
+        raise ValueError(f"{flag} {str(path)!r} is not a writable folder ({error.strerror or error})") from None
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    _writable(args.out, "--out")
+    _writable(args.root, "--root")
     import torch
 
-    from .protocol import ProtocolConfig, format_report, run_protocol
+    from .distributed import join_from_env
+    from .experiment import ProtocolConfig, choose_methods, plan_run, run_protocol
+    from .report import format_report
+    from .scenes import SCENES
 
     base = FULL if args.full else QUICK
     device = args.device
@@ -219,7 +234,7 @@ def _reproduce(args: argparse.Namespace) -> int:
     if device == "cuda" and not torch.cuda.is_available():
         raise SystemExit("--device cuda: no CUDA device is available")
     threads = args.threads or base["threads"]
-    distributed = _distributed_from_env(device)
+    distributed = join_from_env(device)
     jobs = args.jobs or base["jobs"] or (torch.cuda.device_count() if device == "cuda" else os.cpu_count() or 1)
     if device == "cuda" and not distributed:
         jobs = 1  # one process drives the GPU; ensembles fill it
@@ -235,6 +250,19 @@ def _reproduce(args: argparse.Namespace) -> int:
         fixed=not args.online,
         copies=args.copies,
     )
+    scenes = args.scenes or (list(SCENES) if base["scenes"] is None else [s for s in base["scenes"] if s in SCENES])
+    methods = None if args.methods is None else list(args.methods)
+    chosen = choose_methods(scenes, methods, full=args.full)
+    plan = plan_run(scenes, chosen, seeds, config, group=args.group, budget_check=not args.no_budget_check)
+    if args.plan:
+        _print(f"plan: scenes {scenes}, {len(seeds)} seeds, {config.steps} steps per run")
+        for scene, names in chosen.items():
+            _print(f"  {scene}: {', '.join(names)}")
+        _print(f"{plan['units']} units, {plan['members']} members (method × seed), {plan['member_steps']:,} "
+               f"member-steps; budget check on {plan['budget_check_scenes']}: {plan['budget_units']} units, "
+               f"{plan['budget_member_steps']:,} member-steps at {2 * config.steps} steps; total "
+               f"{plan['total_member_steps']:,} member-steps (× the seconds per member-step a unit reports)")
+        return 0
     rank = int(os.environ.get("RANK", "0")) if distributed else 0
     say = _print if rank == 0 else (lambda *a: None)
     label = "full" if args.full else "quick"
@@ -242,25 +270,28 @@ def _reproduce(args: argparse.Namespace) -> int:
         f"event-transforms reproduce: {label} configuration — seeds {seeds}, {config.steps} optimiser steps "
         f"per run (the same for every method), one-cycle lr peak {config.lr:g}, clip {config.clip:g}, "
         f"batch {config.batch_size}, ConvLSTM channels {config.hidden_channels}, input pool "
-        f"{config.input_pool}, {'cumulative' if config.cumulative else 'per-frame'} input, final weights, "
+        f"{config.input_pool}, {'cumulative' if config.cumulative else 'per-frame'} input, the weights with the "
+        f"lowest hold-out MSE (checked every {config.eval_every} steps), "
         f"{'on-the-fly' if args.online else 'fixed'} synthetic copies; device {device}, "
         + (f"{os.environ.get('WORLD_SIZE')} torchrun ranks" if distributed else f"{jobs} job(s)")
         + f", {threads} thread(s) each"
     )
     start = time.perf_counter()
-    methods = None if args.methods is None else list(args.methods)
     results = run_protocol(
-        args.scenes, seeds, args.out, config=config, methods=methods, full=args.full,
+        scenes, seeds, args.out, config=config, methods=chosen, full=args.full,
         root=None if args.root is None else str(args.root), jobs=1 if distributed else jobs,
-        device=device, threads=threads, group=args.group, log=_print,
+        device=device, threads=threads, group=args.group, log=_print, budget_check=not args.no_budget_check,
     )
     if not results:  # a torchrun rank other than 0
         return 0
     say()
     say(f"Results on synthetic data ({label} configuration; test MSE in N² over all frames, mean ± sample sd "
-        f"over {len(seeds)} paired seeds; Δ vs none with a 95 % paired t-interval, ** where the paired t-test, "
-        "Holm-corrected within the scene, gives p ≤ 0.05 (the exact Wilcoxon p beside it cannot go below "
-        f"{2 / 2 ** len(seeds):.3g} with {len(seeds)} seeds); baselines are fitted on the same training data):")
+        f"over {len(seeds)} paired seeds (the same initial weights and the same original items at the same "
+        "steps); Δ vs none with a 95 % paired t-interval, ** where the paired t-test, Holm-corrected within the "
+        "scene, gives p ≤ 0.05 (the exact Wilcoxon p beside it cannot go below "
+        f"{2 / 2 ** len(seeds):.3g} with {len(seeds)} seeds); beside it the unpaired (Welch) interval and r, the "
+        "correlation of none's and the method's per-seed MSEs; kept step: the median step whose weights the "
+        "stopping rule kept; baselines are fitted on the same training data):")
     say(format_report(results))
     if not args.no_plots:
         for path in _plots(results, args.out):
@@ -280,24 +311,33 @@ def _plots(results: dict[str, Any], out: Path) -> list[Path]:
         _print("matplotlib not installed (pip install 'event-transforms[plot]'): no figures")
         return []
     scenes = results["scenes"]
-    fig, axes = plt.subplots(1, len(scenes), figsize=(3.2 * len(scenes), 3.4), squeeze=False)
+    names = list(dict.fromkeys(m for summary in scenes.values() for m in summary["methods"]))
+    colours = plt.get_cmap("tab20")
+    markers = "osD^v<>pPhX*"
+    style = {m: (colours(k % 20), markers[k % len(markers)]) for k, m in enumerate(names)}
+    fig, axes = plt.subplots(1, len(scenes), figsize=(3.2 * len(scenes), 3.6), squeeze=False)
     for ax, (name, summary) in zip(axes[0], scenes.items()):
         for method, s in summary["methods"].items():
             delta = s["delta_vs_none"]
             cost = s["aug_s_once"] + s["train_s"]
+            colour, marker = style[method]
             if delta is None:
-                ax.plot([cost], [0.0], "ks")
-                ax.annotate(method, (cost, 0.0), textcoords="offset points", xytext=(3, 3), fontsize=7)
+                ax.plot([cost], [0.0], marker=marker, color=colour, ls="none")
                 continue
             lo, hi = delta["ci95"] or (delta["mean"], delta["mean"])
-            ax.errorbar([cost], [delta["mean"]], yerr=[[delta["mean"] - lo], [hi - delta["mean"]]], fmt="o", capsize=3)
-            ax.annotate(method, (cost, delta["mean"]), textcoords="offset points", xytext=(3, 3), fontsize=7)
+            ax.errorbar([cost], [delta["mean"]], yerr=[[delta["mean"] - lo], [hi - delta["mean"]]], fmt=marker,
+                        color=colour, capsize=3)
         ax.axhline(0.0, color="0.6", lw=0.8)
         ax.set_title(name, fontsize=9)
         ax.set_xlabel("s per run (aug + train)", fontsize=8)
+        ax.tick_params(labelsize=7)
     axes[0][0].set_ylabel("Δ test MSE vs none (N²)")
+    # one legend below the panels instead of labels beside the points: nothing can overlap
+    handles = [plt.Line2D([], [], color=style[m][0], marker=style[m][1], ls="none") for m in names]
+    fig.legend(handles, names, loc="lower center", ncol=min(len(names), 7), fontsize=7, frameon=False)
     fig.suptitle("What each augmentation buys (95 % CI) and costs — synthetic scenes", fontsize=9)
-    fig.tight_layout()
+    rows = -(-len(names) // 7)
+    fig.tight_layout(rect=(0, 0.06 * rows + 0.02, 1, 1))
     path = out / "accuracy_vs_time.png"
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -305,7 +345,8 @@ def _plots(results: dict[str, Any], out: Path) -> list[Path]:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from .protocol import load_scene_data
+    _writable(args.root, "--root")
+    from .experiment import load_scene_data
     from .scenes import SCENES
 
     root = None if args.root is None else str(args.root)
@@ -325,9 +366,10 @@ def _show_scene(args: argparse.Namespace) -> int:
     from . import datasets
     from .scenes import SCENES, get_scene
 
-    root = None if args.root is None else str(args.root)
     names = [get_scene(args.scene).name] if args.scene else list(SCENES)
-    args.out.mkdir(parents=True, exist_ok=True)
+    _writable(args.root, "--root")
+    _writable(args.out, "--out")
+    root = None if args.root is None else str(args.root)
     for name in names:
         train = datasets.TactileGrasps("train", root=root, scene=name)
         test = datasets.TactileGrasps("test", root=root, scene=name)
@@ -343,14 +385,17 @@ def _show(args: argparse.Namespace) -> int:
 
     from .. import viz
     from . import datasets
-    from .protocol import parse_method
+    from .methods import parse_method
 
+    method = parse_method(args.method, scene=args.scene)  # names first, before any simulation
+    _writable(args.root, "--root")
+    if args.out is not None:
+        _writable(args.out.parent, "--out")
     root = None if args.root is None else str(args.root)
     train = datasets.TactileGrasps(split="train", root=root, scene=args.scene)
     if not 0 <= args.index < len(train):
         raise SystemExit(f"--index must lie in [0, {len(train) - 1}], got {args.index}")
     frames, _, meta = train[args.index]
-    method = parse_method(args.method, scene=args.scene)
     bank = datasets.noise_bank(config=train.scene.deploy.config) if method.needs_noise_bank else None
     transform = method.build(bank)
     generator = torch.Generator().manual_seed(args.seed)
@@ -365,7 +410,8 @@ def _show(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``event-transforms`` console script."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     handlers = {"reproduce": _reproduce, "simulate": _simulate, "show": _show, "show-scene": _show_scene}
     try:
         return handlers[args.command](args)
@@ -373,6 +419,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("interrupted: finished units are kept; rerun the same command to resume",
               file=sys.stderr)
         return 130
+    except ValueError as error:  # a name or setting the user gave (also from a worker): one line
+        message = " ".join(str(error).split())
+        print(f"{parser.prog} {args.command}: error: {message}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -78,9 +78,9 @@ __all__ = [
     "MemberRecord",
     "EnsembleResult",
     "clip_grad_norm_per_member_",
-    "plateau_converged",
     "shuffled_batches",
     "fit_ensemble",
+    "predict_ensemble",
 ]
 
 
@@ -343,37 +343,6 @@ def clip_grad_norm_per_member_(parameters: Sequence[Tensor], max_norm: float) ->
     return norms
 
 
-def plateau_converged(losses: Sequence[float], *, window: float = 0.2, tolerance: float = 0.05) -> bool:
-    """Training-loss plateau test: did the loss stop improving?
-
-    With ``k = round(window * len(losses))`` (at least 1), compare the mean of the last
-    ``k`` losses with the mean of the ``k`` before them: the run counts as converged when
-    both are finite and the last window improved on the one before by less than
-    ``tolerance`` (relative), i.e. ``last > (1 - tolerance) * before``. A loss still falling
-    fast at the end (more steps would help) is not converged; a non-finite loss never is.
-    Fewer than ``2 k`` losses (under 2) cannot be judged and count as not converged.
-    Averaging over windows (120 steps each of a 600-step run) smooths minibatch noise.
-
-    Example:
-        >>> steps = range(600)
-        >>> plateau_converged([1 + 10 * math.exp(-s / 30) for s in steps])
-        True
-        >>> plateau_converged([10 * math.exp(-s / 300) for s in steps])
-        False
-    """
-    values = [float(v) for v in losses]
-    if not (0 < window <= 0.5):
-        raise ValueError(f"window must be in (0, 0.5], got {window!r}")
-    k = max(1, round(window * len(values)))
-    if len(values) < 2 * k:
-        return False
-    before = sum(values[-2 * k : -k]) / k
-    last = sum(values[-k:]) / k
-    if not (math.isfinite(before) and math.isfinite(last)):
-        return False
-    return last > (1.0 - tolerance) * before
-
-
 @dataclass
 class MemberRecord:
     """What one member of :func:`fit_ensemble` did (losses in N², steps counted from 1)."""
@@ -387,7 +356,6 @@ class MemberRecord:
     best_val_loss: float = math.inf
     best_step: int = 0
     stopped_step: int | None = None
-    converged: bool = False
     selected_val_loss: float = math.inf
 
 
@@ -429,17 +397,28 @@ def _stack_member_batch(
 
 
 @torch.no_grad()
-def _validation_mse(model: EnsembleForceRegressor, frames: Tensor, force: Tensor, batch_size: int) -> Tensor:
-    """Per-member MSE over every frame of the shared validation set, ``(M,)`` float64."""
+def predict_ensemble(model: EnsembleForceRegressor, frames: Tensor, *, batch_size: int = 32) -> Tensor:
+    """Every member's force for frames ``(N, T, 2, H, W)`` shared by all: ``(M, N, T)``, in
+    batches of ``batch_size`` on the model's device, in eval mode (the mode is restored).
+
+    The one evaluation loop: the trainer's validation passes and the protocol's scores use it.
+    """
     was_training = model.training
     model.eval()
-    total = torch.zeros(model.members, dtype=torch.float64, device=force.device)
-    for start in range(0, frames.shape[0], batch_size):
-        pred = model(frames[start : start + batch_size])
-        err = (pred.double() - force[start : start + batch_size].double()).square()
-        total += err.sum(dim=(1, 2))
-    model.train(was_training)
-    return total / force.numel()
+    device = model.head_weight.device
+    try:
+        preds = [model(frames[start : start + batch_size].to(device)) for start in range(0, frames.shape[0], batch_size)]
+    finally:
+        model.train(was_training)
+    if not preds:
+        raise ValueError("frames must hold at least one sequence, got 0")
+    return torch.cat(preds, dim=1)
+
+
+def _validation_mse(model: EnsembleForceRegressor, frames: Tensor, force: Tensor, batch_size: int) -> Tensor:
+    """Per-member MSE over every frame of the shared validation set, ``(M,)`` float64."""
+    pred = predict_ensemble(model, frames, batch_size=batch_size)
+    return (pred.double() - force.double()).square().mean(dim=(1, 2))
 
 
 def fit_ensemble(
@@ -462,6 +441,8 @@ def fit_ensemble(
     stopwatch: Any | None = None,
     description: str = "ensemble",
     augment: Sequence[Callable[[Tensor, list], Tensor] | None] | None = None,
+    batches: Sequence[Tensor] | None = None,
+    on_validation: Callable[[dict[str, Any]], None] | None = None,
 ) -> EnsembleResult:
     """Train every member of ``model`` for exactly ``steps`` optimiser steps, in lockstep.
 
@@ -477,8 +458,7 @@ def fit_ensemble(
     restored after every later optimiser step, so Adam's momentum cannot move it; training
     ends early when every member is frozen. At the end, ``select="best"`` loads each
     member's best-validation weights, ``"final"`` keeps the final ones (a frozen member's are
-    those it had when frozen). Each member records whether its training loss reached a
-    plateau (:func:`plateau_converged` over the steps it trained).
+    those it had when frozen).
 
     Augmentation inside the data sets that draws from torch's global RNG is not seeded
     here; seed it before calling for reproducible runs. The force scaling of the members is
@@ -508,6 +488,12 @@ def fit_ensemble(
         augment: per member, ``None`` or a callable ``(frames, metas) -> frames`` applied to
             the member's batch ``(B, T, 2, H, W)`` after it is moved to ``device``: on-the-fly
             augmentation on the training device (its time is counted in ``train_s``).
+        batches: per member, the item indices ``(steps, batch_size)`` of every step, instead
+            of :func:`shuffled_batches` (e.g. a schedule that gives paired members the same
+            items at the same steps).
+        on_validation: called after every validation pass with a dict ``step``, ``steps``,
+            ``train_loss`` (mean over members of the last step's MSE), ``val_mse`` (one per
+            member), ``elapsed_s``.
 
     With ``progress=None`` and stderr not a terminal, one plain line per validation pass
     (step, training loss, validation MSE range, elapsed time and ETA) replaces the bar.
@@ -561,7 +547,18 @@ def fit_ensemble(
     model.to(device)
     val_frames, val_force = stack_items(val_data)
     val_frames, val_force = val_frames.to(device), val_force.to(device)
-    batches = [shuffled_batches(len(data), batch_size, steps, seed=seed) for data, seed in zip(train_sets, seeds)]
+    if batches is None:
+        batches = [shuffled_batches(len(data), batch_size, steps, seed=seed) for data, seed in zip(train_sets, seeds)]
+    else:
+        batches = [torch.as_tensor(b, dtype=torch.int64) for b in batches]
+        if len(batches) != members:
+            raise ValueError(f"batches must hold one index tensor per member ({members}), got {len(batches)}")
+        for index, (b, data) in enumerate(zip(batches, train_sets)):
+            if tuple(b.shape) != (steps, batch_size) or (b.numel() and not 0 <= int(b.min()) <= int(b.max()) < len(data)):
+                raise ValueError(
+                    f"batches[{index}] must be ({steps}, {batch_size}) indices into train_sets[{index}] "
+                    f"({len(data)} items), got shape {tuple(b.shape)}"
+                )
     watch = stopwatch if stopwatch is not None else Stopwatch()
     params = list(model.parameters())
     optimiser = torch.optim.Adam(params, lr=lr_max)
@@ -650,6 +647,9 @@ def fit_ensemble(
         active = [val[m] for m in range(members) if not frozen_host[m]]
         train_now = sum(history[-1]) / max(len(history[-1]), 1) if history else math.nan
         bar.set_postfix(loss=f"{train_now:.3g}", val=f"{min(val):.3g}-{max(val):.3g}", active=len(active))
+        if on_validation is not None:
+            on_validation({"step": step + 1, "steps": steps, "train_loss": train_now, "val_mse": val,
+                           "elapsed_s": time.perf_counter() - start})
         if plain:
             elapsed = time.perf_counter() - start
             eta = elapsed / (step + 1) * (steps - step - 1)
@@ -662,7 +662,6 @@ def fit_ensemble(
 
     with torch.no_grad():
         for m, record in enumerate(records):
-            record.converged = plateau_converged(record.train_loss)
             if select == "best":
                 for p, saved in zip(params, best):
                     p[m].copy_(saved[m])

@@ -7,7 +7,11 @@ order), so methods are compared pairwise, seed by seed:
   Student-t confidence interval of the mean difference, and the two-sided t-test p-value;
 - :func:`wilcoxon_signed_rank` — the exact two-sided signed-rank p-value (zero differences
   dropped, tied magnitudes given their average rank, the null distribution counted exactly);
-- :func:`holm` — Holm's step-down adjustment of a family of p-values.
+- :func:`holm` — Holm's step-down adjustment of a family of p-values;
+- :func:`welch_interval` and :func:`correlation` — the unpaired interval and the correlation of
+  the per-seed values, reported beside the paired interval to show what pairing bought;
+- :func:`summarize_scene` — one scene's entry of a protocol's ``results.json``: per method
+  the per-seed values and Δ vs ``none``, Holm-corrected within the scene.
 
 With n pairs the exact signed-rank p-value cannot go below 2 / 2**n (0.0625 for 5 seeds,
 0.002 for 10), whatever the data: a method can only be called significant by that test
@@ -17,8 +21,13 @@ with enough seeds.
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .scenes import BenchmarkScene
 
 __all__ = [
     "student_t_cdf",
@@ -27,6 +36,12 @@ __all__ = [
     "paired_t",
     "wilcoxon_signed_rank",
     "holm",
+    "welch_interval",
+    "correlation",
+    "mean_sd",
+    "significant",
+    "deltas_vs_none",
+    "summarize_scene",
 ]
 
 
@@ -203,3 +218,154 @@ def holm(p_values: Sequence[float]) -> list[float]:
         running = max(running, min(1.0, (m - rank) * p))
         adjusted[i] = running
     return adjusted
+
+
+def welch_interval(a: Sequence[float], b: Sequence[float], *, level: float = 0.95) -> tuple[float, float] | None:
+    """The unpaired (Welch) ``level`` interval of ``mean(b) - mean(a)``, ignoring any pairing.
+
+    Standard error ``sqrt(s_a²/n_a + s_b²/n_b)``, Welch–Satterthwaite degrees of freedom;
+    ``None`` with fewer than two values on either side. Beside the paired interval it shows
+    what the pairing buys: the two agree when paired runs share no noise.
+
+    Example:
+        >>> lo, hi = welch_interval([1.0, 2.0, 3.0], [2.0, 3.0, 4.0])
+        >>> round(lo, 3), round(hi, 3)
+        (-1.267, 3.267)
+    """
+    a, b = [float(v) for v in a], [float(v) for v in b]
+    if len(a) < 2 or len(b) < 2:
+        return None
+    va, vb = statistics.variance(a) / len(a), statistics.variance(b) / len(b)
+    mean = statistics.fmean(b) - statistics.fmean(a)
+    se = math.sqrt(va + vb)
+    if se == 0:
+        return (mean, mean)
+    df = (va + vb) ** 2 / (va**2 / (len(a) - 1) + vb**2 / (len(b) - 1))
+    half = student_t_quantile(0.5 + level / 2, df) * se
+    return (mean - half, mean + half)
+
+
+def correlation(a: Sequence[float], b: Sequence[float]) -> float:
+    """Pearson's correlation of paired values (NaN with fewer than 3 pairs or no spread).
+
+    Example:
+        >>> round(correlation([1.0, 2.0, 3.0], [2.0, 4.1, 5.9]), 4)
+        0.999
+    """
+    a, b = [float(v) for v in a], [float(v) for v in b]
+    if len(a) != len(b):
+        raise ValueError(f"a and b must have the same length, got {len(a)} and {len(b)}")
+    if len(a) < 3:
+        return math.nan
+    ma, mb = statistics.fmean(a), statistics.fmean(b)
+    sab = sum((x - ma) * (y - mb) for x, y in zip(a, b))
+    saa, sbb = sum((x - ma) ** 2 for x in a), sum((y - mb) ** 2 for y in b)
+    return sab / math.sqrt(saa * sbb) if saa > 0 and sbb > 0 else math.nan
+
+
+# --------------------------------------------------------------------------- protocol summaries
+
+
+def significant(delta: dict[str, Any] | None, alpha: float = 0.05) -> bool:
+    """The paired t-test, Holm-corrected within the scene, rejects "no change" at ``alpha``.
+
+    The exact Wilcoxon p-value is reported beside it but cannot decide with few seeds: with
+    n pairs it is at least 2 / 2**n (0.0625 for 5 seeds), so it never reaches 0.05.
+    """
+    if not delta or not delta.get("ci95"):
+        return False
+    lo, hi = delta["ci95"]
+    p = delta.get("t_p_holm")
+    return bool((hi < 0 or lo > 0) and p is not None and not math.isnan(p) and p <= alpha)
+
+
+def mean_sd(values: Sequence[float]) -> tuple[float, float]:
+    """Mean and sample standard deviation (NaN for one value)."""
+    values = [float(v) for v in values]
+    return statistics.fmean(values), (statistics.stdev(values) if len(values) > 1 else math.nan)
+
+
+def deltas_vs_none(methods: dict[str, Any], key: str) -> dict[str, dict[str, Any]]:
+    """Δ of ``key`` vs ``none`` for every other method, paired seed by seed: the paired
+    t-interval, the exact Wilcoxon p, both Holm-corrected within the family given; beside
+    them the unpaired (Welch) interval and the correlation of the per-seed values, which
+    say what the pairing bought.
+
+    ``methods`` maps a name to ``{"seeds": [...], key: [...]}``.
+    """
+    reference = methods.get("none")
+    if reference is None:
+        return {}
+    base = dict(zip(reference["seeds"], reference[key]))
+    tests, unpaired = {}, {}
+    for name, method in methods.items():
+        if name == "none":
+            continue
+        pairs = [(base[s], v) for s, v in zip(method["seeds"], method[key]) if s in base]
+        if pairs:
+            first, second = [a for a, _ in pairs], [b for _, b in pairs]
+            tests[name] = paired_t(first, second)
+            welch = welch_interval(first, second)
+            unpaired[name] = (list(welch) if welch is not None else None, correlation(first, second))
+    adjusted = dict(zip(tests, holm([t.wilcoxon_p_value for t in tests.values()])))
+    adjusted_t = dict(zip(tests, holm([t.t_p_value for t in tests.values()])))
+    return {
+        name: {
+            "mean": test.mean,
+            "ci95": list(test.ci) if test.ci is not None else None,
+            "p_value": test.wilcoxon_p_value,
+            "p_holm": adjusted[name],
+            "t_p_value": test.t_p_value,
+            "t_p_holm": adjusted_t[name],
+            "significant": significant({"ci95": test.ci, "t_p_holm": adjusted_t[name]}),
+            "n": test.n,
+            "ci95_welch": unpaired[name][0],
+            "correlation": unpaired[name][1],
+        }
+        for name, test in tests.items()
+    }
+
+
+def summarize_scene(
+    scene: BenchmarkScene, per_method: dict[str, list[dict[str, Any]]], baselines: dict[str, dict[str, float]],
+    split_sizes: dict[str, int],
+) -> dict[str, Any]:
+    """One scene's entry of ``results.json``: gaps, baselines, and per method the per-seed
+    values and Δ vs ``none`` on test MSE (``delta_vs_none``) and on the paper's 6 + 6 split
+    (``delta_vs_none_paper_split``), each Holm-corrected within the scene."""
+    methods: dict[str, Any] = {}
+    for name, runs in per_method.items():
+        runs = sorted(runs, key=lambda r: r["seed"])
+        methods[name] = {
+            "seeds": [r["seed"] for r in runs],
+            "test_mse": [r["test_mse"] for r in runs],
+            "val_mse": [r["val_mse"] for r in runs],
+            "test_mse_paper_split": [r["test_mse_paper_split"] for r in runs],
+            "val_mse_paper_split": [r["val_mse_paper_split"] for r in runs],
+            "best_step": [r.get("best_step") for r in runs],
+            "holdout_mse": [r.get("holdout_mse") for r in runs],
+            "steps": runs[0]["steps"],
+            "copies": runs[0]["copies"],
+            "train_items": runs[0]["train_items"],
+            "delta_vs_none": None,
+            "delta_vs_none_paper_split": None,
+            "aug_s_once": statistics.fmean(r["aug_s_once"] for r in runs),
+            "aug_s_per_epoch": statistics.fmean(r["aug_s_per_epoch"] for r in runs),
+            "train_s": statistics.fmean(r["train_s"] for r in runs),
+            "test_phase_mse": {
+                phase: statistics.fmean(r["test_phase_mse"][phase] for r in runs) for phase in ("grasp", "hold", "release")
+            },
+        }
+    for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
+        for name, delta in deltas_vs_none(methods, key).items():
+            methods[name][field_name] = delta
+    return {
+        "description": scene.description,
+        "gaps": list(scene.gaps),
+        "gap_sizes": {f: {k: [list(v) if isinstance(v, tuple) else v for v in pair] for k, pair in d.items()}
+                      for f, d in scene.gap_sizes().items()},
+        "matched_methods": list(scene.matched_methods),
+        "split_sizes": dict(split_sizes),
+        "baselines": baselines,
+        "methods": methods,
+    }
