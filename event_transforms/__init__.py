@@ -38,11 +38,14 @@ _TRANSFORMS = (
     "FlipPolarity", "RandomFlipPolarity", "TimeReversal", "RandomTimeReversal", "MergePolarities",
     "CropTime", "RandomCropTime", "Cutout", "CutMix", "MixUp",
     "DropPixel", "RandomDropPixel", "Denoise",
+    # scenes (issue 18)
+    "Stretch", "RandomStretch",
 )
 _NAMES: dict[str, str] = {
     **{name: "transforms" for name in _TRANSFORMS},
     "Scene": "scenes",
     "ResizeToTarget": "scenes",
+    "StretchToTarget": "scenes",
     "AugmentedDataset": "data",
 }
 _SUBMODULES = ("functional", "transforms", "scenes", "data", "viz", "tactile")

@@ -19,6 +19,7 @@ from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse
 
 INTERPOLATING = {"Rotate", "RandomRotation", "Resize", "RandomResize"}
 INTERPOLATING |= {"Affine", "RandomAffine", "RandomCropResize", "CenterCropResize"}
+INTERPOLATING |= {"Stretch", "StretchAtAngle", "RandomStretch", "StretchToTarget"}
 # modules whose kernels need whole, non-negative counts and check them
 VALUE_CHECKED = {"TemporalEventShift", "TemporalEventShiftBinomial", "RandomTemporalEventShift", "RandomEventDrop"}
 
@@ -65,6 +66,10 @@ FACTORIES = {
     "DropHotPixels": lambda t, h, w: et.DropPixel(rate_hz=150.0),
     "RandomDropPixel": lambda t, h, w: et.RandomDropPixel((0.1, 0.3)),
     "Denoise": lambda t, h, w: et.Denoise(),
+    # scenes (issue 18)
+    "Stretch": lambda t, h, w: et.Stretch(1.3),
+    "StretchAtAngle": lambda t, h, w: et.Stretch(0.8, axis=30.0, center="image"),
+    "RandomStretch": lambda t, h, w: et.RandomStretch((0.8, 1.25)),
 }
 
 NAMES = sorted(FACTORIES)

@@ -96,7 +96,7 @@ class TestParseMethod:
         scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0, orientation_deg=10)
         method = Method.from_scene("mine", scene, copies=2, combination="hybrid")
         assert method.copies == 2
-        assert [type(t) for t in method.build().transforms] == [et.ResizeToTarget, et.RandomRotation]
+        assert [type(t) for t in method.build().transforms] == [et.StretchToTarget, et.RandomRotation]
         with pytest.raises(TypeError):
             Method.from_transform("x", lambda f: f)
         with pytest.raises(TypeError):
@@ -115,7 +115,7 @@ class TestParseMethod:
             frames, _, meta = train[n + index]
             original, _, original_meta = train[index]
             assert meta == original_meta
-            torch.testing.assert_close(frames, et.Resize(15.0 / meta["diameter_mm"])(original))
+            torch.testing.assert_close(frames, et.Stretch((15.0 / meta["diameter_mm"]) ** 0.5)(original))
 
 
 class TestTrainingSet:

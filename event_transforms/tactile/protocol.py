@@ -92,7 +92,7 @@ PAPER_METHODS: tuple[str, ...] = (
 )
 
 #: The paper's scene policy: sizes 12 and 18 mm to 15 mm, and FS-1 (the paper's best shift).
-PAPER_SCENE = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,))
+PAPER_SCENE = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,), size_transform="resize")
 
 
 @dataclass(frozen=True)

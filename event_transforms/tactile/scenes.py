@@ -249,11 +249,15 @@ class BenchmarkScene:
         config = self.deploy.config
         return max(abs(config.angle_deg[0]), abs(config.angle_deg[1])) if config.orientation else 0.0
 
-    def library_scene(self, noise_bank: Tensor | None = None, *, size_exponent: float = 1.0):
+    def library_scene(
+        self, noise_bank: Tensor | None = None, *, size_exponent: float | None = None, size_transform: str = "resize"
+    ):
         """The :class:`event_transforms.Scene` declaring this scene's gaps.
 
         Its :meth:`~event_transforms.Scene.policy` builds the matched augmentations:
-        size → resize to the deployment size, timing → frame shift by the extra delay,
+        size → ``size_transform`` to the deployment size (the paper's ``"resize"`` by
+        default, so the protocol's oracle rows stay the paper's; ``"stretch"`` for the
+        physics), timing → frame shift by the extra delay,
         orientation → rotation over the deployment's angles, noise → ``noise_bank``
         (static-scene frames of the deployment camera). Gaps of other factors (force,
         sensor) have no matched augmentation and build nothing.
@@ -264,7 +268,10 @@ class BenchmarkScene:
         kwargs: dict[str, Any] = {}
         if "size" in gaps and self.target_size is not None:
             kwargs.update(
-                training_sizes=self.train.diameters_mm, target_size=self.target_size, size_exponent=size_exponent
+                training_sizes=self.train.diameters_mm,
+                target_size=self.target_size,
+                size_exponent=size_exponent,
+                size_transform=size_transform,
             )
         if "timing" in gaps and self.lag_frames != 0:
             kwargs["lag_shifts"] = (self.lag_frames,)
