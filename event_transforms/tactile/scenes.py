@@ -25,7 +25,9 @@ scene                       gap (train → deploy)          matched augmentation
 ``paper-lag`` is the paper's split with the lag effects the paper credits its time shifts
 to: in both sessions the membrane relaxes three times more slowly than it is pressed
 (``release_lag_ratio=3``) and the F/T label is the force through a 15 ms low-pass
-(``label_lowpass_ms``), so on release the events lead the label; and the offset between
+(``label_lowpass_ms``), so on release the events lead the label; the grasps are triggered
+with the recording (20 ms of start jitter instead of 60, so a one-frame offset shows in
+24 unlabeled grasps); and the offset between
 the F/T clock and the camera differs between the sessions (events 12–18 ms after the
 force in training, 0–4 ms in deployment), so deployment events come about one frame
 *earlier*: the paper's left shifts, FS-1 (``shift=-1``) and TES-2(0.5) (``shift=-2``,
@@ -295,9 +297,15 @@ class BenchmarkScene:
 
 
 #: The lag effects of ``paper-lag``, in both sessions: a membrane that relaxes 3× more
-#: slowly than it is pressed, a 15 ms low-pass on the F/T label, and (training only) a
-#: 12-18 ms offset between the F/T clock and the camera.
-PAPER_LAG_SETTINGS: dict[str, Any] = {"release_lag_ratio": 3.0, "label_lowpass_ms": 15.0, "delay_ms": (12.0, 18.0)}
+#: slowly than it is pressed, a 15 ms low-pass on the F/T label, grasps triggered with the
+#: recording (start and end jittered over 20 ms, not 60), and (training only) a 12-18 ms
+#: offset between the F/T clock and the camera.
+PAPER_LAG_SETTINGS: dict[str, Any] = {
+    "release_lag_ratio": 3.0,
+    "label_lowpass_ms": 15.0,
+    "delay_ms": (12.0, 18.0),
+    "timing_jitter_ms": 20.0,
+}
 #: The deployment's offset in ``paper-lag``.
 PAPER_LAG_DEPLOY_DELAY_MS = (0.0, 4.0)
 
