@@ -102,7 +102,7 @@ def sequence_statistics(frames: Tensor, *, frame_ms: float = 10.0) -> dict[str, 
         >>> frames[:, 3:, 0, 8:11, 2:18] = 3.0  # a horizontal strip from frame 3
         >>> stats = sequence_statistics(frames)
         >>> stats["angle_deg"].tolist(), stats["onset_ms"].tolist()
-        ([0.0, 0.0], [25.0, 25.0])
+        ([0.0, 0.0], [27.0, 27.0])
     """
     frames = check_frames(frames)
     n, t, _, h, w = frames.shape
