@@ -13,6 +13,7 @@ import event_transforms as et
 from event_transforms.tactile import cli, protocol
 from event_transforms.tactile.protocol import (
     PAPER_METHODS,
+    QUICK_METHODS,
     MaterializedDataset,
     Method,
     ProtocolConfig,
@@ -176,8 +177,11 @@ class TestMaterializedDataset:
 
 class TestScenesAndMethods:
     def test_scene_methods(self):
-        assert methods_for("paper") == PAPER_METHODS
-        assert methods_for("timing") == ("none", "fs2", "tes2:0.5")
+        policies = ("inferred", "prior", "everything")
+        assert methods_for("paper") == PAPER_METHODS + ("stretch", *policies)
+        assert methods_for("timing") == ("none", "fs2", "tes2:0.5", *policies)
+        assert methods_for("control") == QUICK_METHODS["control"]
+        assert methods_for("paper-lag") == ("none", "fs-1", "tes-2:0.5", "stretch", *policies)
         assert methods_for("control")[0] == "none"
         full = methods_for("control", full=True)
         assert "resize" not in full and "rot45" in full and "noise" in full  # no size gap: no resize

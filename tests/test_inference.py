@@ -96,9 +96,10 @@ class TestEstimators:
 
 
 @pytest.fixture(scope="module")
-def inferred(tmp_path_factory):
-    """Every scene inferred from its 48 training grasps and 24 unlabeled validation grasps."""
-    root = tmp_path_factory.mktemp("cache")
+def inferred():
+    """Every scene inferred from its 48 training grasps and 24 unlabeled validation grasps
+    (in the session's cache, shared with tests/test_policies.py)."""
+    root = None
     out = {}
     for name, scene in SCENES.items():
         train = TactileGrasps("train", root=root, scene=name)

@@ -146,7 +146,8 @@ class Method:
 
 _NUMBER = r"[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?"
 _PATTERN = re.compile(
-    rf"^(?P<base>none|resize-hertz|resize|noise|independent|hybrid|rot(?P<deg>{_NUMBER})"
+    rf"^(?P<base>none|resize-hertz|resize|noise|independent|hybrid|stretch|inferred|prior|everything"
+    rf"|rot(?P<deg>{_NUMBER})"
     rf"|fs(?P<fs>[+-]?\d+)|tes(?P<tes>[+-]?\d+):(?P<frac>{_NUMBER}))(?:x(?P<copies>\d+))?$"
 )
 
@@ -176,8 +177,8 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
     match = _PATTERN.match(name.strip().lower())
     if match is None:
         raise ValueError(
-            f"unknown method {name!r}; expected none, rot<deg>, resize, resize-hertz, noise, fs<j>, "
-            "tes<j>:<fraction>, independent or hybrid, optionally followed by x<copies>"
+            f"unknown method {name!r}; expected none, rot<deg>, resize, resize-hertz, stretch, noise, fs<j>, "
+            "tes<j>:<fraction>, independent, hybrid, inferred, prior or everything, optionally followed by x<copies>"
         )
     base = match["base"]
     if match["copies"] is not None:
@@ -186,6 +187,12 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
         raise ValueError(f"copies must be a non-negative int, got {copies!r}")
     if base == "none":
         return Method(name, None, 0)
+    if base in ("stretch", "inferred", "prior", "everything"):  # issue 18: tactile/policies.py
+        from .policies import build_policy, stretch_policy
+
+        if base == "stretch":
+            stretch_policy(scene)  # refuses a scene without a size gap now, by name
+        return Method(name, lambda bank: build_policy(base, scene), copies)
     if base in ("resize", "resize-hertz"):
         target = scene.target_size
         if target is None:
@@ -232,11 +239,13 @@ def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str
 
     Example:
         >>> methods_for("timing")
-        ('none', 'fs2', 'tes2:0.5')
+        ('none', 'fs2', 'tes2:0.5', 'inferred', 'prior', 'everything')
     """
+    from .policies import policy_rows
+
     scene = get_scene(scene)
     if not full:
-        return QUICK_METHODS.get(scene.name, ("none", *scene.matched_methods))
+        return QUICK_METHODS.get(scene.name, ("none", *scene.matched_methods)) + policy_rows(scene)
     names = list(PAPER_METHODS) + [m for s in SCENES.values() for m in s.matched_methods]
     usable = []
     for name in dict.fromkeys(names):
@@ -247,7 +256,7 @@ def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str
         except ValueError:
             continue
         usable.append(name)
-    return tuple(usable)
+    return tuple(usable) + policy_rows(scene)
 
 
 @dataclass
