@@ -129,7 +129,7 @@ class Method:
         Example:
             >>> scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,))
             >>> [type(t).__name__ for t in Method.from_scene("scene", scene).build().transforms]
-            ['RandomFrameShift', 'ResizeToTarget']
+            ['RandomFrameShift', 'StretchToTarget']
         """
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a Scene, got {type(scene).__name__}")
