@@ -18,9 +18,9 @@ timing          onset latency: when the contact pixels' event count    frame shi
 noise           background rate: events per pixel and frame in the     the deployment's own
                 sequence's quietest frames; hot pixels: pixels firing  quiet frames as a
                 in every one of those frames                           noise bank
-size            contact width: √ of the minor second moment of the     stretch to the
-                contact pixels (reported); the gap itself comes from   deployment size
-                the bolt sizes the user gives (see below)
+size            contact half-width: twice the contact pixels' median   stretch to the
+                distance across the axis (reported); the gap itself    deployment size
+                comes from the bolt sizes the user gives (below)
 ==============  =====================================================  =====================
 
 Each estimate is a distribution over sequences; the gap test compares training and
@@ -91,7 +91,8 @@ def sequence_statistics(frames: Tensor, *, frame_ms: float = 10.0) -> dict[str, 
     Returns:
         A dict of float64 ``(N,)`` tensors: ``angle_deg`` (contact axis, counter-clockwise
         on the displayed image, in (-90, 90]), ``angle_abs_deg``, ``width_px`` and
-        ``length_px`` (√ of the minor and major second moments of the contact pixels),
+        ``length_px`` (twice the weighted median distance of the contact pixels from the
+        strip's median line, across and along the axis: the half-width and half-length),
         ``onset_ms``, ``background`` (events per pixel and frame, both polarities, in the
         quietest frames: a little below the mean rate, as the quietest are chosen),
         ``log_background``, ``hot_pixels`` (pixels firing in every quiet frame), and
@@ -134,10 +135,17 @@ def sequence_statistics(frames: Tensor, *, frame_ms: float = 10.0) -> dict[str, 
     c_xy = (weight * dx * dy).sum((1, 2)) / mass
     covariance = torch.stack([c_yy, c_xx, c_xy], 1)
     angle = torch.rad2deg(_axis_radians(covariance)) + 0.0  # no -0.0
-    half_trace, det = (c_xx + c_yy) / 2, c_xx * c_yy - c_xy**2
-    root = (half_trace**2 - det).clamp_min(0).sqrt()
-    width = (half_trace - root).clamp_min(0).sqrt()
-    length = (half_trace + root).clamp_min(0).sqrt()
+    # width and length: twice the weighted median distance from the strip's median line,
+    # across and along the axis (a uniform strip of half-width b gives b); medians, not
+    # second moments, so that scattered background pixels cannot own them
+    radians = torch.deg2rad(angle)
+    sin, cos = radians.sin().view(n, 1, 1), radians.cos().view(n, 1, 1)
+    x_grid, y_grid = xs.view(1, 1, w), ys.view(1, h, 1)
+    across = (x_grid * sin + y_grid * cos).expand(n, h, w)  # y down: the normal is (sin, cos)
+    along = (x_grid * cos - y_grid * sin).expand(n, h, w)
+    flat = weight.reshape(n, -1)
+    width = 2 * _weighted_median((across.reshape(n, -1) - _weighted_median(across.reshape(n, -1), flat).unsqueeze(1)).abs(), flat)
+    length = 2 * _weighted_median((along.reshape(n, -1) - _weighted_median(along.reshape(n, -1), flat).unsqueeze(1)).abs(), flat)
     # timing: the contact pixels' event rate (background removed) first reaches a fraction
     # of its peak, interpolated between frame centres (the release is no reference: a slow
     # membrane's release runs past the end of the recording)
@@ -162,6 +170,17 @@ def sequence_statistics(frames: Tensor, *, frame_ms: float = 10.0) -> dict[str, 
 #: Share trimmed from each end for the location estimates (Yuen's trimmed mean): a grasp
 #: too weak to rise above the background gives a wild onset or angle, and must not decide.
 _TRIM = 0.2
+
+
+def _weighted_median(values: Tensor, weights: Tensor) -> Tensor:
+    """(N,) weighted median of each row of ``values`` (N, M) with ``weights`` (N, M) ≥ 0
+    (0 for a row without weight)."""
+    order = values.argsort(1)
+    cumulative = weights.gather(1, order).cumsum(1)
+    half = cumulative[:, -1:] / 2
+    index = (cumulative < half).sum(1, keepdim=True).clamp_max(values.shape[1] - 1)
+    median = values.gather(1, order.gather(1, index)).squeeze(1)
+    return torch.where(cumulative[:, -1] > 0, median, torch.zeros_like(median))
 
 
 def _crossing(rate: Tensor, level: Tensor) -> Tensor:

@@ -150,6 +150,24 @@ class TestSimulatedScenes:
         bank = inferred["noise"][0].noise
         assert bank.shape[1:] == (2, 70, 75) and bank.shape[0] == 4 * 24
 
+    def test_width_within_10_percent(self, inferred):
+        """Per-grasp half-widths track the Hertz half-width of the held force (correlation
+        > 0.9), and the 12 + 15 → 18 mm width ratio is E√18 / E√D_train ≈ 1.157 within 0.1."""
+        from event_transforms.tactile.simulation import contact_half_width
+
+        scene, train, _ = inferred["size-extrapolation"]
+        widths = sequence_statistics(train.frames)["width_px"]
+        truth = torch.tensor(
+            [
+                float(contact_half_width(draw_grasp(train.meta(i)["diameter_mm"], seed=train.meta(i)["seed"], config=train.config).hold_force_n, train.meta(i)["diameter_mm"], train.config)) / 2
+                for i in range(len(train))
+            ],
+            dtype=torch.float64,
+        )
+        assert float(torch.corrcoef(torch.stack([widths, truth]))[0, 1]) > 0.9
+        expected = math.sqrt(18) / ((math.sqrt(12) + math.sqrt(15)) / 2)
+        assert scene.evidence["size"]["width_px"]["ratio"] == pytest.approx(expected, abs=0.1)
+
     def test_size_from_the_sizes_given(self, inferred):
         for name in ("paper", "size-extrapolation", "paper-lag"):
             scene = inferred[name][0]
