@@ -432,6 +432,6 @@ class TestCommandLineRealData:
             cli.main(["show", "fs-1", "--root", str(cache), "--index", "48", "--out", str(tmp_path / "x.png")])
 
     def test_show_scene(self, cache, tmp_path, capsys):
-        assert cli.main(["show-scene", "timing", "--root", str(cache), "--out", str(tmp_path)]) == 0
+        assert cli.main(["show-scene", "timing", "--count", "3", "--out", str(tmp_path)]) == 0
         path = tmp_path / "scene_timing.png"
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "deployment" in capsys.readouterr().out
