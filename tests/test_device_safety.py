@@ -29,6 +29,9 @@ MODULES = {
     "DropHotPixels": lambda: et.DropPixel(rate_hz=100.0),
     "RandomDropPixel": lambda: et.RandomDropPixel(0.3),
     "Denoise": lambda: et.Denoise(),
+    # issue 18: the contact axis is computed on the device, never read back
+    "RandomStretch": lambda: et.RandomStretch((0.8, 1.25), p=0.5),
+    "StretchAtAngle": lambda: et.Stretch(1.2, axis=30.0, center="image"),
 }
 
 
