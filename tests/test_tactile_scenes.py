@@ -145,15 +145,17 @@ class TestMeasuredGaps:
 
     def test_lag_scene_membrane_releases_slowly(self):
         """With the release time constant 3× the press one, the release's ON events come later
-        (and fewer of them fall inside the recording); the press's OFF events do not move."""
+        (and fewer of them fall inside the recording, which ends soon after the release); the
+        press's OFF events do not move."""
         scene = get_scene("paper-lag")
         slow = _recordings(scene.deploy, 6, **QUIET)
         fast = _recordings(scene.deploy, 6, release_lag_ratio=1.0, **QUIET)
         for a, b in zip(slow, fast):
             on_a, on_b = a.events["t"][a.events["p"] == 1], b.events["t"][b.events["p"] == 1]
             off_a, off_b = a.events["t"][a.events["p"] == 0], b.events["t"][b.events["p"] == 0]
-            assert np.median(on_a) - np.median(on_b) >= 0.3 * a.grasp.lag_ms * 1000
-            assert len(on_a) <= len(on_b)
+            assert len(on_a) <= 0.9 * len(on_b)  # the membrane has not recovered by the end
+            assert np.median(on_a) >= np.median(on_b)
+            assert abs(len(off_a) - len(off_b)) <= 0.01 * len(off_b)  # pressing is unchanged
             assert abs(np.median(off_a) - np.median(off_b)) <= 1000
 
     def test_lag_scene_label_is_low_passed(self):
