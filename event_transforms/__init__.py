@@ -8,6 +8,8 @@ The library:
   :class:`Compose`, :class:`OneOf`, :class:`RandomApply` (all re-exported here);
 - :mod:`event_transforms.scenes`: :class:`Scene`, which builds only the transforms for the
   physical effects a setup declares;
+- :mod:`event_transforms.inference`: :func:`infer_scene`, a scene estimated from training
+  frames and unlabeled deployment frames;
 - :mod:`event_transforms.data`: :class:`AugmentedDataset`, synthetic copies of any data set;
 - :mod:`event_transforms.viz`: pictures of event frames.
 
@@ -40,21 +42,26 @@ _TRANSFORMS = (
     "DropPixel", "RandomDropPixel", "Denoise",
     # sequence warps (issue 19)
     "RandomPerspective", "RandomElastic",
+    # scenes (issue 18)
+    "Stretch", "RandomStretch",
 )
 _NAMES: dict[str, str] = {
     **{name: "transforms" for name in _TRANSFORMS},
     "Scene": "scenes",
     "ResizeToTarget": "scenes",
+    "StretchToTarget": "scenes",
+    "infer_scene": "inference",
     "AugmentedDataset": "data",
 }
-_SUBMODULES = ("functional", "transforms", "scenes", "data", "viz", "tactile")
+_SUBMODULES = ("functional", "transforms", "scenes", "inference", "data", "viz", "tactile")
 
 __all__ = ["__version__", *_SUBMODULES, *_NAMES]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
-    from . import data, functional, scenes, tactile, transforms, viz
+    from . import data, functional, inference, scenes, tactile, transforms, viz
     from .data import AugmentedDataset
-    from .scenes import ResizeToTarget, Scene
+    from .inference import infer_scene
+    from .scenes import ResizeToTarget, Scene, StretchToTarget
     from .transforms import *  # noqa: F403
 
 

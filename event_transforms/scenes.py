@@ -7,8 +7,10 @@ effects really vary between the training data and the data the model will meet, 
 ========================================  ===============================================
 effect declared in the scene              transform built
 ========================================  ===============================================
-object size differs from training sizes   :class:`ResizeToTarget`: β = target / source,
-                                          per sample, from its metadata
+object size differs from training sizes   :class:`StretchToTarget`: across the contact
+                                          axis by (target / source)^½, per sample, from
+                                          its metadata (``size_transform="resize"``: the
+                                          paper's zoom, :class:`ResizeToTarget`)
 contact orientation varies                :class:`~event_transforms.RandomRotation`
 contact centre moves between recordings   :class:`~event_transforms.RandomTranslate`
                                           (whole pixels, zero fill)
@@ -32,7 +34,7 @@ physical effects), and crops that change the frame size.
 
 from __future__ import annotations
 
-__all__ = ["Scene", "ResizeToTarget", "metadata_values"]
+__all__ = ["Scene", "ResizeToTarget", "StretchToTarget", "metadata_values", "SIZE_TRANSFORMS"]
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -48,9 +50,17 @@ from .transforms.containers import Compose, OneOf
 from .transforms.noise import AddNoise, AddPoissonNoise
 from .transforms.geometry import RandomTranslate
 from .transforms.affine import RandomRotation, _Zoom
+from .functional.stretch import CONTACT
+from .transforms.stretch import _StretchWarp
 from .transforms.temporal import RandomFrameShift, RandomTemporalEventShift
 
 _COMBINATIONS = ("independent", "hybrid")
+#: How a scene simulates a size gap: ``"stretch"`` across the contact strip (physics) or
+#: ``"resize"``, the paper's isotropic zoom.
+SIZE_TRANSFORMS = ("stretch", "resize")
+#: The width exponent γ of each size transform's default: the contact strip's half-width
+#: grows as √D under Hertz line contact (γ = ½); the paper's zoom uses β = D₂/D₁ (γ = 1).
+_DEFAULT_EXPONENT = {"stretch": 0.5, "resize": 1.0}
 
 Metadata = Mapping[str, Any] | Sequence[Mapping[str, Any]] | None
 
@@ -132,16 +142,78 @@ class ResizeToTarget(_Zoom):
         self.key = key
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
-        source = metadata_values(metadata, self.key, shape[0], owner=type(self).__name__)
-        if source.numel() and not bool((source.isfinite() & (source > 0)).all()):
-            raise ValueError(f"metadata[{self.key!r}] must hold positive sizes, got {describe(source)}")
-        return {"scale": (self.target_size / source) ** self.exponent}
+        scale = _target_factors(metadata, self.key, shape[0], self.target_size, self.exponent, type(self).__name__)
+        return {"scale": scale}
 
     def _settings(self) -> str:
         return (
             f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, "
             f"{self._common()}"
         )
+
+
+def _target_factors(metadata: Any, key: str, batch: int, target: float, exponent: float, owner: str) -> Tensor:
+    source = metadata_values(metadata, key, batch, owner=owner)
+    if source.numel() and not bool((source.isfinite() & (source > 0)).all()):
+        raise ValueError(f"metadata[{key!r}] must hold positive sizes, got {describe(source)}")
+    return (target / source) ** exponent
+
+
+class StretchToTarget(_StretchWarp):
+    """Stretch each sample across its contact strip so its object looks ``target_size``
+    large: factor (target / source)^γ.
+
+    The scene's simulation of a size gap. A bolt pressed by a parallel gripper makes a
+    contact strip whose half-width grows as √(F·D) under Hertz line contact while the pad
+    fixes its length, so γ = ½ and only the width changes (thin layers behave closer to
+    γ = ⅓). The paper's isotropic zoom (:class:`ResizeToTarget`, β = D₂/D₁) also lengthens
+    the strip and multiplies its events by β²; see
+    :func:`event_transforms.functional.stretch` for the fidelity measured on the simulator.
+
+    ``make_params`` reads each sample's source size from its metadata (see
+    :func:`metadata_values`) and stores the factor in ``params["factor"]``.
+
+    Args:
+        target_size: the size to imitate (e.g. 15.0 mm).
+        key: the metadata entry holding each sample's size.
+        exponent: γ above (> 0).
+        axis, center, mode: as in :class:`~event_transforms.Stretch` (the contact axis by
+            default).
+        p: probability that a sample is stretched.
+
+    Example:
+        >>> transform = StretchToTarget(15.0, center="image")
+        >>> frames = torch.zeros(2, 1, 2, 5, 5)
+        >>> frames[:, 0, 0, 2, 1:4] = 1.0  # horizontal strips
+        >>> out = transform(frames, metadata={"diameter_mm": torch.tensor([3.75, 15.0])})
+        >>> out[0, 0, 0, :, 2].tolist(), out[1, 0, 0, :, 2].tolist()  # doubled in width, unchanged
+        ([0.0, 0.5, 1.0, 0.5, 0.0], [0.0, 0.0, 1.0, 0.0, 0.0])
+    """
+
+    def __init__(
+        self,
+        target_size: float,
+        *,
+        key: str = "diameter_mm",
+        exponent: float = 0.5,
+        axis: str | float = CONTACT,
+        center: Center = "mass",
+        mode: str = "bilinear",
+        p: float = 1.0,
+    ) -> None:
+        super().__init__(axis=axis, center=center, mode=mode, p=p)
+        self.target_size = check_positive(target_size, "target_size")
+        self.exponent = check_positive(exponent, "exponent")
+        if not isinstance(key, str):
+            raise TypeError(f"key must be a string, got {key!r}")
+        self.key = key
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        factor = _target_factors(metadata, self.key, shape[0], self.target_size, self.exponent, type(self).__name__)
+        return {"factor": factor}
+
+    def _settings(self) -> str:
+        return f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, {self._common()}"
 
 
 def _positive(value: object, name: str) -> float:
@@ -158,10 +230,14 @@ class Scene:
     Attributes:
         training_sizes: object sizes in the training data (e.g. ``(12.0, 18.0)`` mm bolts).
         target_size: object size to generalise to (e.g. ``15.0``); with the training sizes
-            differing from it, the policy resizes each sample by β = target / source.
+            differing from it, the policy makes each sample look that size.
         size_key: the metadata entry holding each sample's size.
-        size_exponent: β = (target / source) ** size_exponent; 1 as in the paper, 1/2
-            when the contact width grows as √D (Hertz line contact).
+        size_transform: ``"stretch"`` (default): :class:`StretchToTarget`, across the
+            contact strip only, the physics of a bolt in a parallel gripper; ``"resize"``:
+            :class:`ResizeToTarget`, the paper's isotropic zoom, kept for comparison.
+        size_exponent: factor = (target / source) ** size_exponent; ``None`` for the size
+            transform's own: ½ for the stretch (Hertz line contact: width ∝ √D), 1 for the
+            paper's resize (β = D₂/D₁).
         orientation_deg: range of the contact orientation, ``d`` for ±d or ``(min, max)``
             degrees; ``None`` or 0 if the orientation does not vary.
         lag_shifts: lags between force and events to simulate, in frames, as candidate
@@ -175,6 +251,9 @@ class Scene:
             :func:`event_transforms.tactile.datasets.noise_bank`) or a rate in Hz per pixel and
             polarity (a number or ``(min, max)``); ``None`` for none.
         frame_ms: frame length, for a noise rate.
+        evidence: what the scene was inferred from, if it was
+            (:func:`~event_transforms.scenes.infer_scene` fills it: each factor's estimates
+            in training and deployment with their uncertainty); not compared.
 
     Example:
         >>> scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,))
@@ -190,13 +269,15 @@ class Scene:
     training_sizes: tuple[float, ...] = ()
     target_size: float | None = None
     size_key: str = "diameter_mm"
-    size_exponent: float = 1.0
+    size_exponent: float | None = None
     orientation_deg: float | tuple[float, float] | None = None
     lag_shifts: Sequence[int] | None = None
     lag_fraction: float | tuple[float, float] | None = None
     contact_shift_px: int | tuple[int, int] | None = None
     noise: Tensor | float | tuple[float, float] | None = field(default=None, compare=False)
     frame_ms: float = 10.0
+    size_transform: str = "stretch"
+    evidence: Mapping[str, Any] | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(
@@ -204,7 +285,10 @@ class Scene:
         )
         if self.target_size is not None:
             _positive(self.target_size, "target_size")
-        _positive(self.size_exponent, "size_exponent")
+        if self.size_exponent is not None:
+            _positive(self.size_exponent, "size_exponent")
+        if self.size_transform not in SIZE_TRANSFORMS:
+            raise ValueError(f"size_transform must be one of {SIZE_TRANSFORMS}, got {self.size_transform!r}")
         _positive(self.frame_ms, "frame_ms")
         if self.contact_shift_px is not None:
             try:
@@ -235,6 +319,14 @@ class Scene:
             found.append("noise")
         return tuple(found)
 
+    @property
+    def gaps(self) -> tuple[str, ...]:
+        """The declared effects named as the factors of a benchmark scene: ``lag`` is a
+        ``timing`` gap, ``position`` a ``center`` gap; ``size``, ``orientation`` and
+        ``noise`` keep their names."""
+        names = {"lag": "timing", "position": "center"}
+        return tuple(names.get(effect, effect) for effect in self.effects)
+
     def _contact_shift(self) -> tuple[int, int]:
         return RandomTranslate(self.contact_shift_px).max_shift  # type: ignore[arg-type]
 
@@ -249,14 +341,10 @@ class Scene:
                 else:
                     built.append(RandomTemporalEventShift(shifts, self.lag_fraction))
             elif effect == "size":
+                kind = StretchToTarget if self.size_transform == "stretch" else ResizeToTarget
+                exponent = _DEFAULT_EXPONENT[self.size_transform] if self.size_exponent is None else self.size_exponent
                 built.append(
-                    ResizeToTarget(
-                        self.target_size,  # type: ignore[arg-type]
-                        key=self.size_key,
-                        exponent=self.size_exponent,
-                        center=center,
-                        mode=mode,
-                    )
+                    kind(self.target_size, key=self.size_key, exponent=exponent, center=center, mode=mode)  # type: ignore[arg-type]
                 )
             elif effect == "orientation":
                 built.append(RandomRotation(self.orientation_deg, center=center, mode=mode))  # type: ignore[arg-type]

@@ -1,12 +1,25 @@
 """Pictures of event frames: ON and OFF counts in two colours, as the paper's Fig. 1.
 
-Built on torchvision's ``make_grid`` and ``save_image`` (Pillow, which torchvision already
-needs, writes the PNG); no plotting library is needed.
+The grids (:func:`make_event_grid`, :func:`compare_transform`) are built on torchvision's
+``make_grid`` and ``save_image`` (Pillow writes the PNG); no plotting library is needed.
+The labelled figures (:func:`plot_transform`: rows named before/after, a polarity legend,
+frame times, the frames where the transform acts; :func:`plot_scene`: training above
+deployment, the scene's gaps in the title, event-rate curves and histograms of the
+contact width, angle and onset beside the frames) need matplotlib, the ``plot`` extra
+(``pip install event-transforms[plot]``), imported on first use.
 """
 
 from __future__ import annotations
 
-__all__ = ["frames_to_rgb", "make_event_grid", "save_event_grid", "compare_transform"]
+__all__ = [
+    "frames_to_rgb",
+    "make_event_grid",
+    "save_event_grid",
+    "compare_transform",
+    "acting_frames",
+    "plot_transform",
+    "plot_scene",
+]
 
 import os
 from collections.abc import Callable, Sequence
@@ -203,3 +216,211 @@ def compare_transform(
     if path is not None:
         _write(grid, path)
     return grid
+
+
+# --------------------------------------------------------------------------- labelled figures
+
+
+def _pyplot() -> Any:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg", force=False)
+        import matplotlib.pyplot as plt
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "the labelled figures need matplotlib: pip install 'event-transforms[plot]'"
+        ) from None
+    return plt
+
+
+def acting_frames(before: Tensor, after: Tensor, count: int = 8) -> Tensor:
+    """Indices (sorted) of the ``count`` frames that the transform changed most.
+
+    The change of frame t is the sum of ``|after - before|`` over its pixels and
+    polarities; frames it did not change at all are never picked ahead of changed ones, and
+    an identity gives ``count`` evenly spaced frames.
+
+    Example:
+        >>> before = torch.zeros(6, 2, 3, 3)
+        >>> after = before.clone()
+        >>> after[4, 0, 1, 1] = 2.0
+        >>> after[1, 1, 0, 0] = 1.0
+        >>> acting_frames(before, after, 2).tolist()
+        [1, 4]
+    """
+    check_frames(before)
+    if before.shape != after.shape or before.dim() != 4:
+        raise ValueError(
+            f"before and after must be one sequence (T, 2, H, W) each, got {tuple(before.shape)} and "
+            f"{tuple(after.shape)}"
+        )
+    t = before.shape[0]
+    count = max(1, min(int(count), t))
+    change = (after.detach().double().cpu() - before.detach().double().cpu()).abs().sum((1, 2, 3))
+    if float(change.sum()) == 0:
+        return torch.linspace(0, t - 1, count).round().long().unique()
+    return change.argsort(descending=True, stable=True)[:count].sort().values
+
+
+def _legend(ax: Any) -> None:
+    from matplotlib.patches import Patch
+
+    ax.legend(
+        handles=[
+            Patch(color=[c / 255 for c in ON_COLOR], label="ON (channel 1)"),
+            Patch(color=[c / 255 for c in OFF_COLOR], label="OFF (channel 0)"),
+        ],
+        loc="upper right",
+        fontsize=7,
+        frameon=False,
+        ncol=2,
+        bbox_to_anchor=(1.0, 1.35),
+    )
+
+
+def plot_transform(
+    before: Tensor,
+    after: Tensor,
+    path: str | os.PathLike[str] | None = None,
+    *,
+    frame_ms: float = 10.0,
+    count: int = 8,
+    title: str = "",
+    upscale: int = 2,
+) -> Any:
+    """A labelled before/after figure of one sequence: the frames the transform acts on.
+
+    Row "before" and row "after" share one colour scale (so added or removed events show);
+    each column is titled with its frame's time window; the legend names the polarity
+    colours. Needs matplotlib (the ``plot`` extra).
+
+    Args:
+        before, after: one sequence ``(T, 2, H, W)`` each.
+        path: where to write the PNG (optional).
+        frame_ms: frame length, for the times.
+        count: frames shown, those changed most (:func:`acting_frames`).
+        title: the figure's title (e.g. the method's name).
+        upscale: integer magnification of the frames.
+
+    Returns:
+        The matplotlib figure (closed if ``path`` was given).
+    """
+    plt = _pyplot()
+    frames = acting_frames(before, after, count)
+    pair = torch.stack([before.detach().cpu().double(), after.detach().cpu().double()])
+    vmax = float(pair.amax()) if pair.numel() else 1.0
+    rgb = frames_to_rgb(pair[:, frames], vmax=vmax)  # (2, k, 3, H, W)
+    if upscale > 1:
+        rgb = rgb.repeat_interleave(upscale, -2).repeat_interleave(upscale, -1)
+    k, (h, w) = len(frames), rgb.shape[-2:]
+    padding = 2
+    from torchvision.utils import make_grid
+
+    image = make_grid(rgb.flatten(0, 1), nrow=k, padding=padding, pad_value=128)
+    fig, ax = plt.subplots(figsize=(1.2 * k + 1.2, 3.0))
+    ax.imshow(image.permute(1, 2, 0).numpy())
+    ax.set_xticks([padding + (w + padding) * c + w / 2 for c in range(k)])
+    ax.set_xticklabels([f"{int(t) * frame_ms:g}–{(int(t) + 1) * frame_ms:g} ms" for t in frames], fontsize=7)
+    ax.set_yticks([padding + (h + padding) * r + h / 2 for r in range(2)])
+    ax.set_yticklabels(["before", "after"], fontsize=9)
+    _legend(ax)
+    ax.set_title(title or "transform", fontsize=10, loc="left", pad=22)
+    ax.set_xlabel("the frames the transform changes most; before and after share one colour scale", fontsize=7)
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.8, bottom=0.2)
+    if path is not None:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return fig
+
+
+def plot_scene(
+    train: Tensor,
+    deploy: Tensor,
+    path: str | os.PathLike[str] | None = None,
+    *,
+    title: str = "",
+    gaps: Sequence[str] = (),
+    frame_ms: float = 10.0,
+    rows: int = 2,
+    every: int = 4,
+    upscale: int = 1,
+) -> Any:
+    """A scene at a glance: training grasps above deployment grasps, and what differs.
+
+    Left: ``rows`` training and ``rows`` deployment grasps (every ``every``-th frame,
+    labelled by session and time). Right: the mean contact-event rate per frame of each
+    session (timing gaps show as shifted curves), and histograms over all given grasps of
+    the contact width, the contact angle and the background rate
+    (:func:`event_transforms.inference.sequence_statistics`): size, orientation and noise
+    gaps show as shifted histograms. The title names the gaps. Needs matplotlib.
+
+    Args:
+        train, deploy: grasps ``(N, T, 2, H, W)`` of each session (N ≥ ``rows``).
+        path: where to write the PNG (optional).
+        title: the figure's title (e.g. the scene's name and description).
+        gaps: the scene's gaps, named in the title.
+        frame_ms: frame length.
+        rows: grasps of each session drawn as frames.
+        every: show every n-th frame.
+        upscale: integer magnification of the frames.
+
+    Returns:
+        The matplotlib figure (closed if ``path`` was given).
+    """
+    from .inference import sequence_statistics
+
+    plt = _pyplot()
+    check_frames(train, "train")
+    check_frames(deploy, "deploy")
+    rows = max(1, min(int(rows), train.shape[0], deploy.shape[0]))
+    shown = torch.cat([train[:rows], deploy[:rows]]).detach().cpu().double()[:, ::every]
+    k, (h, w) = shown.shape[1], shown.shape[-2:]
+    padding = 2
+    image = make_event_grid(shown, nrow=k, padding=padding, upscale=upscale)  # one image: cheap to draw
+    fig = plt.figure(figsize=(0.75 * k + 6.5, 0.8 * 2 * rows + 1.6))
+    grid = fig.add_gridspec(2, 3, width_ratios=[0.75 * k, 3.0, 3.0], wspace=0.35, hspace=0.55)
+    ax = fig.add_subplot(grid[:, 0])
+    ax.imshow(image.permute(1, 2, 0).numpy())
+    step_x, step_y = w * upscale + padding, h * upscale + padding
+    ax.set_xticks([padding + step_x * c + w * upscale / 2 for c in range(k)])
+    ax.set_xticklabels([f"{c * every * frame_ms:g}" for c in range(k)], fontsize=7)
+    ax.set_xlabel("frame start (ms)", fontsize=8)
+    ax.set_yticks([padding + step_y * r + h * upscale / 2 for r in range(2 * rows)])
+    ax.set_yticklabels([("training" if r < rows else "deployment") + f" {r % rows + 1}" for r in range(2 * rows)], fontsize=8)
+    ax.axhline(padding / 2 + step_y * rows, color="black", linewidth=1.5)
+    _legend(ax)
+    colours = {"training": "tab:gray", "deployment": "tab:purple"}
+    stats = {name: sequence_statistics(x.detach().cpu()) for name, x in (("training", train), ("deployment", deploy))}
+    times = (torch.arange(train.shape[1]) + 0.5) * frame_ms
+    ax = fig.add_subplot(grid[0, 1])
+    ax.tick_params(labelsize=7)
+    for name, x in (("training", train), ("deployment", deploy)):
+        ax.plot(times, x.detach().double().sum((2, 3, 4)).mean(0), color=colours[name], label=name)
+    ax.set_xlabel("time (ms)", fontsize=8)
+    ax.set_ylabel("events per frame (mean)", fontsize=8)
+    ax.set_title("event rate: timing", fontsize=8)
+    ax.legend(fontsize=7, frameon=False)
+    panels = [
+        ("width_px", "contact width (px): size", grid[1, 1]),
+        ("angle_deg", "contact angle (°): orientation", grid[0, 2]),
+        ("background", "background (events/px/frame): noise", grid[1, 2]),
+    ]
+    for key, label, cell in panels:
+        ax = fig.add_subplot(cell)
+        values = torch.cat([stats["training"][key], stats["deployment"][key]])
+        low, high = float(values.min()), float(values.max())
+        bins = torch.linspace(low, high if high > low else low + 1, 16).numpy()
+        for name in ("training", "deployment"):
+            ax.hist(stats[name][key].numpy(), bins=bins, alpha=0.55, color=colours[name], label=name)
+        ax.set_title(label, fontsize=8)
+        ax.tick_params(labelsize=7)
+    named = ", ".join(gaps) if gaps else "none (control)"
+    fig.suptitle(f"{title}\ngaps: {named}", fontsize=9, x=0.01, ha="left")
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.8, bottom=0.12)
+    if path is not None:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+    return fig

@@ -19,6 +19,7 @@ from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse
 
 INTERPOLATING = {"Rotate", "RandomRotation", "Resize", "RandomResize"}
 INTERPOLATING |= {"Affine", "RandomAffine", "RandomCropResize", "CenterCropResize", "RandomPerspective", "RandomElastic"}
+INTERPOLATING |= {"Stretch", "StretchAtAngle", "RandomStretch", "StretchToTarget"}
 # modules whose kernels need whole, non-negative counts and check them
 VALUE_CHECKED = {"TemporalEventShift", "TemporalEventShiftBinomial", "RandomTemporalEventShift", "RandomEventDrop"}
 
@@ -68,6 +69,10 @@ FACTORIES = {
     # sequence warps (issue 19)
     "RandomPerspective": lambda t, h, w: et.RandomPerspective(0.3),
     "RandomElastic": lambda t, h, w: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0, p=0.5),
+    # scenes (issue 18)
+    "Stretch": lambda t, h, w: et.Stretch(1.3),
+    "StretchAtAngle": lambda t, h, w: et.Stretch(0.8, axis=30.0, center="image"),
+    "RandomStretch": lambda t, h, w: et.RandomStretch((0.8, 1.25)),
 }
 
 NAMES = sorted(FACTORIES)

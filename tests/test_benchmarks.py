@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from benchmarks import _common, accuracy, kornia_warp, peers, scaling, size_confound, streaming, training, transforms
+from benchmarks import _common, accuracy, fidelity, kornia_warp, peers, scaling, size_confound, streaming, training, transforms
 
 
 def _results(tmp_path):
@@ -259,3 +259,17 @@ class TestSizeConfound:
         assert mixed["events only"] > 3 * mixed["events + bolt size"]
         assert single["events only"] < 2 * single["events + bolt size"]
         assert "events + bolt size" in _section(path, "size_confound")
+
+
+@pytest.mark.slow
+class TestFidelity:
+    def test_quick_run(self, tmp_path):
+        """The stretch scores near real deployment grasps, the paper's zoom far from them."""
+        path = _results(tmp_path)
+        results = fidelity.main(["--quick", "--results", str(path)])
+        for scores in results["paper"].values():
+            assert scores["stretch"] < 2 * scores["real deployment"] + 0.5
+            assert scores["resize"] > 5 * scores["stretch"] and scores["none"] > 3 * scores["stretch"]
+        lag = results["paper-lag"]["12 + 18 mm"]
+        assert lag["fs-1 + stretch"] < lag["stretch"]
+        assert "stretch" in _section(path, "fidelity")

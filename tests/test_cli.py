@@ -13,6 +13,7 @@ import event_transforms as et
 from event_transforms.tactile import cli, experiment, protocol
 from event_transforms.tactile.protocol import (
     PAPER_METHODS,
+    QUICK_METHODS,
     MaterializedDataset,
     Method,
     ProtocolConfig,
@@ -99,7 +100,7 @@ class TestParseMethod:
         scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0, orientation_deg=10)
         method = Method.from_scene("mine", scene, copies=2, combination="hybrid")
         assert method.copies == 2
-        assert [type(t) for t in method.build().transforms] == [et.ResizeToTarget, et.RandomRotation]
+        assert [type(t) for t in method.build().transforms] == [et.StretchToTarget, et.RandomRotation]
         with pytest.raises(TypeError):
             Method.from_transform("x", lambda f: f)
         with pytest.raises(TypeError):
@@ -118,7 +119,7 @@ class TestParseMethod:
             frames, _, meta = train[n + index]
             original, _, original_meta = train[index]
             assert meta == original_meta
-            torch.testing.assert_close(frames, et.Resize(15.0 / meta["diameter_mm"])(original))
+            torch.testing.assert_close(frames, et.Stretch((15.0 / meta["diameter_mm"]) ** 0.5)(original))
 
 
 class TestTrainingSet:
@@ -179,8 +180,11 @@ class TestMaterializedDataset:
 
 class TestScenesAndMethods:
     def test_scene_methods(self):
-        assert methods_for("paper") == PAPER_METHODS
-        assert methods_for("timing") == ("none", "fs2", "tes2:0.5")
+        policies = ("inferred", "prior", "everything")
+        assert methods_for("paper") == PAPER_METHODS + ("stretch", *policies)
+        assert methods_for("timing") == ("none", "fs2", "tes2:0.5", *policies)
+        assert methods_for("control") == QUICK_METHODS["control"]
+        assert methods_for("paper-lag") == ("none", "fs-1", "tes-2:0.5", "stretch", *policies)
         assert methods_for("control")[0] == "none"
         full = methods_for("control", full=True)
         assert "resize" not in full and "rot45" in full and "noise" in full  # no size gap: no resize
@@ -493,8 +497,9 @@ class TestCommandLine:
         assert cli.main(["reproduce", "--plan", "--scenes", "control", "timing", "--seeds", "0-7",
                          "--steps", "100", "--out", str(tmp_path)]) == 0
         printed = capsys.readouterr().out
-        # control: 4 methods, timing: 3; budget check on timing only: none + one method at 200 steps
-        assert "7 units, 56 members" in printed and "5,600 member-steps" in printed
+        # control: 4 methods (no gap, so no policy rows), timing: 3 + inferred, prior, everything;
+        # budget check on timing only: none + one method at 200 steps
+        assert "10 units, 80 members" in printed and "8,000 member-steps" in printed
         assert "budget check on ['timing']: 2 units, 3,200 member-steps at 200 steps" in printed
 
     def test_help_does_not_import_torch(self):
@@ -592,6 +597,6 @@ class TestCommandLineRealData:
             cli.main(["show", "fs-1", "--root", str(cache), "--index", "48", "--out", str(tmp_path / "x.png")])
 
     def test_show_scene(self, cache, tmp_path, capsys):
-        assert cli.main(["show-scene", "timing", "--root", str(cache), "--out", str(tmp_path)]) == 0
+        assert cli.main(["show-scene", "timing", "--count", "3", "--out", str(tmp_path)]) == 0
         path = tmp_path / "scene_timing.png"
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "deployment" in capsys.readouterr().out

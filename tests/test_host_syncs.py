@@ -114,6 +114,9 @@ MODULES = {
     "DropHotPixels": lambda: et.DropPixel(rate_hz=100.0),
     "RandomDropPixel": lambda: et.RandomDropPixel(0.3),
     "Denoise": lambda: et.Denoise(),
+    # the contact axis is computed on the device, never read back
+    "RandomStretch": lambda: et.RandomStretch((0.8, 1.25), p=0.5),
+    "StretchAtAngle": lambda: et.Stretch(1.2, axis=30.0, center="image"),
     "RandomPerspective": lambda: et.RandomPerspective(0.3, p=0.5),
     "RandomElastic": lambda: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0),
 }

@@ -22,7 +22,7 @@ from event_transforms import (
 )
 from event_transforms import functional as F
 from event_transforms.data import AugmentedDataset
-from event_transforms.scenes import ResizeToTarget, Scene, metadata_values
+from event_transforms.scenes import ResizeToTarget, Scene, StretchToTarget, metadata_values
 
 T, H, W = 5, 17, 11
 
@@ -35,7 +35,7 @@ EFFECT_FIELDS = {
 }
 EFFECT_TYPES = {
     "lag": RandomFrameShift,
-    "size": ResizeToTarget,
+    "size": StretchToTarget,
     "orientation": RandomRotation,
     "noise": AddNoise,
     "position": RandomTranslate,
@@ -98,7 +98,7 @@ class TestSceneEffects:
         policy = scene.policy("hybrid")
         assert isinstance(policy, Compose)
         assert [type(t).__name__ for t in policy.transforms] == [
-            "RandomFrameShift", "ResizeToTarget", "RandomRotation", "AddPoissonNoise"
+            "RandomFrameShift", "StretchToTarget", "RandomRotation", "AddPoissonNoise"
         ]
         assert isinstance(scene.policy(), OneOf)
 
@@ -179,7 +179,7 @@ class TestScenePolicies:
         beta = metadata_values(meta, "diameter_mm", frames.shape[0]).reciprocal() * 15.0
         return {
             "lag": F.frame_shift(frames, -1),
-            "size": F.resize(frames, beta),
+            "size": F.stretch(frames, beta.sqrt()),
             "orientation": F.rotate(frames, 30.0),
         }
 
@@ -200,7 +200,7 @@ class TestScenePolicies:
         frames, meta = frames_batch(), sizes()
         out = scene.policy("hybrid")(frames, metadata=meta)
         beta = metadata_values(meta, "diameter_mm", 4).reciprocal() * 15.0
-        expected = F.rotate(F.resize(F.frame_shift(frames, -1), beta), 30.0 + 1e-9)
+        expected = F.rotate(F.stretch(F.frame_shift(frames, -1), beta.sqrt()), 30.0 + 1e-9)
         torch.testing.assert_close(out, expected)
 
     def test_noise_bank_is_added(self):
@@ -226,7 +226,7 @@ class TestScenePolicies:
         policy = Scene(**EFFECT_FIELDS["size"], **EFFECT_FIELDS["noise"]).policy()
         clone = pickle.loads(pickle.dumps(policy))
         assert isinstance(clone, OneOf) and repr(clone) == repr(policy)
-        assert [type(t).__name__ for t in clone.transforms] == ["ResizeToTarget", "AddNoise"]
+        assert [type(t).__name__ for t in clone.transforms] == ["StretchToTarget", "AddNoise"]
 
     def test_policy_composes_with_other_transforms(self):
         # a user's pipeline around a scene policy: metadata reaches the policy's resize
@@ -238,7 +238,7 @@ class TestScenePolicies:
         index = params["0"]["index"]
         beta = metadata_values(meta, "diameter_mm", 4).reciprocal() * 15.0
         for i in range(4):
-            alone = F.frame_shift(frames[i], -1) if index[i] == 0 else F.resize(frames[i], float(beta[i]))
+            alone = F.frame_shift(frames[i], -1) if index[i] == 0 else F.stretch(frames[i], float(beta[i]) ** 0.5)
             torch.testing.assert_close(out[i], alone.flip(-1))
 
     def test_augmented_dataset_passes_metadata(self):
@@ -246,7 +246,7 @@ class TestScenePolicies:
         base = [(frames[i], torch.zeros(T), {"diameter_mm": d, "index": i}) for i, d in enumerate((12.0, 18.0))]
         data = AugmentedDataset(base, Scene(**EFFECT_FIELDS["size"]).policy(), copies=1)
         for i, beta in ((2, 1.25), (3, 15 / 18)):
-            torch.testing.assert_close(data[i][0], F.resize(frames[i - 2], beta))
+            torch.testing.assert_close(data[i][0], F.stretch(frames[i - 2], beta**0.5))
             assert data[i][2] == base[i - 2][2]
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import numpy as np
 import pytest
 import torch
@@ -356,3 +357,28 @@ class TestResizeMatchesAnotherBolt:
 
 
 PINNED = (42579, 174948, 5118963, 19002)
+
+
+class TestLagEffects:
+    """Issue 18's lag effects: a slower membrane release, a low-passed label."""
+
+    def test_release_time_constant(self):
+        from event_transforms.tactile.simulation import membrane_force
+
+        force = np.concatenate([np.zeros(5), np.full(200, 10.0), np.zeros(400)])[None]
+        symmetric = membrane_force(force, np.array([5.0]), 0.1)
+        slow = membrane_force(force, np.array([5.0]), 0.1, release_ratio=3.0)
+        assert np.array_equal(symmetric[:, :205], slow[:, :205])  # pressing: τ
+        # relaxing once the force is 0: e^(-t/15 ms) instead of e^(-t/5 ms)
+        assert slow[0, 205 + 150] == pytest.approx(slow[0, 205] * math.exp(-15.0 / 15.0), rel=1e-6)
+        assert symmetric[0, 205 + 150] == pytest.approx(symmetric[0, 205] * math.exp(-15.0 / 5.0), rel=1e-6)
+
+    def test_defaults_keep_old_output_and_bad_values_raise(self):
+        config = SimulatorConfig(sensor_size=(40, 50), n_frames=6)
+        same = config.replace(release_lag_ratio=1.0, label_lowpass_ms=0.0)
+        a, b = simulate_grasp(15.0, seed=2, config=config), simulate_grasp(15.0, seed=2, config=same)
+        assert np.array_equal(a.events, b.events) and np.array_equal(a.force, b.force)
+        with pytest.raises(ValueError, match="release_lag_ratio"):
+            SimulatorConfig(release_lag_ratio=0.0)
+        with pytest.raises(ValueError, match="label_lowpass_ms"):
+            SimulatorConfig(label_lowpass_ms=-1.0)

@@ -28,6 +28,7 @@ class TestDeclarations:
         expected = {
             "paper": ("size",), "size-extrapolation": ("size",), "timing": ("timing",),
             "orientation": ("orientation",), "noise": ("noise",), "control": (),
+            "paper-lag": ("size", "timing"),
         }
         assert {name: scene.gaps for name, scene in SCENES.items()} == expected
         for scene in SCENES.values():
@@ -129,6 +130,45 @@ class TestMeasuredGaps:
             x, y = np.array([stat(r) for r in a]), np.array([stat(r) for r in b])
             spread = math.sqrt(x.var(ddof=1) / len(x) + y.var(ddof=1) / len(y))
             assert abs(x.mean() - y.mean()) < 3 * spread
+
+    def test_lag_scene_offset(self):
+        """paper-lag: deployment events start earlier than training events by the drawn
+        difference of delays (same seeds, same bolt), about one frame."""
+        scene = get_scene("paper-lag")
+        train = _recordings(scene.train, 4, diameters_mm=(15.0,), **QUIET)
+        deploy = _recordings(scene.deploy, 4, **QUIET)
+        for a, b in zip(train, deploy):
+            onset = (b.events["t"][0] - a.events["t"][0]) / 1000.0
+            assert onset == pytest.approx(b.grasp.delay_ms - a.grasp.delay_ms, abs=1.0)
+            assert -18.0 <= onset <= -8.0
+        assert scene.lag_frames == -1 and scene.matched_methods == ("fs-1", "tes-2:0.5")
+
+    def test_lag_scene_membrane_releases_slowly(self):
+        """With the release time constant 3× the press one, the release's ON events come later
+        (and fewer of them fall inside the recording, which ends soon after the release); the
+        press's OFF events do not move."""
+        scene = get_scene("paper-lag")
+        slow = _recordings(scene.deploy, 6, **QUIET)
+        fast = _recordings(scene.deploy, 6, release_lag_ratio=1.0, **QUIET)
+        for a, b in zip(slow, fast):
+            on_a, on_b = a.events["t"][a.events["p"] == 1], b.events["t"][b.events["p"] == 1]
+            off_a, off_b = a.events["t"][a.events["p"] == 0], b.events["t"][b.events["p"] == 0]
+            assert len(on_a) <= 0.9 * len(on_b)  # the membrane has not recovered by the end
+            assert np.median(on_a) >= np.median(on_b)
+            assert abs(len(off_a) - len(off_b)) <= 0.01 * len(off_b)  # pressing is unchanged
+            assert abs(np.median(off_a) - np.median(off_b)) <= 1000
+
+    def test_lag_scene_label_is_low_passed(self):
+        """The F/T label is the force through a 15 ms first-order low-pass: its centre of
+        mass in time comes about 15 ms after the true force's."""
+        scene = get_scene("paper-lag")
+        labelled = _recordings(scene.deploy, 4, **QUIET)
+        true = _recordings(scene.deploy, 4, label_lowpass_ms=0.0, **QUIET)
+        t = (np.arange(36) + 0.5) * 10.0
+        for a, b in zip(labelled, true):
+            delay = (t * a.force).sum() / a.force.sum() - (t * b.force).sum() / b.force.sum()
+            assert 10.0 <= delay <= 16.0
+            assert np.array_equal(a.events, b.events)  # the events do not see the label's filter
 
     def test_force_is_continuous_and_varied(self):
         grasps = BASE_SESSION.grasps(40, seed=0)

@@ -6,6 +6,7 @@ import pytest
 import torch
 import numpy as np
 from PIL import Image
+import event_transforms as et
 
 from event_transforms.viz import (
     BACKGROUND,
@@ -107,3 +108,38 @@ class TestCompareTransform:
     def test_shape_change_raises(self):
         with pytest.raises(ValueError, match="shape"):
             compare_transform(sample(t=2), lambda x: x[:, :1])
+
+
+class TestLabelledFigures:
+    """Issue 18: rows named before/after, polarity legend, frame times; scenes with their gaps."""
+
+    def test_acting_frames(self):
+        from event_transforms.viz import acting_frames
+
+        before = torch.zeros(10, 2, 4, 5)
+        after = et.FrameShift(-1)(before.clone())
+        assert acting_frames(before, after, 4).tolist() == [0, 3, 6, 9]  # identity: evenly spaced
+        before[6, 0, 1, 1] = 3.0
+        after = et.FrameShift(-1)(before)
+        assert acting_frames(before, after, 2).tolist() == [5, 6]
+        with pytest.raises(ValueError, match="one sequence"):
+            acting_frames(before.unsqueeze(0), after.unsqueeze(0))
+
+    def test_plot_transform_and_scene(self, tmp_path):
+        pytest.importorskip("matplotlib")
+        from event_transforms.viz import plot_scene, plot_transform
+
+        g = torch.Generator().manual_seed(0)
+        frames = torch.poisson(torch.full((6, 12, 2, 16, 20), 0.05), generator=g)
+        frames[:, 3:8, 0, 7:9, 3:17] += 3.0
+        path = plot_transform(frames[0], et.FrameShift(-2)(frames[0]), tmp_path / "t.png", title="fs-2")
+        fig = plot_transform(frames[0], et.FrameShift(-2)(frames[0]), title="fs-2")
+        labels = [t.get_text() for t in fig.axes[0].get_yticklabels()]
+        assert labels == ["before", "after"] and "ms" in fig.axes[0].get_xticklabels()[0].get_text()
+        assert (tmp_path / "t.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path is not None
+        fig = plot_scene(frames[:3], frames[3:], tmp_path / "s.png", title="x", gaps=("timing",), every=3)
+        text = fig.texts[0].get_text() if fig.texts else fig._suptitle.get_text()
+        assert "gaps: timing" in text
+        rows = [t.get_text() for t in fig.axes[0].get_yticklabels()]
+        assert rows == ["training 1", "training 2", "deployment 1", "deployment 2"]
+        assert (tmp_path / "s.png").exists()

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from .affine import *  # noqa: F401,F403
 from .affine import __all__ as _affine
+from .stretch import *  # noqa: F401,F403
+from .stretch import __all__ as _stretch
 from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
 from .noise import *  # noqa: F401,F403

@@ -221,6 +221,17 @@ def _affine(
             yx = torch.as_tensor(center, dtype=torch.float64).cpu().numpy()
         ones_yx = np.concatenate([np.ones((b, 1)), np.broadcast_to(yx, (b, 2))], axis=1)
         theta = torch.from_numpy((matrix @ ones_yx[:, :, None]).reshape(b, 2, 3)).to(batch.device, work)
+    return _warp(batch, theta, mode)
+
+
+def _warp(batch: Tensor, theta: Tensor, mode: str) -> Tensor:
+    """Sample every frame of sequence b through its (2, 3) matrix ``theta[b]`` (normalised
+    coordinates of ``grid_sample`` with ``align_corners=True``, zero padding): one
+    ``affine_grid`` and one ``grid_sample`` for all T·2 frames, folded into channels. The
+    one warp of rotate, resize, affine and stretch."""
+    b, t, p, height, width = batch.shape
+    work, out_dtype = _work_dtype(batch.dtype, mode), _output_dtype(batch.dtype, mode)
+    theta = theta.to(batch.device, work)
     if height == 1 or width == 1:
         with warnings.catch_warnings():  # unit-size axes map to pixel 0, as intended here
             warnings.filterwarnings("ignore", message="Since version 1.3.0, affine_grid")

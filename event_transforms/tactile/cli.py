@@ -185,17 +185,17 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("--out", type=Path, default=None, help="PNG path (default ./<method>.png)")
     show.add_argument("--index", type=int, default=0, help="training sequence to show")
     show.add_argument("--seed", type=int, default=0, help="seed of the random draw")
-    show.add_argument("--every", type=_positive, default=3, help="show every n-th frame (default 3)")
+    show.add_argument("--count", type=_positive, default=8, help="frames shown: those the method changes most (default 8)")
     show.add_argument("--upscale", type=_positive, default=2, help="pixel magnification (default 2)")
     show.add_argument("--root", type=Path, help="data cache folder")
 
     scene = sub.add_parser("show-scene", help="write a PNG of a scene's training and deployment grasps")
     scene.add_argument("scene", nargs="?", default=None, help="scene name (default: every scene)")
     scene.add_argument("--out", type=Path, default=Path("."), help="folder for scene_<name>.png (default .)")
-    scene.add_argument("--count", type=_positive, default=2, help="grasps of each session (default 2)")
-    scene.add_argument("--every", type=_positive, default=3, help="show every n-th frame (default 3)")
-    scene.add_argument("--upscale", type=_positive, default=2, help="pixel magnification (default 2)")
-    scene.add_argument("--root", type=Path, help="data cache folder")
+    scene.add_argument("--count", type=_positive, default=6, help="grasps simulated per session, for the histograms (default 6)")
+    scene.add_argument("--rows", type=_positive, default=2, help="grasps of each session drawn as frames (default 2)")
+    scene.add_argument("--every", type=_positive, default=4, help="show every n-th frame (default 4)")
+    scene.add_argument("--upscale", type=_positive, default=1, help="pixel magnification (default 1)")
     return parser
 
 
@@ -360,23 +360,40 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _show_scene(args: argparse.Namespace) -> int:
+    """One labelled figure per scene from ``--count`` freshly simulated grasps per session
+    (not the cached splits: a picture needs a few grasps, not 168)."""
     import torch
 
     from .. import viz
-    from . import datasets
     from .scenes import SCENES, get_scene
+    from .simulation import simulate_grasps
 
     names = [get_scene(args.scene).name] if args.scene else list(SCENES)
-    _writable(args.root, "--root")
     _writable(args.out, "--out")
-    root = None if args.root is None else str(args.root)
+    args.out.mkdir(parents=True, exist_ok=True)
+    simulated: dict = {}  # scenes share sessions (most train on the base session): simulate each once
+
+    def grasps(session, seed):
+        if (session, seed) not in simulated:
+            recordings = simulate_grasps(session.grasps(args.count, seed=seed), session.config)
+            simulated[session, seed] = torch.stack([r.frames(crop=r.contact_crop((140, 150)), pool=2) for r in recordings])
+        return simulated[session, seed]
+
     for name in names:
-        train = datasets.TactileGrasps("train", root=root, scene=name)
-        test = datasets.TactileGrasps("test", root=root, scene=name)
-        count = min(args.count, len(train), len(test))
-        rows = torch.cat([train.frames[:count], test.frames[:count]])[:, :: args.every]
-        path = viz.save_event_grid(rows, args.out / f"scene_{name}.png", upscale=args.upscale)
-        _print(f"wrote {path} (top {count} rows: training session, bottom {count}: deployment session)")
+        start = time.perf_counter()
+        scene = get_scene(name)
+        sessions = [grasps(scene.train, 0), grasps(scene.deploy, 10_000)]
+        path = args.out / f"scene_{name}.png"
+        gaps = [
+            f"{factor} ({'; '.join(f'{k} {a} → {b}' for k, (a, b) in settings.items())})"
+            for factor, settings in scene.gap_sizes().items()
+        ]
+        viz.plot_scene(
+            sessions[0], sessions[1], path, title=f"{name}: {scene.description}", gaps=gaps,
+            frame_ms=scene.train.config.frame_ms, rows=args.rows, every=args.every, upscale=args.upscale,
+        )
+        _print(f"wrote {path} ({args.rows} training rows above {args.rows} deployment rows, histograms of "
+               f"{args.count} grasps per session; {time.perf_counter() - start:.1f} s)")
     return 0
 
 
@@ -399,11 +416,12 @@ def _show(args: argparse.Namespace) -> int:
     bank = datasets.noise_bank(config=train.scene.deploy.config) if method.needs_noise_bank else None
     transform = method.build(bank)
     generator = torch.Generator().manual_seed(args.seed)
-    with torch.no_grad():  # transform the whole sequence, then show every n-th frame
+    with torch.no_grad():
         after = frames if transform is None else transform(frames, generator=generator, metadata=meta)
-    shown = after[:: args.every]
     out = args.out or Path(f"{args.method.replace(':', '_')}.png")
-    viz.compare_transform(frames[:: args.every], lambda _: shown, out, upscale=args.upscale)
+    title = f"{args.method} on {args.scene} training grasp {args.index} ({meta['diameter_mm']:g} mm)"
+    viz.plot_transform(frames, after, out, frame_ms=train.config.frame_ms, count=args.count,
+                       title=title, upscale=args.upscale)
     _print(f"wrote {out}")
     return 0
 

@@ -100,13 +100,27 @@ def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool
         "format": _CACHE_FORMAT,
         "simulator": SIMULATOR_VERSION,
         "diameters_mm": list(session.diameters_mm),
-        "config": dataclasses.asdict(session.config),
+        "config": _config_key(session.config),
         "seeds": [seeds.start, seeds.stop],
         "crop_size": list(crop_size),
         "pool": pool,
     }
     text = json.dumps(description, sort_keys=True)
     return f"tactile-grasps-v{SIMULATOR_VERSION}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.pt"
+
+
+#: Settings added after the cache format was fixed; left at their defaults they do not
+#: enter the cache key, so every earlier scene keeps its cache file.
+_LATER_SETTINGS = ("release_lag_ratio", "label_lowpass_ms")
+
+
+def _config_key(config: SimulatorConfig) -> dict[str, Any]:
+    described = dataclasses.asdict(config)
+    defaults = SimulatorConfig()
+    for name in _LATER_SETTINGS:
+        if described[name] == getattr(defaults, name):
+            del described[name]
+    return described
 
 
 def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (140, 150), pool: int = 2) -> dict[str, Tensor]:

@@ -26,6 +26,7 @@ from torch import nn
 
 from ..scenes import ResizeToTarget, Scene
 from ..transforms import AddNoise, FrameShift, RandomRotation, TemporalEventShift
+from .policies import POLICY_METHODS, build_policy, stretch_policy
 from .scenes import SCENES, BenchmarkScene, get_scene
 
 __all__ = [
@@ -45,7 +46,7 @@ PAPER_METHODS: tuple[str, ...] = (
 )
 
 #: The paper's scene policy: sizes 12 and 18 mm to 15 mm, and FS-1 (the paper's best shift).
-PAPER_SCENE = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,))
+PAPER_SCENE = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,), size_transform="resize")
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,7 @@ class Method:
         Example:
             >>> scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,))
             >>> [type(t).__name__ for t in Method.from_scene("scene", scene).build().transforms]
-            ['RandomFrameShift', 'ResizeToTarget']
+            ['RandomFrameShift', 'StretchToTarget']
         """
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a Scene, got {type(scene).__name__}")
@@ -99,7 +100,8 @@ class Method:
 
 _NUMBER = r"[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?"
 _PATTERN = re.compile(
-    rf"^(?P<base>none|resize-hertz|resize|noise|independent|hybrid|rot(?P<deg>{_NUMBER})"
+    rf"^(?P<base>none|resize-hertz|resize|noise|independent|hybrid|stretch|inferred|prior|everything"
+    rf"|rot(?P<deg>{_NUMBER})"
     rf"|fs(?P<fs>[+-]?\d+)|tes(?P<tes>[+-]?\d+):(?P<frac>{_NUMBER}))(?:x(?P<copies>\d+))?$"
 )
 
@@ -129,8 +131,8 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
     match = _PATTERN.match(name.strip().lower())
     if match is None:
         raise ValueError(
-            f"unknown method {name!r}; expected none, rot<deg>, resize, resize-hertz, noise, fs<j>, "
-            "tes<j>:<fraction>, independent or hybrid, optionally followed by x<copies>"
+            f"unknown method {name!r}; expected none, rot<deg>, resize, resize-hertz, stretch, noise, fs<j>, "
+            "tes<j>:<fraction>, independent, hybrid, inferred, prior or everything, optionally followed by x<copies>"
         )
     base = match["base"]
     if match["copies"] is not None:
@@ -139,6 +141,12 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
         raise ValueError(f"copies must be a non-negative int, got {copies!r}")
     if base == "none":
         return Method(name, None, 0)
+    if base in POLICY_METHODS:  # scene-level policies (tactile/policies.py)
+        if not scene.gaps:
+            raise ValueError(f"method {name!r} simulates a scene's gaps; scene {scene.name!r} has none")
+        if base == "stretch":
+            stretch_policy(scene)  # refuses a scene without a size gap now, by name
+        return Method(name, lambda bank: build_policy(base, scene), copies)
     if base in ("resize", "resize-hertz"):
         target = scene.target_size
         if target is None:
@@ -190,7 +198,7 @@ QUICK_METHODS: dict[str, tuple[str, ...]] = {
 
 #: Rows every scene runs after its own methods, in quick and full mode, where the scene can
 #: build them (``parse_method`` accepts them): adding a policy row is one name here.
-EXTRA_METHODS: tuple[str, ...] = ()
+EXTRA_METHODS: tuple[str, ...] = POLICY_METHODS
 
 
 def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str, ...]:
@@ -202,7 +210,7 @@ def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str
 
     Example:
         >>> methods_for("timing")
-        ('none', 'fs2', 'tes2:0.5')
+        ('none', 'fs2', 'tes2:0.5', 'inferred', 'prior', 'everything')
     """
     scene = get_scene(scene)
     if not full:

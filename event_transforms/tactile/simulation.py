@@ -114,6 +114,12 @@ class SimulatorConfig:
         center_jitter_px: the strip centre is uniform within ± this of the sensor centre.
         lag: apply the membrane's first-order lag.
         lag_ms: range of the lag time constant τ (drawn per experiment).
+        release_lag_ratio: the membrane's time constant while it relaxes (force below the
+            membrane's) is this many times τ: a viscoelastic membrane recovers more slowly
+            than it is pressed (1: symmetric, the old behaviour).
+        label_lowpass_ms: the force/torque sensor's reading (the label) is the force through
+            a first-order low-pass with this time constant (0: the true force, the old
+            behaviour), as the paper's F/T sensor answers the release later than the events.
         orientation: rotate the strip by an angle drawn per experiment.
         angle_deg: range of that angle, degrees (counter-clockwise in the image).
         angle_symmetric: the angle's sign is drawn too (so ``angle_deg=(25, 45)`` gives
@@ -171,6 +177,9 @@ class SimulatorConfig:
     hot_pixels: bool = True
     hot_pixel_fraction: float = 1e-4
     hot_pixel_hz: tuple[float, float] = (50.0, 200.0)
+    # issue 18 (lag effects); their defaults leave every earlier seed's output unchanged
+    release_lag_ratio: float = 1.0
+    label_lowpass_ms: float = 0.0
 
     def __post_init__(self) -> None:
         height, width = self.sensor_size
@@ -206,6 +215,10 @@ class SimulatorConfig:
             low, high = getattr(self, name)
             if low > high:
                 raise ValueError(f"{name} must be a (min, max) pair, got {(low, high)!r}")
+        if not (self.release_lag_ratio > 0 and math.isfinite(self.release_lag_ratio)):
+            raise ValueError(f"release_lag_ratio must be a positive number, got {self.release_lag_ratio!r}")
+        if not (self.label_lowpass_ms >= 0 and math.isfinite(self.label_lowpass_ms)):
+            raise ValueError(f"label_lowpass_ms must be non-negative, got {self.label_lowpass_ms!r}")
         if self.lag and self.lag_ms[0] <= 0:
             raise ValueError(f"lag_ms must be positive (or set lag=False), got {self.lag_ms!r}")
         for name in ("shot_noise_hz", "hot_pixel_hz"):
@@ -418,24 +431,39 @@ def force_profile(grasps: Sequence[Grasp], times_ms: np.ndarray, config: Simulat
     return force
 
 
-def membrane_force(force: np.ndarray, lag_ms: np.ndarray, substep_ms: float) -> np.ndarray:
+def membrane_force(
+    force: np.ndarray, lag_ms: np.ndarray, substep_ms: float, *, release_ratio: float = 1.0
+) -> np.ndarray:
     """First-order lag τ dF_m/dt = F − F_m on a uniform grid, per row (τ = 0: no lag).
 
     Exact for a force linear between grid points, so a ramp is delayed by exactly τ.
     ``force`` is (n, S) starting at rest (F_m = F at the first point), ``lag_ms`` (n,).
+    With ``release_ratio`` ≠ 1, a step on which the force lies below the membrane's (the
+    membrane relaxing) uses the time constant ``release_ratio · τ``.
     """
     lag_ms = np.asarray(lag_ms, dtype=np.float64)
     out = np.array(force, dtype=np.float64, copy=True)
     lagged = lag_ms > 0
     if not lagged.any():
         return out
-    decay = np.zeros_like(lag_ms)
-    decay[lagged] = np.exp(-substep_ms / lag_ms[lagged])
-    # u(t) linear on a step with slope s: F_m(h) = u1 − τs + e^(−h/τ)·(F_m(0) − u0 + τs).
-    tau_slope = lag_ms[:, None] * np.diff(force, axis=1) / substep_ms
+
+    def constants(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        decay = np.zeros_like(tau)
+        decay[lagged] = np.exp(-substep_ms / tau[lagged])
+        # u(t) linear on a step with slope s: F_m(h) = u1 − τs + e^(−h/τ)·(F_m(0) − u0 + τs).
+        return decay, tau[:, None] * np.diff(force, axis=1) / substep_ms
+
+    decay, tau_slope = constants(lag_ms)
+    if release_ratio != 1.0:
+        release_decay, release_slope = constants(lag_ms * release_ratio)
     for step in range(1, force.shape[1]):
-        drift = tau_slope[:, step - 1]
-        out[:, step] = force[:, step] - drift + decay * (out[:, step - 1] - force[:, step - 1] + drift)
+        if release_ratio == 1.0:
+            d, drift = decay, tau_slope[:, step - 1]
+        else:
+            relaxing = force[:, step] < out[:, step - 1]
+            d = np.where(relaxing, release_decay, decay)
+            drift = np.where(relaxing, release_slope[:, step - 1], tau_slope[:, step - 1])
+        out[:, step] = force[:, step] - drift + d * (out[:, step - 1] - force[:, step - 1] + drift)
     return out
 
 
@@ -654,7 +682,10 @@ def simulate_grasps(grasps: Sequence[Grasp], config: SimulatorConfig | None = No
     height, width = config.sensor_size
     duration_us = int(round(config.duration_ms * 1000))
     frame_times_ms = (np.arange(config.n_frames) + 0.5) * config.frame_ms
-    force = force_profile(grasps, frame_times_ms, config).astype(np.float32)
+    if config.label_lowpass_ms > 0 and grasps:
+        force = _label_force(grasps, frame_times_ms, config)
+    else:
+        force = force_profile(grasps, frame_times_ms, config).astype(np.float32)
     contact: list = [[] for _ in grasps]
     if config.contact and grasps:
         steps = int(round(config.duration_ms / config.substep_ms))
@@ -662,7 +693,9 @@ def simulate_grasps(grasps: Sequence[Grasp], config: SimulatorConfig | None = No
         delay = np.array([g.delay_ms for g in grasps])[:, None]
         fine = force_profile(grasps, fine_ms[None, :] - delay, config)
         lag = np.array([g.lag_ms for g in grasps])
-        lagged = membrane_force(fine, lag, config.substep_ms) if config.lag else fine
+        lagged = (
+            membrane_force(fine, lag, config.substep_ms, release_ratio=config.release_lag_ratio) if config.lag else fine
+        )
         diameter = np.array([g.diameter_mm for g in grasps])[:, None]
         b = contact_half_width(lagged, diameter, config)
         contact = [[part] for part in _contact_events(grasps, b, config)]
@@ -677,6 +710,17 @@ def simulate_grasps(grasps: Sequence[Grasp], config: SimulatorConfig | None = No
         )
         for i, g in enumerate(grasps)
     ]
+
+
+def _label_force(grasps: Sequence[Grasp], frame_times_ms: np.ndarray, config: SimulatorConfig) -> np.ndarray:
+    """The F/T sensor's reading at the frame centres: the force through a first-order
+    low-pass of time constant ``label_lowpass_ms`` (on a 0.1 ms grid from rest)."""
+    step = 0.1
+    fine_ms = np.arange(int(round(config.duration_ms / step)) + 1) * step
+    fine = force_profile(grasps, fine_ms, config)
+    smooth = membrane_force(fine, np.full(len(grasps), config.label_lowpass_ms), step)
+    index = np.round(frame_times_ms / step).astype(np.int64)
+    return smooth[:, index].astype(np.float32)
 
 
 def simulate_grasp(

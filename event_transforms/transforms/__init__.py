@@ -5,6 +5,8 @@ from __future__ import annotations
 from .base import EventTransform, Lambda, Params, as_transform
 from .affine import *  # noqa: F401,F403
 from .affine import __all__ as _affine
+from .stretch import *  # noqa: F401,F403
+from .stretch import __all__ as _stretch
 from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
 from .noise import *  # noqa: F401,F403
@@ -26,5 +28,5 @@ from .events import __all__ as _events
 
 __all__ = [
     "EventTransform", "Params", "Lambda", "as_transform",
-    *_affine, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_containers, *_events,
+    *_affine, *_stretch, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_containers, *_events,
 ]
