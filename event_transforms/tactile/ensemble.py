@@ -68,7 +68,10 @@ from .models import (
     ForceRegressor,
     _check_positive_int,
     _feature_channels,
+    _global_channels,
+    _global_features,
     _hard_sigmoid,
+    _has_square,
     _input_features,
     _pool_counts,
 )
@@ -170,14 +173,20 @@ class EnsembleForceRegressor(nn.Module):
         self.config = dict(config)
         self.in_channels = int(config["in_channels"])
         self.input_pool = int(config["input_pool"])
-        self.cumulative = bool(config.get("cumulative", False))
+        self.cumulative = bool(config["cumulative"])
+        self.features, self.readout = str(config["features"]), str(config["readout"])
+        self.global_inputs = bool(config["global_inputs"])
+        self.square = _has_square(self.in_channels, self.cumulative, self.features)
         hidden = list(config["hidden_channels"])
-        inputs = [_feature_channels(self.in_channels, self.cumulative), *hidden[:-1]]
+        inputs = [_feature_channels(self.in_channels, self.cumulative, self.features), *hidden[:-1]]
         self.cells = nn.ModuleList(
             _GroupedCell(members, c_in, c_h, tuple(config["kernel_size"]), config["recurrent_activation"])
             for c_in, c_h in zip(inputs, hidden)
         )
-        self.head_weight = nn.Parameter(torch.empty(members, 2 * hidden[-1]))
+        width = (2 if self.readout == "mean+max" else 1) * hidden[-1]
+        if self.global_inputs:
+            width += _global_channels(self.in_channels, self.cumulative, self.features)
+        self.head_weight = nn.Parameter(torch.empty(members, width))
         self.head_bias = nn.Parameter(torch.empty(members))
         self.register_buffer("force_offset", torch.zeros(members))
         self.register_buffer("force_scale", torch.ones(members))
@@ -251,17 +260,28 @@ class EnsembleForceRegressor(nn.Module):
         self.force_offset.copy_(values[0])
         self.force_scale.copy_(values[1])
 
-    def _readout(self, h: Tensor) -> Tensor:
-        """``(N, M*h, H, W)`` last hidden state -> force ``(N, M)``."""
+    def _readout(self, h: Tensor, x: Tensor, shared: bool) -> Tensor:
+        """``(N, M*h, H, W)`` last hidden state and first-layer input ``(N, [M*]C', h, w)``
+        (``shared``: one input for every member) -> force ``(N, M)``."""
         h = h.unflatten(1, (self.members, -1))
-        features = torch.cat([h.mean(dim=(-2, -1)), h.amax(dim=(-2, -1))], dim=-1)
+        parts = [h.mean(dim=(-2, -1))]
+        if self.readout == "mean+max":
+            parts.append(h.amax(dim=(-2, -1)))
+        if self.global_inputs:
+            if shared:
+                inputs = _global_features(x, self.square).unsqueeze(1).expand(-1, self.members, -1)
+            else:
+                inputs = _global_features(x.unflatten(1, (self.members, -1)).flatten(0, 1), self.square)
+                inputs = inputs.unflatten(0, (x.shape[0], self.members))
+            parts.append(inputs.to(parts[0].dtype))
+        features = torch.cat(parts, dim=-1)
         weight = self.head_weight
         out = (features.to(weight.dtype) * weight).sum(-1) + self.head_bias
         out = out.double() if weight.dtype == torch.float64 else out.float()
         return self.force_offset.to(out.dtype) + self.force_scale.to(out.dtype) * out
 
-    def forward(self, frames: Tensor) -> Tensor:
-        """Force per frame and member, ``(M, B, T)``."""
+    def _check_frames(self, frames: object, pooled: bool) -> bool:
+        """Validate ``frames``; return whether one batch is shared by every member."""
         if not isinstance(frames, Tensor):
             raise TypeError(f"frames must be a torch.Tensor, got {type(frames).__name__}")
         shared = frames.dim() == 5
@@ -271,22 +291,49 @@ class EnsembleForceRegressor(nn.Module):
                 f"frames: expected ({members}, B, T, {channels}, H, W) or (B, T, {channels}, H, W), "
                 f"got {tuple(frames.shape)}"
             )
-        if min(frames.shape[-2:]) < self.input_pool:
+        if not pooled and min(frames.shape[-2:]) < self.input_pool:
             raise ValueError(
                 f"frames: (H, W) = {tuple(frames.shape[-2:])} is smaller than input_pool={self.input_pool}"
             )
+        return shared
+
+    def pool(self, frames: Tensor) -> Tensor:
+        """The members' first stage: ``input_pool`` average pooling of the counts, in the
+        model's dtype (float32 or float64), any leading dimensions kept.
+
+        ``model(model.pool(frames), pooled=True)`` equals ``model(frames)``, so a trainer
+        can pool each item once (the pooled tensor is ``input_pool²`` times smaller).
+
+        Example:
+            >>> ensemble = EnsembleForceRegressor(2, hidden_channels=(2,), input_pool=5)
+            >>> frames = torch.ones(3, 4, 2, 10, 15, dtype=torch.int16)
+            >>> pooled = ensemble.pool(frames)
+            >>> tuple(pooled.shape), torch.equal(ensemble(pooled, pooled=True), ensemble(frames))
+            ((3, 4, 2, 2, 3), True)
+        """
+        self._check_frames(frames, pooled=False)
+        return _pool_counts(frames, self.input_pool, self.head_weight.dtype)
+
+    def forward(self, frames: Tensor, *, pooled: bool = False) -> Tensor:
+        """Force per frame and member, ``(M, B, T)``; ``pooled``: ``frames`` come from
+        :meth:`pool`."""
+        shared = self._check_frames(frames, pooled)
+        members = self.members
         batch, steps = frames.shape[-5:-3]
-        # the input features of ForceRegressor: log1p of pooled counts (+ running sums)
-        pooled = _pool_counts(frames.flatten(0, -5), self.input_pool, self.head_weight.dtype)
-        x = _input_features(pooled, self.cumulative)[0].flatten(0, 1)  # ([M*]B*T, C', h, w)
+        # the input features of ForceRegressor, from the pooled counts
+        if not pooled:
+            frames = _pool_counts(frames, self.input_pool, self.head_weight.dtype)
+        inputs = _input_features(frames.flatten(0, -5), self.cumulative, features=self.features)[0]
+        x = inputs.flatten(0, 1)  # ([M*]B*T, C', h, w)
         if not shared:  # (M*B*T, C', h, w) -> (B*T, M*C', h, w), member-major channels
             x = x.unflatten(0, (members, batch * steps)).transpose(0, 1).flatten(1, 2)
+        first = x
         for index, cell in enumerate(self.cells):
             if index:
                 x = F.avg_pool2d(x, 2)
             gates = cell.input_gates(x, shared and index == 0)
             x = cell.run(gates.unflatten(0, (batch, steps))).flatten(0, 1)
-        return self._readout(x).unflatten(0, (batch, steps)).permute(2, 0, 1)
+        return self._readout(x, first, shared).unflatten(0, (batch, steps)).permute(2, 0, 1)
 
     def extra_repr(self) -> str:
         return f"members={self.members}, " + ", ".join(f"{k}={v!r}" for k, v in self.config.items())
@@ -430,12 +477,12 @@ def _stack_member_batch(
 
 @torch.no_grad()
 def _validation_mse(model: EnsembleForceRegressor, frames: Tensor, force: Tensor, batch_size: int) -> Tensor:
-    """Per-member MSE over every frame of the shared validation set, ``(M,)`` float64."""
+    """Per-member MSE over every frame of the shared, pooled validation set, ``(M,)`` float64."""
     was_training = model.training
     model.eval()
     total = torch.zeros(model.members, dtype=torch.float64, device=force.device)
     for start in range(0, frames.shape[0], batch_size):
-        pred = model(frames[start : start + batch_size])
+        pred = model(frames[start : start + batch_size], pooled=True)
         err = (pred.double() - force[start : start + batch_size].double()).square()
         total += err.sum(dim=(1, 2))
     model.train(was_training)
@@ -462,6 +509,7 @@ def fit_ensemble(
     stopwatch: Any | None = None,
     description: str = "ensemble",
     augment: Sequence[Callable[[Tensor, list], Tensor] | None] | None = None,
+    fixed_data: bool = False,
 ) -> EnsembleResult:
     """Train every member of ``model`` for exactly ``steps`` optimiser steps, in lockstep.
 
@@ -508,6 +556,11 @@ def fit_ensemble(
         augment: per member, ``None`` or a callable ``(frames, metas) -> frames`` applied to
             the member's batch ``(B, T, 2, H, W)`` after it is moved to ``device``: on-the-fly
             augmentation on the training device (its time is counted in ``train_s``).
+        fixed_data: the training sets return the same item for an index every time (no
+            randomness in ``__getitem__``, e.g. fixed copies): every item of a set is read
+            and pooled (:meth:`EnsembleForceRegressor.pool`) once, before the first step,
+            instead of at every step. Members with an ``augment`` callable still read and
+            pool their batches at every step.
 
     With ``progress=None`` and stderr not a terminal, one plain line per validation pass
     (step, training loss, validation MSE range, elapsed time and ETA) replaces the bar.
@@ -557,10 +610,23 @@ def fit_ensemble(
         if len(data) == 0:
             raise ValueError(f"train_sets[{index}] is empty")
 
+    if not isinstance(fixed_data, bool):
+        raise TypeError(f"fixed_data must be a bool, got {fixed_data!r}")
     device = model.head_weight.device if device is None else torch.device(device)
     model.to(device)
     val_frames, val_force = stack_items(val_data)
-    val_frames, val_force = val_frames.to(device), val_force.to(device)
+    val_frames, val_force = model.pool(val_frames.to(device)), val_force.to(device)
+    # fixed data: each set's items pooled once, (N, T, C, h, w) and (N, T), shared by members
+    pooled_sets: dict[int, tuple[Tensor, Tensor]] = {}
+    if fixed_data:
+        for m, data in enumerate(train_sets):
+            if (augment is None or augment[m] is None) and id(data) not in pooled_sets:
+                pooled, forces = [], []
+                for start in range(0, len(data), 16):  # 16 raw items in memory at a time
+                    frames, force, _ = collate([data[i] for i in range(start, min(start + 16, len(data)))])
+                    pooled.append(model.pool(frames.to(device)))
+                    forces.append(force.to(device))
+                pooled_sets[id(data)] = (torch.cat(pooled), torch.cat(forces))
     batches = [shuffled_batches(len(data), batch_size, steps, seed=seed) for data, seed in zip(train_sets, seeds)]
     watch = stopwatch if stopwatch is not None else Stopwatch()
     params = list(model.parameters())
@@ -589,16 +655,23 @@ def fit_ensemble(
     step = 0
     for step in bar:
         tick = time.perf_counter()
-        pairs = [_stack_member_batch(train_sets[m], batches[m][step], collate) for m in range(members)]
-        if augment is not None:
-            pairs = [
-                (p[0].to(device, non_blocking=True), p[1]) if augment[m] is None
-                else (augment[m](p[0].to(device, non_blocking=True), p[2]), p[1])
-                for m, p in enumerate(pairs)
-            ]
-        frames = torch.stack([p[0] for p in pairs]).to(device, non_blocking=True)
-        force = torch.stack([p[1] for p in pairs]).to(device, non_blocking=True)
-        pred = model(frames)
+        inputs, targets = [], []
+        for m in range(members):
+            indices = batches[m][step]
+            if id(train_sets[m]) in pooled_sets and (augment is None or augment[m] is None):
+                pooled, force = pooled_sets[id(train_sets[m])]
+                index = indices.to(device)
+                inputs.append(pooled.index_select(0, index))
+                targets.append(force.index_select(0, index))
+                continue
+            frames, force, metas = _stack_member_batch(train_sets[m], indices, collate)
+            frames = frames.to(device, non_blocking=True)
+            if augment is not None and augment[m] is not None:
+                frames = augment[m](frames, metas)
+            inputs.append(model.pool(frames))  # pooled per member: M small tensors stacked
+            targets.append(force.to(device, non_blocking=True))
+        frames, force = torch.stack(inputs), torch.stack(targets)
+        pred = model(frames, pooled=True)
         per_member = (pred - force.to(pred.dtype)).square().mean(dim=(1, 2))
         optimiser.zero_grad(set_to_none=True)
         per_member.sum().backward()
