@@ -49,6 +49,8 @@ def dataset(n, seed):
 OPTIONS = [
     {},
     {"recurrent_activation": "hard_sigmoid"},
+    {"kernel_size": 1},  # a batched matrix product, not a convolution
+    {"kernel_size": (1, 3)},
     {"readout": "mean+max"},
     {"global_inputs": False},
     {"features": "log1p"},
@@ -88,7 +90,7 @@ class TestForward:
         with pytest.raises(ValueError, match=r"expected \(2, B, T, 2, H, W\) or \(B, T, 2, H, W\), got \(3, 2, 9, 7\)"):
             ensemble.pool(counts(3, 2, H, W))
 
-    @pytest.mark.parametrize("options", [{}, {"features": "log1p", "readout": "mean+max"}])
+    @pytest.mark.parametrize("options", [{}, {"kernel_size": 1}, {"features": "log1p", "readout": "mean+max"}])
     def test_shared_batch_broadcasts(self, options):
         models = seeded_models([3, 4], **options)
         ensemble = EnsembleForceRegressor.from_models(models)

@@ -24,13 +24,17 @@ from typing import Any
 
 __all__ = ["main", "build_parser", "QUICK", "FULL"]
 
-#: The quick configuration (default): stated in the output of every run.
+#: The quick configuration (default): stated in the output of every run. The model
+#: (issue 17): one ConvLSTM layer of 4 channels on 5 x 5 cells (``input_pool=14``), linear
+#: input with the running signed total, mean readout and global inputs (the
+#: ``ForceRegressor`` defaults); 300 steps. Measured on validation data, 4 seeds: the
+#: control's MSE is 0.57 / 0.38 / 0.33 N² after 150 / 300 / 600 steps.
 QUICK: dict[str, Any] = {
     "seeds": 5,
-    "steps": 400,
+    "steps": 300,
     "lr": 1e-2,
-    "hidden_channels": (8,),
-    "input_pool": 10,
+    "hidden_channels": (4,),
+    "input_pool": 14,
     "batch_size": 8,
     "eval_every": 50,
     "threads": 1,

@@ -38,6 +38,15 @@ between runs, the ratios far less). On a GPU the ensemble should win at any
 pool (DESIGN.md measured 10 members in about the time of one with ``vmap``); run
 ``benchmarks/ensemble.py --device cuda`` there.
 
+Since issue 17 the trainer pools each member's batch before stacking the members
+(:meth:`EnsembleForceRegressor.pool`; ``input_pool²`` times less to stack), and with
+``fixed_data=True`` pools every item of a fixed training set once, before the first step:
+reading, converting and pooling ``(8, 8, 36, 2, 70, 75)`` frames took 40 % of the earlier
+quick step. A 1 x 1 kernel runs as a batched matrix product instead of a grouped
+convolution. For the quick model (``hidden_channels=(4,)``, ``input_pool=14``) an 8-member
+step at batch 8 costs about a third of the earlier quick model's (``(8,)``, pool 10) in
+thread CPU time; the numbers are in the CHANGELOG under "Model (issue 17)".
+
 Example:
     >>> from event_transforms.tactile.models import ForceRegressor
     >>> models = []
@@ -87,6 +96,26 @@ __all__ = [
 ]
 
 
+def _grouped_conv(x: Tensor, weight: Tensor, groups: int) -> Tensor:
+    """``F.conv2d(x, weight.flatten(0, 1), padding="same", groups=groups)`` for weights
+    ``(M, O, C, kH, kW)`` (``groups`` is ``M``, or 1 for an input shared by the members).
+
+    A 1 x 1 kernel runs as one batched matrix product: on the CPU, oneDNN splits a grouped
+    1 x 1 convolution into a slow per-group loop (measured: 36 recurrent steps, forward
+    and backward, 8 members of 4 channels on 5 x 5 cells, 10.1 ms as convolutions, 6.5 ms
+    as products).
+    """
+    members, out, channels = weight.shape[:3]
+    if weight.shape[-2:] != (1, 1):
+        return F.conv2d(x, weight.flatten(0, 1), padding="same", groups=groups)
+    n, _, height, width = x.shape
+    if groups == 1:  # every member's kernels on the one input
+        y = torch.matmul(weight.reshape(members * out, channels), x.reshape(n, channels, height * width))
+    else:
+        y = torch.matmul(weight.reshape(members, out, channels), x.reshape(n, members, channels, height * width))
+    return y.reshape(n, members * out, height, width)
+
+
 class _GroupedCell(nn.Module):
     """One ConvLSTM layer for ``M`` members, weights ``(M, ...)``, grouped convolutions."""
 
@@ -106,10 +135,9 @@ class _GroupedCell(nn.Module):
 
     def input_gates(self, x: Tensor, shared: bool) -> Tensor:
         """``(N, M*C_in, H, W)`` (or ``(N, C_in, H, W)`` when ``shared``) -> ``(N, M*4h, H, W)``."""
-        weight = self.input_weight.flatten(0, 1)
-        bias = self.input_bias.flatten()
         # A shared input needs no copies: one ordinary convolution with every member's kernels.
-        return F.conv2d(x, weight, bias, padding="same", groups=1 if shared else self.members)
+        gates = _grouped_conv(x, self.input_weight, 1 if shared else self.members)
+        return gates + self.input_bias.flatten().view(-1, 1, 1)
 
     def run(self, input_gates: Tensor) -> Tensor:
         """Loop over time: ``(B, T, M*4h, H, W)`` input gates -> hidden ``(B, T, M*h, H, W)``."""
@@ -118,10 +146,9 @@ class _GroupedCell(nn.Module):
         dtype = torch.promote_types(self.input_weight.dtype, torch.float32)
         c = torch.zeros(batch, members, hidden, height, width, dtype=dtype, device=input_gates.device)
         h = c.flatten(1, 2)
-        recurrent = self.recurrent_weight.flatten(0, 1)
         outputs = []
         for gates in input_gates.unbind(1):
-            gates = gates.to(dtype) + F.conv2d(h, recurrent, padding="same", groups=members).to(dtype)
+            gates = gates.to(dtype) + _grouped_conv(h, self.recurrent_weight, members).to(dtype)
             i, f, g, o = gates.unflatten(1, (members, 4, hidden)).unbind(2)
             c = self._gate(f) * c + self._gate(i) * torch.tanh(g)
             h = (self._gate(o) * torch.tanh(c)).flatten(1, 2)

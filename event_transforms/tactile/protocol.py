@@ -473,10 +473,8 @@ def run_unit(
     for method in parsed:
         for seed in seeds:
             torch.manual_seed(seed)
-            extra = {"cumulative": True} if config.cumulative else {}
-            models.append(
-                ForceRegressor(hidden_channels=config.hidden_channels, input_pool=config.input_pool, **extra)
-            )
+            models.append(ForceRegressor(hidden_channels=config.hidden_channels, input_pool=config.input_pool,
+                                         cumulative=config.cumulative))
             before = watch.seconds
             transform = method.build(data.noise_bank)
             if config.fixed or transform is None:
@@ -492,7 +490,7 @@ def run_unit(
     result = fit_ensemble(
         ensemble, train_sets, data.val, steps=config.steps, batch_size=config.batch_size, seeds=member_seeds,
         lr_max=config.lr, clip=config.clip, schedule="one-cycle", eval_every=config.eval_every, select="final",
-        device=device, progress=progress, augment=augment,
+        device=device, progress=progress, augment=augment, fixed_data=True,  # every set here is fixed
         description=description or f"{scene.name}: {', '.join(methods)}",
     )
     val_pred, val_target = _evaluate(ensemble, data.val)
