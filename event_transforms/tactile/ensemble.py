@@ -171,7 +171,7 @@ class EnsembleForceRegressor(nn.Module):
         members: number of members ``M``.
         **kwargs: the arguments of :class:`ForceRegressor` (``in_channels``,
             ``hidden_channels``, ``kernel_size``, ``input_pool``, ``recurrent_activation``,
-            ``cumulative``).
+            ``cumulative``, ``features``, ``readout``, ``global_inputs``).
 
     Shape:
         - frames: ``(M, B, T, 2, H, W)`` (member ``m`` reads batch ``frames[m]``) or
