@@ -9,7 +9,8 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
 - :mod:`~event_transforms.tactile.datasets`: the simulated grasps as data sets, and noise banks;
 - :mod:`~event_transforms.tactile.models`: the reference ConvLSTM force regressor;
 - :mod:`~event_transforms.tactile.ensemble`: many force regressors trained in lockstep;
-- :mod:`~event_transforms.tactile.baselines`: trivial baselines the network must beat;
+- :mod:`~event_transforms.tactile.baselines`: baselines the network must beat (trivial ones and a
+  physics least-squares model);
 - :mod:`~event_transforms.tactile.training`: the training loop;
 - :mod:`~event_transforms.tactile.stats`: paired t-intervals, Wilcoxon signed-rank, Holm;
 - :mod:`~event_transforms.tactile.protocol`: the benchmark protocol and its tables;

@@ -1,4 +1,4 @@
-"""Trivial force baselines that the network must beat (DESIGN.md §6, experiment standard).
+"""Force baselines the network must beat: trivial ones and a physics model (DESIGN.md §6).
 
 Each baseline is a small class with ``fit(frames, force) -> self`` and
 ``predict(frames) -> force`` on whole tensors, computed in float64 on the CPU:
@@ -368,7 +368,9 @@ class PhysicsLeastSquares(Baseline):
         if self.size_aware and diameters is None:
             raise ValueError("diameters: PhysicsLeastSquares(size_aware=True) needs the bolt diameters, got None")
         if not self.size_aware and diameters is not None:
-            raise ValueError("diameters: given to PhysicsLeastSquares(size_aware=False); pass size_aware=True to use them")
+            raise ValueError(
+                "diameters: given to PhysicsLeastSquares(size_aware=False); pass size_aware=True to use them"
+            )
         return None if diameters is None else _check_diameters(diameters, n)
 
     def _design(self, frames: Tensor, diameters: Tensor | None) -> Tensor:
