@@ -54,6 +54,8 @@ OPTIONS = [
     {"readout": "mean+max"},
     {"global_inputs": False},
     {"features": "log1p"},
+    {"features": "linear"},
+    {"features": "signed"},
     {"cumulative": False},
     {"cumulative": False, "features": "log1p", "readout": "mean+max", "global_inputs": False},
 ]

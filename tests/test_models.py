@@ -272,7 +272,7 @@ class TestStability:
         x = counts(1, 1000, 2, 16, 12, rate=1.0)
         self.check_finite(model, x)
 
-    @pytest.mark.parametrize("features", ["log1p", "linear"])
+    @pytest.mark.parametrize("features", ["log1p", "linear", "signed"])
     def test_huge_counts(self, features):
         model = small_model(features=features)
         x = torch.full((2, 6, 2, H, W), 1e4)
@@ -319,9 +319,12 @@ def reference_cumulative_features(model: ForceRegressor, frames):
         for frame in seq:
             pooled = F.avg_pool2d(frame.double().unsqueeze(0), model.input_pool)[0]
             running = pooled.clone() if running is None else running + pooled
-            if model.features == "linear":
+            if model.features in ("linear", "signed"):
                 d = (running[0] - running[1]).unsqueeze(0) if frame.shape[0] == 2 else running
-                rows.append(torch.cat([pooled, d]))
+                values = pooled
+                if model.features == "signed" and frame.shape[0] == 2:
+                    values = (pooled[0] - pooled[1]).unsqueeze(0)
+                rows.append(torch.cat([values, d]))
                 continue
             parts = [torch.log1p(pooled), torch.log1p(running)]
             if frame.shape[0] == 2:
@@ -338,7 +341,7 @@ class TestCumulative:
 
         x = counts(2, 7, 2, H, W, rate=1.5)
         x[0, :, 1] *= 3  # more ON than OFF in one sequence: a negative signed sum
-        for features, channels in (("log1p", 5), ("linear", 3)):
+        for features, channels in (("log1p", 5), ("linear", 3), ("signed", 2)):
             model = small_model(cumulative=True, features=features)
             pooled = _pool_counts(x, model.input_pool, torch.float64)
             got, last = _input_features(pooled, True, features=features)
@@ -347,7 +350,7 @@ class TestCumulative:
             assert bool((got[0, -1, -1] < 0).all()) and got.shape[2] == channels
             torch.testing.assert_close(last, pooled.sum(1))
 
-    @pytest.mark.parametrize("features,channels,single", [("log1p", 5, 2), ("linear", 3, 2)])
+    @pytest.mark.parametrize("features,channels,single", [("log1p", 5, 2), ("linear", 3, 2), ("signed", 2, 2)])
     def test_channels_and_config(self, features, channels, single):
         model = small_model(cumulative=True, features=features)
         assert model.lstm.cells[0].in_channels == channels and model.config["cumulative"] is True
@@ -406,9 +409,14 @@ def reference_forward(model: ForceRegressor, frames):
     """The model's forward pass from its parts, one sequence and one frame at a time."""
     out = []
     for seq in frames:
-        inputs = reference_cumulative_features(model, seq.unsqueeze(0))[0] if model.cumulative else (
-            torch.log1p if model.features == "log1p" else (lambda v: v)
-        )(F.avg_pool2d(seq.double(), model.input_pool))
+        if model.cumulative:
+            inputs = reference_cumulative_features(model, seq.unsqueeze(0))[0]
+        else:
+            inputs = F.avg_pool2d(seq.double(), model.input_pool)
+            if model.features == "log1p":
+                inputs = torch.log1p(inputs)
+            elif model.features == "signed":
+                inputs = inputs[:, :1] - inputs[:, 1:]
         states = [None] * len(model.lstm.cells)
         forces = []
         for x in inputs.to(model.head.weight.dtype):
@@ -424,7 +432,7 @@ def reference_forward(model: ForceRegressor, frames):
             if model.global_inputs:
                 means = first.mean((-2, -1))
                 parts.append(means)
-                if model.cumulative and model.features == "linear" and seq.shape[1] == 2:
+                if model.cumulative and model.features in ("linear", "signed") and seq.shape[1] == 2:
                     parts.append(means[-1:] ** 2)
             forces.append(model.force_offset + model.force_scale * model.head(torch.cat(parts))[0])
         out.append(torch.stack(forces))
@@ -436,7 +444,10 @@ OPTIONS = [
     {"readout": "mean+max"},
     {"global_inputs": False},
     {"features": "log1p"},
+    {"features": "linear"},
+    {"features": "signed"},
     {"cumulative": False},
+    {"cumulative": False, "features": "signed"},
     {"cumulative": False, "features": "log1p", "readout": "mean+max", "global_inputs": False},
 ]
 
@@ -446,10 +457,10 @@ class TestOptions:
 
     def test_defaults(self):
         model = ForceRegressor()
-        assert model.config["features"] == "linear" and model.config["readout"] == "mean"
+        assert model.config["features"] == "signed" and model.config["readout"] == "mean"
         assert model.config["cumulative"] is True and model.config["global_inputs"] is True
-        # head: 16 hidden means + OFF, ON, signed running total means + its square
-        assert model.head.in_features == 16 + 4
+        # head: 16 hidden means + OFF - ON and signed running total means + its square
+        assert model.head.in_features == 16 + 3 and model.lstm.cells[0].in_channels == 2
 
     @pytest.mark.parametrize("options", OPTIONS)
     def test_forward_matches_reference(self, options):
@@ -483,7 +494,7 @@ class TestOptions:
         the frame's OFF and ON totals, the running signed total and its square."""
         from event_transforms.tactile.baselines import physics_features
 
-        model = small_model(hidden_channels=(3,), input_pool=4).double()
+        model = small_model(hidden_channels=(3,), input_pool=4, features="linear").double()
         height, width = 16, 12  # divisible by the pool: every pixel counts
         weights = torch.tensor([0.0, 0.0, 0.0, 0.5, -0.25, 0.75, 2.0], dtype=torch.float64)
         with torch.no_grad():
@@ -520,3 +531,16 @@ class TestOptions:
             ForceRegressor(readout="max")
         with pytest.raises(TypeError, match="global_inputs must be a bool, got 1"):
             ForceRegressor(global_inputs=1)
+
+
+def test_signed_input_ignores_balanced_noise():
+    """Events that come in OFF/ON pairs (background activity, hot pixels) leave the
+    ``features="signed"`` input, and so the default model, unchanged."""
+    model = small_model(hidden_channels=(3,))
+    x = counts(2, 6, 2, H, W, rate=0.5)
+    noise = counts(2, 6, 1, H, W, rate=3.0, seed=7)
+    noisy = x + noise  # the same number of extra OFF and ON events at every pixel
+    with torch.no_grad():
+        torch.testing.assert_close(model(noisy), model(x), atol=1e-6, rtol=1e-6)
+        linear = small_model(hidden_channels=(3,), features="linear")
+        assert not torch.allclose(linear(noisy), linear(x), atol=1e-3)

@@ -68,16 +68,19 @@ def _check_positive_int(value: object, name: str) -> int:
     return value
 
 
-_FEATURES = ("linear", "log1p")
+_FEATURES = ("linear", "log1p", "signed")
 _READOUTS = ("mean", "mean+max")
 
 
 def _feature_channels(in_channels: int, cumulative: bool, features: str = "log1p") -> int:
     """Channels the first ConvLSTM layer reads (see :func:`_input_features`)."""
+    signed = features == "signed" and in_channels == 2
     if not cumulative:
-        return in_channels
+        return 1 if signed else in_channels
     if features == "log1p":
         return 2 * in_channels + (1 if in_channels == 2 else 0)
+    if signed:
+        return 2
     return in_channels + (1 if in_channels == 2 else in_channels)
 
 
@@ -88,7 +91,7 @@ def _global_channels(in_channels: int, cumulative: bool, features: str) -> int:
 
 
 def _has_square(in_channels: int, cumulative: bool, features: str) -> bool:
-    return cumulative and features == "linear" and in_channels == 2
+    return cumulative and features in ("linear", "signed") and in_channels == 2
 
 
 def _global_features(x: Tensor, square: bool) -> Tensor:
@@ -111,17 +114,21 @@ def _input_features(
 ) -> tuple[Tensor, Tensor | None]:
     """Pooled counts ``(B, T, C, h, w)`` -> network input ``(B, T, C', h, w)``.
 
-    ``features="linear"``: the pooled counts as they are and, with ``cumulative``, for two
-    polarities the signed running sum ``d = Σ OFF - Σ ON`` (for other channel counts each
-    channel's running sum): every feature adds up linearly over pixels and frames.
+    ``features="signed"``: for two polarities the frame's ``OFF - ON`` pooled count and, with
+    ``cumulative``, the signed running sum ``d = Σ OFF - Σ ON``; ``features="linear"``: the
+    pooled counts of each channel as they are and, with ``cumulative``, ``d`` (for other
+    channel counts than two, both read each channel's count and running sum): every feature
+    adds up linearly over pixels and frames.
     ``features="log1p"``: ``log1p`` of the pooled counts; with ``cumulative``, also
     ``log1p`` of each channel's running sum over time and, for two polarities,
     ``sign(d) log1p(|d|)``. Sums run in float64 from ``running`` (``(B, C, h, w)``, the sum
     before the first frame; ``None`` = zero). Returns the features and the running sum
     after the last frame (``None`` without ``cumulative``).
     """
-    linear = features == "linear"
+    linear = features in ("linear", "signed")
     values = pooled if linear else torch.log1p(pooled)
+    if features == "signed" and pooled.shape[2] == 2:
+        values = pooled[:, :, :1] - pooled[:, :, 1:]
     if not cumulative:
         return values, None
     sums = pooled.double().cumsum(dim=1)
@@ -351,19 +358,23 @@ class ForceRegressor(nn.Module):
     beat the earlier network, whose per-cell ``log1p`` features and max over space let a
     hot pixel or a rotated contact own its input. So by default:
 
-    - ``features="linear"``, ``cumulative=True``: the pooled counts and, for two
-      polarities, the signed running sum ``d = Σ OFF - Σ ON`` per cell (float64 sums), as
-      they are, so a sum over pixels of the input is the sum of the events;
-      ``features="log1p"`` is the earlier input (``log1p`` of counts, of each running sum
-      and ``sign(d) log1p(|d|)``; with ``cumulative=False`` only ``log1p`` counts).
+    - ``features="signed"``, ``cumulative=True``: per cell, the frame's ``OFF - ON``
+      pooled count and the signed running sum ``d = Σ OFF - Σ ON`` (float64 sums), as they
+      are, so a sum over pixels of the input is a sum of events, and background activity
+      and hot pixels, which fire both polarities, cancel. ``features="linear"`` reads the
+      OFF and ON counts separately (and ``d``); on the ``noise`` scene it scored 9.5 N² on
+      validation data against 0.39 for ``"signed"``. ``features="log1p"`` is the earlier
+      input (``log1p`` of counts, of each running sum and ``sign(d) log1p(|d|)``; with
+      ``cumulative=False`` only ``log1p`` counts).
     - ``readout="mean"``: the spatial mean of the last hidden state, which no single pixel
       can own; ``"mean+max"`` is the earlier readout.
     - ``global_inputs=True``: the head also reads the spatial mean of every input channel
-      (with linear cumulative input: the frame's OFF and ON totals and the running signed
-      total, per pixel) and the square of the running signed total, a linear path that
-      holds the physics least-squares model
-      (:class:`~event_transforms.tactile.baselines.PhysicsLeastSquares`) less its per-frame
-      intercepts, which the ConvLSTM's state supplies.
+      (by default the frame's ``OFF - ON`` total and the running signed total, per pixel)
+      and the square of the running signed total, a linear path that holds the physics
+      least-squares model
+      (:class:`~event_transforms.tactile.baselines.PhysicsLeastSquares`; with
+      ``features="linear"`` all of it but its per-frame intercepts, which the ConvLSTM's
+      state supplies).
 
     :meth:`step` runs the same network one 10 ms frame at a time, for online use, and gives
     the same numbers as :meth:`forward` on the whole sequence (the running sum is carried
@@ -376,7 +387,7 @@ class ForceRegressor(nn.Module):
         input_pool: average-pool factor applied to every frame first (1 = none).
         recurrent_activation: ``"sigmoid"`` or ``"hard_sigmoid"`` (Keras 2 parity).
         cumulative: add the running sums of the pooled counts as input channels.
-        features: ``"linear"`` or ``"log1p"`` input features (see above).
+        features: ``"signed"``, ``"linear"`` or ``"log1p"`` input features (see above).
         readout: ``"mean"`` or ``"mean+max"`` spatial pooling of the last hidden state.
         global_inputs: the head also reads the spatial means of the input features.
 
@@ -396,12 +407,12 @@ class ForceRegressor(nn.Module):
         ...     steps.append(f)
         >>> tuple(force.shape), torch.allclose(torch.stack(steps, 1), force, atol=1e-5)
         ((1, 4), True)
-        >>> # inputs: OFF and ON counts + the signed running sum; state: 1 layer + the sum
+        >>> # inputs: the OFF - ON count + the signed running sum; state: 1 layer + the sum
         >>> model.lstm.cells[0].in_channels, len(state)
-        (3, 2)
-        >>> # head: 4 hidden means + 3 input means + the squared signed total
+        (2, 2)
+        >>> # head: 4 hidden means + 2 input means + the squared signed total
         >>> model.head.in_features
-        8
+        7
     """
 
     def __init__(
@@ -412,7 +423,7 @@ class ForceRegressor(nn.Module):
         input_pool: int = 4,
         recurrent_activation: str = "sigmoid",
         cumulative: bool = True,
-        features: str = "linear",
+        features: str = "signed",
         readout: str = "mean",
         global_inputs: bool = True,
     ) -> None:
