@@ -44,7 +44,7 @@ Since issue 17 the trainer pools each member's batch before stacking the members
 reading, converting and pooling ``(8, 8, 36, 2, 70, 75)`` frames took 40 % of the earlier
 quick step. A 1 x 1 kernel runs as a batched matrix product instead of a grouped
 convolution. For the quick model (``hidden_channels=(4,)``, ``input_pool=14``) an 8-member
-step at batch 8 costs about a third of the earlier quick model's (``(8,)``, pool 10) in
+step at batch 8 costs about a fifth of the earlier quick model's (``(8,)``, pool 10) in
 thread CPU time; the numbers are in the CHANGELOG under "Model (issue 17)".
 
 Example:
