@@ -27,37 +27,24 @@ else:  # run as a script
         apply_threads, base_parser, command, environment_lines, markdown_table, publish,
     )
 
+from event_transforms.tactile.baselines import PhysicsLeastSquares
 from event_transforms.tactile.datasets import TactileGrasps
 from event_transforms.tactile.scenes import BASE_SESSION, BenchmarkScene
 
-__all__ = ["features", "fit_and_score", "main"]
-
-
-def features(frames: torch.Tensor, diameters: torch.Tensor | None) -> torch.Tensor:
-    """Design matrix rows (one per frame): signed running total and its square (in
-    thousands of events), per-frame totals, per-frame intercepts; with ``diameters`` (N,),
-    also the two running-total terms divided by D / 15 mm."""
-    totals = frames.double().sum((3, 4))  # (N, T, 2)
-    running = totals.cumsum(1)
-    signed = (running[..., 0] - running[..., 1]).unsqueeze(-1) / 1000
-    n, t, _ = totals.shape
-    columns = [signed, signed**2, totals / 1000]
-    if diameters is not None:
-        size = (diameters.double() / 15.0).view(n, 1, 1).expand(n, t, 1)
-        columns += [signed**2 / size, signed / size]
-    columns.append(torch.eye(t, dtype=torch.float64).expand(n, t, t))
-    return torch.cat(columns, -1).reshape(n * t, -1)
+__all__ = ["fit_and_score", "main"]
 
 
 def fit_and_score(train: TactileGrasps, test: TactileGrasps, *, told_size: bool) -> float:
-    """Test MSE (N²) of the least-squares model fitted on ``train``."""
-    def sizes(data: TactileGrasps) -> torch.Tensor | None:
-        return torch.tensor([data.meta(i)["diameter_mm"] for i in range(len(data))]) if told_size else None
+    """Test MSE (N²) of :class:`~event_transforms.tactile.baselines.PhysicsLeastSquares`
+    (``size_aware=told_size``) fitted on ``train``."""
+    def sizes(data: TactileGrasps) -> dict[str, torch.Tensor]:
+        if not told_size:
+            return {}
+        return {"diameters": torch.tensor([data.meta(i)["diameter_mm"] for i in range(len(data))])}
 
-    x = features(train.frames, sizes(train))
-    weights = torch.linalg.lstsq(x, train.forces.double().reshape(-1, 1)).solution
-    prediction = (features(test.frames, sizes(test)) @ weights).squeeze(1)
-    return float((prediction - test.forces.double().reshape(-1)).square().mean())
+    model = PhysicsLeastSquares(size_aware=told_size).fit(train.frames, train.forces, **sizes(train))
+    prediction = model.predict(test.frames, **sizes(test))
+    return float((prediction - test.forces.double()).square().mean())
 
 
 def run(quick: bool = False) -> dict[str, Any]:

@@ -10,8 +10,10 @@ from event_transforms.tactile.baselines import (
     CumulativeCountRidge,
     GlobalMean,
     PerFrameMean,
+    PhysicsLeastSquares,
     count_features,
     evaluate_baselines,
+    physics_features,
     stack_items,
 )
 
@@ -156,12 +158,125 @@ class TestCumulativeCountRidge:
         torch.testing.assert_close(a, b)
 
 
+def reference_physics_features(frames, diameters=None):
+    """Loops over sequences and frames: d, d², OFF, ON (and d / D, d² / D)."""
+    width = 4 if diameters is None else 6
+    out = np.zeros((frames.shape[0], frames.shape[1], width))
+    for n in range(frames.shape[0]):
+        signed = 0.0
+        for t in range(frames.shape[1]):
+            off, on = (float(frames[n, t, p].double().sum()) for p in range(2))
+            signed += off - on
+            row = [signed, signed**2, off, on]
+            if diameters is not None:
+                row += [signed / float(diameters[n]), signed**2 / float(diameters[n])]
+            out[n, t] = row
+    return out
+
+
+def reference_physics_fit(frames, force, diameters=None):
+    """numpy least squares on raw features and one-hot frame indices; returns predict(frames, diameters)."""
+    feats = reference_physics_features(frames, diameters)
+    k, steps = feats.shape[-1], frames.shape[1]
+
+    def design(f):
+        return np.hstack([f.reshape(-1, k), np.tile(np.eye(steps), (f.shape[0], 1))])
+
+    coef, *_ = np.linalg.lstsq(design(feats), force.double().numpy().reshape(-1), rcond=None)
+    return lambda x, d=None: (design(reference_physics_features(x, d)) @ coef).reshape(x.shape[0], steps)
+
+
+class TestPhysicsLeastSquares:
+    @pytest.mark.parametrize("dtype", [torch.float32, torch.int16])
+    def test_features_match_loop(self, dtype):
+        frames = counts(dtype=dtype)
+        frames[0, :, 1] *= 3  # more ON than OFF: a negative running total
+        np.testing.assert_allclose(physics_features(frames).numpy(), reference_physics_features(frames))
+        sizes = torch.linspace(10, 20, N)
+        np.testing.assert_allclose(physics_features(frames, sizes).numpy(), reference_physics_features(frames, sizes))
+        assert bool((physics_features(frames)[0, -1, 0] < 0))
+
+    @pytest.mark.parametrize("size_aware", [False, True])
+    def test_matches_numpy_lstsq(self, size_aware):
+        frames = counts(n=20, rate=2.0)
+        sizes = torch.linspace(12, 18, 20) if size_aware else None
+        force = torch.rand(20, T, generator=torch.Generator().manual_seed(1), dtype=torch.float64) * 20
+        model = PhysicsLeastSquares(size_aware=size_aware).fit(frames, force, diameters=sizes)
+        reference = reference_physics_fit(frames, force, sizes)
+        test = counts(n=4, rate=2.0, seed=5)
+        test_sizes = torch.tensor([12.0, 15.0, 18.0, 13.0]) if size_aware else None
+        np.testing.assert_allclose(model.predict(test, diameters=test_sizes).numpy(), reference(test, test_sizes),
+                                   rtol=1e-7, atol=1e-7)
+        assert model.coef_.numel() == T + (6 if size_aware else 4)
+        assert model.name == ("physics least-squares + size" if size_aware else "physics least-squares")
+
+    def test_recovers_exact_physics_and_beats_the_ridge_on_it(self):
+        frames = counts(n=12, rate=3.0)
+        frames[:, :, 0] += counts(n=12, rate=1.0, seed=3)[:, :, 0]  # net OFF: a growing indentation
+        d = physics_features(frames)[..., 0]
+        profile = torch.linspace(0, 2, T, dtype=torch.float64)
+        force = profile + 0.02 * d + 1e-4 * d**2
+        model = PhysicsLeastSquares().fit(frames, force)
+        torch.testing.assert_close(model.predict(frames), force, atol=1e-8, rtol=0)
+        ridge = CumulativeCountRidge(alpha=0.0).fit(frames, force)
+        assert float((ridge.predict(frames) - force).square().mean()) > 1e-6  # no square term
+
+    def test_invariants(self):
+        """Permuting sequences, scaling the force, or shifting it per frame index move the fit along."""
+        frames = counts(n=10, rate=2.0)
+        force = torch.rand(10, T, generator=torch.Generator().manual_seed(2), dtype=torch.float64) * 10
+        base = PhysicsLeastSquares().fit(frames, force).predict(frames)
+        order = torch.randperm(10, generator=torch.Generator().manual_seed(0))
+        torch.testing.assert_close(PhysicsLeastSquares().fit(frames[order], force[order]).predict(frames), base)
+        torch.testing.assert_close(PhysicsLeastSquares().fit(frames, 3 * force).predict(frames), 3 * base)
+        shift = torch.linspace(-1, 1, T, dtype=torch.float64)
+        torch.testing.assert_close(PhysicsLeastSquares().fit(frames, force + shift).predict(frames), base + shift)
+        # the fit never worsens when the force is what the features explain plus zero
+        assert float((base - force).square().mean()) <= float((force - force.mean(0)).square().mean()) + 1e-12
+
+    def test_one_frame_and_empty_input(self):
+        frames, force = counts(n=5, steps=1), torch.rand(5, 1)
+        model = PhysicsLeastSquares().fit(frames, force)
+        assert model.predict(frames).shape == (5, 1)
+        assert model.predict(frames[:0]).shape == (0, 1)
+        with pytest.raises(ValueError, match="need at least one sequence, got N = 0"):
+            PhysicsLeastSquares().fit(frames[:0], force[:0])
+
+    def test_errors_name_argument(self):
+        frames, force = counts(), torch.rand(N, T)
+        with pytest.raises(TypeError, match="size_aware must be a bool, got 1"):
+            PhysicsLeastSquares(size_aware=1)
+        with pytest.raises(ValueError, match="needs the bolt diameters, got None"):
+            PhysicsLeastSquares(size_aware=True).fit(frames, force)
+        with pytest.raises(ValueError, match=r"diameters: expected \(N,\) = \(7,\), got \(3,\)"):
+            PhysicsLeastSquares(size_aware=True).fit(frames, force, diameters=[1.0, 2.0, 3.0])
+        with pytest.raises(ValueError, match="diameters must be finite and positive"):
+            PhysicsLeastSquares(size_aware=True).fit(frames, force, diameters=[0.0] * N)
+        with pytest.raises(ValueError, match="pass size_aware=True"):
+            PhysicsLeastSquares().fit(frames, force, diameters=[1.0] * N)
+        with pytest.raises(RuntimeError, match="before fit"):
+            PhysicsLeastSquares().predict(frames)
+        model = PhysicsLeastSquares().fit(frames, force)
+        with pytest.raises(ValueError, match="fitted on T = 6 frames per sequence, got T = 3"):
+            model.predict(frames[:, :3])
+        with pytest.raises(ValueError, match="needs bolt diameters"):
+            evaluate_baselines((frames, force), (frames, force), (frames, force),
+                               baselines=[PhysicsLeastSquares(size_aware=True)])
+
+    def test_inputs_unchanged(self):
+        frames, force = counts(), torch.rand(N, T)
+        before = (frames.clone(), force.clone(), frames._version, force._version)
+        PhysicsLeastSquares().fit(frames, force).predict(frames)
+        assert torch.equal(frames, before[0]) and torch.equal(force, before[1])
+        assert (frames._version, force._version) == before[2:]
+
+
 class TestEvaluate:
     def test_scores_and_dataset_input(self):
         frames, force = counts(n=12), torch.rand(12, T) * 20
         items = [(frames[i], force[i], {"i": i}) for i in range(8, 12)]
         scores = evaluate_baselines((frames[:6], force[:6]), (frames[6:8], force[6:8]), items)
-        assert set(scores) == {"global-mean", "per-frame-mean", "cumulative-count-ridge"}
+        assert set(scores) == {"global-mean", "per-frame-mean", "cumulative-count-ridge", "physics least-squares"}
         want = float((PerFrameMean().fit(frames[:6], force[:6]).predict(frames[8:]) - force[8:].double()).square().mean())
         assert scores["per-frame-mean"]["test_mse"] == pytest.approx(want)
         assert all(set(s) == {"val_mse", "test_mse"} for s in scores.values())

@@ -213,7 +213,7 @@ def _check_shape(saved: dict, scenes: list[str], methods: list[str], seeds: list
         assert scene["gaps"] == list(get_scene(name).gaps)
         assert scene["matched_methods"] == list(get_scene(name).matched_methods)
         assert set(scene["split_sizes"]) == {"train", "holdout", "val", "test"}
-        assert set(scene["baselines"]) == {"global-mean", "per-frame-mean", "cumulative-count-ridge"}
+        assert set(scene["baselines"]) == {"global-mean", "per-frame-mean", "cumulative-count-ridge", "physics least-squares"}
         assert all(isinstance(b["test_mse"], float) for b in scene["baselines"].values())
         assert list(scene["methods"]) == methods
         for method, m in scene["methods"].items():

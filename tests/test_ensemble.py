@@ -43,20 +43,56 @@ def dataset(n, seed):
     return TensorDataset(x, force)
 
 
+#: ForceRegressor options the ensemble must mirror (the defaults, each switch, the earlier model).
+OPTIONS = [
+    {},
+    {"recurrent_activation": "hard_sigmoid"},
+    {"kernel_size": 1},  # a batched matrix product, not a convolution
+    {"kernel_size": (1, 3)},
+    {"readout": "mean+max"},
+    {"global_inputs": False},
+    {"features": "log1p"},
+    {"features": "linear"},
+    {"features": "signed"},
+    {"cumulative": False},
+    {"cumulative": False, "features": "log1p", "readout": "mean+max", "global_inputs": False},
+]
+
+
 class TestForward:
-    @pytest.mark.parametrize("activation,cumulative", [("sigmoid", False), ("hard_sigmoid", False), ("sigmoid", True)])
-    def test_members_match_single_models(self, activation, cumulative):
-        models = seeded_models([0, 1, 2], torch.float64, recurrent_activation=activation, cumulative=cumulative)
+    @pytest.mark.parametrize("options", OPTIONS)
+    def test_members_match_single_models(self, options):
+        models = seeded_models([0, 1, 2], torch.float64, **options)
         ensemble = EnsembleForceRegressor.from_models(models)
         frames = counts(3, 2, T, 2, H, W)
         out = ensemble(frames)
         assert out.shape == (3, 2, T) and out.dtype == torch.float64
         for m, model in enumerate(models):
             torch.testing.assert_close(out[m], model(frames[m]), rtol=1e-10, atol=1e-10)
+        torch.testing.assert_close(ensemble(ensemble.pool(frames), pooled=True), out, rtol=0, atol=0)
 
-    @pytest.mark.parametrize("cumulative", [False, True])
-    def test_shared_batch_broadcasts(self, cumulative):
-        models = seeded_models([3, 4], cumulative=cumulative)
+    def test_one_frame_and_empty_batch(self):
+        models = seeded_models([0, 1], torch.float64)
+        ensemble = EnsembleForceRegressor.from_models(models)
+        frames = counts(2, 3, 1, 2, H, W)
+        for m, model in enumerate(models):
+            torch.testing.assert_close(ensemble(frames)[m], model(frames[m]), rtol=1e-10, atol=1e-10)
+        assert ensemble(counts(2, 0, T, 2, H, W)).shape == (2, 0, T)
+        assert ensemble(counts(0, T, 2, H, W)).shape == (2, 0, T)
+
+    def test_pool_checks_and_keeps_input(self):
+        ensemble = EnsembleForceRegressor(2, hidden_channels=(2,), input_pool=2)
+        frames = counts(2, 3, T, 2, H, W).to(torch.int16)
+        before, version = frames.clone(), frames._version
+        pooled = ensemble.pool(frames)
+        assert pooled.shape == (2, 3, T, 2, H // 2, W // 2) and pooled.dtype == torch.float32
+        assert torch.equal(frames, before) and frames._version == version
+        with pytest.raises(ValueError, match=r"expected \(2, B, T, 2, H, W\) or \(B, T, 2, H, W\), got \(3, 2, 9, 7\)"):
+            ensemble.pool(counts(3, 2, H, W))
+
+    @pytest.mark.parametrize("options", [{}, {"kernel_size": 1}, {"features": "log1p", "readout": "mean+max"}])
+    def test_shared_batch_broadcasts(self, options):
+        models = seeded_models([3, 4], **options)
         ensemble = EnsembleForceRegressor.from_models(models)
         frames = counts(4, T, 2, H, W).to(torch.uint8)
         out = ensemble(frames)
@@ -211,6 +247,40 @@ class TestFitEnsemble:
         with pytest.raises(ValueError, match=r"batches\[1\] must be \(4, 2\) indices"):
             fit_ensemble(ensemble, sets, sets[0], steps=4, batch_size=2, seeds=[0, 1], progress=False,
                          batches=[batches, batches + 6])
+    @pytest.mark.parametrize("options", [{}, {"cumulative": False, "features": "log1p", "readout": "mean+max",
+                                             "global_inputs": False}])
+    def test_fixed_data_is_the_same_run(self, options):
+        """Pooling each item once (fixed_data) changes the cost, not the numbers."""
+        seeds = [0, 1, 2]
+        sets = [dataset(6, 10), dataset(7, 11), dataset(6, 10)]
+        sets[2] = sets[0]  # two members share one set, as seeds of `none` do
+        kwargs = dict(steps=6, batch_size=3, seeds=seeds, eval_every=3, progress=False)
+        runs = []
+        for fixed in (False, True):
+            ensemble = EnsembleForceRegressor.from_models(seeded_models(seeds, torch.float64, **options))
+            result = fit_ensemble(ensemble, sets, dataset(4, 13), fixed_data=fixed, **kwargs)
+            runs.append((ensemble, result))
+        (a, ra), (b, rb) = runs
+        for m in range(3):
+            assert ra.members[m].train_loss == pytest.approx(rb.members[m].train_loss, rel=1e-12)
+        for (name, x), (_, y) in zip(a.state_dict().items(), b.state_dict().items()):
+            torch.testing.assert_close(x, y, rtol=1e-12, atol=1e-12, msg=name)
+
+    def test_fixed_data_still_augments(self):
+        """A member with an augment callable reads and transforms its batch at every step."""
+        seen = []
+
+        def augment(frames, metas):
+            seen.append(frames.shape[0])
+            return frames * 2
+
+        ensemble = EnsembleForceRegressor.from_models(seeded_models([0, 1]))
+        data = TensorDataset(counts(4, T, 2, H, W), torch.rand(4, T))
+        fit_ensemble(ensemble, [data, data], data, steps=3, batch_size=2, seeds=[0, 1], progress=False,
+                     augment=[None, augment], fixed_data=True)
+        assert seen == [2, 2, 2]
+        with pytest.raises(TypeError, match="fixed_data must be a bool, got 1"):
+            fit_ensemble(ensemble, [data, data], data, steps=1, seeds=[0, 1], fixed_data=1)
 
     def test_float32_member_close_to_single_model(self):
         seeds = [5, 6]

@@ -179,7 +179,7 @@ class TestForceRegressor:
             force, state = model.step(x[:, t], state)
             outs.append(force)
         torch.testing.assert_close(torch.stack(outs, 1), full, atol=1e-5, rtol=1e-5)
-        assert len(state) == 3
+        assert len(state) == 3 + 1  # one (h, c) per layer and the running sum
 
     def test_streaming_equals_full_forward_float64(self):
         model = small_model().double()
@@ -272,12 +272,14 @@ class TestStability:
         x = counts(1, 1000, 2, 16, 12, rate=1.0)
         self.check_finite(model, x)
 
-    def test_huge_counts(self):
-        model = small_model()
+    @pytest.mark.parametrize("features", ["log1p", "linear", "signed"])
+    def test_huge_counts(self, features):
+        model = small_model(features=features)
         x = torch.full((2, 6, 2, H, W), 1e4)
         x[0, :, :, :3] = 0
         out = self.check_finite(model, x)
-        assert out.abs().max() < 1e3
+        if features == "log1p":  # linear input answers linearly (and its square) by design
+            assert out.abs().max() < 1e3
 
     def test_all_zero_input(self):
         model = small_model()
@@ -308,7 +310,8 @@ class TestStability:
 
 
 def reference_cumulative_features(model: ForceRegressor, frames):
-    """A loop over sequences and frames: log1p pooled counts, log1p running sums, signed sum."""
+    """A loop over sequences and frames: log1p pooled counts, log1p running sums, signed sum
+    (``features="log1p"``) or pooled counts and the signed running sum (``"linear"``)."""
     out = []
     for seq in frames:
         running = None
@@ -316,6 +319,13 @@ def reference_cumulative_features(model: ForceRegressor, frames):
         for frame in seq:
             pooled = F.avg_pool2d(frame.double().unsqueeze(0), model.input_pool)[0]
             running = pooled.clone() if running is None else running + pooled
+            if model.features in ("linear", "signed"):
+                d = (running[0] - running[1]).unsqueeze(0) if frame.shape[0] == 2 else running
+                values = pooled
+                if model.features == "signed" and frame.shape[0] == 2:
+                    values = (pooled[0] - pooled[1]).unsqueeze(0)
+                rows.append(torch.cat([values, d]))
+                continue
             parts = [torch.log1p(pooled), torch.log1p(running)]
             if frame.shape[0] == 2:
                 d = running[0] - running[1]
@@ -329,30 +339,33 @@ class TestCumulative:
     def test_input_features_match_loop(self):
         from event_transforms.tactile.models import _input_features, _pool_counts
 
-        model = small_model(cumulative=True)
         x = counts(2, 7, 2, H, W, rate=1.5)
         x[0, :, 1] *= 3  # more ON than OFF in one sequence: a negative signed sum
-        pooled = _pool_counts(x, model.input_pool, torch.float64)
-        got, last = _input_features(pooled, True)
-        want = reference_cumulative_features(model, x)
-        torch.testing.assert_close(got, want)
-        assert bool((got[0, -1, 4] < 0).all()) and got.shape[2] == 5
-        torch.testing.assert_close(last, pooled.sum(1))
+        for features, channels in (("log1p", 5), ("linear", 3), ("signed", 2)):
+            model = small_model(cumulative=True, features=features)
+            pooled = _pool_counts(x, model.input_pool, torch.float64)
+            got, last = _input_features(pooled, True, features=features)
+            want = reference_cumulative_features(model, x)
+            torch.testing.assert_close(got, want)
+            assert bool((got[0, -1, -1] < 0).all()) and got.shape[2] == channels
+            torch.testing.assert_close(last, pooled.sum(1))
 
-    def test_channels_and_config(self):
-        model = small_model(cumulative=True)
-        assert model.lstm.cells[0].in_channels == 5 and model.config["cumulative"] is True
-        single = small_model(cumulative=True, in_channels=1)
-        assert single.lstm.cells[0].in_channels == 2
-        assert single(counts(1, 3, 1, H, W)).shape == (1, 3)
+    @pytest.mark.parametrize("features,channels,single", [("log1p", 5, 2), ("linear", 3, 2), ("signed", 2, 2)])
+    def test_channels_and_config(self, features, channels, single):
+        model = small_model(cumulative=True, features=features)
+        assert model.lstm.cells[0].in_channels == channels and model.config["cumulative"] is True
+        one = small_model(cumulative=True, in_channels=1, features=features)
+        assert one.lstm.cells[0].in_channels == single
+        assert one(counts(1, 3, 1, H, W)).shape == (1, 3)
         assert ForceRegressor(**model.config).config == model.config
-        assert "cumulative" in repr(model)
+        assert "cumulative" in repr(model) and features in repr(model)
 
-    def test_default_unchanged(self):
-        plain = small_model()
-        assert plain.lstm.cells[0].in_channels == 2 and plain.config["cumulative"] is False
-        assert set(plain.state_dict()) == set(small_model(cumulative=True).state_dict())
-        _, state = plain.step(counts(1, 2, H, W))
+    def test_earlier_model_is_one_option_set_away(self):
+        """The model before issue 17: per-frame log1p input and a mean + max readout."""
+        earlier = small_model(cumulative=False, features="log1p", readout="mean+max", global_inputs=False)
+        assert earlier.lstm.cells[0].in_channels == 2 and earlier.head.in_features == 2 * 4
+        assert set(earlier.state_dict()) == set(small_model().state_dict())
+        _, state = earlier.step(counts(1, 2, H, W))
         assert len(state) == 2  # one (h, c) per layer, nothing else
 
     @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
@@ -390,3 +403,144 @@ class TestCumulative:
         _, state = model.step(counts(1, 2, H, W))
         with pytest.raises(ValueError, match=r"one \(h, c\) per layer \(2\) and the running sum, got 2 entries"):
             model.step(counts(1, 2, H, W), state[:2])
+
+
+def reference_forward(model: ForceRegressor, frames):
+    """The model's forward pass from its parts, one sequence and one frame at a time."""
+    out = []
+    for seq in frames:
+        if model.cumulative:
+            inputs = reference_cumulative_features(model, seq.unsqueeze(0))[0]
+        else:
+            inputs = F.avg_pool2d(seq.double(), model.input_pool)
+            if model.features == "log1p":
+                inputs = torch.log1p(inputs)
+            elif model.features == "signed":
+                inputs = inputs[:, :1] - inputs[:, 1:]
+        states = [None] * len(model.lstm.cells)
+        forces = []
+        for x in inputs.to(model.head.weight.dtype):
+            first, h = x, x.unsqueeze(0)
+            for index, cell in enumerate(model.lstm.cells):
+                if index:
+                    h = F.avg_pool2d(h, 2)
+                states[index] = cell(h, states[index])
+                h = states[index][0]
+            parts = [h.mean((-2, -1))[0]]
+            if model.readout == "mean+max":
+                parts.append(h.amax((-2, -1))[0])
+            if model.global_inputs:
+                means = first.mean((-2, -1))
+                parts.append(means)
+                if model.cumulative and model.features in ("linear", "signed") and seq.shape[1] == 2:
+                    parts.append(means[-1:] ** 2)
+            forces.append(model.force_offset + model.force_scale * model.head(torch.cat(parts))[0])
+        out.append(torch.stack(forces))
+    return torch.stack(out)
+
+
+OPTIONS = [
+    {},
+    {"readout": "mean+max"},
+    {"global_inputs": False},
+    {"features": "log1p"},
+    {"features": "linear"},
+    {"features": "signed"},
+    {"cumulative": False},
+    {"cumulative": False, "features": "signed"},
+    {"cumulative": False, "features": "log1p", "readout": "mean+max", "global_inputs": False},
+]
+
+
+class TestOptions:
+    """Input features, readout and global inputs (issue 17): every combination the same model."""
+
+    def test_defaults(self):
+        model = ForceRegressor()
+        assert model.config["features"] == "signed" and model.config["readout"] == "mean"
+        assert model.config["cumulative"] is True and model.config["global_inputs"] is True
+        # head: 16 hidden means + OFF - ON and signed running total means + its square
+        assert model.head.in_features == 16 + 3 and model.lstm.cells[0].in_channels == 2
+
+    @pytest.mark.parametrize("options", OPTIONS)
+    def test_forward_matches_reference(self, options):
+        model = small_model(hidden_channels=(3, 2), **options).double()
+        model.set_force_scaling(2.0, 3.0)
+        x = counts(2, 5, 2, H, W, rate=1.5)
+        x[1, :, 1] *= 2
+        torch.testing.assert_close(model(x), reference_forward(model, x), atol=1e-12, rtol=1e-12)
+
+    @pytest.mark.parametrize("options", OPTIONS)
+    def test_streaming_equals_forward(self, options):
+        model = small_model(hidden_channels=(3,), **options)
+        x = counts(3, 8, 2, H, W, rate=1.0)
+        state, outs = None, []
+        for t in range(x.shape[1]):
+            force, state = model.step(x[:, t], state)
+            outs.append(force)
+        torch.testing.assert_close(torch.stack(outs, 1), model(x), atol=1e-5, rtol=1e-5)
+        assert len(state) == 1 + model.cumulative
+
+    @pytest.mark.parametrize("options", OPTIONS)
+    def test_one_frame_and_empty_batch(self, options):
+        model = small_model(**options)
+        x = counts(2, 1, 2, H, W)
+        torch.testing.assert_close(model(x)[:, 0], model.step(x[:, 0])[0], atol=1e-6, rtol=1e-6)
+        assert model(counts(0, 4, 2, H, W)).shape == (0, 4)
+        assert model(counts(2, 0, 2, H, W)).shape == (2, 0)
+
+    def test_global_inputs_hold_the_physics_features(self):
+        """With the hidden state's head weights at zero, the model is a linear function of
+        the frame's OFF and ON totals, the running signed total and its square."""
+        from event_transforms.tactile.baselines import physics_features
+
+        model = small_model(hidden_channels=(3,), input_pool=4, features="linear").double()
+        height, width = 16, 12  # divisible by the pool: every pixel counts
+        weights = torch.tensor([0.0, 0.0, 0.0, 0.5, -0.25, 0.75, 2.0], dtype=torch.float64)
+        with torch.no_grad():
+            model.head.weight.copy_(weights.unsqueeze(0))
+            model.head.bias.fill_(1.5)
+        x = counts(2, 6, 2, height, width, rate=1.0)
+        x[0, :, 0] += 1.0
+        physics = physics_features(x) / (height * width)  # d, d², OFF, ON per pixel
+        d, off, on = physics[..., 0], physics[..., 2], physics[..., 3]
+        want = 1.5 + 0.5 * off - 0.25 * on + 0.75 * d + 2.0 * d.square()
+        torch.testing.assert_close(model(x), want, atol=1e-12, rtol=1e-12)
+
+    def test_mean_readout_limits_one_hot_pixel(self):
+        """A hot pixel moves one cell of the last hidden state: the mean readout sees it
+        divided by the cells, the max readout whole."""
+        torch.manual_seed(0)
+        x = counts(1, 6, 2, 16, 16, rate=0.2)
+        hot = x.clone()
+        hot[..., 5, 5] += 50.0
+        moved = {}
+        for readout in ("mean", "mean+max"):
+            model = small_model(hidden_channels=(4,), input_pool=2, readout=readout, global_inputs=False,
+                                features="log1p", cumulative=False)
+            with torch.no_grad():
+                model.head.weight.fill_(1.0)
+            with torch.no_grad():
+                moved[readout] = float((model(hot) - model(x)).abs().max())
+        assert moved["mean"] < moved["mean+max"]
+
+    def test_bad_arguments(self):
+        with pytest.raises(ValueError, match="features must be one of .*, got 'log'"):
+            ForceRegressor(features="log")
+        with pytest.raises(ValueError, match="readout must be one of .*, got 'max'"):
+            ForceRegressor(readout="max")
+        with pytest.raises(TypeError, match="global_inputs must be a bool, got 1"):
+            ForceRegressor(global_inputs=1)
+
+
+def test_signed_input_ignores_balanced_noise():
+    """Events that come in OFF/ON pairs (background activity, hot pixels) leave the
+    ``features="signed"`` input, and so the default model, unchanged."""
+    model = small_model(hidden_channels=(3,))
+    x = counts(2, 6, 2, H, W, rate=0.5)
+    noise = counts(2, 6, 1, H, W, rate=3.0, seed=7)
+    noisy = x + noise  # the same number of extra OFF and ON events at every pixel
+    with torch.no_grad():
+        torch.testing.assert_close(model(noisy), model(x), atol=1e-6, rtol=1e-6)
+        linear = small_model(hidden_channels=(3,), features="linear")
+        assert not torch.allclose(linear(noisy), linear(x), atol=1e-3)

@@ -9,7 +9,8 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
 - :mod:`~event_transforms.tactile.datasets`: the simulated grasps as data sets, and noise banks;
 - :mod:`~event_transforms.tactile.models`: the reference ConvLSTM force regressor;
 - :mod:`~event_transforms.tactile.ensemble`: many force regressors trained in lockstep;
-- :mod:`~event_transforms.tactile.baselines`: trivial baselines the network must beat;
+- :mod:`~event_transforms.tactile.baselines`: baselines the network must beat (trivial ones and a
+  physics least-squares model);
 - :mod:`~event_transforms.tactile.training`: timing, batching, scores, atomic result files;
 - :mod:`~event_transforms.tactile.methods`: method names and which methods a scene runs;
 - :mod:`~event_transforms.tactile.copies`: a scene's data, synthetic copies, the paired batch order;

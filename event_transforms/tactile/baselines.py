@@ -1,4 +1,4 @@
-"""Trivial force baselines that the network must beat (DESIGN.md §6, experiment standard).
+"""Force baselines the network must beat: trivial ones and a physics model (DESIGN.md §6).
 
 Each baseline is a small class with ``fit(frames, force) -> self`` and
 ``predict(frames) -> force`` on whole tensors, computed in float64 on the CPU:
@@ -10,6 +10,10 @@ Each baseline is a small class with ``fit(frames, force) -> self`` and
   ON event totals up to ``t`` and the totals of frame ``t``, plus one unpenalised intercept
   per frame index. A membrane pressed harder emits more events, so the running totals
   integrate the indentation; issue 9 found such a linear model beating the ConvLSTM.
+- :class:`PhysicsLeastSquares`: least squares of ``force[t]`` on the running signed event
+  total ``OFF - ON`` up to ``t`` and its square (the indentation and Hertz's nonlinearity),
+  the OFF and ON totals of frame ``t``, and one intercept per frame index; optionally told
+  each sequence's bolt diameter (issue 17: the competence bar of the reference network).
 
 :func:`evaluate_baselines` fits them all on a training split and reports the validation
 and test MSE (N²) of each, so they can appear as rows of a results table.
@@ -21,7 +25,7 @@ Example:
     >>> data = (frames, force)
     >>> scores = evaluate_baselines(data, data, data)
     >>> sorted(scores)
-    ['cumulative-count-ridge', 'global-mean', 'per-frame-mean']
+    ['cumulative-count-ridge', 'global-mean', 'per-frame-mean', 'physics least-squares']
     >>> scores["cumulative-count-ridge"]["test_mse"] < scores["per-frame-mean"]["test_mse"]
     True
 """
@@ -39,7 +43,9 @@ __all__ = [
     "GlobalMean",
     "PerFrameMean",
     "CumulativeCountRidge",
+    "PhysicsLeastSquares",
     "count_features",
+    "physics_features",
     "evaluate_baselines",
     "stack_items",
 ]
@@ -270,6 +276,137 @@ class CumulativeCountRidge(Baseline):
         return f"CumulativeCountRidge(alpha={self.alpha!r})"
 
 
+def _check_diameters(diameters: object, n: int, name: str = "diameters") -> Tensor:
+    if not isinstance(diameters, Tensor):
+        try:
+            diameters = torch.as_tensor(diameters, dtype=torch.float64)
+        except (TypeError, ValueError):
+            raise TypeError(f"{name} must be a tensor or sequence of N numbers, got {diameters!r:.80}") from None
+    diameters = diameters.detach().to("cpu", torch.float64)
+    if diameters.shape != (n,):
+        raise ValueError(f"{name}: expected (N,) = ({n},), got {tuple(diameters.shape)}")
+    if not bool(torch.isfinite(diameters).all() and (diameters > 0).all()):
+        raise ValueError(f"{name} must be finite and positive, got {diameters.tolist()!r:.80}")
+    return diameters
+
+
+def physics_features(frames: Tensor, diameters: Tensor | Sequence[float] | None = None) -> Tensor:
+    """Per-frame physics features ``(N, T, 4)`` in float64 (``(N, T, 6)`` with ``diameters``).
+
+    With ``d_t = Σ_{s <= t} (OFF_s - ON_s)`` the running signed event total (the
+    membrane's indentation, in events): ``d_t``, ``d_t²``, the OFF and ON totals of frame
+    ``t`` and, given the bolt diameters ``D`` (N,), also ``d_t / D`` and ``d_t² / D``
+    (under Hertz line contact the events see the product force × diameter).
+
+    Args:
+        frames: event counts ``(N, T, 2, H, W)``, any real dtype (channel 0 OFF, 1 ON).
+        diameters: ``None`` or one bolt diameter per sequence (any positive unit).
+
+    Example:
+        >>> frames = torch.zeros(1, 3, 2, 2, 2)
+        >>> frames[0, :, 0] = 1.0  # 4 OFF events per frame
+        >>> physics_features(frames)[0].tolist()
+        [[4.0, 16.0, 4.0, 0.0], [8.0, 64.0, 4.0, 0.0], [12.0, 144.0, 4.0, 0.0]]
+        >>> physics_features(frames, [2.0])[0, -1, 4:].tolist()
+        [6.0, 72.0]
+    """
+    frames = _check_frames(frames)
+    totals = frames.detach().to("cpu", torch.float64).sum(dim=(-2, -1))  # (N, T, 2)
+    running = totals.cumsum(dim=1)
+    signed = (running[..., 0] - running[..., 1]).unsqueeze(-1)
+    columns = [signed, signed.square(), totals]
+    if diameters is not None:
+        size = _check_diameters(diameters, frames.shape[0]).view(-1, 1, 1)
+        columns += [signed / size, signed.square() / size]
+    return torch.cat(columns, dim=-1)
+
+
+class PhysicsLeastSquares(Baseline):
+    """Least squares of force on the running signed event total, its square, the frame's
+    totals and per-frame intercepts (the physics model of ``benchmarks/size_confound.py``).
+
+    The model (features from :func:`physics_features`) is
+
+    .. math::
+
+        \\hat F_{n,t} = a_t + w_1 d_{n,t} + w_2 d_{n,t}^2 + w_3 \\mathrm{OFF}_{n,t}
+        + w_4 \\mathrm{ON}_{n,t} \\;[+ w_5 d_{n,t} / D_n + w_6 d_{n,t}^2 / D_n]
+
+    with ``d`` the running ``OFF - ON`` total and one intercept ``a_t`` per frame index:
+    4 + T parameters (40 for 36 frames; 42 with the size terms), fitted in closed form in
+    float64 (``torch.linalg.lstsq`` on the design with each feature column divided by its
+    training root mean square, which changes the conditioning, not the solution). No
+    penalty, no validation data: :meth:`fit` is the same with or without it.
+
+    Events see force × diameter (Hertz line contact), so a model fitted on some bolt sizes
+    extrapolates badly to others; ``size_aware=True`` adds the two size terms, and
+    :meth:`fit` and :meth:`predict` then need the diameters (the bolt size as metadata).
+
+    Args:
+        size_aware: add the ``d / D`` and ``d² / D`` terms (needs ``diameters``).
+
+    Example:
+        >>> g = torch.Generator().manual_seed(0)
+        >>> frames = torch.poisson(torch.full((8, 6, 2, 3, 3), 1.0), generator=g)
+        >>> d = physics_features(frames)[..., 0]
+        >>> force = 2.0 + 0.5 * d - 0.01 * d ** 2
+        >>> model = PhysicsLeastSquares().fit(frames, force)
+        >>> bool((model.predict(frames) - force).abs().max() < 1e-8), model.coef_.numel()
+        (True, 10)
+    """
+
+    name = "physics least-squares"
+
+    def __init__(self, size_aware: bool = False) -> None:
+        if not isinstance(size_aware, bool):
+            raise TypeError(f"size_aware must be a bool, got {size_aware!r}")
+        self.size_aware = size_aware
+        if size_aware:
+            self.name = "physics least-squares + size"
+
+    def _diameters(self, diameters: object, n: int) -> Tensor | None:
+        if self.size_aware and diameters is None:
+            raise ValueError("diameters: PhysicsLeastSquares(size_aware=True) needs the bolt diameters, got None")
+        if not self.size_aware and diameters is not None:
+            raise ValueError(
+                "diameters: given to PhysicsLeastSquares(size_aware=False); pass size_aware=True to use them"
+            )
+        return None if diameters is None else _check_diameters(diameters, n)
+
+    def _design(self, frames: Tensor, diameters: Tensor | None) -> Tensor:
+        """``(N*T, K + T)`` design: scaled physics features, then one-hot frame index."""
+        z = physics_features(frames, diameters) / self.feature_scale_
+        n, steps, k = z.shape
+        onehot = torch.eye(steps, dtype=torch.float64).expand(n, steps, steps)
+        return torch.cat([z, onehot], dim=-1).reshape(n * steps, k + steps)
+
+    def fit(
+        self, frames: Tensor, force: Tensor, *, diameters: Tensor | Sequence[float] | None = None
+    ) -> PhysicsLeastSquares:
+        """Fit on ``frames`` ``(N, T, 2, H, W)``, ``force`` ``(N, T)`` (and ``diameters`` ``(N,)``)."""
+        frames, force = _check_pair(frames, force)
+        diameters = self._diameters(diameters, frames.shape[0])
+        features = physics_features(frames, diameters).flatten(0, 1)
+        rms = features.square().mean(dim=0).sqrt()
+        self.feature_scale_ = torch.where(rms > 0, rms, torch.ones_like(rms))
+        self._steps = frames.shape[1]
+        design = self._design(frames, diameters)
+        self.coef_ = torch.linalg.lstsq(design, force.reshape(-1, 1), driver="gelsd").solution[:, 0]
+        return self
+
+    def predict(self, frames: Tensor, *, diameters: Tensor | Sequence[float] | None = None) -> Tensor:
+        """Predicted force ``(N, T)``, float64 on the CPU."""
+        if self._steps is None:
+            raise RuntimeError(f"{type(self).__name__}.predict called before fit")
+        frames = _check_frames(frames)
+        self._check_steps(frames)
+        diameters = self._diameters(diameters, frames.shape[0])
+        return (self._design(frames, diameters) @ self.coef_).reshape(frames.shape[:2])
+
+    def __repr__(self) -> str:
+        return f"PhysicsLeastSquares(size_aware={self.size_aware!r})"
+
+
 def stack_items(data: object) -> tuple[Tensor, Tensor]:
     """``(frames, force)`` from a ``(frames, force)`` pair or a Dataset of ``(frames, force, ...)``.
 
@@ -312,7 +449,8 @@ def evaluate_baselines(
         val: the same, for validation.
         test: the same, for test.
         baselines: the models to fit; default :class:`GlobalMean`, :class:`PerFrameMean`,
-            :class:`CumulativeCountRidge`.
+            :class:`CumulativeCountRidge` and :class:`PhysicsLeastSquares` (without the
+            size terms: items' metadata are not read).
 
     Returns:
         ``{name: {"val_mse": float, "test_mse": float}}``.
@@ -322,11 +460,16 @@ def evaluate_baselines(
         frames, force = stack_items(data)
         splits[name] = _check_pair(frames, force, name=f"{name} ")
     if baselines is None:
-        baselines = (GlobalMean(), PerFrameMean(), CumulativeCountRidge())
+        baselines = (GlobalMean(), PerFrameMean(), CumulativeCountRidge(), PhysicsLeastSquares())
     scores: dict[str, dict[str, float]] = {}
     for model in baselines:
         if not isinstance(model, Baseline):
             raise TypeError(f"baselines must hold Baseline instances, got {type(model).__name__}")
+        if getattr(model, "size_aware", False):
+            raise ValueError(
+                f"baselines: {model!r} needs bolt diameters, which evaluate_baselines does not read; "
+                "fit it yourself with diameters="
+            )
         if isinstance(model, CumulativeCountRidge):
             model.fit(*splits["train"], val=splits["val"])
         else:

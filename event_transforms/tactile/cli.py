@@ -24,16 +24,21 @@ from typing import Any
 
 __all__ = ["main", "build_parser", "QUICK", "FULL"]
 
-#: The quick configuration (default): stated in the output of every run.
+#: The quick configuration (default): stated in the output of every run. The model
+#: (issue 17): one ConvLSTM layer of 4 channels on 5 x 5 cells (``input_pool=14``), the
+#: signed OFF - ON input with its running sum, mean readout and global inputs (the
+#: ``ForceRegressor`` defaults); 300 steps. Measured on validation data, 4 seeds: the
+#: control's MSE is 0.81 / 0.34 / 0.31 N² after 150 / 300 / 600 steps (paper: 2.19 / 1.49 /
+#: 1.57).
 QUICK: dict[str, Any] = {
     # the control, the paper's split, the lag scene and one other gapped scene (those that
     # exist); the rest run with --full
     "scenes": ("control", "paper", "paper-lag", "timing"),
     "seeds": 8,
-    "steps": 400,
+    "steps": 300,
     "lr": 1e-2,
-    "hidden_channels": (8,),
-    "input_pool": 10,
+    "hidden_channels": (4,),
+    "input_pool": 14,
     "batch_size": 8,
     "eval_every": 50,
     "threads": 1,

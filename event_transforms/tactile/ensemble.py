@@ -38,6 +38,15 @@ between runs, the ratios far less). On a GPU the ensemble should win at any
 pool (DESIGN.md measured 10 members in about the time of one with ``vmap``); run
 ``benchmarks/ensemble.py --device cuda`` there.
 
+Since issue 17 the trainer pools each member's batch before stacking the members
+(:meth:`EnsembleForceRegressor.pool`; ``input_pool²`` times less to stack), and with
+``fixed_data=True`` pools every item of a fixed training set once, before the first step:
+reading, converting and pooling ``(8, 8, 36, 2, 70, 75)`` frames took 40 % of the earlier
+quick step. A 1 x 1 kernel runs as a batched matrix product instead of a grouped
+convolution. For the quick model (``hidden_channels=(4,)``, ``input_pool=14``) an 8-member
+step at batch 8 costs about a fifth of the earlier quick model's (``(8,)``, pool 10) in
+thread CPU time; the numbers are in the CHANGELOG under "Model (issue 17)".
+
 Example:
     >>> from event_transforms.tactile.models import ForceRegressor
     >>> models = []
@@ -68,7 +77,10 @@ from .models import (
     ForceRegressor,
     _check_positive_int,
     _feature_channels,
+    _global_channels,
+    _global_features,
     _hard_sigmoid,
+    _has_square,
     _input_features,
     _pool_counts,
 )
@@ -82,6 +94,26 @@ __all__ = [
     "fit_ensemble",
     "predict_ensemble",
 ]
+
+
+def _grouped_conv(x: Tensor, weight: Tensor, groups: int) -> Tensor:
+    """``F.conv2d(x, weight.flatten(0, 1), padding="same", groups=groups)`` for weights
+    ``(M, O, C, kH, kW)`` (``groups`` is ``M``, or 1 for an input shared by the members).
+
+    A 1 x 1 kernel runs as one batched matrix product: on the CPU, oneDNN splits a grouped
+    1 x 1 convolution into a slow per-group loop (measured: 36 recurrent steps, forward
+    and backward, 8 members of 4 channels on 5 x 5 cells, 10.1 ms as convolutions, 6.5 ms
+    as products).
+    """
+    members, out, channels = weight.shape[:3]
+    if weight.shape[-2:] != (1, 1):
+        return F.conv2d(x, weight.flatten(0, 1), padding="same", groups=groups)
+    n, _, height, width = x.shape
+    if groups == 1:  # every member's kernels on the one input
+        y = torch.matmul(weight.reshape(members * out, channels), x.reshape(n, channels, height * width))
+    else:
+        y = torch.matmul(weight.reshape(members, out, channels), x.reshape(n, members, channels, height * width))
+    return y.reshape(n, members * out, height, width)
 
 
 class _GroupedCell(nn.Module):
@@ -103,10 +135,9 @@ class _GroupedCell(nn.Module):
 
     def input_gates(self, x: Tensor, shared: bool) -> Tensor:
         """``(N, M*C_in, H, W)`` (or ``(N, C_in, H, W)`` when ``shared``) -> ``(N, M*4h, H, W)``."""
-        weight = self.input_weight.flatten(0, 1)
-        bias = self.input_bias.flatten()
         # A shared input needs no copies: one ordinary convolution with every member's kernels.
-        return F.conv2d(x, weight, bias, padding="same", groups=1 if shared else self.members)
+        gates = _grouped_conv(x, self.input_weight, 1 if shared else self.members)
+        return gates + self.input_bias.flatten().view(-1, 1, 1)
 
     def run(self, input_gates: Tensor) -> Tensor:
         """Loop over time: ``(B, T, M*4h, H, W)`` input gates -> hidden ``(B, T, M*h, H, W)``."""
@@ -115,10 +146,9 @@ class _GroupedCell(nn.Module):
         dtype = torch.promote_types(self.input_weight.dtype, torch.float32)
         c = torch.zeros(batch, members, hidden, height, width, dtype=dtype, device=input_gates.device)
         h = c.flatten(1, 2)
-        recurrent = self.recurrent_weight.flatten(0, 1)
         outputs = []
         for gates in input_gates.unbind(1):
-            gates = gates.to(dtype) + F.conv2d(h, recurrent, padding="same", groups=members).to(dtype)
+            gates = gates.to(dtype) + _grouped_conv(h, self.recurrent_weight, members).to(dtype)
             i, f, g, o = gates.unflatten(1, (members, 4, hidden)).unbind(2)
             c = self._gate(f) * c + self._gate(i) * torch.tanh(g)
             h = (self._gate(o) * torch.tanh(c)).flatten(1, 2)
@@ -141,7 +171,7 @@ class EnsembleForceRegressor(nn.Module):
         members: number of members ``M``.
         **kwargs: the arguments of :class:`ForceRegressor` (``in_channels``,
             ``hidden_channels``, ``kernel_size``, ``input_pool``, ``recurrent_activation``,
-            ``cumulative``).
+            ``cumulative``, ``features``, ``readout``, ``global_inputs``).
 
     Shape:
         - frames: ``(M, B, T, 2, H, W)`` (member ``m`` reads batch ``frames[m]``) or
@@ -170,14 +200,20 @@ class EnsembleForceRegressor(nn.Module):
         self.config = dict(config)
         self.in_channels = int(config["in_channels"])
         self.input_pool = int(config["input_pool"])
-        self.cumulative = bool(config.get("cumulative", False))
+        self.cumulative = bool(config["cumulative"])
+        self.features, self.readout = str(config["features"]), str(config["readout"])
+        self.global_inputs = bool(config["global_inputs"])
+        self.square = _has_square(self.in_channels, self.cumulative, self.features)
         hidden = list(config["hidden_channels"])
-        inputs = [_feature_channels(self.in_channels, self.cumulative), *hidden[:-1]]
+        inputs = [_feature_channels(self.in_channels, self.cumulative, self.features), *hidden[:-1]]
         self.cells = nn.ModuleList(
             _GroupedCell(members, c_in, c_h, tuple(config["kernel_size"]), config["recurrent_activation"])
             for c_in, c_h in zip(inputs, hidden)
         )
-        self.head_weight = nn.Parameter(torch.empty(members, 2 * hidden[-1]))
+        width = (2 if self.readout == "mean+max" else 1) * hidden[-1]
+        if self.global_inputs:
+            width += _global_channels(self.in_channels, self.cumulative, self.features)
+        self.head_weight = nn.Parameter(torch.empty(members, width))
         self.head_bias = nn.Parameter(torch.empty(members))
         self.register_buffer("force_offset", torch.zeros(members))
         self.register_buffer("force_scale", torch.ones(members))
@@ -251,17 +287,28 @@ class EnsembleForceRegressor(nn.Module):
         self.force_offset.copy_(values[0])
         self.force_scale.copy_(values[1])
 
-    def _readout(self, h: Tensor) -> Tensor:
-        """``(N, M*h, H, W)`` last hidden state -> force ``(N, M)``."""
+    def _readout(self, h: Tensor, x: Tensor, shared: bool) -> Tensor:
+        """``(N, M*h, H, W)`` last hidden state and first-layer input ``(N, [M*]C', h, w)``
+        (``shared``: one input for every member) -> force ``(N, M)``."""
         h = h.unflatten(1, (self.members, -1))
-        features = torch.cat([h.mean(dim=(-2, -1)), h.amax(dim=(-2, -1))], dim=-1)
+        parts = [h.mean(dim=(-2, -1))]
+        if self.readout == "mean+max":
+            parts.append(h.amax(dim=(-2, -1)))
+        if self.global_inputs:
+            if shared:
+                inputs = _global_features(x, self.square).unsqueeze(1).expand(-1, self.members, -1)
+            else:
+                inputs = _global_features(x.unflatten(1, (self.members, -1)).flatten(0, 1), self.square)
+                inputs = inputs.unflatten(0, (x.shape[0], self.members))
+            parts.append(inputs.to(parts[0].dtype))
+        features = torch.cat(parts, dim=-1)
         weight = self.head_weight
         out = (features.to(weight.dtype) * weight).sum(-1) + self.head_bias
         out = out.double() if weight.dtype == torch.float64 else out.float()
         return self.force_offset.to(out.dtype) + self.force_scale.to(out.dtype) * out
 
-    def forward(self, frames: Tensor) -> Tensor:
-        """Force per frame and member, ``(M, B, T)``."""
+    def _check_frames(self, frames: object, pooled: bool) -> bool:
+        """Validate ``frames``; return whether one batch is shared by every member."""
         if not isinstance(frames, Tensor):
             raise TypeError(f"frames must be a torch.Tensor, got {type(frames).__name__}")
         shared = frames.dim() == 5
@@ -271,22 +318,49 @@ class EnsembleForceRegressor(nn.Module):
                 f"frames: expected ({members}, B, T, {channels}, H, W) or (B, T, {channels}, H, W), "
                 f"got {tuple(frames.shape)}"
             )
-        if min(frames.shape[-2:]) < self.input_pool:
+        if not pooled and min(frames.shape[-2:]) < self.input_pool:
             raise ValueError(
                 f"frames: (H, W) = {tuple(frames.shape[-2:])} is smaller than input_pool={self.input_pool}"
             )
+        return shared
+
+    def pool(self, frames: Tensor) -> Tensor:
+        """The members' first stage: ``input_pool`` average pooling of the counts, in the
+        model's dtype (float32 or float64), any leading dimensions kept.
+
+        ``model(model.pool(frames), pooled=True)`` equals ``model(frames)``, so a trainer
+        can pool each item once (the pooled tensor is ``input_pool²`` times smaller).
+
+        Example:
+            >>> ensemble = EnsembleForceRegressor(2, hidden_channels=(2,), input_pool=5)
+            >>> frames = torch.ones(3, 4, 2, 10, 15, dtype=torch.int16)
+            >>> pooled = ensemble.pool(frames)
+            >>> tuple(pooled.shape), torch.equal(ensemble(pooled, pooled=True), ensemble(frames))
+            ((3, 4, 2, 2, 3), True)
+        """
+        self._check_frames(frames, pooled=False)
+        return _pool_counts(frames, self.input_pool, self.head_weight.dtype)
+
+    def forward(self, frames: Tensor, *, pooled: bool = False) -> Tensor:
+        """Force per frame and member, ``(M, B, T)``; ``pooled``: ``frames`` come from
+        :meth:`pool`."""
+        shared = self._check_frames(frames, pooled)
+        members = self.members
         batch, steps = frames.shape[-5:-3]
-        # the input features of ForceRegressor: log1p of pooled counts (+ running sums)
-        pooled = _pool_counts(frames.flatten(0, -5), self.input_pool, self.head_weight.dtype)
-        x = _input_features(pooled, self.cumulative)[0].flatten(0, 1)  # ([M*]B*T, C', h, w)
+        # the input features of ForceRegressor, from the pooled counts
+        if not pooled:
+            frames = _pool_counts(frames, self.input_pool, self.head_weight.dtype)
+        inputs = _input_features(frames.flatten(0, -5), self.cumulative, features=self.features)[0]
+        x = inputs.flatten(0, 1)  # ([M*]B*T, C', h, w)
         if not shared:  # (M*B*T, C', h, w) -> (B*T, M*C', h, w), member-major channels
             x = x.unflatten(0, (members, batch * steps)).transpose(0, 1).flatten(1, 2)
+        first = x
         for index, cell in enumerate(self.cells):
             if index:
                 x = F.avg_pool2d(x, 2)
             gates = cell.input_gates(x, shared and index == 0)
             x = cell.run(gates.unflatten(0, (batch, steps))).flatten(0, 1)
-        return self._readout(x).unflatten(0, (batch, steps)).permute(2, 0, 1)
+        return self._readout(x, first, shared).unflatten(0, (batch, steps)).permute(2, 0, 1)
 
     def extra_repr(self) -> str:
         return f"members={self.members}, " + ", ".join(f"{k}={v!r}" for k, v in self.config.items())
@@ -397,9 +471,12 @@ def _stack_member_batch(
 
 
 @torch.no_grad()
-def predict_ensemble(model: EnsembleForceRegressor, frames: Tensor, *, batch_size: int = 32) -> Tensor:
+def predict_ensemble(
+    model: EnsembleForceRegressor, frames: Tensor, *, batch_size: int = 32, pooled: bool = False
+) -> Tensor:
     """Every member's force for frames ``(N, T, 2, H, W)`` shared by all: ``(M, N, T)``, in
     batches of ``batch_size`` on the model's device, in eval mode (the mode is restored).
+    ``pooled=True`` takes frames already pooled by :meth:`EnsembleForceRegressor.pool`.
 
     The one evaluation loop: the trainer's validation passes and the protocol's scores use it.
     """
@@ -407,7 +484,10 @@ def predict_ensemble(model: EnsembleForceRegressor, frames: Tensor, *, batch_siz
     model.eval()
     device = model.head_weight.device
     try:
-        preds = [model(frames[start : start + batch_size].to(device)) for start in range(0, frames.shape[0], batch_size)]
+        preds = [
+            model(frames[start : start + batch_size].to(device), pooled=pooled)
+            for start in range(0, frames.shape[0], batch_size)
+        ]
     finally:
         model.train(was_training)
     if not preds:
@@ -416,8 +496,8 @@ def predict_ensemble(model: EnsembleForceRegressor, frames: Tensor, *, batch_siz
 
 
 def _validation_mse(model: EnsembleForceRegressor, frames: Tensor, force: Tensor, batch_size: int) -> Tensor:
-    """Per-member MSE over every frame of the shared validation set, ``(M,)`` float64."""
-    pred = predict_ensemble(model, frames, batch_size=batch_size)
+    """Per-member MSE over every frame of the shared, pooled validation set, ``(M,)`` float64."""
+    pred = predict_ensemble(model, frames, batch_size=batch_size, pooled=True)
     return (pred.double() - force.double()).square().mean(dim=(1, 2))
 
 
@@ -443,6 +523,7 @@ def fit_ensemble(
     augment: Sequence[Callable[[Tensor, list], Tensor] | None] | None = None,
     batches: Sequence[Tensor] | None = None,
     on_validation: Callable[[dict[str, Any]], None] | None = None,
+    fixed_data: bool = False,
 ) -> EnsembleResult:
     """Train every member of ``model`` for exactly ``steps`` optimiser steps, in lockstep.
 
@@ -494,6 +575,11 @@ def fit_ensemble(
         on_validation: called after every validation pass with a dict ``step``, ``steps``,
             ``train_loss`` (mean over members of the last step's MSE), ``val_mse`` (one per
             member), ``elapsed_s``.
+        fixed_data: the training sets return the same item for an index every time (no
+            randomness in ``__getitem__``, e.g. fixed copies): every item of a set is read
+            and pooled (:meth:`EnsembleForceRegressor.pool`) once, before the first step,
+            instead of at every step. Members with an ``augment`` callable still read and
+            pool their batches at every step.
 
     With ``progress=None`` and stderr not a terminal, one plain line per validation pass
     (step, training loss, validation MSE range, elapsed time and ETA) replaces the bar.
@@ -543,10 +629,23 @@ def fit_ensemble(
         if len(data) == 0:
             raise ValueError(f"train_sets[{index}] is empty")
 
+    if not isinstance(fixed_data, bool):
+        raise TypeError(f"fixed_data must be a bool, got {fixed_data!r}")
     device = model.head_weight.device if device is None else torch.device(device)
     model.to(device)
     val_frames, val_force = stack_items(val_data)
-    val_frames, val_force = val_frames.to(device), val_force.to(device)
+    val_frames, val_force = model.pool(val_frames.to(device)), val_force.to(device)
+    # fixed data: each set's items pooled once, (N, T, C, h, w) and (N, T), shared by members
+    pooled_sets: dict[int, tuple[Tensor, Tensor]] = {}
+    if fixed_data:
+        for m, data in enumerate(train_sets):
+            if (augment is None or augment[m] is None) and id(data) not in pooled_sets:
+                pooled, forces = [], []
+                for start in range(0, len(data), 16):  # 16 raw items in memory at a time
+                    frames, force, _ = collate([data[i] for i in range(start, min(start + 16, len(data)))])
+                    pooled.append(model.pool(frames.to(device)))
+                    forces.append(force.to(device))
+                pooled_sets[id(data)] = (torch.cat(pooled), torch.cat(forces))
     if batches is None:
         batches = [shuffled_batches(len(data), batch_size, steps, seed=seed) for data, seed in zip(train_sets, seeds)]
     else:
@@ -586,16 +685,23 @@ def fit_ensemble(
     step = 0
     for step in bar:
         tick = time.perf_counter()
-        pairs = [_stack_member_batch(train_sets[m], batches[m][step], collate) for m in range(members)]
-        if augment is not None:
-            pairs = [
-                (p[0].to(device, non_blocking=True), p[1]) if augment[m] is None
-                else (augment[m](p[0].to(device, non_blocking=True), p[2]), p[1])
-                for m, p in enumerate(pairs)
-            ]
-        frames = torch.stack([p[0] for p in pairs]).to(device, non_blocking=True)
-        force = torch.stack([p[1] for p in pairs]).to(device, non_blocking=True)
-        pred = model(frames)
+        inputs, targets = [], []
+        for m in range(members):
+            indices = batches[m][step]
+            if id(train_sets[m]) in pooled_sets and (augment is None or augment[m] is None):
+                pooled, force = pooled_sets[id(train_sets[m])]
+                index = indices.to(device)
+                inputs.append(pooled.index_select(0, index))
+                targets.append(force.index_select(0, index))
+                continue
+            frames, force, metas = _stack_member_batch(train_sets[m], indices, collate)
+            frames = frames.to(device, non_blocking=True)
+            if augment is not None and augment[m] is not None:
+                frames = augment[m](frames, metas)
+            inputs.append(model.pool(frames))  # pooled per member: M small tensors stacked
+            targets.append(force.to(device, non_blocking=True))
+        frames, force = torch.stack(inputs), torch.stack(targets)
+        pred = model(frames, pooled=True)
         per_member = (pred - force.to(pred.dtype)).square().mean(dim=(1, 2))
         optimiser.zero_grad(set_to_none=True)
         per_member.sum().backward()

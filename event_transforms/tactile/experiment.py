@@ -167,10 +167,8 @@ def run_unit(
     for method in parsed:
         for seed in seeds:
             torch.manual_seed(seed)
-            extra = {"cumulative": True} if config.cumulative else {}
-            models.append(
-                ForceRegressor(hidden_channels=config.hidden_channels, input_pool=config.input_pool, **extra)
-            )
+            models.append(ForceRegressor(hidden_channels=config.hidden_channels, input_pool=config.input_pool,
+                                         cumulative=config.cumulative))
             before = watch.seconds
             transform = method.build(data.noise_bank)
             if config.fixed or transform is None:
@@ -192,6 +190,7 @@ def run_unit(
         batch_size=config.batch_size, seeds=member_seeds, lr_max=config.lr, clip=config.clip, schedule="one-cycle",
         eval_every=config.eval_every, select="best" if holdout else "final", device=device, progress=progress,
         augment=augment, batches=batches if config.paired else None, on_validation=on_validation,
+        fixed_data=True,  # every training set here is fixed (on-the-fly copies go through augment)
         description=description or f"{scene.name}: {', '.join(methods)}",
     )
     val_pred, val_target = _evaluate(ensemble, data.val)
