@@ -13,7 +13,7 @@ from torch import Tensor
 
 from .._validation import as_number, check_pair, check_positive
 from ..functional.cleaning import _denoise, _drop_mask, _hot_pixels, _pixel_mask, random_pixel_mask
-from .base import EventTransform, Params, seeds, uniform
+from .base import EventTransform, Param, Params, seeds, uniform
 
 __all__ = ["DropPixel", "RandomDropPixel", "Denoise"]
 
@@ -101,6 +101,9 @@ class RandomDropPixel(EventTransform):
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         b = shape[0]
         return {"fraction": uniform(*self.fraction, b, generator), "seed": seeds(b, generator)}
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1)}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         height, width = frames.shape[-2:]

@@ -31,7 +31,7 @@ from ..functional.geometry import (
     downsampled_size,
 )
 from ..functional.spatial import Center, _check_center
-from .base import EventTransform, Params, integers, uniform
+from .base import EventTransform, Param, Params, integers, uniform
 
 __all__ = ["Affine", "RandomAffine", "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample"]
 
@@ -47,6 +47,12 @@ class _AffineWarp(EventTransform):
         super().__init__(p=p)
         self.center = _check_center(center)
         self.mode = check_choice(mode, "mode", INTERPOLATIONS)
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {
+            "angle": Param("float"), "scale": Param("float", low=float.fromhex("0x1p-1022")),
+            "translate": Param("float", shape=(2,)), "shear": Param("float", shape=(2,)),
+        }
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _affine(
@@ -194,6 +200,9 @@ class RandomAffine(_AffineWarp):
 
 
 class _Roll(EventTransform):
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"shift": Param("int", shape=(2,))}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _translate(frames, params["shift"])
 
@@ -276,6 +285,10 @@ class _Crop(EventTransform):
         if self.size[0] > height or self.size[1] > width:
             raise ValueError(f"{type(self).__name__}: size {self.size} does not fit frames of (H, W) = ({height}, {width})")
         return height - self.size[0], width - self.size[1]
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        rows, cols = self._room(shape)
+        return {"top": Param("int", low=0, high=rows), "left": Param("int", low=0, high=cols)}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         self._room(frames.shape)

@@ -12,7 +12,7 @@ from torch import Tensor
 
 from .._validation import check_counts, check_frames, check_pair, check_positive, describe
 from ..functional.noise import _add_counts, _add_entries, _add_poisson_noise, _drop_by_area, _drop_by_time, _drop_events, _poisson_totals
-from .base import EventTransform, Params, apply_by_group, choice, integers, kernel_generator, seeds, slice_params, uniform
+from .base import EventTransform, Param, Params, apply_by_group, choice, integers, kernel_generator, seeds, slice_params, uniform
 
 __all__ = ["AddNoise", "AddPoissonNoise", "RandomEventDrop"]
 
@@ -85,6 +85,9 @@ class AddNoise(EventTransform):
             )
         return {"offset": integers(n - t + 1, b, generator)}
 
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"offset": Param("int", low=0, high=max(self.bank.shape[0] - shape[1], 0))}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         b, t = frames.shape[:2]
         offset = np.asarray(params["offset"].tolist(), dtype=np.int64).reshape(b)  # CPU: no sync
@@ -144,6 +147,9 @@ class AddPoissonNoise(EventTransform):
             params["count"] = totals
         params["seed"] = seeds(shape[0], generator)
         return params
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"rate_hz": Param("float", low=0.0), "count": Param("int", low=0, optional=True), "seed": Param("int", low=0, high=2**63 - 1)}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _add_poisson_noise(
@@ -217,6 +223,16 @@ class RandomEventDrop(EventTransform):
             "method": method, "fraction": fraction, "seed": seeds(b, generator),
             "start": start, "length": length,
             "top": top, "height": height, "left": left, "width": width,
+        }
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        b, t, _, h, w = shape
+        return {
+            "method": Param("int", choices=tuple(_DROPS.index(m) for m in self.methods)),
+            "fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1),
+            "start": Param("int", low=0, high=t), "length": Param("int", low=0, high=t),
+            "top": Param("int", low=0, high=h), "height": Param("int", low=0, high=h),
+            "left": Param("int", low=0, high=w), "width": Param("int", low=0, high=w),
         }
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:

@@ -13,7 +13,7 @@ from torch import Tensor
 
 from .._validation import as_number
 from ..functional.polarity import _check_length, _crop_time, _merge_polarities
-from .base import EventTransform, Params, integers
+from .base import EventTransform, Param, Params, integers
 
 __all__ = [
     "FlipPolarity",
@@ -125,6 +125,9 @@ class _CropTime(EventTransform):
 
     def _room(self, shape) -> int:
         return shape[1] - _check_length(self.length, shape[1])
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"start": Param("int", low=0, high=self._room(shape))}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         self._room(frames.shape)

@@ -14,9 +14,14 @@ from torch import Tensor
 
 from .._validation import TES_MODES, as_number, check_choice, check_pair, check_probability
 from ..functional.temporal import _frame_shift, _temporal_event_shift
-from .base import EventTransform, Params, choice, kernel_generator, seeds, uniform
+from .base import EventTransform, Param, Params, choice, kernel_generator, seeds, uniform
 
 __all__ = ["FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift"]
+
+
+#: Shifts beyond any sequence length are the same as T (all events leave); the bound keeps
+#: them in int64 with room for index arithmetic.
+_MAX_SHIFT = 2**62
 
 
 def _check_shifts(shifts: object) -> tuple[int, ...]:
@@ -26,7 +31,7 @@ def _check_shifts(shifts: object) -> tuple[int, ...]:
             f"shifts must be a sequence of integer shifts such as (-1, 1) or range(-2, 3), "
             f"got {shifts!r}"
         )
-    values = tuple(as_number(s, "shifts", integer=True) for s in shifts)
+    values = tuple(as_number(s, "shifts", integer=True, low=-_MAX_SHIFT, high=_MAX_SHIFT) for s in shifts)
     if not values:
         raise ValueError(f"shifts must hold at least one shift, got {shifts!r}")
     return values
@@ -34,6 +39,9 @@ def _check_shifts(shifts: object) -> tuple[int, ...]:
 
 class _Shift(EventTransform):
     """Frame shifting: ``params["shift"]`` (B,) int64."""
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"shift": Param("int")}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _frame_shift(frames, params["shift"])
@@ -43,6 +51,12 @@ class _EventShift(EventTransform):
     """Temporal event shifting: ``params`` hold shift, fraction and the kernel's seed."""
 
     mode: str
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        spec = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0)}
+        if self.mode != "expected":
+            spec["seed"] = Param("int", low=0, high=2**63 - 1)
+        return spec
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         generator = None if self.mode == "expected" else kernel_generator(params["seed"], frames.device)
@@ -80,7 +94,7 @@ class FrameShift(_Shift):
 
     def __init__(self, shift: int, *, p: float = 1.0) -> None:
         super().__init__(p=p)
-        self.shift = as_number(shift, "shift", integer=True)
+        self.shift = as_number(shift, "shift", integer=True, low=-_MAX_SHIFT, high=_MAX_SHIFT)
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         return {"shift": torch.full((shape[0],), self.shift, dtype=torch.int64)}
@@ -117,6 +131,9 @@ class RandomFrameShift(_Shift):
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         return {"shift": choice(self._choices, shape[0], generator)}
 
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"shift": Param("int", choices=self.shifts)}
+
     def _settings(self) -> str:
         return f"shifts={self.shifts}"
 
@@ -152,7 +169,7 @@ class TemporalEventShift(_EventShift):
 
     def __init__(self, shift: int, fraction: float, mode: str = "exact", *, p: float = 1.0) -> None:
         super().__init__(p=p)
-        self.shift = as_number(shift, "shift", integer=True)
+        self.shift = as_number(shift, "shift", integer=True, low=-_MAX_SHIFT, high=_MAX_SHIFT)
         self.fraction = check_probability(fraction, "fraction")
         self.mode = check_choice(mode, "mode", TES_MODES)
 
