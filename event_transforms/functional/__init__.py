@@ -6,8 +6,8 @@ its input, and returns a tensor on the input's device.
 
 from __future__ import annotations
 
-from .spatial import *  # noqa: F401,F403
-from .spatial import __all__ as _spatial
+from .affine import *  # noqa: F401,F403
+from .affine import __all__ as _affine
 from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
 from .noise import *  # noqa: F401,F403
@@ -23,7 +23,11 @@ from .mixing import *  # noqa: F401,F403
 from .mixing import __all__ as _mixing
 from .cleaning import *  # noqa: F401,F403
 from .cleaning import __all__ as _cleaning
+from .drop import *  # noqa: F401,F403
+from .drop import __all__ as _drop
 from .representations import *  # noqa: F401,F403
 from .representations import __all__ as _representations
 
-__all__ = [*_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning, *_representations]
+__all__ = [
+    *_affine, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_representations,
+]
