@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 import event_transforms as et
 from event_transforms import functional as F
 from event_transforms._validation import as_batch
-from event_transforms.transforms.base import kernel_generator
-from event_transforms.functional.temporal import _draw_moved, _entries, _fractions
+from event_transforms.functional._streams import draw_seeds
+from event_transforms.functional.temporal import _draw_moved, _entries, _fractions, _temporal_event_shift
 from event_transforms.transforms import (
     FrameShift,
     RandomFrameShift,
@@ -46,7 +46,8 @@ def _moved_counts(frames, fraction, *, mode="exact", generator=None):
     batch, unbatch = as_batch(frames)
     fractions = _fractions(fraction, batch.shape[0])
     index, sample, values = _entries(batch)
-    moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
+    seeds = draw_seeds(batch.shape[0], generator)  # as temporal_event_shift draws them
+    moved, _ = _draw_moved(batch.shape, index, sample, values, fractions, mode, seeds)
     out = torch.zeros(batch.numel(), dtype=frames.dtype, device=frames.device)
     out[index] = moved.to(frames.dtype)
     return unbatch(out.view(batch.shape))
@@ -446,11 +447,10 @@ class TestModules:
         out = module(frames, params=params)
         if mode == "expected":  # deterministic: no seed
             assert sorted(params) == ["fraction", "shift"]
-            kernel = None
-        else:  # the kernel draws from a generator seeded by the per-sample seeds in params
+        else:  # the kernel draws from per-sample streams keyed by the seeds in params
             assert params["seed"].shape == (3,) and params["seed"].dtype == torch.int64
-            kernel = kernel_generator(params["seed"], frames.device)
-        assert torch.equal(out, F.temporal_event_shift(frames, -2, 0.5, mode=mode, generator=kernel))
+        shifts, fractions = torch.full((3,), -2), torch.full((3,), 0.5, dtype=torch.float64)
+        assert torch.equal(out, _temporal_event_shift(frames, shifts, fractions, mode, params.get("seed")))
         assert torch.equal(module(frames, generator=gen(5)), out)
         assert repr(module) == f"TemporalEventShift(shift=-2, fraction=0.5, mode={mode!r})"
         check_pickle(module, frames)
@@ -468,8 +468,7 @@ class TestModules:
         assert params["fraction"].std() > 0.1  # per sample, not one per batch
         frames = sparse_frames(300, 4, 2, 3, 5, high=9, density=0.6, dtype=torch.int64)
         out = module(frames, params=params)
-        kernel = kernel_generator(params["seed"], frames.device)
-        expected = F.temporal_event_shift(frames, params["shift"], params["fraction"], generator=kernel)
+        expected = _temporal_event_shift(frames, params["shift"], params["fraction"], "exact", params["seed"])
         assert torch.equal(out, expected)
         check_pickle(module, frames[:4])
         fixed = RandomTemporalEventShift(range(-1, 2), 0.5, mode="binomial")
