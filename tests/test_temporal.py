@@ -538,3 +538,42 @@ def test_time_reversal_is_an_involution_that_swaps_polarity_totals(shape, seed):
     out = F.time_reversal(frames)
     assert torch.equal(F.time_reversal(out), frames)
     assert torch.equal(out.sum((1, 3, 4)), frames.sum((1, 3, 4)).flip(1))
+
+
+class TestNarrowDtypes:
+    """Issue 19, item 4: TES adds counts in a wide dtype and refuses a result the input dtype
+    cannot hold, by name; it never wraps."""
+
+    @pytest.mark.parametrize("mode", ["exact", "binomial"])
+    @pytest.mark.parametrize("dtype, value", [(torch.uint8, 250), (torch.int8, 120), (torch.int16, 32_760), (torch.bfloat16, 250)])
+    def test_overflow_refused_by_name(self, dtype, value, mode):
+        frames = torch.full((1, 4, 2, 8, 8), value, dtype=dtype)
+        with pytest.raises(ValueError, match=rf"hold up to \d+ events in a pixel, more than {dtype} holds exactly"):
+            F.temporal_event_shift(frames, -1, 0.5, mode=mode, generator=gen(0))
+
+    @pytest.mark.parametrize("dtype", [torch.uint8, torch.int8, torch.int16])
+    def test_results_that_fit_are_exact(self, dtype):
+        frames = torch.full((1, 4, 2, 8, 8), 60, dtype=dtype)
+        out = F.temporal_event_shift(frames, -1, 0.5, generator=gen(0))
+        wide = F.temporal_event_shift(frames.to(torch.int64), -1, 0.5, generator=gen(0))
+        assert out.dtype == dtype and torch.equal(out.to(torch.int64), wide)
+        assert int(out.to(torch.int64).sum()) == 4 * 128 * 60 - 128 * 30  # frame 0's moved half leaves
+
+
+class TestPerSamplePurity:
+    """Issue 19, item 1: a sample's TES draw depends on its own seed and counts only."""
+
+    @pytest.mark.parametrize("mode", ["exact", "binomial"])
+    def test_sample_alone_equals_sample_in_any_batch(self, mode):
+        frames = sparse_frames(6, 5, 2, H, W, high=9, density=0.5, dtype=torch.int64)
+        frames[2, 1, 0, 0, 0] = 10**6  # a count for torch.binomial's per-sample route
+        seeds = torch.arange(6, dtype=torch.int64) * 7919 + 3
+        shifts, fractions = torch.full((6,), -1), torch.linspace(0.1, 0.9, 6, dtype=torch.float64)
+        batched = _temporal_event_shift(frames, shifts, fractions, mode, seeds)
+        for b in range(6):
+            alone = _temporal_event_shift(frames[b : b + 1], shifts[b : b + 1], fractions[b : b + 1], mode, seeds[b : b + 1])
+            assert torch.equal(alone[0], batched[b])
+        other = frames.clone()
+        other[0] = 0  # a neighbour's data changes nothing for the others
+        changed = _temporal_event_shift(other, shifts, fractions, mode, seeds)
+        assert torch.equal(changed[1:], batched[1:])
