@@ -38,6 +38,8 @@ _TRANSFORMS = (
     "FlipPolarity", "RandomFlipPolarity", "TimeReversal", "RandomTimeReversal", "MergePolarities",
     "CropTime", "RandomCropTime", "Cutout", "CutMix", "MixUp",
     "DropPixel", "RandomDropPixel", "Denoise",
+    # sequence warps (issue 19)
+    "RandomPerspective", "RandomElastic",
 )
 _NAMES: dict[str, str] = {
     **{name: "transforms" for name in _TRANSFORMS},
