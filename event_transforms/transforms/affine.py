@@ -19,7 +19,7 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, per_sample_pairs
 from ..functional.affine import Center, _affine, _check_center, _elastic, _image_corners, _perspective
-from .base import EventTransform, Params, choice, uniform
+from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [
     "Rotate",
@@ -68,11 +68,17 @@ class _Affine(_Warp):
 
 
 class _Rotation(_Affine):
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"angle": Param("float")}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self._warp(frames, angle=params["angle"])
 
 
 class _Zoom(_Affine):
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"scale": Param("float", low=float.fromhex("0x1p-1022"))}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self._warp(frames, scale=params["scale"])
 
@@ -214,6 +220,12 @@ class RandomResize(_Zoom):
 
 class _AffineWarp(_Affine):
     """Applies ``params`` angle (B,), scale (B,), translate (B, 2) and shear (B, 2)."""
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {
+            "angle": Param("float"), "scale": Param("float", low=float.fromhex("0x1p-1022")),
+            "translate": Param("float", shape=(2,)), "shear": Param("float", shape=(2,)),
+        }
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self._warp(
@@ -391,6 +403,9 @@ class RandomPerspective(_Warp):
         moves = uniform(0.0, 1.0, b * 8, generator).view(b, 4, 2) * reach * inwards
         return {"corners": _image_corners(height, width) + moves}
 
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"corners": Param("float", shape=(4, 2))}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _perspective(frames, params["corners"].detach().to("cpu", torch.float64), self.mode)
 
@@ -438,6 +453,9 @@ class RandomElastic(_Warp):
         b, _, _, height, width = shape
         noise = uniform(-1.0, 1.0, b * 2 * height * width, generator).view(b, 2, height, width)
         return {"alpha": uniform(*self.alpha, b, generator), "noise": noise}
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"alpha": Param("float", low=0.0), "noise": Param("float", shape=(2, *shape[-2:]), low=-1.0, high=1.0)}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _elastic(frames, params["noise"], params["alpha"].detach().to("cpu", torch.float64), self.sigma, self.mode)

@@ -16,7 +16,7 @@ from torch import Tensor
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
 from ..functional.affine import Center, _check_center
 from ..functional.stretch import CONTACT, _check_axis, _stretch
-from .base import EventTransform, Params, choice, uniform
+from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = ["Stretch", "RandomStretch"]
 
@@ -32,6 +32,9 @@ class _StretchWarp(EventTransform):
             self.axis = as_number(axis, "axis")
         self.center = _check_center(center)
         self.mode = check_choice(mode, "mode", INTERPOLATIONS)
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"factor": Param("float", low=float.fromhex("0x1p-1022"))}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         b = frames.shape[0]
