@@ -1,0 +1,460 @@
+"""Kernels on an :class:`~event_transforms.functional.EventBatch`: the event side of the transforms.
+
+Each kernel takes a batch and per-sample parameters (``(B,)`` CPU tensors, as
+:meth:`~event_transforms.EventTransform.make_params` draws them) and returns a new batch on
+the same device; nothing is modified in place. Coordinates stay int16, timestamps keep
+their dtype, polarity stays int8.
+
+**Per-sample randomness.** Kernels that draw (TES, event drop, jitter, Poisson noise) use
+one generator per sample, seeded with that sample's 63-bit seed from the params (Philox
+on CUDA, a counter-based stream; Mersenne Twister on the CPU), and draw that sample's
+numbers in event order. So a stream's output depends only on its own events and its own
+seed: ``kernel(batch[i:i+1], params[i:i+1])`` equals ``kernel(batch, params)[i]``. CPU and
+CUDA draws differ (different engines); each is reproducible.
+
+**Where events and frames differ.** A rotated, resized or jittered event lands in one
+pixel (rounded to the nearest), so counts are conserved; a bilinear warp of frames
+spreads each count over up to four pixels (and a zoom by β multiplies the total by about
+β²). Events moved outside the sensor are kept (no host synchronisation, counts kept) and
+dropped when binned; a later transform that moves them back brings them back, which
+frames cannot. Frame shift and TES drop the events they push out of the grid's window,
+as the frame kernels do.
+
+Host synchronisations: none, except where the output size depends on the data (event
+drop, frame shift/TES dropping events pushed out of the window, refractory period,
+decimation: one read of the kept counts per stream, plus the compaction) and in exact TES
+(the fix-up reads the per-group surplus, then gathers the events near the threshold).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from .._validation import read_host
+from .event_batch import EventBatch
+from .events import _frame_us
+
+__all__ = [
+    "flip_events", "translate_events", "affine_events", "shift_events", "drop_events_random",
+    "flip_polarity_events", "time_reversal_events", "poisson_noise_events", "spatial_jitter",
+    "time_jitter", "time_skew", "refractory_period", "decimation", "event_centroid",
+]
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _per_event(values: Tensor, batch: EventBatch, dtype: torch.dtype | None = None) -> Tensor:
+    """(N,) ``values[sample of each event]`` on the batch's device."""
+    values = values.to(device=batch.device, dtype=dtype or values.dtype, non_blocking=True)
+    return values.index_select(0, batch.sample_index())
+
+
+def _generator(seed: int, device: torch.device) -> torch.Generator:
+    generator = torch.Generator(device=device)
+    generator.manual_seed(int(seed) & (2**63 - 1))
+    return generator
+
+
+def _draw(batch: EventBatch, seed: Tensor, kind: str, dtype: torch.dtype = torch.float32,
+          lengths: Sequence[int] | None = None) -> Tensor:
+    """(sum lengths,) uniform (``kind="rand"``) or standard normal (``"randn"``) numbers:
+    sample b's from its own generator (seeded ``seed[b]``), in event order."""
+    lengths = batch.lengths if lengths is None else list(lengths)
+    device = batch.device
+    out = torch.empty(sum(lengths), dtype=dtype, device=device)
+    position = 0
+    for b, (s, n) in enumerate(zip(seed.tolist(), lengths)):
+        if n:
+            piece = out[position : position + n]
+            if kind == "rand":
+                piece.uniform_(generator=_generator(s, device))
+            else:
+                piece.normal_(generator=_generator(s, device))
+        position += n
+    return out
+
+
+def _compact(batch: EventBatch, keep: Tensor, **changes: Any) -> EventBatch:
+    """The events where ``keep`` holds (one host read of the kept counts per stream)."""
+    sample = batch.sample_index()
+    kept = torch.zeros(len(batch), dtype=torch.int64, device=batch.device).index_add_(0, sample, keep.to(torch.int64))
+    lengths = read_host(kept) if batch.device.type != "cpu" else kept.tolist()
+    offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
+    columns = {k: changes.pop(k, getattr(batch, k)) for k in ("x", "y", "t", "p")}
+    columns = {k: v[keep] for k, v in columns.items()}
+    return batch._replace(**columns, offsets=offsets, _sample=sample[keep], **changes)
+
+
+def _require_grid(batch: EventBatch, owner: str, *, frames: bool = True) -> tuple[Tensor, float | int, int]:
+    if batch.frame_ms is None or (frames and batch.n_frames is None):
+        need = "frame_ms and n_frames" if frames else "frame_ms"
+        raise ValueError(
+            f"{owner} on events needs the batch's frame grid ({need}): build the batch with "
+            f"EventBatch.from_streams(..., frame_ms=..., n_frames=...) or call batch.with_grid(...)"
+        )
+    return batch.t_start, _frame_us(batch.frame_ms), batch.n_frames
+
+
+def _round_to(values: Tensor, dtype: torch.dtype) -> Tensor:
+    return torch.round(values).clamp_(-(2**15 - 1), 2**15 - 1).to(dtype) if dtype == torch.int16 else torch.round(values).to(dtype)
+
+
+# --------------------------------------------------------------------------- space
+
+
+def flip_events(batch: EventBatch, flip: Tensor, *, axis: str = "x") -> EventBatch:
+    """Mirror the samples whose ``flip`` (B,) bool is set: ``x -> W - 1 - x`` (``axis="x"``,
+    a horizontal flip) or ``y -> H - 1 - y``. Sync-free; equal to the frame flip after binning.
+    """
+    column = batch.x if axis == "x" else batch.y
+    size = batch.sensor_size[1] if axis == "x" else batch.sensor_size[0]
+    flags = flip.tolist()
+    if not any(flags):
+        return batch
+    if all(flags):
+        mirrored = (size - 1) - column
+    else:
+        mirrored = torch.where(_per_event(flip, batch), (size - 1) - column, column)
+    return batch._replace(**{axis: mirrored.to(torch.int16)})
+
+
+def translate_events(batch: EventBatch, shift: Tensor) -> EventBatch:
+    """Move sample b's events by ``shift[b] = (dy, dx)`` whole pixels (int). Sync-free."""
+    shift = shift.to(torch.int16)
+    x = batch.x + _per_event(shift[:, 1].contiguous(), batch)
+    y = batch.y + _per_event(shift[:, 0].contiguous(), batch)
+    return batch._replace(x=x, y=y)
+
+
+def event_centroid(batch: EventBatch) -> Tensor:
+    """(B, 2) float64 ``(y, x)`` mean event position per stream on the batch's device; an
+    empty stream gets the image centre ``((H - 1) / 2, (W - 1) / 2)``. Sync-free."""
+    height, width = batch.sensor_size
+    lengths = torch.tensor(batch.lengths, dtype=torch.int64)
+    device = batch.device
+    if batch.num_events == 0:
+        return torch.tensor([[(height - 1) / 2, (width - 1) / 2]], dtype=torch.float64, device=device).expand(len(batch), 2)
+    on_device = lengths.to(device, non_blocking=True)
+    sums = torch.stack([
+        torch.segment_reduce(batch.y.to(torch.float64), "sum", lengths=on_device),
+        torch.segment_reduce(batch.x.to(torch.float64), "sum", lengths=on_device),
+    ], 1)
+    image = torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=torch.float64, device=device)
+    count = on_device.to(torch.float64).unsqueeze(1)
+    return torch.where(count > 0, sums / count.clamp_min(1), image)
+
+
+def affine_events(
+    batch: EventBatch,
+    *,
+    angle: Tensor | None = None,
+    scale: Tensor | None = None,
+    center: str | Sequence[float] = "mass",
+) -> EventBatch:
+    """Rotate by ``angle`` (degrees, counter-clockwise as in :func:`~event_transforms.functional.rotate`)
+    and scale by ``scale`` about the centre, per sample; each event moves to the nearest pixel.
+
+    The map is the frame kernel's forward map: ``(x', y') = c + s R (x - c, y - c)`` with
+    ``R = [[cos, sin], [-sin, cos]]`` in (x, y) order (y down), ``c`` the event centroid
+    of the stream (``center="mass"``, float64, all events), the image centre
+    (``"image"``) or a given ``(y, x)``. Count-conserving (a bilinear frame warp spreads
+    counts instead). Sync-free: a handful of per-event ops whatever B.
+    """
+    b = len(batch)
+    radians = np.deg2rad(np.asarray(angle.tolist() if angle is not None else [0.0] * b, dtype=np.float64))
+    s = np.asarray(scale.tolist() if scale is not None else [1.0] * b, dtype=np.float64)
+    cos, sin = np.cos(radians) * s, np.sin(radians) * s
+    height, width = batch.sensor_size
+    device = batch.device
+    if center == "mass":
+        c = event_centroid(batch)
+    elif center == "image":
+        c = torch.tensor([[(height - 1) / 2, (width - 1) / 2]], dtype=torch.float64, device=device).expand(b, 2)
+    else:
+        c = torch.as_tensor(center, dtype=torch.float64).to(device).reshape(-1, 2).expand(b, 2)
+    if batch.num_events == 0:
+        return batch
+    linear = torch.from_numpy(np.stack([cos, sin, -sin, cos], 1)).to(device)  # (B, 4): x' row, y' row
+    cy, cx = c[:, 0], c[:, 1]
+    # x' = a x + b y + e,  y' = c x + d y + f  with e, f folding the centre in
+    e = cx - linear[:, 0] * cx - linear[:, 1] * cy
+    f = cy - linear[:, 2] * cx - linear[:, 3] * cy
+    coefficients = torch.cat([linear, e.unsqueeze(1), f.unsqueeze(1)], 1).to(torch.float32).t().contiguous()
+    sample = batch.sample_index()
+    a, bb, cc, d, ee, ff = (coefficients[i].index_select(0, sample) for i in range(6))
+    x, y = batch.x.to(torch.float32), batch.y.to(torch.float32)
+    new_x = torch.addcmul(torch.addcmul(ee, a, x), bb, y)
+    new_y = torch.addcmul(torch.addcmul(ff, cc, x), d, y)
+    return batch._replace(x=_round_to(new_x, torch.int16), y=_round_to(new_y, torch.int16))
+
+
+# --------------------------------------------------------------------------- time
+
+
+def _groups(batch: EventBatch) -> tuple[Tensor, Tensor, int, Tensor]:
+    """Per event: its group ``(sample * T + bin) * 2 + p`` (int64; ``G`` outside the window),
+    its bin, the number of groups G, and whether it lies in the window."""
+    starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
+    from .event_batch import _bins_of
+
+    sample = batch.sample_index()
+    rel = batch.t - starts.to(batch.device, batch.t.dtype).index_select(0, sample)
+    bins, inside = _bins_of(rel, frame_us, n_frames)
+    groups = len(batch) * n_frames * 2
+    group = (sample.to(torch.int64) * n_frames + bins) * 2 + batch.p
+    group = torch.where(inside, group, groups)
+    return group, bins, groups, inside
+
+
+def shift_events(
+    batch: EventBatch,
+    shift: Tensor,
+    fraction: Tensor | None = None,
+    *,
+    seed: Tensor | None = None,
+    mode: str = "exact",
+) -> EventBatch:
+    """Frame shift (``fraction=None``) or TES-j(ζ) on events, on the batch's frame grid.
+
+    In every sample, bin and polarity holding N events (of the grid's window), ``"exact"``
+    moves a uniformly random subset of exactly k = round(ζ N) of them (``torch.round``,
+    half to even, as the frame kernel) by ``shift[b]`` bins (``t += j * frame``), the
+    same law as :func:`~event_transforms.functional.temporal_event_shift` in exact mode;
+    ``"binomial"`` moves each event with probability ζ. Events pushed out of the window
+    are dropped (as in the frame kernels); events outside the window never move.
+
+    Exact selection: each event gets a uniform key u from its sample's generator; the k
+    events with the smallest keys of a group are the ones moved. A binomial level
+    (u < ζ) picks all but a ~sqrt(N) surplus or deficit per group, which is fixed by ranking
+    only the events whose keys lie in a narrow band next to ζ (no full sort). Host syncs:
+    one read of the per-group surplus, one band gather (retried wider only if a band
+    held too few events), one read of the kept counts.
+    """
+    group, bins, groups, inside = _groups(batch)
+    frame_us = _frame_us(batch.frame_ms)
+    n_frames = batch.n_frames
+    if fraction is None:
+        moved = inside
+    else:
+        u = _draw(batch, seed, "rand", torch.float64)
+        zeta = _per_event(fraction.to(torch.float64), batch)
+        moved = (u < zeta) & inside
+        if mode == "exact":
+            moved = _exact_fixup(group, groups, u, zeta, moved, inside, fraction, n_frames)
+    jump = _per_event(shift.to(torch.int64), batch)
+    if isinstance(frame_us, int) and not batch.t.is_floating_point():
+        t = batch.t + torch.where(moved, jump * frame_us, 0)
+    else:
+        t = (batch.t.to(torch.float64) + torch.where(moved, jump.to(torch.float64) * frame_us, 0.0)).to(batch.t.dtype)
+    new_bins = bins.to(torch.int64) + torch.where(moved, jump, 0)
+    keep = ~moved | ((new_bins >= 0) & (new_bins < n_frames))
+    return _compact(batch, keep, t=t)
+
+
+def _exact_fixup(group: Tensor, groups: int, u: Tensor, zeta: Tensor, moved: Tensor, inside: Tensor,
+                 fraction: Tensor, n_frames: int) -> Tensor:
+    """Turn the binomial choice ``moved`` into exactly round(ζ N) smallest keys per group."""
+    device = group.device
+    total = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, inside.to(torch.int64))
+    chosen = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, moved.to(torch.int64))
+    group_zeta = fraction.to(device, torch.float64).repeat_interleave(n_frames * 2)
+    want = torch.round(group_zeta * total[:groups].to(torch.float64)).to(torch.int64)
+    surplus = chosen[:groups] - want
+    if groups == 0 or read_host(surplus.abs().amax().reshape(1))[0] == 0:
+        return moved
+    width = torch.zeros(groups + 1, dtype=torch.float64, device=device)
+    need = surplus.abs().to(torch.float64)
+    n = total[:groups].to(torch.float64).clamp_min(1)
+    width[:groups] = (need + 4 * need.sqrt() + 8) / n
+    while True:
+        w = width.index_select(0, group)
+        sign = torch.cat([surplus.sign(), torch.zeros(1, dtype=torch.int64, device=device)]).index_select(0, group)
+        below = (sign > 0) & moved & (u >= zeta - w)
+        above = (sign < 0) & ~moved & inside & (u < zeta + w)
+        band = (below | above).nonzero().squeeze(1)
+        band_group = group.index_select(0, band)
+        have = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, band_group, torch.ones_like(band_group))
+        short = (have[:groups] < surplus.abs()) & (width[:groups] < 2)
+        if not read_host(short.any().reshape(1))[0]:
+            break
+        width[:groups] = torch.where(short, width[:groups] * 4, width[:groups])
+    # rank band events inside their group: surplus groups un-move the largest keys below ζ,
+    # deficit groups move the smallest keys above ζ
+    key = u.index_select(0, band)
+    key = torch.where(sign.index_select(0, band) > 0, -key, key)
+    order = torch.argsort(key, stable=True)
+    order = order.index_select(0, torch.argsort(band_group.index_select(0, order), stable=True))
+    sorted_group = band_group.index_select(0, order)
+    first = torch.cumsum(have, 0) - have
+    rank = torch.arange(order.shape[0], device=device) - first.index_select(0, sorted_group)
+    flip = rank < surplus.abs().index_select(0, sorted_group.clamp_max(groups - 1))
+    out = moved.clone()
+    target = band.index_select(0, order)
+    out.index_put_((target,), flip ^ out.index_select(0, target))
+    return out
+
+
+def time_reversal_events(batch: EventBatch, reverse: Tensor) -> EventBatch:
+    """Reverse time in the grid's window for the samples flagged in ``reverse``: bin i goes to
+    T - 1 - i (integer timestamps: ``t -> 2 t0 + T frame - 1 - t``, so the binned frames
+    are exactly the frame kernel's reversal). Sync-free."""
+    starts, frame_us, n_frames = _require_grid(batch, "TimeReversal")
+    end = starts.to(batch.t.dtype) * 2 + n_frames * frame_us - (0 if batch.t.is_floating_point() else 1)
+    mirrored = _per_event(end, batch) - batch.t
+    flags = reverse.tolist()
+    t = mirrored if all(flags) else torch.where(_per_event(reverse, batch), mirrored, batch.t)
+    return batch._replace(t=t.to(batch.t.dtype))
+
+
+# --------------------------------------------------------------------------- polarity, drop, noise
+
+
+def flip_polarity_events(batch: EventBatch, flip: Tensor) -> EventBatch:
+    """Swap ON and OFF in the samples flagged in ``flip``. Sync-free."""
+    flags = flip.tolist()
+    if not any(flags):
+        return batch
+    swapped = 1 - batch.p
+    p = swapped if all(flags) else torch.where(_per_event(flip, batch), swapped, batch.p)
+    return batch._replace(p=p.to(torch.int8))
+
+
+def drop_events_random(batch: EventBatch, fraction: Tensor, seed: Tensor) -> EventBatch:
+    """Drop each event of sample b with probability ``fraction[b]`` (its own uniform, from
+    the sample's generator). One host read of the kept counts."""
+    u = _draw(batch, seed, "rand")
+    return _compact(batch, u >= _per_event(fraction.to(torch.float32), batch))
+
+
+def poisson_noise_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> EventBatch:
+    """Add background events: per pixel and polarity a Poisson process of ``rate_hz[b]``
+    over the grid's window, i.e. Poisson(rate · T · frame · 2HW) events of uniform pixel,
+    polarity and time. The counts are drawn on the host from the seeds (NumPy), so sizes
+    are known without a host synchronisation; positions come from the sample's generator.
+    Added events follow the sample's own events (the stream is no longer time-sorted)."""
+    starts, frame_us, n_frames = _require_grid(batch, "AddPoissonNoise")
+    height, width = batch.sensor_size
+    seeds = [int(s) for s in seed.tolist()]
+    rates = rate_hz.tolist()
+    span = n_frames * frame_us
+    counts = [int(np.random.default_rng(s).poisson(r * span * 1e-6 * 2 * height * width)) for s, r in zip(seeds, rates)]
+    device = batch.device
+    noise = []
+    for b, (s, n) in enumerate(zip(seeds, counts)):
+        g = _generator(s ^ 0x5DEECE66D, device)
+        u = torch.rand(n, 4, generator=g, device=device, dtype=torch.float64)
+        x = (u[:, 0] * width).to(torch.int16)
+        y = (u[:, 1] * height).to(torch.int16)
+        t = starts[b].item() + u[:, 2] * span
+        t = t.floor().to(batch.t.dtype)
+        p = (u[:, 3] < 0.5).to(torch.int8)
+        noise.append((x, y, t, p))
+    bounds = batch.offsets.tolist()
+    cols = []
+    for k, name in enumerate(("x", "y", "t", "p")):
+        column = getattr(batch, name)
+        pieces = []
+        for b in range(len(batch)):
+            pieces += [column[bounds[b] : bounds[b + 1]], noise[b][k]]
+        cols.append(torch.cat(pieces) if pieces else column)
+    lengths = [bounds[b + 1] - bounds[b] + counts[b] for b in range(len(batch))]
+    offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
+    return batch._replace(x=cols[0], y=cols[1], t=cols[2], p=cols[3], offsets=offsets, _sample=None)
+
+
+# --------------------------------------------------------------------------- event-only
+
+
+def spatial_jitter(batch: EventBatch, sigma: Tensor, seed: Tensor) -> EventBatch:
+    """Add Gaussian noise of standard deviation ``sigma[b]`` pixels to x and y, rounded to
+    whole pixels (events leaving the sensor are dropped when binned). Sync-free."""
+    noise = _draw(batch, seed, "randn", lengths=[2 * n for n in batch.lengths])
+    # sample b's 2 n_b numbers: first its x noise, then its y noise
+    sample = batch.sample_index().to(torch.int64)
+    position = torch.arange(batch.num_events, device=batch.device)
+    base = position + batch.offsets.to(batch.device).index_select(0, sample)  # 2 * offset + i
+    scale = _per_event(sigma.to(torch.float32), batch)
+    x = batch.x.to(torch.float32) + noise.index_select(0, base) * scale
+    lengths = torch.tensor(batch.lengths, dtype=torch.int64).to(batch.device).index_select(0, sample)
+    y = batch.y.to(torch.float32) + noise.index_select(0, base + lengths) * scale
+    return batch._replace(x=_round_to(x, torch.int16), y=_round_to(y, torch.int16))
+
+
+def time_jitter(batch: EventBatch, std_us: Tensor, seed: Tensor) -> EventBatch:
+    """Add Gaussian noise of ``std_us[b]`` microseconds to the timestamps (rounded for
+    integer timestamps). Streams are no longer time-sorted. Sync-free."""
+    noise = _draw(batch, seed, "randn", torch.float64) * _per_event(std_us.to(torch.float64), batch)
+    if batch.t.is_floating_point():
+        return batch._replace(t=batch.t + noise)
+    return batch._replace(t=batch.t + torch.round(noise).to(torch.int64))
+
+
+def time_skew(batch: EventBatch, coefficient: Tensor, offset_us: Tensor) -> EventBatch:
+    """``t -> t0 + coefficient[b] (t - t0) + offset_us[b]`` about the stream's grid start
+    ``t0`` (the first event's time without a grid), rounded for integer timestamps. Sync-free."""
+    if batch.t_start is not None:
+        origin = _per_event(batch.t_start.to(torch.float64), batch)
+    else:
+        from .event_batch import _segment_first  # noqa: F401
+
+        sample = batch.sample_index().to(torch.int64)
+        big = torch.full((len(batch),), math.inf, dtype=torch.float64, device=batch.device)
+        first = big.scatter_reduce(0, sample, batch.t.to(torch.float64), reduce="amin")
+        origin = first.index_select(0, sample)
+    t = batch.t.to(torch.float64)
+    skewed = origin + _per_event(coefficient.to(torch.float64), batch) * (t - origin) + _per_event(
+        offset_us.to(torch.float64), batch)
+    return batch._replace(t=skewed if batch.t.is_floating_point() else torch.round(skewed).to(torch.int64))
+
+
+def _pixel_runs(batch: EventBatch) -> tuple[Tensor, Tensor, Tensor]:
+    """Events ordered by (sample, pixel, time): the order, each ordered event's pixel key,
+    and its rank inside its pixel's run (two stable sorts)."""
+    height, width = batch.sensor_size
+    sample = batch.sample_index().to(torch.int64)
+    key = (sample * (height + 2) + batch.y.to(torch.int64).clamp(-1, height)) * (width + 2) + batch.x.to(torch.int64).clamp(-1, width)
+    order = torch.argsort(batch.t, stable=True)
+    order = order.index_select(0, torch.argsort(key.index_select(0, order), stable=True))
+    sorted_key = key.index_select(0, order)
+    start = torch.ones_like(sorted_key, dtype=torch.bool)
+    start[1:] = sorted_key[1:] != sorted_key[:-1]
+    position = torch.arange(order.shape[0], device=order.device)
+    run_start = torch.cummax(torch.where(start, position, 0), 0).values
+    return order, start, position - run_start
+
+
+def refractory_period(batch: EventBatch, period_us: Tensor) -> EventBatch:
+    """Drop an event when its pixel (either polarity) had an event less than ``period_us[b]``
+    before it (the previous event, kept or not: a pixel's dead time restarts with every
+    event it saw). The first event of each pixel is kept. Output in (time) order of the
+    input. One host read of the kept counts."""
+    if batch.num_events == 0:
+        return batch
+    order, start, _ = _pixel_runs(batch)
+    t = batch.t.index_select(0, order).to(torch.float64)
+    gap = torch.empty_like(t)
+    gap[0] = math.inf
+    gap[1:] = t[1:] - t[:-1]
+    period = _per_event(period_us.to(torch.float64), batch).index_select(0, order)
+    keep_sorted = start | (gap >= period)
+    keep = torch.empty_like(keep_sorted).index_put_((order,), keep_sorted)
+    return _compact(batch, keep)
+
+
+def decimation(batch: EventBatch, n: Tensor) -> EventBatch:
+    """Keep every ``n[b]``-th event of each pixel (the n-th, 2n-th, ... in time), as tonic's
+    ``Decimation``. One host read of the kept counts."""
+    if batch.num_events == 0:
+        return batch
+    order, _, rank = _pixel_runs(batch)
+    every = _per_event(n.to(torch.int64), batch).index_select(0, order)
+    keep_sorted = (rank + 1) % every == 0
+    keep = torch.empty_like(keep_sorted).index_put_((order,), keep_sorted)
+    return _compact(batch, keep)
