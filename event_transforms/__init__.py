@@ -38,12 +38,16 @@ _TRANSFORMS = (
     "FlipPolarity", "RandomFlipPolarity", "TimeReversal", "RandomTimeReversal", "MergePolarities",
     "CropTime", "RandomCropTime", "Cutout", "CutMix", "MixUp",
     "DropPixel", "RandomDropPixel", "Denoise",
+    # events (issue 20)
+    "SpatialJitter", "TimeJitter", "TimeSkew", "RefractoryPeriod", "Decimation",
 )
 _NAMES: dict[str, str] = {
     **{name: "transforms" for name in _TRANSFORMS},
     "Scene": "scenes",
     "ResizeToTarget": "scenes",
     "AugmentedDataset": "data",
+    "EventBatch": "functional",
+    "collate_events": "functional",
 }
 _SUBMODULES = ("functional", "transforms", "scenes", "data", "viz", "tactile")
 
@@ -52,6 +56,7 @@ __all__ = ["__version__", *_SUBMODULES, *_NAMES]
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from . import data, functional, scenes, tactile, transforms, viz
     from .data import AugmentedDataset
+    from .functional import EventBatch, collate_events
     from .scenes import ResizeToTarget, Scene
     from .transforms import *  # noqa: F403
 

@@ -26,4 +26,9 @@ from .cleaning import __all__ as _cleaning
 from .representations import *  # noqa: F401,F403
 from .representations import __all__ as _representations
 
-__all__ = [*_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning, *_representations]
+from .event_batch import *  # noqa: F401,F403
+from .event_batch import __all__ as _event_batch
+from .event_kernels import *  # noqa: F401,F403
+from .event_kernels import __all__ as _event_kernels
+
+__all__ = [*_event_batch, *_event_kernels, *_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning, *_representations]

@@ -91,8 +91,8 @@ class EventBatch:
         >>> batch = EventBatch.from_streams([a, b], sensor_size=(2, 3), frame_ms=10.0)
         >>> len(batch), batch.lengths, batch.t_start.tolist()
         (2, [3, 1], [0, 0])
-        >>> batch[0].t.tolist(), batch.nbytes
-        [1000, 12000, 25000], 52
+        >>> batch[0].t.tolist(), batch.nbytes  # 13 bytes per event
+        ([1000, 12000, 25000], 52)
     """
 
     __slots__ = ("x", "y", "t", "p", "offsets", "sensor_size", "frame_ms", "t_start", "n_frames", "_sample")
@@ -464,16 +464,18 @@ def bin_events(
     ``None``, ``n_frames`` defaults to the grid's). Events outside the sensor, the crop or
     the time window are dropped silently (a transform may have moved them there).
 
-    One scatter for the whole batch: int32 linear indices (int64 past 2**31 bins), an
-    out-of-window event counted in one spare slot, one ``bincount`` on the CPU (an
-    ``index_add_`` on accelerators, where ``bincount`` would read its maximum back). No host
-    synchronisation, except ``n_frames=None`` without a grid (the last bin is read back).
+    One scatter for the whole batch: int32 linear indices (int64 past 2**31 slots), an
+    event outside the window, sensor or crop counted in one spare slot, one ``index_add_``
+    of ones straight into the output dtype (when every count fits it exactly; else int64
+    and a checked cast). No ``bincount`` (on accelerators it reads its maximum back). No
+    host synchronisation, except ``n_frames=None`` without a grid (the last bin is read
+    back) and ``t_start="floor"``/``"first"`` without a grid (the first events).
 
     Example:
         >>> batch = EventBatch(torch.tensor([0, 2], dtype=torch.int16), torch.tensor([1, 0], dtype=torch.int16),
         ...     torch.tensor([5, 15_000]), torch.tensor([1, 0], dtype=torch.int8), torch.tensor([0, 1, 2]), (2, 3))
-        >>> bin_events(batch, frame_ms=10.0, n_frames=2).sum(dim=(2, 3, 4))
-        tensor([1., 1.])
+        >>> bin_events(batch, frame_ms=10.0, t_start=0, n_frames=2).sum(dim=(2, 3, 4)).tolist()
+        [[1.0, 0.0], [0.0, 1.0]]
     """
     if batch.frame_ms is not None:
         if frame_ms is not None and _frame_us(frame_ms) != _frame_us(batch.frame_ms):

@@ -43,7 +43,7 @@ from .events import _frame_us
 __all__ = [
     "flip_events", "translate_events", "affine_events", "shift_events", "drop_events_random",
     "flip_polarity_events", "time_reversal_events", "poisson_noise_events", "spatial_jitter",
-    "time_jitter", "time_skew", "refractory_period", "decimation", "event_centroid",
+    "time_jitter", "time_skew", "refractory_period", "decimation", "event_centroid", "drop_window",
 ]
 
 
@@ -458,3 +458,24 @@ def decimation(batch: EventBatch, n: Tensor) -> EventBatch:
     keep_sorted = (rank + 1) % every == 0
     keep = torch.empty_like(keep_sorted).index_put_((order,), keep_sorted)
     return _compact(batch, keep)
+
+
+def drop_window(
+    batch: EventBatch,
+    *,
+    time: tuple[Tensor, Tensor] | None = None,
+    area: tuple[Tensor, Tensor, Tensor, Tensor] | None = None,
+) -> EventBatch:
+    """Drop sample b's events in bins ``[start[b], start[b] + length[b])`` of the grid
+    (``time``) or in the sensor rectangle ``top, left, height, width`` (``area``): the
+    event form of ``drop_by_time``/``drop_by_area``. One host read of the kept counts."""
+    if time is not None:
+        group, bins, _, inside = _groups(batch)
+        start, length = (_per_event(v.to(torch.int64), batch) for v in time)
+        bins = bins.to(torch.int64)
+        hit = inside & (bins >= start) & (bins < start + length)
+    else:
+        top, left, height, width = (_per_event(v.to(torch.int64), batch) for v in area)
+        y, x = batch.y.to(torch.int64), batch.x.to(torch.int64)
+        hit = (y >= top) & (y < top + height) & (x >= left) & (x < left + width)
+    return _compact(batch, ~hit)

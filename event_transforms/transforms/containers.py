@@ -34,11 +34,10 @@ def _members(transforms: object, name: str, *, events_first: bool = False) -> nn
         )
     members = nn.ModuleList(as_transform(t, f"{name}[{i}]") for i, t in enumerate(transforms))
     for i, member in enumerate(members):
-        if member.takes_events and (i > 0 or not events_first):
-            where = "only as the first member of a Compose" if events_first else "only first in a Compose"
+        if member.takes_events and not events_first:
             raise TypeError(
-                f"{name}[{i}] ({type(member).__name__}) turns events into frames and can stand {where}; "
-                "here it would be handed frames"
+                f"{name}[{i}] ({type(member).__name__}) turns events into frames and can stand only in a "
+                "Compose (first for raw streams, anywhere for an EventBatch)"
             )
     return members
 
@@ -91,6 +90,8 @@ class Compose(EventTransform):
         for i, transform in enumerate(self.transforms):
             frames = transform._run(frames, params[str(i)])
         return frames
+
+    apply_events = apply  # members dispatch on what they are handed (events, then frames)
 
 
 class OneOf(EventTransform):
@@ -152,6 +153,8 @@ class OneOf(EventTransform):
         ]
         return apply_by_group(frames, params["index"], branches)
 
+    apply_events = apply
+
     def _settings(self) -> str:
         return f"weights={[round(w, 4) for w in self.weights.tolist()]}"
 
@@ -188,3 +191,5 @@ class RandomApply(EventTransform):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self.transform._run(frames, params["0"])
+
+    apply_events = apply
