@@ -198,8 +198,9 @@ class EventBatch:
                 coords.append(column.to(torch.int16))
             for k, column in enumerate((*coords, t, channel)):
                 parts[k].append(column)
-        if any(c.is_floating_point() for c in parts[2]) and not all(c.is_floating_point() for c in parts[2]):
-            parts[2] = [c.to(torch.float64) for c in parts[2]]
+        # float timestamps only if a non-empty stream has them (an empty float tensor has none)
+        time_dtype = torch.float64 if any(c.is_floating_point() and c.numel() for c in parts[2]) else torch.int64
+        parts[2] = [c.to(time_dtype) for c in parts[2]]
         lengths = [c.shape[0] for c in parts[0]]
         devices = {c.device for c in parts[0]}
         target = torch.device(device) if device is not None else (devices.pop() if len(devices) == 1 else torch.device("cpu"))
@@ -383,7 +384,9 @@ def merge_streams(parts: Sequence[tuple[Sequence[int], EventBatch]], batch: int,
         cols[k] = torch.cat(pieces) if pieces else getattr(like, k)[:0]
     lengths = [int(part.offsets[j + 1] - part.offsets[j]) for part, j in owner]  # type: ignore[misc]
     offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
-    dtype = torch.promote_types(*(p.t.dtype for _, p in parts)) if parts else like.t.dtype
+    dtype = like.t.dtype
+    for _, part in parts:
+        dtype = torch.promote_types(dtype, part.t.dtype)
     cols["t"] = cols["t"].to(dtype)
     return like._replace(**cols, offsets=offsets, _sample=None)
 

@@ -417,9 +417,8 @@ def time_skew(batch: EventBatch, coefficient: Tensor, offset_us: Tensor) -> Even
 def _pixel_runs(batch: EventBatch) -> tuple[Tensor, Tensor, Tensor]:
     """Events ordered by (sample, pixel, time): the order, each ordered event's pixel key,
     and its rank inside its pixel's run (two stable sorts)."""
-    height, width = batch.sensor_size
     sample = batch.sample_index().to(torch.int64)
-    key = (sample * (height + 2) + batch.y.to(torch.int64).clamp(-1, height)) * (width + 2) + batch.x.to(torch.int64).clamp(-1, width)
+    key = ((sample << 16) + batch.y.to(torch.int64) + 2**15 << 16) + batch.x.to(torch.int64) + 2**15  # any int16 pixel
     order = torch.argsort(batch.t, stable=True)
     order = order.index_select(0, torch.argsort(key.index_select(0, order), stable=True))
     sorted_key = key.index_select(0, order)
