@@ -22,7 +22,6 @@ run of part 2 on fewer sequences).
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -31,12 +30,12 @@ import torch
 
 if __package__:
     from ._common import (
-        RESULTS, apply_threads, base_parser, command, environment_lines, fmt_ms, markdown_table,
+        apply_threads, base_parser, command, environment_lines, fmt_ms, markdown_table,
         synthetic_frames, time_call, publish,
     )
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
-        RESULTS, apply_threads, base_parser, command, environment_lines, fmt_ms, markdown_table,
+        apply_threads, base_parser, command, environment_lines, fmt_ms, markdown_table,
         synthetic_frames, time_call, publish,
     )
 

@@ -27,7 +27,6 @@ Run: ``python benchmarks/peers.py`` (``--quick`` for a smoke run).
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 

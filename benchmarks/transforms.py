@@ -16,8 +16,6 @@ to print where one row's time goes).
 
 from __future__ import annotations
 
-import math
-import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 

@@ -44,6 +44,8 @@ __all__ = [
     "check_generator",
     "as_batch",
     "per_sample",
+    "per_sample_pairs",
+    "check_seed",
     "describe",
 ]
 
@@ -60,7 +62,6 @@ FRAME_DTYPES = (
     torch.uint8, torch.int8, torch.int16, torch.int32, torch.int64,
     torch.float16, torch.bfloat16, torch.float32, torch.float64,
 )
-INTEGER_DTYPES = (torch.uint8, torch.int8, torch.int16, torch.int32, torch.int64)
 
 
 #: Name of the profiler range around every read of device values on the host (see
@@ -259,6 +260,22 @@ def check_positive(value: object, name: str, *, integer: bool = False) -> Any:
     return number
 
 
+def check_seed(seed: object, name: str = "seed") -> int:
+    """A non-negative Python or NumPy integer (not a bool), as an ``int``.
+
+    Example:
+        >>> check_seed(np.int64(3))
+        3
+        >>> check_seed(-1)
+        Traceback (most recent call last):
+        ...
+        ValueError: seed must be a non-negative integer, got -1
+    """
+    if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
+        raise ValueError(f"{name} must be a non-negative integer, got {seed!r}")
+    return int(seed)
+
+
 def check_probability(value: object, name: str = "p") -> float:
     """A probability in [0, 1]."""
     return as_number(value, name, low=0.0, high=1.0)
@@ -369,3 +386,26 @@ def per_sample(
         if out.numel() and not bool((out.isfinite() & (out == out.round())).all()):
             raise TypeError(f"{name} must hold integers, got {describe(value)}")
     return out.to(dtype)
+
+
+def per_sample_pairs(value: object, batch: int, name: str, *, dtype: torch.dtype = torch.float64) -> Tensor:
+    """A ``(a, b)`` pair or a ``(B, 2)`` tensor of pairs as a (B, 2) CPU tensor."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, Tensor)) and not hasattr(value, "__array__"):
+        raise TypeError(f"{name} must be a (y, x) pair or a ({batch}, 2) tensor, got {describe(value)}")
+    try:
+        out = torch.as_tensor(value).detach().cpu()
+    except (TypeError, ValueError, RuntimeError):
+        raise TypeError(f"{name} must hold real numbers, got {value!r}") from None
+    if out.dtype == torch.bool or out.is_complex():
+        raise TypeError(f"{name} must hold real numbers, got dtype {out.dtype}")
+    if tuple(out.shape) == (2,):
+        out = out.expand(batch, 2)
+    if tuple(out.shape) != (batch, 2):
+        raise ValueError(f"{name} must be a (y, x) pair or a ({batch}, 2) tensor, got {describe(value)}")
+    if not dtype.is_floating_point and out.is_floating_point():
+        if out.numel() and not bool((out.isfinite() & (out == out.round())).all()):
+            raise TypeError(f"{name} must hold integers, got {describe(value)}")
+    out = out.to(dtype)
+    if out.is_floating_point() and out.numel() and not bool(out.isfinite().all()):
+        raise ValueError(f"{name} must be finite, got {describe(value)}")
+    return out

@@ -16,13 +16,8 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset
 
+from ._validation import check_seed
 from .transforms.base import EventTransform, as_transform
-
-
-def _check_seed(seed: object) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    return int(seed)
 
 
 def _copy_seed(seed: int, index: int) -> int:
@@ -78,7 +73,7 @@ class AugmentedDataset(Dataset):
         self.transform = as_transform(transform)
         self.copies = int(copies)
         self.fixed = bool(fixed)
-        self.seed = _check_seed(seed)
+        self.seed = check_seed(seed)
 
     def __len__(self) -> int:
         return len(self.base) * (1 + self.copies)

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 __all__ = ["Scene", "ResizeToTarget", "metadata_values"]
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -42,13 +41,13 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from ._validation import as_number, check_positive, describe, per_sample
-from .functional.spatial import Center
+from ._validation import check_positive, describe, per_sample
+from .functional.affine import Center
 from .transforms.base import EventTransform, Params
 from .transforms.containers import Compose, OneOf
 from .transforms.noise import AddNoise, AddPoissonNoise
 from .transforms.geometry import RandomTranslate
-from .transforms.spatial import RandomRotation, _Zoom
+from .transforms.affine import RandomRotation, _Zoom
 from .transforms.temporal import RandomFrameShift, RandomTemporalEventShift
 
 _COMBINATIONS = ("independent", "hybrid")

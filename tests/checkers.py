@@ -5,9 +5,12 @@ from __future__ import annotations
 import pickle
 
 import torch
+from hypothesis import strategies as st
 from torch import Tensor
 
 H, W = 17, 11  # deliberately non-square, H != W
+#: (B, T, H, W) for :func:`random_counts` in property tests, B = 0 included.
+count_shapes = st.tuples(st.integers(0, 3), st.integers(1, 4), st.integers(1, 9), st.integers(1, 9))
 
 
 def sparse_frames(
@@ -48,3 +51,10 @@ def check_pickle(module: torch.nn.Module, frames: Tensor) -> None:
     b = clone(frames, generator=torch.Generator().manual_seed(3))
     assert torch.equal(a, b)
     assert repr(clone) == repr(module)
+
+
+def random_counts(shape: tuple[int, int, int, int], seed: int) -> Tensor:
+    """Dense counts 0..4 of shape ``(B, T, 2, H, W)`` for ``shape = (B, T, H, W)`` (property tests)."""
+    b, t, h, w = shape
+    g = torch.Generator().manual_seed(seed)
+    return torch.randint(0, 5, (b, t, 2, h, w), generator=g, dtype=torch.int64)

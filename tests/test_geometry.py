@@ -1,119 +1,21 @@
-"""Geometry: affine (rotate/resize as special cases), translation, crops, sum-pooling, each
-against a slow reference (Python loops over pixels)."""
+"""Geometry: flips, translation, crops, sum-pooling, each against a slow reference (Python
+loops over pixels), and their invariants (hypothesis)."""
 
 from __future__ import annotations
 
-import math
-
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import event_transforms as et
 from event_transforms import functional as F
 
-from .checkers import H, W, check_not_modified, sparse_frames
+from .checkers import H, W, check_not_modified, count_shapes, random_counts, sparse_frames
 
 
 def _g(seed=0):
     return torch.Generator().manual_seed(seed)
-
-
-def _reference_affine_nearest(frames, angle, scale, translate, shear, center):
-    """Inverse-map every output pixel through the 2×3 forward map, nearest source pixel."""
-    b, t, p, h, w = frames.shape
-    out = torch.zeros_like(frames)
-    for n in range(b):
-        th = math.radians(angle[n])
-        shx, shy = math.tan(math.radians(shear[n][0])), math.tan(math.radians(shear[n][1]))
-        rot = [[math.cos(th), math.sin(th)], [-math.sin(th), math.cos(th)]]
-        sh = [[1 + shx * shy, shx], [shy, 1]]
-        a = [[scale[n] * sum(rot[i][k] * sh[k][j] for k in range(2)) for j in range(2)] for i in range(2)]
-        det = a[0][0] * a[1][1] - a[0][1] * a[1][0]
-        inv = [[a[1][1] / det, -a[0][1] / det], [-a[1][0] / det, a[0][0] / det]]
-        cy, cx = center[n]
-        for y in range(h):
-            for x in range(w):
-                u, v = x - cx - translate[n][1], y - cy - translate[n][0]
-                sx = inv[0][0] * u + inv[0][1] * v + cx
-                sy = inv[1][0] * u + inv[1][1] * v + cy
-                ix, iy = round(sx), round(sy)
-                if abs(sx - ix) > 0.49 or abs(sy - iy) > 0.49:
-                    continue  # ambiguous rounding: checked elsewhere
-                if 0 <= ix < w and 0 <= iy < h:
-                    out[n, :, :, y, x] = frames[n, :, :, iy, ix]
-    return out
-
-
-class TestAffine:
-    def test_special_cases_equal_rotate_and_resize(self):
-        frames = sparse_frames(3, 4, 2, H, W, density=0.3)
-        angle = torch.tensor([30.0, -75.0, 190.0], dtype=torch.float64)
-        scale = torch.tensor([0.83, 1.25, 1.7], dtype=torch.float64)
-        for mode in ("bilinear", "nearest"):
-            for center in ("mass", "image", (4.0, 6.5)):
-                torch.testing.assert_close(
-                    F.affine(frames, angle=angle, center=center, mode=mode), F.rotate(frames, angle, center=center, mode=mode)
-                )
-                torch.testing.assert_close(
-                    F.affine(frames, scale=scale, center=center, mode=mode), F.resize(frames, scale, center=center, mode=mode)
-                )
-
-    def test_against_reference_nearest(self):
-        frames = sparse_frames(3, 2, 2, H, W, density=0.4, dtype=torch.float64)
-        angle = [20.0, -40.0, 0.0]
-        scale = [1.1, 0.9, 1.0]
-        translate = [[1.5, -2.0], [0.0, 3.0], [-2.0, 0.0]]
-        shear = [[10.0, 0.0], [-5.0, 8.0], [0.0, 0.0]]
-        center = F.center_of_mass(frames).tolist()
-        out = F.affine(
-            frames, angle=torch.tensor(angle), scale=torch.tensor(scale), translate=torch.tensor(translate),
-            shear=torch.tensor(shear), center="mass", mode="nearest",
-        )
-        ref = _reference_affine_nearest(frames, angle, scale, translate, shear, center)
-        known = ref != 0
-        assert torch.equal(out[known], ref[known])
-        assert int(known.sum()) > 20
-
-    def test_integer_translation_equals_translate(self):
-        frames = sparse_frames(2, 3, 2, H, W, density=0.3, dtype=torch.int32)
-        shift = torch.tensor([[2, -3], [-1, 4]])
-        out = F.affine(frames, translate=shift.double(), mode="nearest")
-        assert torch.equal(out, F.translate(frames, shift))
-
-    def test_module_replays_and_draws_per_sample(self):
-        frames = sparse_frames(4, 3, 2, H, W, density=0.3)
-        module = et.RandomAffine(30.0, translate=(0.1, 0.2), scale=(0.8, 1.2), shear=(-5, 5, -3, 3))
-        params = module.make_params(frames.shape, generator=_g(1))
-        assert len(set(params["angle"].tolist())) == 4
-        assert bool((params["translate"][:, 0].abs() <= 0.1 * H).all())
-        out = module(frames, params=params)
-        expected = F.affine(
-            frames, angle=params["angle"], translate=params["translate"], scale=params["scale"], shear=params["shear"]
-        )
-        torch.testing.assert_close(out, expected)
-
-    @pytest.mark.parametrize(
-        "kwargs, error, match",
-        [
-            ({"scale": 0.0}, ValueError, "scale"),
-            ({"shear": (95.0, 0.0)}, ValueError, "shear"),
-            ({"translate": (1.0,)}, ValueError, "translate"),
-            ({"translate": "up"}, TypeError, "translate"),
-            ({"mode": "cubic"}, ValueError, "mode"),
-            ({"angle": float("inf")}, ValueError, "angle"),
-        ],
-    )
-    def test_named_errors(self, kwargs, error, match):
-        with pytest.raises(error, match=match):
-            F.affine(torch.zeros(2, 2, 3, 3), **kwargs)
-
-    def test_module_named_errors(self):
-        with pytest.raises(ValueError, match="scale"):
-            et.RandomAffine(scale=(0.0, 1.0))
-        with pytest.raises(ValueError, match="shear"):
-            et.RandomAffine(shear=100.0)
-        with pytest.raises(ValueError, match="translate"):
-            et.RandomAffine(translate=(0.5, 2.0))
 
 
 def _reference_translate(frames, shift):
@@ -232,3 +134,43 @@ class TestDownsample:
             F.downsample(torch.zeros(1, 2, 4, 4), 0)
         with pytest.raises(ValueError, match="remainder"):
             et.Downsample(2, remainder="pad")
+
+
+class TestFlips:
+    def test_against_loop(self):
+        frames = sparse_frames(2, 3, 2, H, W, density=0.3, dtype=torch.int16)
+        h, v = F.horizontal_flip(frames), F.vertical_flip(frames)
+        for y in range(H):
+            for x in range(W):
+                assert torch.equal(h[..., y, x], frames[..., y, W - 1 - x])
+                assert torch.equal(v[..., y, x], frames[..., H - 1 - y, x])
+        assert h.dtype == torch.int16
+
+    def test_random_flip_per_sample(self):
+        frames = sparse_frames(64, 2, 2, H, W, density=0.3)
+        flip = et.RandomHorizontalFlip(p=0.5)
+        params = flip.make_params((64, 6, 2, 9, 11), generator=torch.Generator().manual_seed(0))
+        out = flip(frames, params=params)
+        for b in range(64):
+            expected = frames[b].flip(-1) if params["apply"][b] else frames[b]
+            assert torch.equal(out[b], expected)
+        assert 10 < int(params["apply"].sum()) < 54
+
+
+@settings(max_examples=60, deadline=None)
+@given(count_shapes, st.integers(0, 2**31), st.integers(1, 4), st.integers(1, 4))
+def test_downsample_keep_conserves_every_event(shape, seed, fy, fx):
+    frames = random_counts(shape, seed)
+    out = F.downsample(frames, (fy, fx), remainder="keep")
+    assert torch.equal(out.sum((1, 2, 3, 4)), frames.sum((1, 2, 3, 4)))
+
+@settings(max_examples=60, deadline=None)
+@given(count_shapes, st.integers(0, 2**31), st.integers(-10, 10), st.integers(-10, 10))
+def test_translate_there_and_back_keeps_what_stayed_inside(shape, seed, dy, dx):
+    frames = random_counts(shape, seed)
+    b = frames.shape[0]
+    there = F.translate(frames, torch.tensor([[dy, dx]] * b, dtype=torch.int64).reshape(b, 2))
+    back = F.translate(there, torch.tensor([[-dy, -dx]] * b, dtype=torch.int64).reshape(b, 2))
+    assert bool((there.sum() <= frames.sum()).all())
+    assert bool((back == frames)[back > 0].all())  # whatever came back is where it was
+    assert int(back.sum()) == int(there.sum())

@@ -9,11 +9,13 @@ import pickle
 import numpy as np
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import event_transforms as et
 from event_transforms import functional as F
 
-from .checkers import H, W, check_not_modified, sparse_frames
+from .checkers import H, W, check_not_modified, count_shapes, random_counts, sparse_frames
 
 DTYPES = [torch.float32, torch.float16, torch.bfloat16, torch.float64, torch.uint8, torch.int16, torch.int32, torch.int64]
 
@@ -191,3 +193,19 @@ class TestMixingBattery:
             F.mixup(frames, [0, 1, 2, 4], 0.5)
         with pytest.raises(ValueError, match="weight"):
             F.mixup(frames, [0, 1, 2, 3], 1.5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(count_shapes, st.integers(0, 2**31), st.data())
+def test_cutmix_counts_are_outside_own_plus_inside_partner(shape, seed, data):
+    frames = random_counts(shape, seed)
+    b, _, _, h, w = frames.shape
+    partner = torch.randperm(b, generator=torch.Generator().manual_seed(seed))
+    top = torch.tensor([data.draw(st.integers(0, h)) for _ in range(b)], dtype=torch.int64)
+    left = torch.tensor([data.draw(st.integers(0, w)) for _ in range(b)], dtype=torch.int64)
+    height = torch.tensor([data.draw(st.integers(0, h)) for _ in range(b)], dtype=torch.int64)
+    width = torch.tensor([data.draw(st.integers(0, w)) for _ in range(b)], dtype=torch.int64)
+    out = F.cutmix(frames, partner, top, left, height, width)
+    inside = F.cutout(torch.ones_like(frames), top, left, height, width) == 0
+    expected = (frames * ~inside).sum((1, 2, 3, 4)) + (frames[partner] * inside).sum((1, 2, 3, 4))
+    assert torch.equal(out.sum((1, 2, 3, 4)), expected)

@@ -1,4 +1,4 @@
-"""Noise injection (static-scene bank, Poisson) and EventDrop."""
+"""Noise injection (static-scene bank, Poisson)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,6 @@ import math
 import numpy as np
 import pytest
 import torch
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 import event_transforms as et
 from event_transforms import functional as F
@@ -158,97 +156,3 @@ class TestPoissonNoise:
             et.AddPoissonNoise((5.0, 1.0))
 
 
-class TestDropEvents:
-    def test_binomial_thinning(self):
-        frames = torch.full((4, 36, 2, H, W), 3, dtype=torch.int32)
-        out = F.drop_events(frames, 0.25, generator=gen())
-        assert out.dtype == torch.int32
-        assert bool((out <= frames).all() & (out >= 0).all())
-        n = frames.sum().item()
-        assert out.sum().item() == pytest.approx(0.75 * n, abs=5 * math.sqrt(n * 0.25 * 0.75))
-
-    def test_extremes_and_per_sample(self):
-        frames = sparse_frames(2, 3, 2, H, W, high=9)
-        out = F.drop_events(frames, torch.tensor([0.0, 1.0]), generator=gen())
-        assert torch.equal(out[0], frames[0])
-        assert out[1].sum() == 0
-
-    def test_expected_mode(self):
-        frames = sparse_frames(3, 2, H, W, dtype=torch.uint8)
-        out = F.drop_events(frames, 0.3, mode="expected")
-        assert out.dtype == torch.float32
-        torch.testing.assert_close(out, frames.float() * 0.7)
-
-    def test_non_integer_counts_refused(self):
-        with pytest.raises(ValueError, match='mode="expected"'):
-            F.drop_events(torch.full((2, 2, H, W), 0.5), 0.3)
-
-    def test_fraction_out_of_range(self):
-        with pytest.raises(ValueError, match="fraction"):
-            F.drop_events(sparse_frames(2, 2, H, W), 1.5)
-
-    def test_by_time_against_loop(self):
-        frames = sparse_frames(3, 6, 2, H, W, density=0.5)
-        start, length = torch.tensor([0, 2, 5]), torch.tensor([2, 3, 4])
-        out = F.drop_by_time(frames, start, length)
-        for b in range(3):
-            for t in range(6):
-                dropped = int(start[b]) <= t < int(start[b]) + int(length[b])
-                assert torch.equal(out[b, t], torch.zeros_like(frames[b, t]) if dropped else frames[b, t])
-
-    def test_by_area_against_loop(self):
-        frames = sparse_frames(2, 3, 2, H, W, density=0.5)
-        box = dict(top=torch.tensor([1, 10]), left=torch.tensor([0, 8]), height=torch.tensor([4, 9]), width=torch.tensor([3, 9]))
-        out = F.drop_by_area(frames, **box)
-        for b in range(2):
-            for y in range(H):
-                for x in range(W):
-                    inside = (box["top"][b] <= y < box["top"][b] + box["height"][b]) and (
-                        box["left"][b] <= x < box["left"][b] + box["width"][b]
-                    )
-                    assert torch.equal(out[b, :, :, y, x], torch.zeros(3, 2) if inside else frames[b, :, :, y, x])
-
-    def test_bad_windows(self):
-        with pytest.raises(ValueError, match="start"):
-            F.drop_by_time(sparse_frames(3, 2, H, W), -1, 2)
-        with pytest.raises(TypeError, match="width must be an integer, got 1.5"):
-            F.drop_by_area(sparse_frames(3, 2, H, W), 0, 0, 2, 1.5)
-
-
-class TestRandomEventDrop:
-    @pytest.mark.parametrize("method", ["random", "time", "area"])
-    def test_each_method_only_removes(self, method):
-        frames = sparse_frames(16, 10, 2, H, W, density=0.5, dtype=torch.int16)
-        out = et.RandomEventDrop(fraction=(0.2, 0.6), methods=(method,))(frames, generator=gen())
-        check_sane(out, frames)
-        assert bool((out <= frames).all())
-        assert out.sum() < frames.sum()
-
-    def test_time_method_drops_whole_frames(self):
-        frames = torch.ones(8, 10, 2, H, W)
-        module = et.RandomEventDrop(fraction=0.3, methods=("time",))
-        out = module(frames, generator=gen())
-        zero_frames = (out.sum(dim=(2, 3, 4)) == 0).sum(1)
-        assert zero_frames.tolist() == [3] * 8
-
-    def test_methods_mix_within_a_batch(self):
-        params = et.RandomEventDrop().make_params((60, 6, 2, 9, 11), generator=gen())
-        assert set(params["method"].tolist()) == {0, 1, 2}
-
-    def test_bad_settings(self):
-        with pytest.raises(ValueError, match="methods"):
-            et.RandomEventDrop(methods=("random", "polarity"))
-        with pytest.raises(ValueError, match="fraction"):
-            et.RandomEventDrop(fraction=(0.2, 1.5))
-
-
-@settings(max_examples=30, deadline=None)
-@given(
-    counts=st.lists(st.integers(0, 50), min_size=1, max_size=24),
-    fraction=st.floats(0.0, 1.0),
-    seed=st.integers(0, 2**31),
-)
-def test_drop_never_adds_events(counts, fraction, seed):
-    frames = torch.tensor(counts + [0] * (-len(counts) % 2), dtype=torch.int64).view(-1, 2, 1, 1)
-    out = F.drop_events(frames, fraction, generator=gen(seed))
-    assert bool((out >= 0).all() & (out <= frames).all())

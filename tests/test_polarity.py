@@ -1,5 +1,5 @@
-"""Polarity and time: flip, time reversal, merged polarities, temporal crop, against slow
-references (Python loops over frames and channels)."""
+"""Polarity: flip and merged polarities, against slow references (Python loops over frames
+and channels)."""
 
 from __future__ import annotations
 
@@ -31,19 +31,6 @@ class TestFlipPolarity:
         out = module(frames, params=params)
         for n in range(8):
             assert torch.equal(out[n], frames[n].flip(1) if params["apply"][n] else frames[n])
-
-
-class TestTimeReversal:
-    def test_against_reference(self):
-        frames = sparse_frames(2, 5, 2, H, W, density=0.3, dtype=torch.uint8)
-        out = check_not_modified(F.time_reversal, frames)
-        for t in range(5):
-            for p in range(2):
-                assert torch.equal(out[:, t, p], frames[:, 4 - t, 1 - p])
-
-    def test_twice_is_identity(self):
-        frames = sparse_frames(5, 2, H, W, density=0.3)
-        assert torch.equal(et.TimeReversal()(et.TimeReversal()(frames)), frames)
 
 
 class TestMergePolarities:
@@ -81,35 +68,3 @@ class TestMergePolarities:
             F.merge_polarities(frames, keepdim=1)
 
 
-class TestCropTime:
-    def test_against_reference(self):
-        frames = sparse_frames(3, 8, 2, H, W, density=0.3, dtype=torch.int32)
-        start = [0, 2, 5]
-        out = F.crop_time(frames, torch.tensor(start), 3)
-        assert out.shape == (3, 3, 2, H, W)
-        for n in range(3):
-            for i in range(3):
-                assert torch.equal(out[n, i], frames[n, start[n] + i])
-
-    def test_random_window_and_labels(self):
-        frames = sparse_frames(4, 10, 2, H, W, density=0.3)
-        force = torch.arange(40.0).view(4, 10)
-        module = et.RandomCropTime(6)
-        params = module.make_params(frames.shape, generator=_g(1))
-        out = module(frames, params=params)
-        assert out.shape == (4, 6, 2, H, W) and module.output_shape(frames.shape) == out.shape
-        cut = force.gather(1, params["start"].view(-1, 1) + torch.arange(6))  # the documented recipe
-        for n in range(4):
-            s = int(params["start"][n])
-            assert torch.equal(out[n], frames[n, s : s + 6]) and torch.equal(cut[n], force[n, s : s + 6])
-        assert set(module.make_params((300, 10, 2, 1, 1), generator=_g())["start"].tolist()) == set(range(5))
-
-    def test_named_errors(self):
-        with pytest.raises(ValueError, match="length"):
-            F.crop_time(torch.zeros(4, 2, 1, 1), 0, 5)
-        with pytest.raises(ValueError, match="start"):
-            F.crop_time(torch.zeros(4, 2, 1, 1), 2, 3)
-        with pytest.raises(ValueError, match="exceeds"):
-            et.CropTime(2, 3)(torch.zeros(4, 2, 1, 1))
-        with pytest.raises(ValueError, match="length"):
-            et.RandomCropTime(5)(torch.zeros(4, 2, 1, 1))

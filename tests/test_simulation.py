@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from event_transforms.tactile import simulation
-from event_transforms.functional.spatial import resize
+from event_transforms.functional.affine import resize
 from event_transforms.tactile.simulation import (
     EVENT_DTYPE,
     SimulatorConfig,

@@ -1,4 +1,5 @@
-"""Frame shifting and temporal event shifting (TES) against slow references and invariants."""
+"""Frame shifting, temporal event shifting (TES), time reversal and temporal crop against
+slow references and invariants."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import event_transforms as et
 from event_transforms import functional as F
 from event_transforms._validation import as_batch
 from event_transforms.transforms.base import kernel_generator
@@ -24,7 +26,7 @@ from event_transforms.transforms import (
     TemporalEventShift,
 )
 
-from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse_frames
+from .checkers import H, W, check_not_modified, check_pickle, check_sane, count_shapes, random_counts, sparse_frames
 from .test_hypergeometric import chi_square_p_value
 
 ALL_DTYPES = [
@@ -51,6 +53,7 @@ def _moved_counts(frames, fraction, *, mode="exact", generator=None):
 
 def gen(seed: int = 0) -> torch.Generator:
     return torch.Generator().manual_seed(seed)
+
 
 
 def reference_frame_shift(frames: torch.Tensor, shifts: list[int]) -> torch.Tensor:
@@ -481,3 +484,58 @@ class TestModules:
         module = RandomTemporalEventShift(range(-3, 4), (0.0, 1.0))
         frames = sparse_frames(4, 6, 2, H, W, high=5)
         assert torch.equal(module(frames, generator=gen(7)), module(frames, generator=gen(7)))
+
+
+class TestTimeReversal:
+    def test_against_reference(self):
+        frames = sparse_frames(2, 5, 2, H, W, density=0.3, dtype=torch.uint8)
+        out = check_not_modified(F.time_reversal, frames)
+        for t in range(5):
+            for p in range(2):
+                assert torch.equal(out[:, t, p], frames[:, 4 - t, 1 - p])
+
+    def test_twice_is_identity(self):
+        frames = sparse_frames(5, 2, H, W, density=0.3)
+        assert torch.equal(et.TimeReversal()(et.TimeReversal()(frames)), frames)
+
+class TestCropTime:
+    def test_against_reference(self):
+        frames = sparse_frames(3, 8, 2, H, W, density=0.3, dtype=torch.int32)
+        start = [0, 2, 5]
+        out = F.crop_time(frames, torch.tensor(start), 3)
+        assert out.shape == (3, 3, 2, H, W)
+        for n in range(3):
+            for i in range(3):
+                assert torch.equal(out[n, i], frames[n, start[n] + i])
+
+    def test_random_window_and_labels(self):
+        frames = sparse_frames(4, 10, 2, H, W, density=0.3)
+        force = torch.arange(40.0).view(4, 10)
+        module = et.RandomCropTime(6)
+        params = module.make_params(frames.shape, generator=gen(1))
+        out = module(frames, params=params)
+        assert out.shape == (4, 6, 2, H, W) and module.output_shape(frames.shape) == out.shape
+        cut = force.gather(1, params["start"].view(-1, 1) + torch.arange(6))  # the documented recipe
+        for n in range(4):
+            s = int(params["start"][n])
+            assert torch.equal(out[n], frames[n, s : s + 6]) and torch.equal(cut[n], force[n, s : s + 6])
+        assert set(module.make_params((300, 10, 2, 1, 1), generator=gen())["start"].tolist()) == set(range(5))
+
+    def test_named_errors(self):
+        with pytest.raises(ValueError, match="length"):
+            F.crop_time(torch.zeros(4, 2, 1, 1), 0, 5)
+        with pytest.raises(ValueError, match="start"):
+            F.crop_time(torch.zeros(4, 2, 1, 1), 2, 3)
+        with pytest.raises(ValueError, match="exceeds"):
+            et.CropTime(2, 3)(torch.zeros(4, 2, 1, 1))
+        with pytest.raises(ValueError, match="length"):
+            et.RandomCropTime(5)(torch.zeros(4, 2, 1, 1))
+
+
+@settings(max_examples=60, deadline=None)
+@given(count_shapes, st.integers(0, 2**31))
+def test_time_reversal_is_an_involution_that_swaps_polarity_totals(shape, seed):
+    frames = random_counts(shape, seed)
+    out = F.time_reversal(frames)
+    assert torch.equal(F.time_reversal(out), frames)
+    assert torch.equal(out.sum((1, 3, 4)), frames.sum((1, 3, 4)).flip(1))

@@ -6,8 +6,8 @@ its input, and returns a tensor on the input's device.
 
 from __future__ import annotations
 
-from .spatial import *  # noqa: F401,F403
-from .spatial import __all__ as _spatial
+from .affine import *  # noqa: F401,F403
+from .affine import __all__ as _affine
 from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
 from .noise import *  # noqa: F401,F403
@@ -23,6 +23,8 @@ from .mixing import *  # noqa: F401,F403
 from .mixing import __all__ as _mixing
 from .cleaning import *  # noqa: F401,F403
 from .cleaning import __all__ as _cleaning
+from .drop import *  # noqa: F401,F403
+from .drop import __all__ as _drop
 from .representations import *  # noqa: F401,F403
 from .representations import __all__ as _representations
 
@@ -31,4 +33,7 @@ from .event_batch import __all__ as _event_batch
 from .event_kernels import *  # noqa: F401,F403
 from .event_kernels import __all__ as _event_kernels
 
-__all__ = [*_event_batch, *_event_kernels, *_spatial, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning, *_representations]
+__all__ = [
+    *_affine, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_representations,
+    *_event_batch, *_event_kernels,
+]

@@ -1,22 +1,18 @@
-"""Cleaning kernels: pixel removal (given pixels, hot pixels by rate, random pixel dropout)
-and a frame-level denoising filter.
+"""Cleaning kernels: hot pixels by rate and a frame-level denoising filter.
 
-All of them only zero entries, so counts can only fall and the dtype is kept. None reads
-values back to the host: masks are computed on the frames' device.
+Both only find or zero entries, so counts can only fall and the dtype is kept. Neither
+reads values back to the host. Removing pixels (given, hot or random) is in
+:mod:`event_transforms.functional.drop`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import torch
 from torch import Tensor
 
-from .._validation import as_batch, as_number, check_frames, check_positive, describe, per_sample
+from .._validation import as_batch, as_number, check_frames, check_positive
 
-__all__ = ["hot_pixels", "drop_pixel", "random_pixel_mask", "denoise"]
-
-_MASK32 = 0xFFFFFFFF
+__all__ = ["hot_pixels", "denoise"]
 
 
 def hot_pixels(frames: Tensor, rate_hz: float, *, frame_ms: float = 10.0) -> Tensor:
@@ -50,86 +46,6 @@ def _hot_pixels(batch: Tensor, events_per_frame: float) -> Tensor:
     acc = torch.float64 if batch.dtype in (torch.float64, torch.int32, torch.int64) else torch.float32
     total = batch.to(acc).sum(dim=(1, 2))
     return total > events_per_frame * batch.shape[1]
-
-
-def _pixel_mask(pixels: object, batch: int, height: int, width: int, device: torch.device) -> Tensor:
-    """``(N, 2)`` (y, x) coordinates, an ``(H, W)`` or ``(B, H, W)`` bool mask -> (B or 1, H, W) bool."""
-    if not isinstance(pixels, Tensor):
-        try:
-            pixels = torch.as_tensor(pixels)
-        except (TypeError, ValueError, RuntimeError):
-            raise TypeError(f"pixels must be (N, 2) (y, x) coordinates or a bool mask, got {pixels!r}") from None
-    if pixels.dtype == torch.bool:
-        if tuple(pixels.shape) not in ((height, width), (batch, height, width)):
-            raise ValueError(
-                f"a pixel mask must have shape ({height}, {width}) or ({batch}, {height}, {width}), got {tuple(pixels.shape)}"
-            )
-        return pixels.to(device, non_blocking=True).reshape(-1, height, width)
-    if pixels.is_floating_point() or pixels.is_complex():
-        raise TypeError(f"pixel coordinates must be integers, got dtype {pixels.dtype}")
-    if pixels.dim() != 2 or pixels.shape[1] != 2:
-        raise ValueError(f"pixel coordinates must have shape (N, 2) as (y, x), got {tuple(pixels.shape)}")
-    ys, xs = pixels[:, 0].cpu(), pixels[:, 1].cpu()
-    if pixels.numel() and bool(((ys < 0) | (ys >= height) | (xs < 0) | (xs >= width)).any()):
-        raise ValueError(f"pixel coordinates must lie inside (H, W) = ({height}, {width}), got {describe(pixels)}")
-    mask = torch.zeros(height * width, dtype=torch.bool)
-    mask[ys * width + xs] = True
-    return mask.view(1, height, width).to(device, non_blocking=True)
-
-
-def drop_pixel(frames: Tensor, pixels: Tensor | Sequence[Sequence[int]]) -> Tensor:
-    """Remove every event of the given pixels, in all frames and both polarities.
-
-    Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
-        pixels: ``(N, 2)`` integer ``(y, x)`` coordinates (every sample), or a bool mask
-            ``(H, W)`` (every sample) or ``(B, H, W)`` (per sample), e.g. from
-            :func:`hot_pixels`.
-
-    Returns:
-        The frames with those pixels zeroed; dtype and device kept.
-
-    Example:
-        >>> drop_pixel(torch.ones(1, 2, 2, 3, dtype=torch.uint8), [[0, 1], [1, 2]])[0, 0].tolist()
-        [[1, 0, 1], [1, 1, 0]]
-    """
-    batch, unbatch = as_batch(check_frames(frames))
-    b, _, _, height, width = batch.shape
-    return unbatch(_drop_mask(batch, _pixel_mask(pixels, b, height, width, batch.device)))
-
-
-def _drop_mask(batch: Tensor, mask: Tensor) -> Tensor:
-    """Zero the (B or 1, H, W) ``mask`` pixels in every frame."""
-    return batch.masked_fill(mask.unsqueeze(1).unsqueeze(1), 0)
-
-
-def _hash32(x: Tensor) -> Tensor:
-    """A 32-bit integer mix (in int64, no overflow), the same on every device."""
-    x = x & _MASK32
-    x = (((x >> 16) ^ x) * 0x45D9F3B) & _MASK32
-    x = (((x >> 16) ^ x) * 0x45D9F3B) & _MASK32
-    return (x >> 16) ^ x
-
-
-def random_pixel_mask(seed: Tensor, fraction: Tensor, height: int, width: int, device: torch.device) -> Tensor:
-    """(B, H, W) bool: each pixel dropped with probability ``fraction[b]``, from ``seed[b]`` alone.
-
-    A counter-based draw: a pixel's uniform number is a hash of the sample's 63-bit seed
-    and the pixel's index, so a sample's mask depends on its own seed only (a batch gives
-    what its samples give alone) and is the same on the CPU and on CUDA.
-
-    Args:
-        seed: ``(B,)`` int64 seeds (CPU).
-        fraction: ``(B,)`` drop probabilities in [0, 1] (CPU).
-        height, width: the frame size.
-        device: where the mask is built.
-    """
-    pixel = torch.arange(height * width, dtype=torch.int64, device=device)
-    seed = seed.to(device, non_blocking=True).unsqueeze(1)
-    low, high = seed & _MASK32, (seed >> 32) & _MASK32
-    x = _hash32(_hash32(pixel ^ low) + high)
-    u = (x.to(torch.float64) + 0.5) / 2.0**32  # (B, H*W) in (0, 1)
-    return (u < fraction.to(device, torch.float64, non_blocking=True).unsqueeze(1)).view(-1, height, width)
 
 
 def denoise(frames: Tensor, *, radius: int = 1, temporal_radius: int = 1) -> Tensor:

@@ -1,14 +1,11 @@
-"""Geometry kernels: a general affine warp, integer translation (rolling), crops, sum-pooling.
+"""Geometry kernels that move whole pixels: flips, integer translation (rolling), crops, sum-pooling.
 
-:func:`affine` composes rotation, scale, translation and shear in one 2×3 matrix per
-sequence, built on the host, and samples all T·2 frames of a sequence with one
-``affine_grid`` + ``grid_sample`` (the frames folded into channels), about the same centre as
-:func:`~event_transforms.functional.rotate` and :func:`~event_transforms.functional.resize`,
-which are its special cases: all three go through one warp function
-(``affine(angle=a)`` equals ``rotate(a)``, ``affine(scale=s)`` equals ``resize(s)``).
-:func:`translate` moves whole pixels (counts and dtype kept), :func:`crop` cuts a window
-and optionally resizes it back to H×W, and :func:`downsample` sums k×k blocks (the
-paper's "adding the closest neighbourhoods"). None of them reads the values, so none waits
+Warps that interpolate (rotation, resize, the general affine warp) are in
+:mod:`event_transforms.functional.affine`. :func:`horizontal_flip` and
+:func:`vertical_flip` mirror every frame, :func:`translate` moves whole pixels (counts and
+dtype kept), :func:`crop` cuts a window and optionally resizes it back to H×W, and
+:func:`downsample` sums k×k blocks (the paper's "adding the closest neighbourhoods").
+None of them reads the values, so none waits
 for an accelerator, except :func:`downsample` on 8/16-bit integer frames, which checks once
 that the block sums fit the dtype. Per-sample parameters are CPU tensors; they reach the
 frames' device by non-blocking copies (the same holds for the polarity, mixing and cleaning
@@ -23,110 +20,16 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, per_sample
-from .spatial import Center, _check_center, _output_dtype, _work_dtype
-from .spatial import _affine as _spatial_affine
+from .._validation import INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, per_sample, per_sample_pairs
+from .affine import _output_dtype, _work_dtype
 
-__all__ = ["affine", "translate", "crop", "center_crop", "downsample"]
+__all__ = ["horizontal_flip", "vertical_flip", "translate", "crop", "center_crop", "downsample"]
 
 Scalars = float | Sequence[float] | Tensor
 Pairs = Sequence[float] | Tensor
 #: How :func:`downsample` treats the rows and columns left over when H or W is not a multiple.
 REMAINDERS = ("drop", "keep")
 _NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
-
-
-# --------------------------------------------------------------------------- affine
-
-
-def _pairs(value: object, batch: int, name: str, *, dtype: torch.dtype = torch.float64) -> Tensor:
-    """A ``(a, b)`` pair or a ``(B, 2)`` tensor of pairs as a (B, 2) CPU tensor."""
-    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, Tensor)) and not hasattr(value, "__array__"):
-        raise TypeError(f"{name} must be a (y, x) pair or a ({batch}, 2) tensor, got {describe(value)}")
-    try:
-        out = torch.as_tensor(value).detach().cpu()
-    except (TypeError, ValueError, RuntimeError):
-        raise TypeError(f"{name} must hold real numbers, got {value!r}") from None
-    if out.dtype == torch.bool or out.is_complex():
-        raise TypeError(f"{name} must hold real numbers, got dtype {out.dtype}")
-    if tuple(out.shape) == (2,):
-        out = out.expand(batch, 2)
-    if tuple(out.shape) != (batch, 2):
-        raise ValueError(f"{name} must be a (y, x) pair or a ({batch}, 2) tensor, got {describe(value)}")
-    if not dtype.is_floating_point and out.is_floating_point():
-        if out.numel() and not bool((out.isfinite() & (out == out.round())).all()):
-            raise TypeError(f"{name} must hold integers, got {describe(value)}")
-    out = out.to(dtype)
-    if out.is_floating_point() and out.numel() and not bool(out.isfinite().all()):
-        raise ValueError(f"{name} must be finite, got {describe(value)}")
-    return out
-
-
-def _affine(
-    batch: Tensor, angle: Tensor, scale: Tensor, translate: Tensor, shear: Tensor, center: Center, mode: str
-) -> Tensor:
-    """:func:`affine` on a (B, T, 2, H, W) batch with checked CPU parameters: the warp of
-    :func:`~event_transforms.functional.rotate` and :func:`~event_transforms.functional.resize`,
-    which are its special cases (one sampling-matrix builder, one ``grid_sample``)."""
-    return _spatial_affine(batch, angle, scale, center, mode, shear=shear, translate=translate)
-
-
-def affine(
-    frames: Tensor,
-    *,
-    angle: Scalars = 0.0,
-    translate: Pairs = (0.0, 0.0),
-    scale: Scalars = 1.0,
-    shear: Pairs = (0.0, 0.0),
-    center: Center = "mass",
-    mode: str = "bilinear",
-) -> Tensor:
-    """Rotate, scale, shear and translate every frame of each sequence with one warp.
-
-    The forward map of sample b is ``dst = s·R(θ)·Sh_x·Sh_y·(src - c) + c + t`` (OpenCV's
-    and kornia's convention, the same as :func:`~event_transforms.functional.rotate` and
-    :func:`~event_transforms.functional.resize`, which it generalises). Pixels that come
-    from outside the frame are zero.
-
-    Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
-        angle: degrees, counter-clockwise on the displayed image; a number or ``(B,)``.
-        translate: ``(dy, dx)`` in pixels (down, right), or a ``(B, 2)`` tensor.
-        scale: zoom factor > 0, a number or ``(B,)``.
-        shear: ``(x, y)`` shear angles in degrees (each in (-90, 90)), or ``(B, 2)``.
-        center: ``"mass"`` (event centroid of the whole sequence, image centre when
-            empty), ``"image"``, a ``(y, x)`` pair, or a ``(B, 2)`` tensor of pairs.
-        mode: ``"bilinear"`` or ``"nearest"``.
-
-    Returns:
-        The warped frames, same shape and device. ``bilinear`` returns the input dtype
-        for float input and float32 for integer input; ``nearest`` keeps the dtype.
-
-    Shape:
-        ``(T, 2, H, W)`` -> ``(T, 2, H, W)``; ``(B, T, 2, H, W)`` -> same.
-
-    Example:
-        >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
-        >>> frames[0, 1, 2, 2] = 3
-        >>> out = affine(frames, translate=(1, -2), center="image", mode="nearest")
-        >>> out.dtype, out[0, 1].nonzero().tolist()
-        (torch.int16, [[3, 0]])
-    """
-    batch, unbatch = as_batch(check_frames(frames))
-    b = batch.shape[0]
-    angle_t = per_sample(angle, b, "angle")
-    scale_t = per_sample(scale, b, "scale")
-    if not bool(angle_t.isfinite().all()):
-        raise ValueError(f"angle must be finite, got {describe(angle)}")
-    if not bool((scale_t.isfinite() & (scale_t > 0)).all()):
-        raise ValueError(f"scale must be finite and > 0, got {describe(scale)}")
-    translate_t = _pairs(translate, b, "translate")
-    shear_t = _pairs(shear, b, "shear")
-    if not bool((shear_t.abs() < 90).all()):
-        raise ValueError(f"shear must lie in (-90, 90) degrees, got {describe(shear)}")
-    check_choice(mode, "mode", INTERPOLATIONS)
-    center = _check_center(center, b)
-    return unbatch(_affine(batch, angle_t, scale_t, translate_t, shear_t, center, mode))
 
 
 # --------------------------------------------------------------------------- translate
@@ -180,7 +83,7 @@ def translate(frames: Tensor, shift: Pairs) -> Tensor:
         [[0, 0, 0], [2, 3, 0]]
     """
     batch, unbatch = as_batch(check_frames(frames))
-    return unbatch(_translate(batch, _pairs(shift, batch.shape[0], "shift", dtype=torch.int64)))
+    return unbatch(_translate(batch, per_sample_pairs(shift, batch.shape[0], "shift", dtype=torch.int64)))
 
 
 # --------------------------------------------------------------------------- crop
@@ -369,3 +272,25 @@ def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = 
     """
     batch, unbatch = as_batch(check_frames(frames))
     return unbatch(_downsample(batch, _factor(factor), check_choice(remainder, "remainder", REMAINDERS)))
+
+
+# --------------------------------------------------------------------------- flips
+
+
+def horizontal_flip(frames: Tensor) -> Tensor:
+    """Mirror every frame left-right (along W). Counts and dtype are kept.
+
+    Example:
+        >>> horizontal_flip(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
+        [[1.0, 0.0], [3.0, 2.0]]
+    """
+    return check_frames(frames).flip(-1)
+
+def vertical_flip(frames: Tensor) -> Tensor:
+    """Mirror every frame top-bottom (along H). Counts and dtype are kept.
+
+    Example:
+        >>> vertical_flip(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
+        [[1.0, 0.0], [3.0, 2.0]]
+    """
+    return check_frames(frames).flip(-2)

@@ -1,9 +1,15 @@
-"""Temporal kernels: frame shifting (FS) and temporal event shifting (TES).
+"""Temporal kernels: frame shifting (FS), temporal event shifting (TES), time reversal and
+temporal crop.
 
 Sign convention (as in the README): ``shift = j`` moves frame (or events) t to t + j; j < 0 is
 earlier ("left"). The paper's best settings are FS-1 = ``frame_shift(frames, -1)`` and
 TES-2(0.50) = ``temporal_event_shift(frames, -2, 0.5)``. Whatever leaves the sequence
 through either end is dropped; vacated frames are zero.
+
+:func:`time_reversal` plays a sequence backwards: it reverses the frames *and* swaps the
+polarity channels (0 = OFF, 1 = ON), because a brightness increase played backwards is a
+decrease. :func:`crop_time` keeps a window of frames. All of these keep the dtype
+(``temporal_event_shift(mode="expected")`` aside).
 """
 
 from __future__ import annotations
@@ -16,17 +22,18 @@ import torch
 from torch import Tensor
 
 from .._validation import (
-    TES_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, count_stats, describe, on_host,
+    TES_MODES, as_batch, as_number, check_choice, check_counts, check_frames, check_generator, count_stats, describe, on_host,
     per_sample,
 )
 from ._hypergeometric import (
     _EXPAND_MAX, binomial_counts, direct_finish, level_stats, multivariate_hypergeometric, segment_sum,
 )
 
-__all__ = ["frame_shift", "temporal_event_shift"]
+__all__ = ["frame_shift", "temporal_event_shift", "time_reversal", "crop_time"]
 
 ShiftArg = int | Sequence[int] | Tensor
 FractionArg = float | Sequence[float] | Tensor
+Scalars = float | Sequence[float] | Tensor
 
 _TES_HINT = (
     "temporal_event_shift(mode='exact' or 'binomial') moves whole events; apply it before "
@@ -325,3 +332,64 @@ def _move(out: Tensor, index: Tensor, sample: Tensor, moved: Tensor, shifts: Ten
     # Dropped events add 0 to their own pixel (no data-dependent shapes, no sync).
     flat.index_add_(0, torch.where(dropped, index, target), moved.masked_fill_(dropped, 0))
     return out
+
+
+# --------------------------------------------------------------------------- reversal and crop
+
+
+def time_reversal(frames: Tensor) -> Tensor:
+    """Play each sequence backwards: reverse the frames and swap the polarities.
+
+    Frame t goes to T - 1 - t, and an ON event becomes an OFF event (a brightness change
+    reversed in time has the opposite sign), as tonic's ``RandomTimeReversal`` does with
+    ``flip_polarities=True``. Counts and dtype are kept.
+
+    Example:
+        >>> frames = torch.zeros(3, 2, 1, 1, dtype=torch.int8)
+        >>> frames[0, 1] = 4  # ON events in the first frame
+        >>> time_reversal(frames)[:, :, 0, 0].tolist()
+        [[0, 0], [0, 0], [4, 0]]
+    """
+    return check_frames(frames).flip(-4, -3)
+
+def _check_length(length: object, frames: int) -> int:
+    value = as_number(length, "length", integer=True)
+    if not 1 <= value <= frames:
+        raise ValueError(f"length must lie in [1, {frames}] (the number of frames T), got {length!r}")
+    return value
+
+def crop_time(frames: Tensor, start: Scalars, length: int) -> Tensor:
+    """Keep frames ``[start, start + length)`` of each sequence (a temporal window).
+
+    tonic's ``CropTime`` on frames: the window is counted in frames, not microseconds.
+    Labels per frame (force) must be cut with the same window:
+    ``labels.gather(1, start.view(-1, 1) + torch.arange(length))``.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        start: first kept frame, an integer or ``(B,)``, with ``start + length <= T``.
+        length: number of kept frames, in [1, T].
+
+    Returns:
+        ``(length, 2, H, W)`` or ``(B, length, 2, H, W)``; dtype and device kept.
+
+    Example:
+        >>> frames = torch.arange(5).view(5, 1, 1, 1).expand(5, 2, 1, 1)
+        >>> crop_time(frames, 1, 3)[:, 0, 0, 0].tolist()
+        [1, 2, 3]
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    b, t = batch.shape[:2]
+    size = _check_length(length, t)
+    start_t = per_sample(start, b, "start", dtype=torch.int64)
+    if start_t.numel() and bool(((start_t < 0) | (start_t > t - size)).any()):
+        raise ValueError(f"start must lie in [0, {t - size}] for a window of {size} of {t} frames, got {describe(start)}")
+    return unbatch(_crop_time(batch, start_t, size))
+
+def _crop_time(batch: Tensor, start: Tensor, length: int) -> Tensor:
+    """Frames ``[start, start + length)`` with a (B,) int64 CPU ``start``."""
+    b, t, p, h, w = batch.shape
+    index = (start.unsqueeze(1) + torch.arange(length)).to(batch.device, non_blocking=True)  # (B, length)
+    if b == 0 or batch.numel() == 0:
+        return batch.new_zeros((b, length, p, h, w))
+    return batch.gather(1, index.view(b, length, 1, 1, 1).expand(b, length, p, h, w))

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from .base import EventTransform, Lambda, Params, as_transform
-from .spatial import *  # noqa: F401,F403
-from .spatial import __all__ as _spatial
+from .affine import *  # noqa: F401,F403
+from .affine import __all__ as _affine
 from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
 from .noise import *  # noqa: F401,F403
@@ -17,6 +17,8 @@ from .mixing import *  # noqa: F401,F403
 from .mixing import __all__ as _mixing
 from .cleaning import *  # noqa: F401,F403
 from .cleaning import __all__ as _cleaning
+from .drop import *  # noqa: F401,F403
+from .drop import __all__ as _drop
 from .containers import *  # noqa: F401,F403
 from .containers import __all__ as _containers
 from .events import *  # noqa: F401,F403
@@ -24,4 +26,8 @@ from .events import __all__ as _events
 from .on_events import *  # noqa: F401,F403  (last: registers event kernels of the classes above)
 from .on_events import __all__ as _on_events
 
-__all__ = ["EventTransform", "Params", "Lambda", "as_transform", *_spatial, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_containers, *_events, *_on_events]
+__all__ = [
+    "EventTransform", "Params", "Lambda", "as_transform",
+    *_affine, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_containers, *_events,
+    *_on_events,
+]

@@ -20,7 +20,7 @@ import torch
 from torch import Tensor, nn
 
 from .._validation import as_number, check_probability
-from .base import EventTransform, Params, _draw_device, apply_by_group, as_transform, bernoulli, slice_params
+from .base import EventTransform, Params, _draw_device, apply_by_group, as_transform, slice_params
 
 __all__ = ["Compose", "OneOf", "RandomApply"]
 

@@ -1,8 +1,8 @@
-"""Geometry modules: a random affine warp, translation (rolling), crops and sum-pooling.
+"""Geometry modules that move whole pixels: flips, translation (rolling), crops and sum-pooling.
 
-:class:`RandomAffine` draws rotation, scale, translation and shear per sequence and warps
-all its frames with one matrix (rotation and resize are its special cases).
-:class:`RandomTranslate` moves whole pixels with zero fill (Neuromorphic Data
+Warps that interpolate (rotation, resize, the general affine warp) are in
+:mod:`event_transforms.transforms.affine`. The flips mirror every frame of a sample
+(counts and dtype kept). :class:`RandomTranslate` moves whole pixels with zero fill (Neuromorphic Data
 Augmentation's rolling, without wrap-around). :class:`RandomCrop` and :class:`CenterCrop`
 change the size by default, as torchvision's do; ``resize=True`` resizes the window back to
 H×W. :class:`Downsample` sums blocks of pixels and changes the size.
@@ -15,182 +15,18 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair
-from ..functional.geometry import (
-    REMAINDERS,
-    _affine,
-    _crop,
-    _downsample,
-    _factor,
-    _pairs,
-    _size,
-    _translate,
-    downsampled_size,
-)
-from ..functional.spatial import Center, _check_center
-from .base import EventTransform, Params, integers, uniform
+from .._validation import INTERPOLATIONS, as_number, check_choice, on_host, per_sample_pairs
+from ..functional.geometry import REMAINDERS, _crop, _downsample, _factor, _size, _translate, downsampled_size
+from .base import EventTransform, Params, integers
 
-__all__ = ["Affine", "RandomAffine", "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample"]
-
-
-def _zeros(batch: int, *size: int) -> Tensor:
-    return torch.zeros(batch, *size, dtype=torch.float64)
-
-
-class _AffineWarp(EventTransform):
-    """Applies ``params`` angle (B,), scale (B,), translate (B, 2) and shear (B, 2)."""
-
-    def __init__(self, *, center: Center, mode: str, p: float) -> None:
-        super().__init__(p=p)
-        self.center = _check_center(center)
-        self.mode = check_choice(mode, "mode", INTERPOLATIONS)
-
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _affine(
-            frames, params["angle"], params["scale"], params["translate"], params["shear"], self.center, self.mode
-        )
-
-    def _common(self) -> str:
-        return f"center={self.center!r}, mode={self.mode!r}"
-
-
-class Affine(_AffineWarp):
-    """A fixed affine warp of every frame about the sequence's centre.
-
-    Args:
-        angle: degrees, counter-clockwise on the displayed image.
-        translate: ``(dy, dx)`` pixels.
-        scale: zoom factor > 0.
-        shear: ``(x, y)`` shear angles in degrees, each in (-90, 90).
-        center: ``"mass"`` (event centroid of the sequence), ``"image"`` or ``(y, x)``.
-        mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
-            or ``"nearest"`` (dtype kept).
-        p: probability that a sample is warped.
-
-    Example:
-        >>> frames = torch.zeros(1, 2, 5, 5)
-        >>> frames[0, 1, 2, 4] = 1.0
-        >>> Affine(angle=90.0, center="image")(frames)[0, 1].nonzero().tolist()
-        [[0, 2]]
-    """
-
-    def __init__(
-        self,
-        *,
-        angle: float = 0.0,
-        translate: Sequence[float] = (0.0, 0.0),
-        scale: float = 1.0,
-        shear: Sequence[float] = (0.0, 0.0),
-        center: Center = "mass",
-        mode: str = "bilinear",
-        p: float = 1.0,
-    ) -> None:
-        super().__init__(center=center, mode=mode, p=p)
-        self.angle = as_number(angle, "angle")
-        self.scale = as_number(scale, "scale")
-        if self.scale <= 0:
-            raise ValueError(f"scale must be > 0, got {scale!r}")
-        self.translate = tuple(_pairs(translate, 1, "translate")[0].tolist())
-        self.shear = tuple(_pairs(shear, 1, "shear")[0].tolist())
-        if max(abs(s) for s in self.shear) >= 90:
-            raise ValueError(f"shear must lie in (-90, 90) degrees, got {shear!r}")
-
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
-        b = shape[0]
-        return {
-            "angle": torch.full((b,), self.angle, dtype=torch.float64),
-            "scale": torch.full((b,), self.scale, dtype=torch.float64),
-            "translate": torch.tensor(self.translate, dtype=torch.float64).expand(b, 2).clone(),
-            "shear": torch.tensor(self.shear, dtype=torch.float64).expand(b, 2).clone(),
-        }
-
-    def _settings(self) -> str:
-        return f"angle={self.angle}, translate={self.translate}, scale={self.scale}, shear={self.shear}, {self._common()}"
-
-
-class RandomAffine(_AffineWarp):
-    """Warp each sequence by its own random rotation, scale, translation and shear.
-
-    Every parameter is drawn per sample on the CPU and shared by all frames of the
-    sample; one ``grid_sample`` serves the whole batch (the warp of rotation and resize). Leave a range at its default to
-    keep that part fixed.
-
-    Args:
-        degrees: ``d`` for U(-d, d), or a ``(min, max)`` range, in degrees.
-        translate: ``(fy, fx)`` largest shifts as fractions of H and W: dy ~ U(-fy·H, fy·H),
-            dx ~ U(-fx·W, fx·W) (torchvision's meaning, in (H, W) order); ``None`` for none.
-        scale: ``(min, max)`` zoom range (> 0); ``None`` for 1.
-        shear: ``s`` for an x shear in U(-s, s), a ``(min, max)`` x range, or
-            ``(xmin, xmax, ymin, ymax)`` for both axes, in degrees inside (-90, 90);
-            ``None`` for none.
-        center, mode: as in :class:`Affine`.
-        p: probability that a sample is warped.
-
-    Example:
-        >>> transform = RandomAffine(10.0, translate=(0.1, 0.1), scale=(0.9, 1.1), shear=5.0)
-        >>> params = transform.make_params((2, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))
-        >>> sorted(params), params["translate"].shape
-        (['angle', 'scale', 'shear', 'translate'], torch.Size([2, 2]))
-    """
-
-    def __init__(
-        self,
-        degrees: float | Sequence[float] = 0.0,
-        *,
-        translate: Sequence[float] | None = None,
-        scale: Sequence[float] | None = None,
-        shear: float | Sequence[float] | None = None,
-        center: Center = "mass",
-        mode: str = "bilinear",
-        p: float = 1.0,
-    ) -> None:
-        super().__init__(center=center, mode=mode, p=p)
-        self.degrees = check_pair(degrees, "degrees", symmetric=True)
-        self.translate = None
-        if translate is not None:
-            fractions = _pairs(translate, 1, "translate")[0].tolist()
-            if not all(0 <= f <= 1 for f in fractions):
-                raise ValueError(f"translate fractions must lie in [0, 1], got {translate!r}")
-            self.translate = tuple(fractions)
-        self.scale = None if scale is None else check_pair(scale, "scale")
-        if self.scale is not None and self.scale[0] <= 0:
-            raise ValueError(f"scale must be > 0, got {scale!r}")
-        self.shear = None
-        if shear is not None:
-            if isinstance(shear, Sequence) and len(shear) == 4:
-                ranges = check_pair(shear[:2], "shear", low=-89.999, high=89.999) + check_pair(
-                    shear[2:], "shear", low=-89.999, high=89.999
-                )
-            else:
-                ranges = check_pair(shear, "shear", symmetric=True, low=-89.999, high=89.999) + (0.0, 0.0)
-            self.shear = ranges
-
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
-        b, _, _, height, width = shape
-        params: Params = {"angle": uniform(*self.degrees, b, generator)}
-        params["scale"] = torch.ones(b, dtype=torch.float64) if self.scale is None else uniform(*self.scale, b, generator)
-        if self.translate is None:
-            params["translate"] = _zeros(b, 2)
-        else:
-            fy, fx = self.translate
-            params["translate"] = torch.stack(
-                [uniform(-fy * height, fy * height, b, generator), uniform(-fx * width, fx * width, b, generator)], 1
-            )
-        if self.shear is None:
-            params["shear"] = _zeros(b, 2)
-        else:
-            x0, x1, y0, y1 = self.shear
-            params["shear"] = torch.stack([uniform(x0, x1, b, generator), uniform(y0, y1, b, generator)], 1)
-        return params
-
-    def _settings(self) -> str:
-        return (
-            f"degrees={self.degrees}, translate={self.translate}, scale={self.scale}, shear={self.shear}, "
-            f"{self._common()}"
-        )
+__all__ = [
+    "HorizontalFlip", "VerticalFlip", "RandomHorizontalFlip", "RandomVerticalFlip",
+    "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample",
+]
 
 
 class _Roll(EventTransform):
@@ -208,7 +44,7 @@ class Translate(_Roll):
 
     def __init__(self, shift: Sequence[int], *, p: float = 1.0) -> None:
         super().__init__(p=p)
-        self.shift = tuple(_pairs(shift, 1, "shift", dtype=torch.int64)[0].tolist())
+        self.shift = tuple(per_sample_pairs(shift, 1, "shift", dtype=torch.int64)[0].tolist())
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         return {"shift": torch.tensor(self.shift, dtype=torch.int64).expand(shape[0], 2).clone()}
@@ -238,7 +74,7 @@ class RandomTranslate(_Roll):
     def __init__(self, max_shift: int | Sequence[int], *, p: float = 1.0) -> None:
         super().__init__(p=p)
         if isinstance(max_shift, (Sequence, Tensor)) and not isinstance(max_shift, (str, bytes)):
-            pair = tuple(_pairs(max_shift, 1, "max_shift", dtype=torch.int64)[0].tolist())
+            pair = tuple(per_sample_pairs(max_shift, 1, "max_shift", dtype=torch.int64)[0].tolist())
         else:
             pair = (as_number(max_shift, "max_shift", integer=True),) * 2
         if min(pair) < 0:
@@ -371,3 +207,91 @@ class Downsample(EventTransform):
 
     def _settings(self) -> str:
         return f"factor={self.factor}, remainder={self.remainder!r}"
+
+
+def _flip(frames: Tensor, params: Params, axis: int) -> Tensor:
+    """Mirror along ``axis`` (-1: W, -2: H) the samples whose ``params["apply"]`` is set
+    (all without a gate), in one pass over the batch: ``flip`` when every sample is
+    mirrored, else one gather of whole rows (H) or of columns (W) by a per-sample index
+    built on the host. No host synchronisation."""
+    gate = params.get("apply")
+    if gate is not None and not on_host(gate):  # compiling, or a gate on an accelerator
+        flip = gate.to(frames.device, torch.bool).view(-1, 1, 1, 1, 1)
+        return torch.where(flip, frames.flip(axis), frames)
+    flags = None if gate is None else np.asarray(gate.tolist(), dtype=bool).reshape(frames.shape[0])
+    if flags is None or flags.all():
+        return frames.flip(axis)
+    if not flags.any():
+        return frames.clone(memory_format=torch.contiguous_format)
+    b, t, p, h, w = frames.shape
+    if axis == -2:
+        # Rows of W values: out row (b, c, y) = in row (b, c, y or H - 1 - y).
+        ys = np.where(flags[:, None], np.arange(h)[::-1], np.arange(h))  # (B, H)
+        rows = (np.arange(b)[:, None, None] * (t * p * h) + np.arange(t * p)[None, :, None] * h + ys[:, None, :]).reshape(-1)
+        out = frames.reshape(b * t * p * h, w).index_select(0, torch.from_numpy(rows).to(frames.device))
+        return out.view(frames.shape)
+    xs = np.where(flags[:, None], np.arange(w)[::-1], np.arange(w))  # (B, W)
+    index = torch.from_numpy(xs).to(frames.device).view(b, 1, w).expand(b, t * p * h, w)
+    return frames.reshape(b, t * p * h, w).gather(2, index).view(frames.shape)
+
+class HorizontalFlip(EventTransform):
+    """Mirror every frame left-right. Counts and dtype are kept.
+
+    Args:
+        p: probability that a sample is mirrored.
+
+    Example:
+        >>> HorizontalFlip()(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
+        [[1.0, 0.0], [3.0, 2.0]]
+    """
+
+    _gates_itself = True
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return _flip(frames, params, -1)
+
+class VerticalFlip(EventTransform):
+    """Mirror every frame top-bottom. Counts and dtype are kept.
+
+    Args:
+        p: probability that a sample is mirrored.
+
+    Example:
+        >>> VerticalFlip()(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
+        [[1.0, 0.0], [3.0, 2.0]]
+    """
+
+    _gates_itself = True
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return _flip(frames, params, -2)
+
+class RandomHorizontalFlip(HorizontalFlip):
+    """Mirror each sequence left-right with probability ``p`` (per sample; default 0.5).
+
+    Example:
+        >>> frames = torch.arange(8.).reshape(2, 1, 2, 1, 2)
+        >>> RandomHorizontalFlip(p=1.0)(frames)[:, 0, 0, 0].tolist()
+        [[1.0, 0.0], [5.0, 4.0]]
+    """
+
+    def __init__(self, p: float = 0.5) -> None:
+        super().__init__(p=p)
+
+    def _settings(self) -> str:
+        return "" if self.p < 1 else "p=1.0"
+
+class RandomVerticalFlip(VerticalFlip):
+    """Mirror each sequence top-bottom with probability ``p`` (per sample; default 0.5).
+
+    Example:
+        >>> frames = torch.arange(8.).reshape(2, 1, 2, 2, 1)
+        >>> RandomVerticalFlip(p=1.0)(frames)[:, 0, 0, :, 0].tolist()
+        [[1.0, 0.0], [5.0, 4.0]]
+    """
+
+    def __init__(self, p: float = 0.5) -> None:
+        super().__init__(p=p)
+
+    def _settings(self) -> str:
+        return "" if self.p < 1 else "p=1.0"

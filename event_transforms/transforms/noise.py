@@ -1,4 +1,7 @@
-"""Noise modules: static-scene noise injection, Poisson background activity, EventDrop."""
+"""Noise modules: static-scene noise injection, Poisson background activity.
+
+EventDrop and pixel removal are in :mod:`event_transforms.transforms.drop`.
+"""
 
 from __future__ import annotations
 
@@ -11,10 +14,10 @@ import torch
 from torch import Tensor
 
 from .._validation import check_counts, check_frames, check_pair, check_positive, describe
-from ..functional.noise import _add_counts, _add_entries, _add_poisson_noise, _drop_by_area, _drop_by_time, _drop_events, _poisson_totals
-from .base import EventTransform, Params, apply_by_group, choice, integers, kernel_generator, seeds, slice_params, uniform
+from ..functional.noise import _add_counts, _add_entries, _add_poisson_noise, _poisson_totals
+from .base import EventTransform, Params, integers, kernel_generator, seeds, uniform
 
-__all__ = ["AddNoise", "AddPoissonNoise", "RandomEventDrop"]
+__all__ = ["AddNoise", "AddPoissonNoise"]
 
 
 class AddNoise(EventTransform):
@@ -157,85 +160,3 @@ class AddPoissonNoise(EventTransform):
         return f"rate_hz={self.rate_hz}, frame_ms={self.frame_ms}"
 
 
-_DROPS = ("random", "time", "area")
-_HINT = "apply RandomEventDrop before interpolating transforms (bilinear rotate/resize)"
-
-
-class RandomEventDrop(EventTransform):
-    """EventDrop (Gu et al., 2021): each sample loses events by one randomly chosen method.
-
-    * ``"random"``: each event is dropped with probability ρ (binomial thinning);
-    * ``"time"``: every event in ``floor(ρ·T)`` consecutive frames at a random start;
-    * ``"area"``: every event in a ``floor(ρ·H) × floor(ρ·W)`` rectangle at a random place.
-
-    ρ, the method and the window are drawn per sample in ``make_params``; the random
-    thinning draws from a per-sample seed. Counts stay integer and the dtype is kept;
-    ``"random"`` needs whole counts (apply it before bilinear rotate/resize).
-
-    Args:
-        fraction: ``(min, max)`` range of ρ within [0, 1] (a single number is fixed).
-        methods: the methods to choose from, uniformly.
-        p: probability that a sample loses events.
-
-    Example:
-        >>> drop = RandomEventDrop(fraction=(0.1, 0.5))
-        >>> frames = torch.ones(3, 36, 2, 70, 75)
-        >>> out = drop(frames, generator=torch.Generator().manual_seed(0))
-        >>> bool((out <= frames).all()), out.dtype
-        (True, torch.float32)
-    """
-
-    def __init__(
-        self,
-        fraction: float | Sequence[float] = (0.0, 0.5),
-        methods: Sequence[str] = _DROPS,
-        *,
-        p: float = 1.0,
-    ) -> None:
-        super().__init__(p=p)
-        self.fraction = check_pair(fraction, "fraction", low=0.0, high=1.0, single=True)
-        if isinstance(methods, str) or not isinstance(methods, Sequence) or not methods or any(
-            m not in _DROPS for m in methods
-        ):
-            raise ValueError(f"methods must be a non-empty subset of {_DROPS}, got {methods!r}")
-        self.methods = tuple(methods)
-
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
-        b, t, _, h, w = shape
-        codes = torch.tensor([_DROPS.index(m) for m in self.methods])
-        method = choice(codes, b, generator)
-        fraction = uniform(*self.fraction, b, generator)
-
-        def window(size: int) -> tuple[Tensor, Tensor]:
-            length = (fraction * size).floor().to(torch.int64)
-            return integers(size - length + 1, b, generator), length
-
-        start, length = window(t)
-        top, height = window(h)
-        left, width = window(w)
-        return {
-            "method": method, "fraction": fraction, "seed": seeds(b, generator),
-            "start": start, "length": length,
-            "top": top, "height": height, "left": left, "width": width,
-        }
-
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        def by_random(sub: Tensor, index: Tensor) -> Tensor:
-            part = slice_params(params, index)
-            generator = kernel_generator(part["seed"], sub.device)
-            return _drop_events(sub, part["fraction"], "binomial", generator, _HINT)
-
-        def by_time(sub: Tensor, index: Tensor) -> Tensor:
-            part = slice_params(params, index)
-            return _drop_by_time(sub, part["start"], part["length"])
-
-        def by_area(sub: Tensor, index: Tensor) -> Tensor:
-            part = slice_params(params, index)
-            return _drop_by_area(sub, part["top"], part["left"], part["height"], part["width"])
-
-        branches = {"random": by_random, "time": by_time, "area": by_area}
-        functions = [branches[m] if m in self.methods else None for m in _DROPS]
-        return apply_by_group(frames, params["method"], functions)
-
-    def _settings(self) -> str:
-        return f"fraction={self.fraction}, methods={self.methods}"

@@ -42,10 +42,11 @@ from ..functional import event_kernels as K
 from ..functional.event_batch import EventBatch
 from .base import EventTransform, Params, register_event_kernel, seeds, uniform, integers
 from .containers import Compose, OneOf, RandomApply  # noqa: F401  (documented partners)
+from . import affine as _affine
+from . import drop as _drop
 from . import geometry as _geometry
 from . import noise as _noise
 from . import polarity as _polarity
-from . import spatial as _spatial
 from . import temporal as _temporal
 
 __all__ = ["SpatialJitter", "TimeJitter", "TimeSkew", "RefractoryPeriod", "Decimation"]
@@ -59,17 +60,17 @@ def _center(module: Any) -> Any:
 # --------------------------------------------------------------------------- registrations
 
 
-@register_event_kernel(_spatial._Rotation)
+@register_event_kernel(_affine._Rotation)
 def _rotate_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.affine_events(batch, angle=params["angle"], center=_center(module))
 
 
-@register_event_kernel(_spatial._Zoom)
+@register_event_kernel(_affine._Zoom)
 def _resize_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.affine_events(batch, scale=params["scale"], center=_center(module))
 
 
-@register_event_kernel(_geometry._AffineWarp)
+@register_event_kernel(_affine._AffineWarp)
 def _affine_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     shear = params.get("shear")
     if shear is not None and bool((shear != 0).any()):
@@ -81,13 +82,13 @@ def _affine_events(module: Any, batch: EventBatch, params: Params) -> EventBatch
     return out
 
 
-@register_event_kernel(_spatial.HorizontalFlip)
+@register_event_kernel(_geometry.HorizontalFlip)
 def _hflip_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     gate = params.get("apply")
     return K.flip_events(batch, torch.ones(len(batch), dtype=torch.bool) if gate is None else gate, axis="x")
 
 
-@register_event_kernel(_spatial.VerticalFlip)
+@register_event_kernel(_geometry.VerticalFlip)
 def _vflip_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     gate = params.get("apply")
     return K.flip_events(batch, torch.ones(len(batch), dtype=torch.bool) if gate is None else gate, axis="y")
@@ -116,7 +117,7 @@ def _flip_polarity_events(module: Any, batch: EventBatch, params: Params) -> Eve
     return K.flip_polarity_events(batch, torch.ones(len(batch), dtype=torch.bool))
 
 
-@register_event_kernel(_polarity.TimeReversal)
+@register_event_kernel(_temporal.TimeReversal)
 def _time_reversal_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     every = torch.ones(len(batch), dtype=torch.bool)
     return K.flip_polarity_events(K.time_reversal_events(batch, every), every)
@@ -127,7 +128,7 @@ def _poisson_events(module: Any, batch: EventBatch, params: Params) -> EventBatc
     return K.poisson_noise_events(batch, params["rate_hz"], params["seed"])
 
 
-@register_event_kernel(_noise.RandomEventDrop)
+@register_event_kernel(_drop.RandomEventDrop)
 def _event_drop_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     from .base import apply_by_group, slice_params
 

@@ -1,8 +1,11 @@
-"""Temporal transform modules: frame shifting (FS) and temporal event shifting (TES).
+"""Temporal transform modules: frame shifting (FS), temporal event shifting (TES), time
+reversal and temporal crop.
 
 ``shift = j`` moves frames (or events) from t to t + j; j < 0 is earlier. The paper's
 best settings are FS-1 = ``FrameShift(-1)`` and TES-2(0.50) =
 ``TemporalEventShift(-2, 0.5)``. Labels are never touched (the paper keeps ground truth).
+:class:`CropTime` and :class:`RandomCropTime` change T for every sample, so they take no
+``p``.
 """
 
 from __future__ import annotations
@@ -13,10 +16,13 @@ import torch
 from torch import Tensor
 
 from .._validation import TES_MODES, as_number, check_choice, check_pair, check_probability
-from ..functional.temporal import _frame_shift, _temporal_event_shift
-from .base import EventTransform, Params, choice, kernel_generator, seeds, uniform
+from ..functional.temporal import _check_length, _crop_time, _frame_shift, _temporal_event_shift
+from .base import EventTransform, Params, choice, integers, kernel_generator, seeds, uniform
 
-__all__ = ["FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift"]
+__all__ = [
+    "FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift",
+    "TimeReversal", "RandomTimeReversal", "CropTime", "RandomCropTime",
+]
 
 
 def _check_shifts(shifts: object) -> tuple[int, ...]:
@@ -213,3 +219,115 @@ class RandomTemporalEventShift(_EventShift):
 
     def _settings(self) -> str:
         return f"shifts={self.shifts}, fractions={self.fractions}, mode={self.mode!r}"
+
+
+class TimeReversal(EventTransform):
+    """Play each sequence backwards: frames reversed and polarities swapped.
+
+    See :func:`~event_transforms.functional.time_reversal`. Per-frame labels (force)
+    are *not* reversed (extra inputs pass through); reverse them yourself if a reversed
+    sequence should keep its pairing, or do not use it where time has a direction (a grasp
+    never plays backwards: a tactile scene declares no time reversal).
+
+    Args:
+        p: probability that a sample is reversed.
+
+    Example:
+        >>> frames = torch.zeros(3, 2, 1, 1)
+        >>> frames[0, 1] = 4.0
+        >>> TimeReversal()(frames)[:, :, 0, 0].tolist()
+        [[0.0, 0.0], [0.0, 0.0], [4.0, 0.0]]
+    """
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return frames.flip(1, 2)
+
+class RandomTimeReversal(TimeReversal):
+    """Reverse each sequence in time (and swap polarities) with probability ``p`` (default 0.5).
+
+    Example:
+        >>> RandomTimeReversal(p=1.0)(torch.arange(4.).view(2, 2, 1, 1))[:, :, 0, 0].tolist()
+        [[3.0, 2.0], [1.0, 0.0]]
+    """
+
+    def __init__(self, p: float = 0.5) -> None:
+        super().__init__(p=p)
+
+    def _settings(self) -> str:
+        return "" if self.p < 1 else "p=1.0"
+
+class _CropTime(EventTransform):
+    """Keeps frames ``[params["start"], params["start"] + length)``."""
+
+    def __init__(self, length: int) -> None:
+        super().__init__()
+        self.length = as_number(length, "length", integer=True)
+        if self.length < 1:
+            raise ValueError(f"length must be >= 1, got {length!r}")
+
+    def _room(self, shape) -> int:
+        return shape[1] - _check_length(self.length, shape[1])
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        self._room(frames.shape)
+        return _crop_time(frames, params["start"], self.length)
+
+    def output_shape(self, shape: torch.Size) -> torch.Size:
+        return torch.Size((shape[0], self.length, *shape[2:]))
+
+class CropTime(_CropTime):
+    """Keep frames ``[start, start + length)`` of every sequence (tonic's ``CropTime``, in frames).
+
+    Per-frame labels pass through uncut: cut them with the same window.
+
+    Args:
+        start: first kept frame (>= 0).
+        length: number of kept frames.
+
+    Shape:
+        ``(B, T, 2, H, W)`` -> ``(B, length, 2, H, W)``.
+
+    Example:
+        >>> CropTime(2, 3)(torch.zeros(36, 2, 70, 75)).shape
+        torch.Size([3, 2, 70, 75])
+    """
+
+    def __init__(self, start: int, length: int) -> None:
+        super().__init__(length)
+        self.start = as_number(start, "start", integer=True, low=0)
+
+    def _room(self, shape) -> int:
+        room = super()._room(shape)
+        if self.start > room:
+            raise ValueError(
+                f"CropTime: start {self.start} + length {self.length} exceeds the {shape[1]} frames"
+            )
+        return room
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        self._room(shape)
+        return {"start": torch.full((shape[0],), self.start, dtype=torch.int64)}
+
+    def _settings(self) -> str:
+        return f"start={self.start}, length={self.length}"
+
+class RandomCropTime(_CropTime):
+    """Keep a window of ``length`` frames at a random start per sequence.
+
+    The starts are returned in ``params["start"]``: cut per-frame labels with them,
+    ``labels.gather(1, params["start"].view(-1, 1) + torch.arange(length))``.
+
+    Args:
+        length: number of kept frames (at most T).
+
+    Example:
+        >>> transform = RandomCropTime(30)
+        >>> transform.make_params((3, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["start"].tolist()
+        [6, 4, 3]
+    """
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        return {"start": integers(self._room(shape) + 1, shape[0], generator)}
+
+    def _settings(self) -> str:
+        return f"length={self.length}"

@@ -1,6 +1,10 @@
-"""Spatial kernels: rotation and resize about a centre (one affine warp per sequence), flips.
+"""Affine kernels: the one warp behind rotation, resize and the general affine warp.
 
-Rotation and resize fold the T·2 frames of a sequence into channels and call
+:func:`rotate`, :func:`resize` and :func:`affine` (rotation, scale, translation and shear
+in one 2×3 matrix) are special cases of one private warp, ``_affine``
+(``affine(angle=a)`` equals ``rotate(a)``, ``affine(scale=s)`` equals ``resize(s)``), about
+the event centroid (:func:`center_of_mass`) by default. It folds the T·2 frames of a
+sequence into channels and calls
 ``affine_grid`` and ``grid_sample`` once with a (B, 2, 3) matrix built on the host (the
 same sampling as kornia's ``warp_affine``, without its float64 matrix helpers), so one
 sampling grid serves every frame of a sequence (the grasp keeps its orientation), no
@@ -17,17 +21,20 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, on_host, per_sample
+from .._validation import (
+    INTERPOLATIONS, as_batch, check_choice, check_frames, describe, on_host, per_sample, per_sample_pairs,
+)
 
 __all__ = [
     "center_of_mass",
     "rotate",
     "resize",
-    "horizontal_flip",
-    "vertical_flip",
+    "affine",
 ]
 
 Center = str | Sequence[float] | Tensor
+Scalars = float | Sequence[float] | Tensor
+Pairs = Sequence[float] | Tensor
 
 
 def center_of_mass(frames: Tensor) -> Tensor:
@@ -138,17 +145,6 @@ def _check_center(center: object, batch: int | None = None) -> Center:
     if not bool(value.isfinite().all()):
         raise ValueError(f"center must be finite, got {describe(center)}")
     return center
-
-
-def _resolve_center(batch: Tensor, center: Center) -> Tensor:
-    """(B, 2) float64 (y, x) centres on the batch's device."""
-    b, _, _, height, width = batch.shape
-    if isinstance(center, str):
-        if center == "mass":
-            return _center_of_mass(batch)
-        center = ((height - 1) / 2, (width - 1) / 2)
-    value = torch.as_tensor(center, dtype=torch.float64).to(batch.device)
-    return value.expand(b, 2) if value.dim() == 1 else value
 
 
 def _work_dtype(dtype: torch.dtype, mode: str) -> torch.dtype:
@@ -383,21 +379,61 @@ def resize(
     return unbatch(_affine(batch, None, scale_t, center, mode))
 
 
-def horizontal_flip(frames: Tensor) -> Tensor:
-    """Mirror every frame left-right (along W). Counts and dtype are kept.
+
+
+def affine(
+    frames: Tensor,
+    *,
+    angle: Scalars = 0.0,
+    translate: Pairs = (0.0, 0.0),
+    scale: Scalars = 1.0,
+    shear: Pairs = (0.0, 0.0),
+    center: Center = "mass",
+    mode: str = "bilinear",
+) -> Tensor:
+    """Rotate, scale, shear and translate every frame of each sequence with one warp.
+
+    The forward map of sample b is ``dst = s·R(θ)·Sh_x·Sh_y·(src - c) + c + t`` (OpenCV's
+    and kornia's convention, the same as :func:`~event_transforms.functional.rotate` and
+    :func:`~event_transforms.functional.resize`, which it generalises). Pixels that come
+    from outside the frame are zero.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        angle: degrees, counter-clockwise on the displayed image; a number or ``(B,)``.
+        translate: ``(dy, dx)`` in pixels (down, right), or a ``(B, 2)`` tensor.
+        scale: zoom factor > 0, a number or ``(B,)``.
+        shear: ``(x, y)`` shear angles in degrees (each in (-90, 90)), or ``(B, 2)``.
+        center: ``"mass"`` (event centroid of the whole sequence, image centre when
+            empty), ``"image"``, a ``(y, x)`` pair, or a ``(B, 2)`` tensor of pairs.
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Returns:
+        The warped frames, same shape and device. ``bilinear`` returns the input dtype
+        for float input and float32 for integer input; ``nearest`` keeps the dtype.
+
+    Shape:
+        ``(T, 2, H, W)`` -> ``(T, 2, H, W)``; ``(B, T, 2, H, W)`` -> same.
 
     Example:
-        >>> horizontal_flip(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
-        [[1.0, 0.0], [3.0, 2.0]]
+        >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
+        >>> frames[0, 1, 2, 2] = 3
+        >>> out = affine(frames, translate=(1, -2), center="image", mode="nearest")
+        >>> out.dtype, out[0, 1].nonzero().tolist()
+        (torch.int16, [[3, 0]])
     """
-    return check_frames(frames).flip(-1)
-
-
-def vertical_flip(frames: Tensor) -> Tensor:
-    """Mirror every frame top-bottom (along H). Counts and dtype are kept.
-
-    Example:
-        >>> vertical_flip(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
-        [[1.0, 0.0], [3.0, 2.0]]
-    """
-    return check_frames(frames).flip(-2)
+    batch, unbatch = as_batch(check_frames(frames))
+    b = batch.shape[0]
+    angle_t = per_sample(angle, b, "angle")
+    scale_t = per_sample(scale, b, "scale")
+    if not bool(angle_t.isfinite().all()):
+        raise ValueError(f"angle must be finite, got {describe(angle)}")
+    if not bool((scale_t.isfinite() & (scale_t > 0)).all()):
+        raise ValueError(f"scale must be finite and > 0, got {describe(scale)}")
+    translate_t = per_sample_pairs(translate, b, "translate")
+    shear_t = per_sample_pairs(shear, b, "shear")
+    if not bool((shear_t.abs() < 90).all()):
+        raise ValueError(f"shear must lie in (-90, 90) degrees, got {describe(shear)}")
+    check_choice(mode, "mode", INTERPOLATIONS)
+    center = _check_center(center, b)
+    return unbatch(_affine(batch, angle_t, scale_t, center, mode, shear=shear_t, translate=translate_t))

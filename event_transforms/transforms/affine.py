@@ -1,0 +1,345 @@
+"""Affine transform modules: rotation, resize and the general affine warp.
+
+:class:`Rotate`, :class:`RandomRotation`, :class:`Resize`, :class:`RandomResize`,
+:class:`Affine` and :class:`RandomAffine` are one affine warp per sequence (every frame of
+a grasp keeps the same orientation), about the event centroid by default; rotation and
+resize are special cases of the affine warp. Bilinear sampling returns the
+input dtype for float input and float32 for integer input; ``mode="nearest"`` keeps the
+dtype. Values are moved or interpolated, never inspected.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor
+
+from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, per_sample_pairs
+from ..functional.affine import Center, _affine, _check_center
+from .base import EventTransform, Params, choice, uniform
+
+__all__ = [
+    "Rotate",
+    "RandomRotation",
+    "Resize",
+    "RandomResize",
+    "Affine",
+    "RandomAffine",
+]
+
+
+def _zeros(batch: int, *size: int) -> Tensor:
+    return torch.zeros(batch, *size, dtype=torch.float64)
+
+
+class _Affine(EventTransform):
+    """Shared settings of the affine modules (centre, interpolation mode) and their one warp."""
+
+    def __init__(self, *, center: Center, mode: str, p: float) -> None:
+        super().__init__(p=p)
+        self.center = _check_center(center)
+        self.mode = check_choice(mode, "mode", INTERPOLATIONS)
+
+    def _warp(
+        self,
+        frames: Tensor,
+        *,
+        angle: Tensor | None = None,
+        scale: Tensor | None = None,
+        shear: Tensor | None = None,
+        translate: Tensor | None = None,
+    ) -> Tensor:
+        return _affine(frames, angle, scale, self.center, self.mode, shear=shear, translate=translate)
+
+    def _common(self) -> str:
+        return f"center={self.center!r}, mode={self.mode!r}"
+
+
+class _Rotation(_Affine):
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return self._warp(frames, angle=params["angle"])
+
+
+class _Zoom(_Affine):
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return self._warp(frames, scale=params["scale"])
+
+
+class Rotate(_Rotation):
+    """Rotate every frame by a fixed angle about the sequence's centre.
+
+    Args:
+        angle: degrees, counter-clockwise on the displayed image (finite).
+        center: ``"mass"`` (event centroid of the sequence), ``"image"`` or ``(y, x)``.
+        mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
+            or ``"nearest"`` (dtype kept).
+        p: probability that a sample is rotated.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged.
+
+    Example:
+        >>> frames = torch.zeros(2, 1, 2, 5, 5)
+        >>> frames[:, 0, 1, 2, 4] = 1.0
+        >>> Rotate(90.0, center="image")(frames)[:, 0, 1].nonzero().tolist()
+        [[0, 0, 2], [1, 0, 2]]
+    """
+
+    def __init__(self, angle: float, *, center: Center = "mass", mode: str = "bilinear", p: float = 1.0) -> None:
+        super().__init__(center=center, mode=mode, p=p)
+        self.angle = as_number(angle, "angle")
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        return {"angle": torch.full((shape[0],), self.angle, dtype=torch.float64)}
+
+    def _settings(self) -> str:
+        return f"angle={self.angle}, {self._common()}"
+
+
+class RandomRotation(_Rotation):
+    """Rotate each sequence by its own random angle, the same for all its frames.
+
+    Args:
+        degrees: ``d`` for U(-d, d), or a ``(min, max)`` range, in degrees.
+        center, mode: as in :class:`Rotate`.
+        p: probability that a sample is rotated.
+
+    Example:
+        >>> transform = RandomRotation(45.0)
+        >>> transform.make_params((3, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["angle"]
+        tensor([42.3048, 18.7038, -3.6555], dtype=torch.float64)
+    """
+
+    def __init__(
+        self, degrees: float | Sequence[float], *, center: Center = "mass", mode: str = "bilinear", p: float = 1.0
+    ) -> None:
+        super().__init__(center=center, mode=mode, p=p)
+        self.degrees = check_pair(degrees, "degrees", symmetric=True)
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        return {"angle": uniform(*self.degrees, shape[0], generator)}
+
+    def _settings(self) -> str:
+        return f"degrees={self.degrees}, {self._common()}"
+
+
+class Resize(_Zoom):
+    """Zoom every frame by a fixed factor about the sequence's centre (H×W kept, zero margin).
+
+    Args:
+        scale: the paper's β = target size / source size (finite, > 0).
+        center, mode: as in :class:`Rotate`.
+        p: probability that a sample is resized.
+
+    Example:
+        >>> frames = torch.zeros(1, 2, 5, 5)
+        >>> frames[0, 0, 2, 3] = 1.0
+        >>> Resize(2.0, center="image")(frames)[0, 0, 2].tolist()
+        [0.0, 0.0, 0.0, 0.5, 1.0]
+    """
+
+    def __init__(self, scale: float, *, center: Center = "mass", mode: str = "bilinear", p: float = 1.0) -> None:
+        super().__init__(center=center, mode=mode, p=p)
+        self.scale = check_positive(scale, "scale")
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        return {"scale": torch.full((shape[0],), self.scale, dtype=torch.float64)}
+
+    def _settings(self) -> str:
+        return f"scale={self.scale}, {self._common()}"
+
+
+class RandomResize(_Zoom):
+    """Zoom each sequence by its own random factor about its centre.
+
+    Give either ``scale``, a ``(min, max)`` range drawn uniformly, or ``choices``, a set
+    of factors drawn with equal probability — e.g. the paper's ``(15/18, 15/12)``.
+
+    Args:
+        scale: ``(min, max)`` zoom range, both > 0.
+        choices: zoom factors, all > 0.
+        center, mode: as in :class:`Rotate`.
+        p: probability that a sample is resized.
+
+    Example:
+        >>> transform = RandomResize(choices=(15 / 18, 15 / 12))
+        >>> transform.make_params((4, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["scale"]
+        tensor([0.8333, 1.2500, 1.2500, 0.8333], dtype=torch.float64)
+    """
+
+    def __init__(
+        self,
+        scale: Sequence[float] | None = None,
+        *,
+        choices: Sequence[float] | None = None,
+        center: Center = "mass",
+        mode: str = "bilinear",
+        p: float = 1.0,
+    ) -> None:
+        super().__init__(center=center, mode=mode, p=p)
+        if (scale is None) == (choices is None):
+            raise ValueError(f"give exactly one of scale or choices, got scale={scale!r}, choices={choices!r}")
+        self.scale = None if scale is None else check_pair(scale, "scale")
+        if self.scale is not None and self.scale[0] <= 0:
+            raise ValueError(f"scale must be > 0, got {scale!r}")
+        self.choices = None
+        if choices is not None:
+            if isinstance(choices, (str, bytes)) or not isinstance(choices, Sequence) or not choices:
+                raise TypeError(f"choices must be a non-empty sequence of factors > 0, got {choices!r}")
+            self.choices = tuple(check_positive(c, "choices") for c in choices)
+            self._choices = torch.tensor(self.choices, dtype=torch.float64)  # CPU, drawn from in make_params
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        if self.choices is not None:
+            return {"scale": choice(self._choices, shape[0], generator)}
+        assert self.scale is not None
+        return {"scale": uniform(*self.scale, shape[0], generator)}
+
+    def _settings(self) -> str:
+        setting = f"choices={self.choices}" if self.choices is not None else f"scale={self.scale}"
+        return f"{setting}, {self._common()}"
+
+
+class _AffineWarp(_Affine):
+    """Applies ``params`` angle (B,), scale (B,), translate (B, 2) and shear (B, 2)."""
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return self._warp(
+            frames, angle=params["angle"], scale=params["scale"], shear=params["shear"], translate=params["translate"]
+        )
+
+
+class Affine(_AffineWarp):
+    """A fixed affine warp of every frame about the sequence's centre.
+
+    Args:
+        angle: degrees, counter-clockwise on the displayed image.
+        translate: ``(dy, dx)`` pixels.
+        scale: zoom factor > 0.
+        shear: ``(x, y)`` shear angles in degrees, each in (-90, 90).
+        center: ``"mass"`` (event centroid of the sequence), ``"image"`` or ``(y, x)``.
+        mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
+            or ``"nearest"`` (dtype kept).
+        p: probability that a sample is warped.
+
+    Example:
+        >>> frames = torch.zeros(1, 2, 5, 5)
+        >>> frames[0, 1, 2, 4] = 1.0
+        >>> Affine(angle=90.0, center="image")(frames)[0, 1].nonzero().tolist()
+        [[0, 2]]
+    """
+
+    def __init__(
+        self,
+        *,
+        angle: float = 0.0,
+        translate: Sequence[float] = (0.0, 0.0),
+        scale: float = 1.0,
+        shear: Sequence[float] = (0.0, 0.0),
+        center: Center = "mass",
+        mode: str = "bilinear",
+        p: float = 1.0,
+    ) -> None:
+        super().__init__(center=center, mode=mode, p=p)
+        self.angle = as_number(angle, "angle")
+        self.scale = as_number(scale, "scale")
+        if self.scale <= 0:
+            raise ValueError(f"scale must be > 0, got {scale!r}")
+        self.translate = tuple(per_sample_pairs(translate, 1, "translate")[0].tolist())
+        self.shear = tuple(per_sample_pairs(shear, 1, "shear")[0].tolist())
+        if max(abs(s) for s in self.shear) >= 90:
+            raise ValueError(f"shear must lie in (-90, 90) degrees, got {shear!r}")
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        b = shape[0]
+        return {
+            "angle": torch.full((b,), self.angle, dtype=torch.float64),
+            "scale": torch.full((b,), self.scale, dtype=torch.float64),
+            "translate": torch.tensor(self.translate, dtype=torch.float64).expand(b, 2).clone(),
+            "shear": torch.tensor(self.shear, dtype=torch.float64).expand(b, 2).clone(),
+        }
+
+    def _settings(self) -> str:
+        return f"angle={self.angle}, translate={self.translate}, scale={self.scale}, shear={self.shear}, {self._common()}"
+
+class RandomAffine(_AffineWarp):
+    """Warp each sequence by its own random rotation, scale, translation and shear.
+
+    Every parameter is drawn per sample on the CPU and shared by all frames of the
+    sample; one ``grid_sample`` serves the whole batch (the warp of rotation and resize). Leave a range at its default to
+    keep that part fixed.
+
+    Args:
+        degrees: ``d`` for U(-d, d), or a ``(min, max)`` range, in degrees.
+        translate: ``(fy, fx)`` largest shifts as fractions of H and W: dy ~ U(-fy·H, fy·H),
+            dx ~ U(-fx·W, fx·W) (torchvision's meaning, in (H, W) order); ``None`` for none.
+        scale: ``(min, max)`` zoom range (> 0); ``None`` for 1.
+        shear: ``s`` for an x shear in U(-s, s), a ``(min, max)`` x range, or
+            ``(xmin, xmax, ymin, ymax)`` for both axes, in degrees inside (-90, 90);
+            ``None`` for none.
+        center, mode: as in :class:`Affine`.
+        p: probability that a sample is warped.
+
+    Example:
+        >>> transform = RandomAffine(10.0, translate=(0.1, 0.1), scale=(0.9, 1.1), shear=5.0)
+        >>> params = transform.make_params((2, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))
+        >>> sorted(params), params["translate"].shape
+        (['angle', 'scale', 'shear', 'translate'], torch.Size([2, 2]))
+    """
+
+    def __init__(
+        self,
+        degrees: float | Sequence[float] = 0.0,
+        *,
+        translate: Sequence[float] | None = None,
+        scale: Sequence[float] | None = None,
+        shear: float | Sequence[float] | None = None,
+        center: Center = "mass",
+        mode: str = "bilinear",
+        p: float = 1.0,
+    ) -> None:
+        super().__init__(center=center, mode=mode, p=p)
+        self.degrees = check_pair(degrees, "degrees", symmetric=True)
+        self.translate = None
+        if translate is not None:
+            fractions = per_sample_pairs(translate, 1, "translate")[0].tolist()
+            if not all(0 <= f <= 1 for f in fractions):
+                raise ValueError(f"translate fractions must lie in [0, 1], got {translate!r}")
+            self.translate = tuple(fractions)
+        self.scale = None if scale is None else check_pair(scale, "scale")
+        if self.scale is not None and self.scale[0] <= 0:
+            raise ValueError(f"scale must be > 0, got {scale!r}")
+        self.shear = None
+        if shear is not None:
+            if isinstance(shear, Sequence) and len(shear) == 4:
+                ranges = check_pair(shear[:2], "shear", low=-89.999, high=89.999) + check_pair(
+                    shear[2:], "shear", low=-89.999, high=89.999
+                )
+            else:
+                ranges = check_pair(shear, "shear", symmetric=True, low=-89.999, high=89.999) + (0.0, 0.0)
+            self.shear = ranges
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        b, _, _, height, width = shape
+        params: Params = {"angle": uniform(*self.degrees, b, generator)}
+        params["scale"] = torch.ones(b, dtype=torch.float64) if self.scale is None else uniform(*self.scale, b, generator)
+        if self.translate is None:
+            params["translate"] = _zeros(b, 2)
+        else:
+            fy, fx = self.translate
+            params["translate"] = torch.stack(
+                [uniform(-fy * height, fy * height, b, generator), uniform(-fx * width, fx * width, b, generator)], 1
+            )
+        if self.shear is None:
+            params["shear"] = _zeros(b, 2)
+        else:
+            x0, x1, y0, y1 = self.shear
+            params["shear"] = torch.stack([uniform(x0, x1, b, generator), uniform(y0, y1, b, generator)], 1)
+        return params
+
+    def _settings(self) -> str:
+        return (
+            f"degrees={self.degrees}, translate={self.translate}, scale={self.scale}, shear={self.shear}, "
+            f"{self._common()}"
+        )
