@@ -333,13 +333,17 @@ def count_ops(fn: Callable[[], Any], *, warmup: bool = True) -> OpCounts:
     ``masked_select`` or ``unique*``, plus the library's own reads of device values
     (``event_transforms._validation.read_host``, a profiler range: ``tolist`` dispatches
     nothing countable on the CPU): on an accelerator each makes the host wait for the
-    device. Reads of parameters drawn on the CPU are not syncs and are not counted. On
+    device. Reads of parameters drawn on the CPU are not syncs and are not counted, nor
+    are the host-side checks of a user-given params tree (the profiler range
+    ``event_transforms::check_params``: CPU tensors, no device work). On
     the CPU these counts are deterministic for a given input and parameters, so they serve
     as a device-free proxy for launch overhead.
 
     ``fn`` is called once first (``warmup``) so lazy imports and caches are not counted.
     """
     from torch.profiler import ProfilerActivity, profile
+
+    from event_transforms.transforms._params import CHECK_RANGE
 
     if warmup:
         fn()
@@ -351,11 +355,19 @@ def count_ops(fn: Callable[[], Any], *, warmup: bool = True) -> OpCounts:
     def top_level(event: Any) -> bool:
         parent = event.cpu_parent
         while parent is not None:
-            if parent.name.startswith("aten::"):
+            if parent.name.startswith("aten::") or parent.name == CHECK_RANGE:
                 return False
             parent = parent.cpu_parent
         return True
 
-    syncs = tuple(e.name for e in everything if _is_sync(e.name))
+    def checking(event: Any) -> bool:  # host reads of a user-given CPU params tree
+        parent = event.cpu_parent
+        while parent is not None:
+            if parent.name == CHECK_RANGE:
+                return True
+            parent = parent.cpu_parent
+        return False
+
+    syncs = tuple(e.name for e in everything if _is_sync(e.name) and not checking(e))
     ops = tuple(e.name for e in events if top_level(e))
     return OpCounts(syncs=len(syncs), ops=len(ops), sync_names=syncs, op_names=ops)

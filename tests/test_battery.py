@@ -13,6 +13,7 @@ from torch import nn
 from torch.utils.data import DataLoader, Dataset
 
 import event_transforms as et
+from event_transforms.transforms._params import check_tree
 from event_transforms.transforms.base import slice_params
 
 from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse_frames
@@ -65,13 +66,17 @@ FACTORIES = {
     "DropHotPixels": lambda t, h, w: et.DropPixel(rate_hz=150.0),
     "RandomDropPixel": lambda t, h, w: et.RandomDropPixel((0.1, 0.3)),
     "Denoise": lambda t, h, w: et.Denoise(),
+    # coupled transforms (couples_samples): whole batch, labels mixed through apply_labels
+    "CutMix": lambda t, h, w: et.CutMix(),
+    "MixUp": lambda t, h, w: et.MixUp(0.4),
 }
+COUPLED = {"CutMix", "MixUp"}
 
 NAMES = sorted(FACTORIES)
 
 
 def expected_dtype(name: str, dtype: torch.dtype) -> torch.dtype:
-    interpolates = name in INTERPOLATING or name in ("Compose", "OneOf")
+    interpolates = name in INTERPOLATING or name in ("Compose", "OneOf", "MixUp")
     if interpolates and not dtype.is_floating_point:
         return torch.float32
     return dtype
@@ -79,7 +84,7 @@ def expected_dtype(name: str, dtype: torch.dtype) -> torch.dtype:
 
 def bound(name: str) -> float:
     """Largest factor by which a transform may grow the total count (interpolation)."""
-    return 2.5 if name in INTERPOLATING or name in ("Compose", "OneOf") else 1.0 + 1e-6
+    return 2.5 if name in INTERPOLATING or name in ("Compose", "OneOf", "MixUp") else 1.0 + 1e-6
 
 
 def run(name: str, frames: torch.Tensor, seed: int = 0) -> torch.Tensor:
@@ -195,25 +200,45 @@ class TestBattery:
             leaves = list(_leaves(params))
             assert all(leaf.shape[0] == batch and leaf.device.type == "cpu" for leaf in leaves)
 
-    def test_batched_equals_per_sample_given_params(self, name):
-        frames = sparse_frames(3, 6, 2, H, W, density=0.2)
+    @pytest.mark.parametrize("dtype", [torch.int16, torch.float32])
+    def test_batched_equals_per_sample_given_params(self, name, dtype):
+        """Per-sample purity: a sample alone with its slice of the tree equals the sample in
+        the batch, exactly, also for kernels with randomness of their own (their streams
+        are keyed by the sample's seed). Coupled transforms read other samples by
+        declaration: their per-sample law is tested with the labels below."""
+        if name in COUPLED:
+            pytest.skip("couples_samples: a sample depends on its partner by design")
+        frames = sparse_frames(5, 6, 2, H, W, density=0.3, dtype=dtype)
+        frames[1, 2, 0, 3, 4] = 40  # a count above the kernels' expansion limit
         module = FACTORIES[name](6, H, W)
+        if module.p == 1.0 and name not in ("OneOf", "RandomApply"):
+            module.p = 0.7  # the gate gathers sub-batches too
         params = module.make_params(frames.shape, generator=torch.Generator().manual_seed(4))
         batched = module(frames, params=params)
-        for b in range(3):
+        for b in (0, 1, 4):
             alone = module(frames[b : b + 1], params=slice_params(params, torch.tensor([b])))
-            if "seed" in _keys(params):
-                # a kernel's own draw is seeded by the whole batch's seeds: a slice of the
-                # tree is a valid tree for the slice, and replays exactly
-                assert torch.equal(alone, module(frames[b : b + 1], params=slice_params(params, torch.tensor([b]))))
-            else:
+            if name in INTERPOLATING or name in ("Compose", "OneOf"):  # bilinear arithmetic may differ in the last bit
                 torch.testing.assert_close(alone[0], batched[b], rtol=1e-5, atol=1e-5)
+            else:
+                assert torch.equal(alone[0], batched[b]), (name, b)
+        # and a permuted batch gives each sample the same output
+        order = torch.tensor([4, 2, 0, 1, 3])
+        permuted = module(frames[order], params=slice_params(params, order))
+        torch.testing.assert_close(permuted, batched[order], rtol=1e-5, atol=1e-5)
 
     def test_metadata_reaches_through_containers(self, name):
         frames = sparse_frames(4, 6, 2, H, W, density=0.2)
         metadata = {"diameter_mm": torch.tensor([12.0, 18.0, 12.0, 18.0])}
         module, probe = FACTORIES[name](6, H, W), _Probe()
-        for container in (et.Compose([module, probe]), et.OneOf([module, probe]), et.RandomApply(et.Compose([probe, module]), p=1.0)):
+        if name in COUPLED:  # containers that hand out sub-batches refuse it by name
+            with pytest.raises(TypeError, match=rf"transforms\[0\] \({name}\) mixes samples"):
+                et.OneOf([module, probe])
+            with pytest.raises(TypeError, match=rf"transform \(Compose\) mixes samples"):
+                et.RandomApply(et.Compose([probe, module]), p=1.0)
+            containers = (et.Compose([module, probe]),)
+        else:
+            containers = (et.Compose([module, probe]), et.OneOf([module, probe]), et.RandomApply(et.Compose([probe, module]), p=1.0))
+        for container in containers:
             probe.seen.clear()
             params = container.make_params(frames.shape, metadata=metadata, generator=torch.Generator().manual_seed(0))
             assert probe.seen and all(seen is metadata for seen in probe.seen)
@@ -229,8 +254,11 @@ class TestBattery:
         gate = params["apply"]
         assert gate.dtype == torch.bool and gate.shape == (6,) and 0 < int(gate.sum()) < 6
         out = module(frames, params=params)
-        # the gated samples are the transform of that sub-batch with its slice of the tree
         chosen = gate.nonzero().squeeze(1)
+        if name in COUPLED:  # the gate is folded in: unchosen samples are their own partners
+            assert torch.equal(out[~gate], frames[~gate].to(out.dtype))
+            return
+        # the gated samples are the transform of that sub-batch with its slice of the tree
         own = slice_params({k: v for k, v in params.items() if k != "apply"}, chosen)
         always = FACTORIES[name](6, H, W)
         always.p = 1.0
@@ -249,8 +277,27 @@ class TestBattery:
             with pytest.raises(ValueError, match=r"params.*has no entry|must have shape \(2, \.\.\.\)"):
                 module(frames, params={})
             key, value = next(iter(_items(good)))
-            with pytest.raises(ValueError, match=r"must have shape \(2, \.\.\.\)"):
+            with pytest.raises(ValueError, match=r"[A-Za-z]+: params.*must have shape \(2,"):
                 module(frames, params=_replace(good, key, torch.cat([value, value])))
+        with pytest.raises(ValueError, match=rf"{type(module).__name__}: params has unknown key\(s\) \['bogus'\]"):
+            module(frames, params={**good, "bogus": torch.zeros(2)})
+        with pytest.raises(TypeError, match=r"params\['apply'\] must be a bool tensor"):
+            module(frames, params={**good, "apply": torch.tensor([0.1, 0.9])})
+        with pytest.raises(TypeError, match="generator must be a torch.Generator or None, got int"):
+            module(frames, generator=0)
+        with pytest.raises(TypeError, match="generator must be a torch.Generator or None, got Generator"):
+            module(frames, generator=np.random.default_rng(0))
+
+    def test_params_spec_describes_every_entry(self, name):
+        """Every library module describes its params (so replays are checked), and what
+        make_params draws fits the description."""
+        module = FACTORIES[name](6, H, W)
+        module.p = 0.5
+        shape = torch.Size((3, 6, 2, H, W))
+        good = module.make_params(shape, generator=torch.Generator().manual_seed(8))
+        assert module.params_spec(shape) is not None
+        checked = check_tree(module, good, shape)
+        assert _keys(checked) == _keys(good)
 
 
 class _Probe(et.EventTransform):

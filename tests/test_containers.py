@@ -130,3 +130,68 @@ def test_paper_independent_and_hybrid():
     # hybrid: the last frame is always vacated by the shift; independent only for shifted samples
     assert hybrid[:, -1].sum() == 0
     assert independent[:, -1].sum() > 0
+
+
+# ----------------------------------------------------------------------------- coupled members
+
+
+class TestCoupledMembers:
+    """CutMix and MixUp in containers (issue 19, item 2): mixed labels, or a named refusal."""
+
+    @pytest.fixture
+    def batch(self):
+        g = torch.Generator().manual_seed(0)
+        return torch.poisson(torch.full((6, 5, 2, 9, 11), 0.5), generator=g), torch.rand(6, 5, generator=g)
+
+    @pytest.mark.parametrize("make", [lambda: et.CutMix(), lambda: et.MixUp(0.4), lambda: et.CutMix(p=0.5)])
+    def test_compose_mixes_the_labels_like_the_transform_alone(self, batch, make):
+        frames, labels = batch
+        mixing = make()
+        pipeline = et.Compose([et.FrameShift(-1), mixing, et.RandomHorizontalFlip(0.5)])
+        assert pipeline.couples_samples
+        params = pipeline.make_params(frames.shape, generator=torch.Generator().manual_seed(3))
+        out, mixed = pipeline(frames, labels, params=params)
+        _, alone = mixing(et.FrameShift(-1)(frames), labels, params=params["1"])
+        assert torch.equal(mixed, alone)
+        assert not torch.equal(mixed, labels)  # never unmixed labels
+
+    def test_compose_with_a_dict_uses_the_members_label_key(self, batch):
+        frames, labels = batch
+        pipeline = et.Compose([et.MixUp(0.4, label_key="force")])
+        out = pipeline({"frames": frames, "force": labels}, generator=torch.Generator().manual_seed(0))
+        assert not torch.equal(out["force"], labels)
+        with pytest.raises(ValueError, match=r"coupled members must agree on label_key, got \['a', 'b'\]"):
+            et.Compose([et.MixUp(label_key="a"), et.CutMix(label_key="b")])
+
+    def test_integer_classes_come_back_soft_through_compose(self, batch):
+        frames, _ = batch
+        classes = torch.tensor([0, 1, 2, 1, 0, 2])
+        _, soft = et.Compose([et.CutMix(num_classes=3)])(frames, classes, generator=torch.Generator().manual_seed(1))
+        assert soft.shape == (6, 3)
+        torch.testing.assert_close(soft.sum(1), torch.ones(6, dtype=soft.dtype))
+
+    @pytest.mark.parametrize("mixing", [et.CutMix(), et.MixUp()], ids=["CutMix", "MixUp"])
+    def test_one_of_and_random_apply_refuse_by_name(self, mixing):
+        with pytest.raises(TypeError, match=rf"transforms\[0\] \({type(mixing).__name__}\) mixes samples of the batch"):
+            et.OneOf([mixing, et.FrameShift(1)])
+        with pytest.raises(TypeError, match=rf"transforms\[1\] \({type(mixing).__name__}\) mixes samples"):
+            et.OneOf([et.RandomRotation(10.0), mixing])
+        with pytest.raises(TypeError, match=rf"transform \({type(mixing).__name__}\) mixes samples of the batch"):
+            et.RandomApply(mixing, p=0.5)
+        with pytest.raises(TypeError, match=r"transform \(Compose\) mixes samples"):
+            et.RandomApply(et.Compose([et.FrameShift(1), mixing]), p=0.5)
+        with pytest.raises(TypeError, match=r"transforms\[0\] \(Compose\) mixes samples"):
+            et.OneOf([et.Compose([mixing]), et.FrameShift(1)])
+
+    def test_forward_is_never_overridden(self):
+        from event_transforms.transforms.base import EventTransform
+
+        for cls in (et.CutMix, et.MixUp, et.Compose, et.OneOf, et.RandomApply):
+            assert cls.forward is EventTransform.forward
+
+    def test_apply_labels_is_the_identity_by_default(self, batch):
+        frames, labels = batch
+        assert et.FrameShift(1).apply_labels(labels, {}) is labels
+        assert not et.Compose([et.FrameShift(1)]).couples_samples
+        out, same = et.Compose([et.FrameShift(1)])(frames, labels)
+        assert same is labels

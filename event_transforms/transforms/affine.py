@@ -17,7 +17,7 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, per_sample_pairs
 from ..functional.affine import Center, _affine, _check_center
-from .base import EventTransform, Params, choice, uniform
+from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [
     "Rotate",
@@ -57,11 +57,17 @@ class _Affine(EventTransform):
 
 
 class _Rotation(_Affine):
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"angle": Param("float")}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self._warp(frames, angle=params["angle"])
 
 
 class _Zoom(_Affine):
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"scale": Param("float", low=float.fromhex("0x1p-1022"))}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self._warp(frames, scale=params["scale"])
 
@@ -203,6 +209,12 @@ class RandomResize(_Zoom):
 
 class _AffineWarp(_Affine):
     """Applies ``params`` angle (B,), scale (B,), translate (B, 2) and shear (B, 2)."""
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {
+            "angle": Param("float"), "scale": Param("float", low=float.fromhex("0x1p-1022")),
+            "translate": Param("float", shape=(2,)), "shear": Param("float", shape=(2,)),
+        }
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self._warp(

@@ -37,8 +37,9 @@ from torch import Tensor, nn
 
 from .._validation import as_batch, check_frames, check_probability, check_shape, describe
 from ..functional.event_batch import EventBatch, merge_streams
+from ._params import CHECK_RANGE, Param, Spec, check_tree
 
-__all__ = ["EventTransform", "Params", "Lambda", "as_transform", "FRAMES_KEY", "register_event_kernel"]
+__all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY", "register_event_kernel"]
 
 #: A call's parameters: a dict whose leaves are ``(B, ...)`` tensors and whose inner nodes
 #: are the parameters of a container's children.
@@ -81,27 +82,6 @@ class _CheckedParams(dict):
             f"params of {self.owner} has no entry {key!r} (it has {sorted(self)}); pass the "
             "dict that make_params returns"
         )
-
-
-def _check_params(params: object, batch: int, owner: str, path: str = "params") -> Params:
-    """Check a user-given tree: dicts of (B, ...) tensors; return it with named missing keys."""
-    if not isinstance(params, Mapping):
-        raise TypeError(f"{path} must be a dict returned by make_params, got {type(params).__name__}")
-    checked = _CheckedParams()
-    checked.owner = owner
-    for key, value in params.items():
-        where = f"{path}[{key!r}]"
-        if isinstance(value, Mapping):
-            checked[key] = _check_params(value, batch, owner, where)
-        elif isinstance(value, Tensor):
-            if value.dim() == 0 or value.shape[0] != batch:
-                raise ValueError(
-                    f"{where} must have shape ({batch}, ...) to match the batch, got {describe(value)}"
-                )
-            checked[key] = value
-        else:
-            raise TypeError(f"{where} must be a tensor or a dict, got {type(value).__name__}")
-    return checked
 
 
 def slice_params(params: Params, index: Tensor) -> Params:
@@ -298,6 +278,18 @@ class EventTransform(nn.Module):
     #: pass, e.g. flips), so the base class does not gather the gated samples.
     _gates_itself = False
 
+    #: Declared by transforms that read other samples of the batch or the labels (CutMix,
+    #: MixUp) and by containers holding one. A coupled transform is applied to the whole
+    #: batch (its :meth:`apply` honours ``params["apply"]`` itself) and its labels go
+    #: through :meth:`apply_labels`; ``OneOf`` and ``RandomApply`` refuse it by name,
+    #: because they hand their members sub-batches. It is exempt from per-sample purity
+    #: (a sample alone cannot equal the sample mixed with a partner of its batch).
+    couples_samples: bool = False
+
+    #: For a dict input, the entry holding the labels a coupled transform mixes (``None``:
+    #: dict inputs pass their labels through). Ignored by transforms that are not coupled.
+    label_key: str | None = None
+
     def __init__(self, *, p: float = 1.0) -> None:
         super().__init__()
         self.p = check_probability(p, "p")
@@ -314,11 +306,15 @@ class EventTransform(nn.Module):
         Args:
             inputs: frames ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` (a tensor, a
                 ``tv_tensors.Video``, or a dict holding them under ``"frames"``), then
-                anything (labels, ...), returned unchanged.
-            generator: source of the parameter draws (a CPU generator keeps CUDA calls
-                free of host synchronisation); ``None`` uses torch's global RNG, so each
-                DataLoader worker draws differently.
-            params: a tree returned by :meth:`make_params`, to replay a draw.
+                anything (labels, ...), returned unchanged, except that a transform that
+                :attr:`couples_samples` mixes the second input (or the dict's
+                :attr:`label_key` entry), the labels, through :meth:`apply_labels`.
+            generator: source of the parameter draws, a ``torch.Generator`` or ``None``
+                (a CPU generator keeps CUDA calls free of host synchronisation); ``None``
+                uses torch's global RNG, so each DataLoader worker draws differently.
+            params: a tree returned by :meth:`make_params`, to replay a draw. It is
+                checked here, once, against :meth:`params_spec` (recursively through
+                containers); the error names the module, the key and the value.
             metadata: per-sample information some transforms read (e.g. object sizes):
                 a dict of numbers or ``(B,)`` values, or a list of dicts (one per sample).
                 For a dict input, its other entries are the metadata unless given here.
@@ -326,15 +322,26 @@ class EventTransform(nn.Module):
         Returns:
             The transformed frames in the input's form: a tensor, a ``Video``, a dict
             with ``"frames"`` replaced, or a tuple ``(frames, *rest)`` for several inputs.
+
+        Raises:
+            TypeError: ``generator`` is not a ``torch.Generator`` or ``None``; a params
+                leaf of the wrong kind.
+            ValueError: a params entry missing, unknown, of the wrong shape or out of range.
         """
         if not inputs:
             raise TypeError(f"{type(self).__name__} needs frames as its first input, got no inputs")
+        if generator is not None and not isinstance(generator, torch.Generator):
+            raise TypeError(
+                f"{type(self).__name__}: generator must be a torch.Generator or None, got {type(generator).__name__} "
+                f"{generator!r}"
+            )
         first, rest = inputs[0], inputs[1:]
         if isinstance(first, EventBatch) and not self.takes_events:
             if params is None:
                 params = self.make_params(first.frame_shape, generator=generator, metadata=metadata)
             else:
-                params = _check_params(params, len(first), type(self).__name__)
+                with torch.profiler.record_function(CHECK_RANGE):
+                    params = check_tree(self, params, first.frame_shape)
             out = self._run(first, params)
             return (out, *rest) if rest else out
         if self.takes_events:
@@ -356,13 +363,58 @@ class EventTransform(nn.Module):
         if params is None:
             params = self.make_params(batch.shape, generator=generator, metadata=metadata)
         else:
-            params = _check_params(params, batch.shape[0], type(self).__name__)
+            with torch.profiler.record_function(CHECK_RANGE):
+                params = check_tree(self, params, check_shape(batch.shape))
         out = unbatch(self._run(batch, params))
         if like is not None:
             out = video.wrap(out, like=like)
+        if self.couples_samples:
+            single = batch.dim() != frames.dim()
+            if isinstance(first, Mapping) and self.label_key is not None:
+                if self.label_key not in first:
+                    raise ValueError(
+                        f"{type(self).__name__}: label_key {self.label_key!r} is not in the input dict (keys {sorted(first)})"
+                    )
+                first = {**first, self.label_key: self._mix_labels(first[self.label_key], params, single, batch.shape[0])}
+            elif rest:
+                rest = (self._mix_labels(rest[0], params, single, batch.shape[0]), *rest[1:])
         if isinstance(first, Mapping):
             out = {**first, FRAMES_KEY: out}
         return (out, *rest) if rest else out
+
+    def _mix_labels(self, labels: object, params: Params, single: bool, size: int) -> Any:
+        """Check the labels of a coupled call (batch first) and hand them to :meth:`apply_labels`."""
+        if not isinstance(labels, Tensor):
+            raise TypeError(
+                f"{type(self).__name__} mixes the second input, the labels: expected a tensor, got {type(labels).__name__}"
+            )
+        batch = labels.unsqueeze(0) if single else labels
+        if batch.dim() == 0 or batch.shape[0] != size:
+            raise ValueError(
+                f"{type(self).__name__}: labels must have the batch size {size} first, got shape {tuple(labels.shape)}"
+            )
+        mixed = self.apply_labels(batch, params)
+        return mixed.squeeze(0) if single else mixed
+
+    def apply_labels(self, labels: Tensor, params: Params) -> Tensor:
+        """Hook: the labels ``(B, ...)`` of a call with parameters ``params`` (identity).
+
+        Called by :meth:`forward` only for a transform that :attr:`couples_samples`, on
+        the whole batch, after :meth:`apply`; CutMix and MixUp mix the labels here with
+        the partners and weights of their ``params``; containers chain their members'.
+        """
+        return labels
+
+    def params_spec(self, shape: torch.Size) -> Spec | None:
+        """Override: describe this module's params dict for a batch ``shape``.
+
+        Returns a dict mapping each key :meth:`sample_params` returns to a :class:`Param`
+        (kind, trailing shape, range), and each child's key to ``(child, child_shape)``
+        for containers. The gate ``"apply"`` is added by the base class. ``None`` (the
+        default for a user subclass that draws parameters) checks only that the leaves
+        are ``(B, ...)`` tensors; a module that draws none takes only the gate.
+        """
+        return {} if type(self).sample_params is EventTransform.sample_params else None
 
     def make_params(
         self,
@@ -433,9 +485,12 @@ class EventTransform(nn.Module):
         raise TypeError(f"{type(self).__name__} takes frames, not events")
 
     def _run(self, frames: Tensor, params: Params) -> Tensor:
-        """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``."""
+        """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``.
+
+        A coupled transform gets the whole batch (partners lie outside any sub-batch) and
+        honours its gate itself."""
         gate = params["apply"] if self.p < 1 else params.get("apply")
-        if gate is None or self._gates_itself:
+        if gate is None or self._gates_itself or self.couples_samples:
             return self._apply(frames, params)
         if all(gate.tolist()):  # a CPU tensor from make_params: read on the host, no sync
             return self._apply(frames, params)
@@ -474,8 +529,18 @@ class Lambda(EventTransform):
             raise TypeError(f"function must be callable, got {type(function).__name__}")
         self.function = function
 
+    def params_spec(self, shape: torch.Size) -> Spec:
+        return {}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return self.function(frames)
+        out = self.function(frames)
+        if not isinstance(out, Tensor) or out.shape != frames.shape:
+            got = tuple(out.shape) if isinstance(out, Tensor) else type(out).__name__
+            raise ValueError(
+                f"Lambda({self._settings() or 'function'}) must keep the batch shape {tuple(frames.shape)}, got {got}; "
+                "a member of a pipeline may change the values, not the number or size of the frames"
+            )
+        return out
 
     def _settings(self) -> str:
         if isinstance(self.function, nn.Module):

@@ -9,6 +9,14 @@ the branch's parameters to them, and run the branch once on that sub-batch (no p
 loop), so an unused branch costs nothing. Members that are not event transforms (plain
 functions, torchvision transforms) are wrapped by :func:`as_transform` and called as
 ``function(frames)``.
+
+**Coupled members** (:attr:`~event_transforms.EventTransform.couples_samples`: CutMix,
+MixUp). ``Compose`` runs every member on the whole batch, so it takes them: it declares
+the coupling itself and mixes the labels (the second input, or the dict entry named by the
+members' ``label_key``) through its members' :meth:`~EventTransform.apply_labels`, in
+order. ``OneOf`` and ``RandomApply`` hand a member only the samples that drew it, so a
+partner index would point outside the sub-batch: they refuse a coupled member at
+construction with a ``TypeError`` naming it.
 """
 
 from __future__ import annotations
@@ -20,11 +28,20 @@ import torch
 from torch import Tensor, nn
 
 from .._validation import as_number, check_probability
-from .base import EventTransform, Params, _draw_device, apply_by_group, as_transform, slice_params
+from .base import EventTransform, Param, Params, _draw_device, apply_by_group, as_transform, slice_params
 
 __all__ = ["Compose", "OneOf", "RandomApply"]
 
 Metadata = Mapping[str, Any] | Sequence[Mapping[str, Any]] | None
+
+
+def _refuse_coupled(member: EventTransform, where: str, container: str) -> None:
+    if member.couples_samples:
+        raise TypeError(
+            f"{where} ({type(member).__name__}) mixes samples of the batch (couples_samples), but {container} hands "
+            "its members sub-batches, where partners and labels would not match; put it in a Compose (whole batch), "
+            "e.g. Compose([OneOf([...]), CutMix(p=0.5)]), or give it its own p="
+        )
 
 
 def _members(transforms: object, name: str, *, events_first: bool = False) -> nn.ModuleList:
@@ -66,6 +83,33 @@ class Compose(EventTransform):
     def __init__(self, transforms: Sequence[EventTransform | Callable[[Tensor], Tensor]]) -> None:
         super().__init__()
         self.transforms = _members(transforms, "transforms", events_first=True)
+        keys = {t.label_key for t in self.transforms if t.couples_samples and t.label_key is not None}
+        if len(keys) > 1:
+            raise ValueError(f"transforms: coupled members must agree on label_key, got {sorted(keys)}")
+        self._label_key = keys.pop() if keys else None
+
+    @property
+    def couples_samples(self) -> bool:  # type: ignore[override]
+        """Whether a member mixes samples: then the labels are mixed by the members, in order."""
+        return any(t.couples_samples for t in self.transforms)
+
+    @property
+    def label_key(self) -> str | None:  # type: ignore[override]
+        """The coupled members' ``label_key`` (for dict inputs)."""
+        return self._label_key
+
+    def apply_labels(self, labels: Tensor, params: Params) -> Tensor:
+        for i, transform in enumerate(self.transforms):
+            if transform.couples_samples:
+                labels = transform.apply_labels(labels, params[str(i)])
+        return labels
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Any]:
+        spec: dict[str, Any] = {}
+        for i, transform in enumerate(self.transforms):
+            spec[str(i)] = (transform, shape)
+            shape = transform.output_shape(shape)
+        return spec
 
     @property
     def takes_events(self) -> bool:
@@ -88,7 +132,13 @@ class Compose(EventTransform):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         for i, transform in enumerate(self.transforms):
+            shape = transform.output_shape(frames.shape) if isinstance(frames, Tensor) else None  # not for events
             frames = transform._run(frames, params[str(i)])
+            if shape is not None and frames.shape != shape:
+                raise ValueError(
+                    f"transforms[{i}] ({type(transform).__name__}) returned shape {tuple(frames.shape)}, "
+                    f"expected {tuple(shape)}"
+                )
         return frames
 
     apply_events = apply  # members dispatch on what they are handed (events, then frames)
@@ -120,6 +170,8 @@ class OneOf(EventTransform):
     ) -> None:
         super().__init__()
         self.transforms = _members(transforms, "transforms")
+        for i, member in enumerate(self.transforms):
+            _refuse_coupled(member, f"transforms[{i}]", "OneOf")
         n = len(self.transforms)
         if n == 0:
             raise ValueError("transforms must hold at least one transform, got an empty sequence")
@@ -145,6 +197,11 @@ class OneOf(EventTransform):
         for i, transform in enumerate(self.transforms):
             params[str(i)] = transform.make_params(shape, generator=generator, metadata=metadata)
         return params
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Any]:
+        spec: dict[str, Any] = {"index": Param("int", low=0, high=len(self.transforms) - 1)}
+        spec.update({str(i): (t, shape) for i, t in enumerate(self.transforms)})
+        return spec
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         branches = [
@@ -185,6 +242,10 @@ class RandomApply(EventTransform):
                 f"transform ({type(self.transform).__name__}) turns events into frames and can stand only "
                 "first in a Compose; here it would be handed frames"
             )
+        _refuse_coupled(self.transform, "transform", "RandomApply")
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Any]:
+        return {"0": (self.transform, shape)}
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Metadata = None) -> Params:
         return {"0": self.transform.make_params(shape, generator=generator, metadata=metadata)}

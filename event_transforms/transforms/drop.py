@@ -14,7 +14,7 @@ from torch import Tensor
 from .._validation import check_pair, check_positive
 from ..functional.cleaning import _hot_pixels
 from ..functional.drop import _drop_by_area, _drop_by_time, _drop_events, _drop_mask, _pixel_mask, random_pixel_mask
-from .base import EventTransform, Params, apply_by_group, choice, integers, kernel_generator, seeds, slice_params, uniform
+from .base import EventTransform, Param, Params, apply_by_group, choice, integers, kernel_generator, seeds, slice_params, uniform
 
 __all__ = ["RandomEventDrop", "DropPixel", "RandomDropPixel"]
 
@@ -80,6 +80,16 @@ class RandomEventDrop(EventTransform):
             "method": method, "fraction": fraction, "seed": seeds(b, generator),
             "start": start, "length": length,
             "top": top, "height": height, "left": left, "width": width,
+        }
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        b, t, _, h, w = shape
+        return {
+            "method": Param("int", choices=tuple(_DROPS.index(m) for m in self.methods)),
+            "fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1),
+            "start": Param("int", low=0, high=t), "length": Param("int", low=0, high=t),
+            "top": Param("int", low=0, high=h), "height": Param("int", low=0, high=h),
+            "left": Param("int", low=0, high=w), "width": Param("int", low=0, high=w),
         }
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
@@ -186,6 +196,9 @@ class RandomDropPixel(EventTransform):
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         b = shape[0]
         return {"fraction": uniform(*self.fraction, b, generator), "seed": seeds(b, generator)}
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1)}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         height, width = frames.shape[-2:]

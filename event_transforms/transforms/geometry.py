@@ -21,7 +21,7 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, on_host, per_sample_pairs
 from ..functional.geometry import REMAINDERS, _crop, _downsample, _factor, _size, _translate, downsampled_size
-from .base import EventTransform, Params, integers
+from .base import EventTransform, Param, Params, integers
 
 __all__ = [
     "HorizontalFlip", "VerticalFlip", "RandomHorizontalFlip", "RandomVerticalFlip",
@@ -30,6 +30,9 @@ __all__ = [
 
 
 class _Roll(EventTransform):
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"shift": Param("int", shape=(2,))}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _translate(frames, params["shift"])
 
@@ -112,6 +115,10 @@ class _Crop(EventTransform):
         if self.size[0] > height or self.size[1] > width:
             raise ValueError(f"{type(self).__name__}: size {self.size} does not fit frames of (H, W) = ({height}, {width})")
         return height - self.size[0], width - self.size[1]
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        rows, cols = self._room(shape)
+        return {"top": Param("int", low=0, high=rows), "left": Param("int", low=0, high=cols)}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         self._room(frames.shape)

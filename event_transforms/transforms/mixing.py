@@ -12,9 +12,12 @@ come back as soft targets ``(B, num_classes)``. The partners, boxes and weights 
 ``params`` (``partner``, ``weight``, and for CutMix ``top, left, height, width``), so a call
 replays and the weights can be logged.
 
-Use CutMix and MixUp on a collated batch, as torchvision's are used after the DataLoader,
-and call them directly: inside a container (:class:`~event_transforms.Compose`, ...) only
-the frames would be mixed, and the labels would pass through unmixed.
+Use CutMix and MixUp on a collated batch, as torchvision's are used after the DataLoader.
+They declare :attr:`~event_transforms.EventTransform.couples_samples`: a
+:class:`~event_transforms.Compose` holding one mixes the labels too (it runs every member
+on the whole batch), while :class:`~event_transforms.OneOf` and
+:class:`~event_transforms.RandomApply`, which hand members sub-batches, refuse them at
+construction with a ``TypeError`` (use ``CutMix(p=...)`` for a per-sample gate).
 
 Mixing the force of two grasps is a regression heuristic (a pasted box does not carry a
 share of the force proportional to its area); it is offered because NDA uses CutMix, not
@@ -23,17 +26,16 @@ because it simulates a physical effect of a tactile scene.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import as_batch, as_number, check_frames, check_positive
+from .._validation import as_number, check_positive
 from ..functional.geometry import _size
 from ..functional.mixing import _check_classes, _cutmix, _cutout, _mix_labels, _mixup
-from .base import FRAMES_KEY, EventTransform, Params, _draw_device, _video_of, integers, seeds
+from .base import EventTransform, Param, Params, _draw_device, integers, seeds
 
 __all__ = ["Cutout", "CutMix", "MixUp"]
 
@@ -48,6 +50,15 @@ def _centred_box(size_h: Tensor, size_w: Tensor, shape: Sequence[int], generator
     bottom = (cy - size_h // 2 + size_h).clamp(0, height)
     right = (cx - size_w // 2 + size_w).clamp(0, width)
     return {"top": top, "left": left, "height": bottom - top, "width": right - left}
+
+
+def _box_spec(shape: Sequence[int]) -> dict[str, Param]:
+    """The params of a box clipped to the frame (see :func:`_centred_box`)."""
+    height, width = shape[-2], shape[-1]
+    return {
+        "top": Param("int", low=0, high=height), "left": Param("int", low=0, high=width),
+        "height": Param("int", low=0, high=height), "width": Param("int", low=0, high=width),
+    }
 
 
 def _beta(alpha: float, batch: int, generator: torch.Generator | None) -> Tensor:
@@ -84,6 +95,9 @@ class Cutout(EventTransform):
         w = torch.full((b,), self.size[1], dtype=torch.int64)
         return _centred_box(h, w, shape, generator)
 
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return _box_spec(shape)
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _cutout(frames, params["top"], params["left"], params["height"], params["width"])
 
@@ -94,9 +108,13 @@ class Cutout(EventTransform):
 class _Mixing(EventTransform):
     """Mixes each sample with ``params["partner"]`` of the same batch; mixes the labels too.
 
-    The per-sample gate ``p`` is folded into the mixing (an unchosen sample is its own
-    partner with weight 1), because a partner lies outside any sub-batch.
+    Declares :attr:`~EventTransform.couples_samples`: the base class applies it to the
+    whole batch and hands it the labels through :meth:`apply_labels`. The per-sample gate
+    ``p`` is folded into the mixing (an unchosen sample is its own partner with weight 1),
+    because a partner lies outside any sub-batch.
     """
+
+    couples_samples = True
 
     def __init__(
         self, alpha: float, *, num_classes: int | None, label_key: str | None, p: float
@@ -120,56 +138,10 @@ class _Mixing(EventTransform):
             weight = torch.where(gate, weight, torch.ones_like(weight))
         return partner, weight
 
-    def _run(self, frames: Tensor, params: Params) -> Tensor:
-        return self.apply(frames, params)  # the gate is folded in by _effective
-
-    def forward(
-        self,
-        *inputs: Any,
-        generator: torch.Generator | None = None,
-        params: Params | None = None,
-        metadata: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
-    ) -> Any:
-        """Mix the frames (first input) and the labels (second input, or ``label_key``).
-
-        See the module docstring: returns ``(frames, labels, *rest)`` for several inputs,
-        the frames alone for one, and for a dict the dict with ``"frames"`` and
-        ``label_key`` mixed.
-        """
-        if not inputs:
-            raise TypeError(f"{type(self).__name__} needs frames as its first input, got no inputs")
-        first = inputs[0]
-        frames = first.get(FRAMES_KEY) if isinstance(first, Mapping) else first
-        if params is None and isinstance(frames, Tensor):
-            if isinstance(first, Mapping) and metadata is None:
-                metadata = {k: v for k, v in first.items() if k != FRAMES_KEY}
-            plain = frames.as_subclass(Tensor) if _video_of(frames) is not None else frames
-            batch, _ = as_batch(check_frames(plain))
-            params = self.make_params(batch.shape, generator=generator, metadata=metadata)
-        out = super().forward(*inputs, params=params, metadata=metadata)  # checks frames and params
-        single = isinstance(frames, Tensor) and frames.dim() == 4
-        if isinstance(first, Mapping):
-            if self.label_key is not None:
-                if self.label_key not in first:
-                    raise ValueError(f"label_key {self.label_key!r} is not in the input dict (keys {sorted(first)})")
-                out = {**out, self.label_key: self._labels(first[self.label_key], params, single)}
-            return out
-        if len(inputs) < 2:
-            return out
-        return (out[0], self._labels(inputs[1], params, single), *out[2:])
-
-    def _labels(self, labels: object, params: Params, single: bool) -> Tensor:
-        if not isinstance(labels, Tensor):
-            raise TypeError(f"{type(self).__name__} mixes the second input, the labels: expected a tensor, got {type(labels).__name__}")
-        batch = labels.unsqueeze(0) if single else labels
-        b = params["partner"].shape[0]
-        if batch.dim() == 0 or batch.shape[0] != b:
-            raise ValueError(
-                f"labels must have the batch size {b} first, got shape {tuple(labels.shape)}"
-            )
+    def apply_labels(self, labels: Tensor, params: Params) -> Tensor:
+        """Mix ``labels`` (B, ...) with the partners and weights of ``params`` (the base-class hook)."""
         partner, weight = self._effective(params)
-        mixed = _mix_labels(batch, partner, weight, _check_classes(batch, self.num_classes))
-        return mixed.squeeze(0) if single else mixed
+        return _mix_labels(labels, partner, weight, _check_classes(labels, self.num_classes))
 
     def _common(self) -> str:
         settings = f"alpha={self.alpha}"
@@ -221,6 +193,12 @@ class CutMix(_Mixing):
         weight = 1 - (box["height"] * box["width"]).double() / area
         return {"partner": partner, "weight": weight, **box}
 
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        b = shape[0]
+        return {
+            "partner": Param("int", low=0, high=b - 1), "weight": Param("float", low=0.0, high=1.0), **_box_spec(shape)
+        }
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         partner, _ = self._effective(params)
         return _cutmix(frames, partner, params["top"], params["left"], params["height"], params["width"])
@@ -256,6 +234,9 @@ class MixUp(_Mixing):
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         b = shape[0]
         return {"partner": self._partners(b, generator), "weight": _beta(self.alpha, b, generator)}
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"partner": Param("int", low=0, high=shape[0] - 1), "weight": Param("float", low=0.0, high=1.0)}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         partner, weight = self._effective(params)

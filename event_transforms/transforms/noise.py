@@ -15,7 +15,7 @@ from torch import Tensor
 
 from .._validation import check_counts, check_frames, check_pair, check_positive, describe
 from ..functional.noise import _add_counts, _add_entries, _add_poisson_noise, _poisson_totals
-from .base import EventTransform, Params, integers, kernel_generator, seeds, uniform
+from .base import EventTransform, Param, Params, integers, kernel_generator, seeds, uniform
 
 __all__ = ["AddNoise", "AddPoissonNoise"]
 
@@ -88,6 +88,9 @@ class AddNoise(EventTransform):
             )
         return {"offset": integers(n - t + 1, b, generator)}
 
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"offset": Param("int", low=0, high=max(self.bank.shape[0] - shape[1], 0))}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         b, t = frames.shape[:2]
         offset = np.asarray(params["offset"].tolist(), dtype=np.int64).reshape(b)  # CPU: no sync
@@ -147,6 +150,9 @@ class AddPoissonNoise(EventTransform):
             params["count"] = totals
         params["seed"] = seeds(shape[0], generator)
         return params
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"rate_hz": Param("float", low=0.0), "count": Param("int", low=0, optional=True), "seed": Param("int", low=0, high=2**63 - 1)}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _add_poisson_noise(

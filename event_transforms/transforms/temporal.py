@@ -17,12 +17,17 @@ from torch import Tensor
 
 from .._validation import TES_MODES, as_number, check_choice, check_pair, check_probability
 from ..functional.temporal import _check_length, _crop_time, _frame_shift, _temporal_event_shift
-from .base import EventTransform, Params, choice, integers, kernel_generator, seeds, uniform
+from .base import EventTransform, Param, Params, choice, integers, kernel_generator, seeds, uniform
 
 __all__ = [
     "FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift",
     "TimeReversal", "RandomTimeReversal", "CropTime", "RandomCropTime",
 ]
+
+
+#: Shifts beyond any sequence length are the same as T (all events leave); the bound keeps
+#: them in int64 with room for index arithmetic.
+_MAX_SHIFT = 2**62
 
 
 def _check_shifts(shifts: object) -> tuple[int, ...]:
@@ -32,7 +37,7 @@ def _check_shifts(shifts: object) -> tuple[int, ...]:
             f"shifts must be a sequence of integer shifts such as (-1, 1) or range(-2, 3), "
             f"got {shifts!r}"
         )
-    values = tuple(as_number(s, "shifts", integer=True) for s in shifts)
+    values = tuple(as_number(s, "shifts", integer=True, low=-_MAX_SHIFT, high=_MAX_SHIFT) for s in shifts)
     if not values:
         raise ValueError(f"shifts must hold at least one shift, got {shifts!r}")
     return values
@@ -40,6 +45,9 @@ def _check_shifts(shifts: object) -> tuple[int, ...]:
 
 class _Shift(EventTransform):
     """Frame shifting: ``params["shift"]`` (B,) int64."""
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"shift": Param("int")}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _frame_shift(frames, params["shift"])
@@ -49,6 +57,12 @@ class _EventShift(EventTransform):
     """Temporal event shifting: ``params`` hold shift, fraction and the kernel's seed."""
 
     mode: str
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        spec = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0)}
+        if self.mode != "expected":
+            spec["seed"] = Param("int", low=0, high=2**63 - 1)
+        return spec
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         generator = None if self.mode == "expected" else kernel_generator(params["seed"], frames.device)
@@ -86,7 +100,7 @@ class FrameShift(_Shift):
 
     def __init__(self, shift: int, *, p: float = 1.0) -> None:
         super().__init__(p=p)
-        self.shift = as_number(shift, "shift", integer=True)
+        self.shift = as_number(shift, "shift", integer=True, low=-_MAX_SHIFT, high=_MAX_SHIFT)
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         return {"shift": torch.full((shape[0],), self.shift, dtype=torch.int64)}
@@ -123,6 +137,9 @@ class RandomFrameShift(_Shift):
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
         return {"shift": choice(self._choices, shape[0], generator)}
 
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"shift": Param("int", choices=self.shifts)}
+
     def _settings(self) -> str:
         return f"shifts={self.shifts}"
 
@@ -158,7 +175,7 @@ class TemporalEventShift(_EventShift):
 
     def __init__(self, shift: int, fraction: float, mode: str = "exact", *, p: float = 1.0) -> None:
         super().__init__(p=p)
-        self.shift = as_number(shift, "shift", integer=True)
+        self.shift = as_number(shift, "shift", integer=True, low=-_MAX_SHIFT, high=_MAX_SHIFT)
         self.fraction = check_probability(fraction, "fraction")
         self.mode = check_choice(mode, "mode", TES_MODES)
 
@@ -267,6 +284,9 @@ class _CropTime(EventTransform):
 
     def _room(self, shape) -> int:
         return shape[1] - _check_length(self.length, shape[1])
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"start": Param("int", low=0, high=self._room(shape))}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         self._room(frames.shape)
