@@ -85,11 +85,21 @@ def _compact(batch: EventBatch, keep: Tensor, **changes: Any) -> EventBatch:
     """The events where ``keep`` holds (one host read of the kept counts per stream)."""
     sample = batch.sample_index()
     kept = torch.zeros(len(batch), dtype=torch.int64, device=batch.device).index_add_(0, sample, keep.to(torch.int64))
-    lengths = read_host(kept) if batch.device.type != "cpu" else kept.tolist()
+    lengths = read_host(kept)  # the output size depends on the data: the one read
     offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
-    columns = {k: changes.pop(k, getattr(batch, k)) for k in ("x", "y", "t", "p")}
-    columns = {k: v[keep] for k, v in columns.items()}
-    return batch._replace(**columns, offsets=offsets, _sample=sample[keep], **changes)
+    index = _kept_index(keep, sum(lengths))
+    columns = {k: changes.pop(k, getattr(batch, k)).index_select(0, index) for k in ("x", "y", "t", "p")}
+    return batch._replace(**columns, offsets=offsets, _sample=sample.index_select(0, index), **changes)
+
+
+def _kept_index(keep: Tensor, size: int) -> Tensor:
+    """The positions where ``keep`` holds, ``size`` of them (known): a cumulative sum and one
+    scatter, so no ``nonzero`` (which reads its size back on an accelerator)."""
+    if size == keep.shape[0]:
+        return torch.arange(size, device=keep.device)
+    target = torch.cumsum(keep, 0).sub_(1).masked_fill_(~keep, size)
+    out = torch.empty(size + 1, dtype=torch.int64, device=keep.device)
+    return out.scatter_(0, target, torch.arange(keep.shape[0], device=keep.device))[:size]
 
 
 def _require_grid(batch: EventBatch, owner: str, *, frames: bool = True) -> tuple[Tensor, float | int, int]:
@@ -139,13 +149,13 @@ def event_centroid(batch: EventBatch) -> Tensor:
     height, width = batch.sensor_size
     lengths = torch.tensor(batch.lengths, dtype=torch.int64)
     device = batch.device
-    if batch.num_events == 0:
+    if batch.num_events == 0 or len(batch) == 0:
         return torch.tensor([[(height - 1) / 2, (width - 1) / 2]], dtype=torch.float64, device=device).expand(len(batch), 2)
     on_device = lengths.to(device, non_blocking=True)
-    sums = torch.stack([
-        torch.segment_reduce(batch.y.to(torch.float64), "sum", lengths=on_device),
-        torch.segment_reduce(batch.x.to(torch.float64), "sum", lengths=on_device),
-    ], 1)
+    sample = batch.sample_index()
+    sums = torch.zeros(len(batch), 2, dtype=torch.float64, device=device)
+    sums[:, 0].index_add_(0, sample, batch.y.to(torch.float64))
+    sums[:, 1].index_add_(0, sample, batch.x.to(torch.float64))
     image = torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=torch.float64, device=device)
     count = on_device.to(torch.float64).unsqueeze(1)
     return torch.where(count > 0, sums / count.clamp_min(1), image)
@@ -198,9 +208,9 @@ def affine_events(
 # --------------------------------------------------------------------------- time
 
 
-def _groups(batch: EventBatch) -> tuple[Tensor, Tensor, int, Tensor]:
-    """Per event: its group ``(sample * T + bin) * 2 + p`` (int64; ``G`` outside the window),
-    its bin, the number of groups G, and whether it lies in the window."""
+def _groups(batch: EventBatch) -> tuple[Tensor, int]:
+    """Per event its group ``(sample * T + bin) * 2 + p`` (int32; ``G`` outside the grid's
+    window) and the number of groups G."""
     starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
     from .event_batch import _bins_of
 
@@ -208,9 +218,8 @@ def _groups(batch: EventBatch) -> tuple[Tensor, Tensor, int, Tensor]:
     rel = batch.t - starts.to(batch.device, batch.t.dtype).index_select(0, sample)
     bins, inside = _bins_of(rel, frame_us, n_frames)
     groups = len(batch) * n_frames * 2
-    group = (sample.to(torch.int64) * n_frames + bins) * 2 + batch.p
-    group = torch.where(inside, group, groups)
-    return group, bins, groups, inside
+    group = sample.mul(n_frames).add_(bins).mul_(2).add_(batch.p)
+    return group.masked_fill_(~inside, groups), groups
 
 
 def shift_events(
@@ -230,73 +239,91 @@ def shift_events(
     ``"binomial"`` moves each event with probability ζ. Events pushed out of the window
     are dropped (as in the frame kernels); events outside the window never move.
 
-    Exact selection: each event gets a uniform key u from its sample's generator; the k
-    events with the smallest keys of a group are the ones moved. A binomial level
-    (u < ζ) picks all but a ~sqrt(N) surplus or deficit per group, which is fixed by ranking
-    only the events whose keys lie in a narrow band next to ζ (no full sort). Host syncs:
-    one read of the per-group surplus, one band gather (retried wider only if a band
-    held too few events), one read of the kept counts.
+    Exact selection: each event gets a float32 uniform key u from its sample's generator;
+    the k events with the smallest keys of a group are the ones moved (ties, at 2**-24,
+    are broken by position). A binomial level (u < ζ) picks all but a ~sqrt(N) surplus or
+    deficit per group, fixed by ranking only the events whose keys lie in a narrow band
+    next to ζ (no full sort). Host syncs: one read of the per-group surplus, one band
+    gather (retried wider only if a band held too few events), one read of the kept counts.
     """
-    group, bins, groups, inside = _groups(batch)
+    group, groups = _groups(batch)
     frame_us = _frame_us(batch.frame_ms)
     n_frames = batch.n_frames
+    device = batch.device
+    inside = group < groups
     if fraction is None:
         moved = inside
     else:
-        u = _draw(batch, seed, "rand", torch.float64)
-        zeta = _per_event(fraction.to(torch.float64), batch)
-        moved = (u < zeta) & inside
+        u, below = _keys(batch, seed, fraction)
+        moved = below & inside
         if mode == "exact":
-            moved = _exact_fixup(group, groups, u, zeta, moved, inside, fraction, n_frames)
-    jump = _per_event(shift.to(torch.int64), batch)
+            moved = _exact_fixup(group, groups, u, moved, fraction, n_frames)
+    # a group's events all land in bin + j: whether they leave the window is per group
+    jump = shift.to(torch.int64)
+    group_bin = torch.arange(n_frames).repeat(len(batch)).repeat_interleave(2)
+    leaving = group_bin + jump.repeat_interleave(2 * n_frames)
+    leaving = torch.cat([(leaving < 0) | (leaving >= n_frames), torch.zeros(1, dtype=torch.bool)]).to(device)
+    keep = ~(moved & leaving.index_select(0, group))
     if isinstance(frame_us, int) and not batch.t.is_floating_point():
-        t = batch.t + torch.where(moved, jump * frame_us, 0)
+        t = batch.t + _per_event(jump * frame_us, batch) * moved  # int64 times stay exact
     else:
-        t = (batch.t.to(torch.float64) + torch.where(moved, jump.to(torch.float64) * frame_us, 0.0)).to(batch.t.dtype)
-    new_bins = bins.to(torch.int64) + torch.where(moved, jump, 0)
-    keep = ~moved | ((new_bins >= 0) & (new_bins < n_frames))
+        t = (batch.t.to(torch.float64) + _per_event(jump.to(torch.float64) * frame_us, batch) * moved).to(batch.t.dtype)
     return _compact(batch, keep, t=t)
 
 
-def _exact_fixup(group: Tensor, groups: int, u: Tensor, zeta: Tensor, moved: Tensor, inside: Tensor,
-                 fraction: Tensor, n_frames: int) -> Tensor:
+def _keys(batch: EventBatch, seed: Tensor, fraction: Tensor) -> tuple[Tensor, Tensor]:
+    """Per event a float32 uniform key from its sample's generator, and ``key < ζ_b``
+    (compared slice by slice against the sample's ζ: no per-event gather)."""
+    bounds = batch.offsets.tolist()
+    u = torch.empty(batch.num_events, dtype=torch.float32, device=batch.device)
+    below = torch.empty(batch.num_events, dtype=torch.bool, device=batch.device)
+    for b, (s, zeta) in enumerate(zip(seed.tolist(), fraction.tolist())):
+        lo, hi = bounds[b], bounds[b + 1]
+        if hi > lo:
+            piece = u[lo:hi].uniform_(generator=_generator(s, batch.device))
+            torch.lt(piece, zeta, out=below[lo:hi])
+    return u, below
+
+
+def _exact_fixup(group: Tensor, groups: int, u: Tensor, moved: Tensor, fraction: Tensor, n_frames: int) -> Tensor:
     """Turn the binomial choice ``moved`` into exactly round(ζ N) smallest keys per group."""
     device = group.device
-    total = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, inside.to(torch.int64))
-    chosen = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, moved.to(torch.int64))
-    group_zeta = fraction.to(device, torch.float64).repeat_interleave(n_frames * 2)
-    want = torch.round(group_zeta * total[:groups].to(torch.float64)).to(torch.int64)
-    surplus = chosen[:groups] - want
+    ones = torch.ones((), dtype=torch.int64, device=device).expand(group.shape[0])
+    total = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, ones)[:groups]
+    chosen = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, moved.to(torch.int64))[:groups]
+    group_zeta = fraction.to(torch.float64).repeat_interleave(n_frames * 2).to(device)
+    want = torch.round(group_zeta * total.to(torch.float64)).to(torch.int64)
+    surplus = chosen - want
     if groups == 0 or read_host(surplus.abs().amax().reshape(1))[0] == 0:
         return moved
-    width = torch.zeros(groups + 1, dtype=torch.float64, device=device)
-    need = surplus.abs().to(torch.float64)
-    n = total[:groups].to(torch.float64).clamp_min(1)
-    width[:groups] = (need + 4 * need.sqrt() + 8) / n
+    need = surplus.abs()
+    zeta = group_zeta.to(torch.float32)
+    width = (need + 3 * need.sqrt() + 4) / total.clamp_min(1)
+    empty = torch.full((1,), 2.0, dtype=torch.float32, device=device)
     while True:
-        w = width.index_select(0, group)
-        sign = torch.cat([surplus.sign(), torch.zeros(1, dtype=torch.int64, device=device)]).index_select(0, group)
-        below = (sign > 0) & moved & (u >= zeta - w)
-        above = (sign < 0) & ~moved & inside & (u < zeta + w)
-        band = (below | above).nonzero().squeeze(1)
+        # surplus groups un-move the largest keys in [ζ - w, ζ); deficit groups move the
+        # smallest keys in [ζ, ζ + w); other groups (and events outside the window) none
+        low = torch.where(surplus > 0, zeta - width, torch.where(surplus < 0, zeta, 2.0)).to(torch.float32)
+        high = torch.where(surplus > 0, zeta, torch.where(surplus < 0, zeta + width, 2.0)).to(torch.float32)
+        key_low, key_high = torch.cat([low, empty]), torch.cat([high, empty])
+        band = ((u >= key_low.index_select(0, group)) & (u < key_high.index_select(0, group))).nonzero().squeeze(1)
         band_group = group.index_select(0, band)
-        have = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, band_group, torch.ones_like(band_group))
-        short = (have[:groups] < surplus.abs()) & (width[:groups] < 2)
+        have = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(
+            0, band_group, torch.ones_like(band_group, dtype=torch.int64))[:groups]
+        short = (have < need) & (width < 2)
         if not read_host(short.any().reshape(1))[0]:
             break
-        width[:groups] = torch.where(short, width[:groups] * 4, width[:groups])
-    # rank band events inside their group: surplus groups un-move the largest keys below ζ,
-    # deficit groups move the smallest keys above ζ
-    key = u.index_select(0, band)
-    key = torch.where(sign.index_select(0, band) > 0, -key, key)
+        width = torch.where(short, width * 4, width)
+    # one sort by group, then key (largest first for a surplus): 2 g + key in float64
+    key = u.index_select(0, band).to(torch.float64)
+    key = torch.where(surplus.index_select(0, band_group) > 0, 1.0 - key, key) + 2.0 * band_group
     order = torch.argsort(key, stable=True)
-    order = order.index_select(0, torch.argsort(band_group.index_select(0, order), stable=True))
     sorted_group = band_group.index_select(0, order)
     first = torch.cumsum(have, 0) - have
     rank = torch.arange(order.shape[0], device=device) - first.index_select(0, sorted_group)
-    flip = rank < surplus.abs().index_select(0, sorted_group.clamp_max(groups - 1))
-    out = moved.clone()
+    flip = rank < need.index_select(0, sorted_group)
     target = band.index_select(0, order)
+    out = moved.clone()
     out.index_put_((target,), flip ^ out.index_select(0, target))
     return out
 
@@ -352,7 +379,7 @@ def poisson_noise_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> Ev
         u = torch.rand(n, 4, generator=g, device=device, dtype=torch.float64)
         x = (u[:, 0] * width).to(torch.int16)
         y = (u[:, 1] * height).to(torch.int16)
-        t = starts[b].item() + u[:, 2] * span
+        t = starts.tolist()[b] + u[:, 2] * span
         t = t.floor().to(batch.t.dtype)
         p = (u[:, 3] < 0.5).to(torch.int8)
         noise.append((x, y, t, p))
@@ -375,15 +402,18 @@ def poisson_noise_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> Ev
 def spatial_jitter(batch: EventBatch, sigma: Tensor, seed: Tensor) -> EventBatch:
     """Add Gaussian noise of standard deviation ``sigma[b]`` pixels to x and y, rounded to
     whole pixels (events leaving the sensor are dropped when binned). Sync-free."""
-    noise = _draw(batch, seed, "randn", lengths=[2 * n for n in batch.lengths])
-    # sample b's 2 n_b numbers: first its x noise, then its y noise
-    sample = batch.sample_index().to(torch.int64)
-    position = torch.arange(batch.num_events, device=batch.device)
-    base = position + batch.offsets.to(batch.device).index_select(0, sample)  # 2 * offset + i
+    lengths = batch.lengths
+    bounds = batch.offsets.tolist()
+    noise_x = torch.empty(batch.num_events, dtype=torch.float32, device=batch.device)
+    noise_y = torch.empty_like(noise_x)
+    for b, (s, n) in enumerate(zip(seed.tolist(), lengths)):
+        if n:  # sample b's generator: its n x offsets, then its n y offsets
+            g = _generator(s, batch.device)
+            noise_x[bounds[b] : bounds[b + 1]].normal_(generator=g)
+            noise_y[bounds[b] : bounds[b + 1]].normal_(generator=g)
     scale = _per_event(sigma.to(torch.float32), batch)
-    x = batch.x.to(torch.float32) + noise.index_select(0, base) * scale
-    lengths = torch.tensor(batch.lengths, dtype=torch.int64).to(batch.device).index_select(0, sample)
-    y = batch.y.to(torch.float32) + noise.index_select(0, base + lengths) * scale
+    x = torch.addcmul(batch.x.to(torch.float32), noise_x, scale)
+    y = torch.addcmul(batch.y.to(torch.float32), noise_y, scale)
     return batch._replace(x=_round_to(x, torch.int16), y=_round_to(y, torch.int16))
 
 
@@ -469,9 +499,12 @@ def drop_window(
     (``time``) or in the sensor rectangle ``top, left, height, width`` (``area``): the
     event form of ``drop_by_time``/``drop_by_area``. One host read of the kept counts."""
     if time is not None:
-        group, bins, _, inside = _groups(batch)
-        start, length = (_per_event(v.to(torch.int64), batch) for v in time)
-        bins = bins.to(torch.int64)
+        from .event_batch import _bins_of
+
+        starts, frame_us, n_frames = _require_grid(batch, "RandomEventDrop (time)")
+        rel = batch.t - starts.to(batch.device, batch.t.dtype).index_select(0, batch.sample_index())
+        bins, inside = _bins_of(rel, frame_us, n_frames)
+        start, length = (_per_event(v.to(torch.int32), batch) for v in time)
         hit = inside & (bins >= start) & (bins < start + length)
     else:
         top, left, height, width = (_per_event(v.to(torch.int64), batch) for v in area)

@@ -73,11 +73,11 @@ def _resize_events(module: Any, batch: EventBatch, params: Params) -> EventBatch
 @register_event_kernel(_affine._AffineWarp)
 def _affine_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     shear = params.get("shear")
-    if shear is not None and bool((shear != 0).any()):
+    if shear is not None and any(v != 0 for v in shear.flatten().tolist()):  # CPU params: no sync
         raise ValueError(f"{type(module).__name__}: shear is not supported on events, got {describe(shear)}")
     out = K.affine_events(batch, angle=params["angle"], scale=params["scale"], center=_center(module))
     translate = params.get("translate")
-    if translate is not None and bool((translate != 0).any()):
+    if translate is not None and any(v != 0 for v in translate.flatten().tolist()):
         out = K.translate_events(out, translate.round().to(torch.int64))
     return out
 
