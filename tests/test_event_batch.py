@@ -265,7 +265,7 @@ class TestKernels:
         out = K.drop_events_random(batch, fraction, seed)
         for b in range(3):
             u = torch.empty(batch.lengths[b]).uniform_(generator=torch.Generator().manual_seed(int(seed[b])))
-            expected = [e for e, ui in zip(rows(batch, b), u.tolist()) if ui >= fraction[b]]
+            expected = [e for e, ui in zip(rows(batch, b), u.tolist()) if not ui < fraction[b].item()]
             assert rows(out, b) == expected
 
     def test_event_drop_time_and_area_match_frames(self):
@@ -290,7 +290,8 @@ class TestKernels:
         out = K.time_jitter(batch, std, seed)
         for b in range(2):
             noise = torch.empty(batch.lengths[b], dtype=torch.float64).normal_(generator=torch.Generator().manual_seed(int(seed[b])))
-            assert [e[2] for e in rows(out, b)] == [t + round(v * std[b].item()) for (_, _, t, _), v in zip(rows(batch, b), noise.tolist())]
+            noise = torch.round(noise * std[b].item()).long().tolist()
+            assert [e[2] for e in rows(out, b)] == [t + v for (_, _, t, _), v in zip(rows(batch, b), noise)]
 
     def test_time_skew_reference(self):
         batch = EventBatch.from_streams([torch.tensor([[0, 0, 100, 1], [0, 0, 300, 0]])] * 2, sensor_size=SENSOR)
@@ -352,6 +353,12 @@ FACTORIES = {
     "TimeSkew": lambda: et.TimeSkew((0.8, 1.2), (-100.0, 100.0)),
     "RefractoryPeriod": lambda: et.RefractoryPeriod((100.0, 2000.0)),
     "Decimation": lambda: et.Decimation((1, 3)),
+    # gated (p < 1): one pass with neutral parameters for the skipped streams
+    "RandomRotation p": lambda: et.RandomRotation(30.0, p=0.5),
+    "TES exact p": lambda: et.RandomTemporalEventShift((-1, 1), 0.5, p=0.5),
+    "RandomEventDrop p": lambda: et.RandomEventDrop((0.2, 0.6), p=0.5),
+    "SpatialJitter p": lambda: et.SpatialJitter(1.5, p=0.5),
+    "Decimation p": lambda: et.Decimation(2, p=0.5),
 }
 EVENT_ONLY = ("SpatialJitter", "TimeJitter", "TimeSkew", "RefractoryPeriod", "Decimation")
 
@@ -416,6 +423,19 @@ class TestBattery:
             pytest.skip("has a frame kernel")
         with pytest.raises(TypeError, match=name.split()[0]):
             FACTORIES[name]()(torch.zeros(2, T, 2, *SENSOR))
+
+
+@pytest.mark.parametrize("name", ["RandomRotation p", "TES exact p", "RandomEventDrop p", "SpatialJitter p", "Decimation p"])
+def test_gate_leaves_skipped_streams_unchanged(name):
+    batch = make_batch(6)
+    transform = FACTORIES[name]()
+    params = transform.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(4))
+    out = transform(batch, params=params)
+    gate = params["apply"].tolist()
+    assert any(gate) and not all(gate)
+    for i, applied in enumerate(gate):
+        if not applied:
+            assert same(out[i], batch[i])
 
 
 def test_frame_only_transform_refuses_events():

@@ -589,13 +589,11 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
         return torch.zeros(total, dtype=dtype, device=device)
     index = _bin_index(batch, starts, n_frames, grid, total)
     exact = _EXACT_FLOAT[dtype] if dtype.is_floating_point else torch.iinfo(dtype).max
-    if n <= exact:
+    if n <= exact:  # no count can exceed what the dtype holds exactly: accumulate in it
         counts = torch.zeros(total + 1, dtype=dtype, device=device)
         counts.index_add_(0, index, torch.ones((), dtype=dtype, device=device).expand(n))
         return counts[:total]
-    if device.type == "cpu":
-        counts = torch.bincount(index, minlength=total + 1)
-    else:
-        counts = torch.zeros(total + 1, dtype=torch.int64, device=device)
-        counts.index_add_(0, index, torch.ones((), dtype=torch.int64, device=device).expand(n))
+    wide = torch.int32 if n < 2**31 else torch.int64  # then one checked cast (reads the largest count)
+    counts = torch.zeros(total + 1, dtype=wide, device=device)
+    counts.index_add_(0, index, torch.ones((), dtype=wide, device=device).expand(n))
     return _as_dtype(counts[:total], dtype)

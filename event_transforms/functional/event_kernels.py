@@ -356,8 +356,8 @@ def flip_polarity_events(batch: EventBatch, flip: Tensor) -> EventBatch:
 def drop_events_random(batch: EventBatch, fraction: Tensor, seed: Tensor) -> EventBatch:
     """Drop each event of sample b with probability ``fraction[b]`` (its own uniform, from
     the sample's generator). One host read of the kept counts."""
-    u = _draw(batch, seed, "rand")
-    return _compact(batch, u >= _per_event(fraction.to(torch.float32), batch))
+    _, dropped = _keys(batch, seed, fraction)  # u < fraction, compared per sample slice
+    return _compact(batch, ~dropped)
 
 
 def poisson_noise_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> EventBatch:
@@ -420,7 +420,11 @@ def spatial_jitter(batch: EventBatch, sigma: Tensor, seed: Tensor) -> EventBatch
 def time_jitter(batch: EventBatch, std_us: Tensor, seed: Tensor) -> EventBatch:
     """Add Gaussian noise of ``std_us[b]`` microseconds to the timestamps (rounded for
     integer timestamps). Streams are no longer time-sorted. Sync-free."""
-    noise = _draw(batch, seed, "randn", torch.float64) * _per_event(std_us.to(torch.float64), batch)
+    bounds = batch.offsets.tolist()
+    noise = torch.empty(batch.num_events, dtype=torch.float64, device=batch.device)
+    for b, (s, std) in enumerate(zip(seed.tolist(), std_us.tolist())):
+        if bounds[b + 1] > bounds[b]:  # the sample's generator, scaled by its own std: no gather
+            noise[bounds[b] : bounds[b + 1]].normal_(generator=_generator(s, batch.device)).mul_(std)
     if batch.t.is_floating_point():
         return batch._replace(t=batch.t + noise)
     return batch._replace(t=batch.t + torch.round(noise).to(torch.int64))

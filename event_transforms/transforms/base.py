@@ -54,14 +54,47 @@ FRAMES_KEY = "frames"
 _EVENT_KERNELS: dict[type, Callable[..., Any]] = {}
 
 
-def register_event_kernel(cls: type) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Decorator: ``kernel(module, batch, params)`` is ``cls``'s kernel for an :class:`EventBatch`."""
+#: Classes whose event kernel honours the gate ``params["apply"]`` in one pass over the
+#: batch: ``class -> {key: neutral value}`` (the value of each parameter that leaves a
+#: stream unchanged, e.g. angle 0), or ``{}`` for a kernel that reads the gate itself.
+_EVENT_NEUTRAL: dict[type, dict[str, float]] = {}
+
+
+def register_event_kernel(
+    cls: type, *, neutral: dict[str, float] | None = None
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Decorator: ``kernel(module, batch, params)`` is ``cls``'s kernel for an :class:`EventBatch`.
+
+    ``neutral`` (the parameter values that leave a stream unchanged) lets a gated call
+    (``p < 1``) run the kernel once on the whole batch with those values for the streams
+    the gate skips, instead of slicing streams out and back in; ``{}`` means the kernel
+    reads ``params["apply"]`` itself.
+    """
 
     def register(kernel: Callable[..., Any]) -> Callable[..., Any]:
         _EVENT_KERNELS[cls] = kernel
+        if neutral is not None:
+            _EVENT_NEUTRAL[cls] = dict(neutral)
         return kernel
 
     return register
+
+
+def _neutral_params(module: Any) -> dict[str, float] | None:
+    for cls in type(module).__mro__:
+        if cls in _EVENT_NEUTRAL:
+            return _EVENT_NEUTRAL[cls]
+    return None
+
+
+def _gated(params: Params, gate: Tensor, neutral: dict[str, float]) -> Params:
+    """``params`` with each neutral key set to its neutral value where ``gate`` is off."""
+    out = dict(params)
+    for key, value in neutral.items():
+        leaf = params[key]
+        off = ~gate.to(torch.bool).view(-1, *([1] * (leaf.dim() - 1)))
+        out[key] = torch.where(off, torch.as_tensor(value, dtype=leaf.dtype), leaf)
+    return out
 
 
 def _video_of(frames: object) -> Any:
@@ -494,6 +527,10 @@ class EventTransform(nn.Module):
             return self._apply(frames, params)
         if all(gate.tolist()):  # a CPU tensor from make_params: read on the host, no sync
             return self._apply(frames, params)
+        if isinstance(frames, EventBatch):
+            neutral = _neutral_params(self)
+            if neutral is not None:  # one pass over the batch, skipped streams left unchanged
+                return self._apply(frames, _gated(params, gate, neutral))
         return apply_by_group(
             frames, gate.long(), [None, lambda sub, index: self._apply(sub, slice_params(params, index))]
         )

@@ -40,7 +40,7 @@ from torch import Tensor
 from .._validation import check_pair, describe
 from ..functional import event_kernels as K
 from ..functional.event_batch import EventBatch
-from .base import EventTransform, Params, register_event_kernel, seeds, uniform, integers
+from .base import _EVENT_NEUTRAL, EventTransform, Params, integers, register_event_kernel, seeds, uniform
 from .containers import Compose, OneOf, RandomApply  # noqa: F401  (documented partners)
 from . import affine as _affine
 from . import drop as _drop
@@ -60,17 +60,17 @@ def _center(module: Any) -> Any:
 # --------------------------------------------------------------------------- registrations
 
 
-@register_event_kernel(_affine._Rotation)
+@register_event_kernel(_affine._Rotation, neutral={"angle": 0.0})
 def _rotate_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.affine_events(batch, angle=params["angle"], center=_center(module))
 
 
-@register_event_kernel(_affine._Zoom)
+@register_event_kernel(_affine._Zoom, neutral={"scale": 1.0})
 def _resize_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.affine_events(batch, scale=params["scale"], center=_center(module))
 
 
-@register_event_kernel(_affine._AffineWarp)
+@register_event_kernel(_affine._AffineWarp, neutral={"angle": 0.0, "scale": 1.0, "translate": 0.0, "shear": 0.0})
 def _affine_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     shear = params.get("shear")
     if shear is not None and any(v != 0 for v in shear.flatten().tolist()):  # CPU params: no sync
@@ -94,12 +94,12 @@ def _vflip_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.flip_events(batch, torch.ones(len(batch), dtype=torch.bool) if gate is None else gate, axis="y")
 
 
-@register_event_kernel(_geometry._Roll)
+@register_event_kernel(_geometry._Roll, neutral={"shift": 0})
 def _translate_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.translate_events(batch, params["shift"])
 
 
-@register_event_kernel(_temporal._Shift)
+@register_event_kernel(_temporal._Shift, neutral={"shift": 0})
 def _frame_shift_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.shift_events(batch, params["shift"])
 
@@ -112,18 +112,20 @@ def _tes_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.shift_events(batch, params["shift"], params["fraction"], seed=params["seed"], mode=module.mode)
 
 
-@register_event_kernel(_polarity.FlipPolarity)
+@register_event_kernel(_polarity.FlipPolarity, neutral={})
 def _flip_polarity_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
-    return K.flip_polarity_events(batch, torch.ones(len(batch), dtype=torch.bool))
+    gate = params.get("apply")
+    return K.flip_polarity_events(batch, torch.ones(len(batch), dtype=torch.bool) if gate is None else gate.to(torch.bool))
 
 
-@register_event_kernel(_temporal.TimeReversal)
+@register_event_kernel(_temporal.TimeReversal, neutral={})
 def _time_reversal_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
-    every = torch.ones(len(batch), dtype=torch.bool)
+    gate = params.get("apply")
+    every = torch.ones(len(batch), dtype=torch.bool) if gate is None else gate.to(torch.bool)
     return K.flip_polarity_events(K.time_reversal_events(batch, every), every)
 
 
-@register_event_kernel(_noise.AddPoissonNoise)
+@register_event_kernel(_noise.AddPoissonNoise, neutral={"rate_hz": 0.0})
 def _poisson_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.poisson_noise_events(batch, params["rate_hz"], params["seed"])
 
@@ -333,3 +335,16 @@ class Decimation(_EventOnly):
 
     def _settings(self) -> str:
         return f"n={self.n}"
+
+
+# Parameter values that leave a stream unchanged: a gated call (p < 1) runs each kernel once
+# on the whole batch with these for the streams its gate skips (no slicing in and out).
+_EVENT_NEUTRAL.update({
+    _temporal._EventShift: {"fraction": 0.0},
+    _drop.RandomEventDrop: {"fraction": 0.0, "length": 0, "height": 0, "width": 0},
+    SpatialJitter: {"sigma": 0.0},
+    TimeJitter: {"std_us": 0.0},
+    TimeSkew: {"coefficient": 1.0, "offset_us": 0.0},
+    RefractoryPeriod: {"period_us": 0.0},
+    Decimation: {"n": 1},
+})
