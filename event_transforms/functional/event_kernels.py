@@ -197,11 +197,24 @@ def affine_events(
     e = cx - linear[:, 0] * cx - linear[:, 1] * cy
     f = cy - linear[:, 2] * cx - linear[:, 3] * cy
     coefficients = torch.cat([linear, e.unsqueeze(1), f.unsqueeze(1)], 1).to(torch.float32).t().contiguous()
-    sample = batch.sample_index()
-    a, bb, cc, d, ee, ff = (coefficients[i].index_select(0, sample) for i in range(6))
     x, y = batch.x.to(torch.float32), batch.y.to(torch.float32)
-    new_x = torch.addcmul(torch.addcmul(ee, a, x), bb, y)
-    new_y = torch.addcmul(torch.addcmul(ff, cc, x), d, y)
+    if device.type == "cpu":
+        # per-sample slices with the sample's six numbers: no per-event gathers (on the CPU
+        # the coefficients are host memory; the same float32 addcmul as the batched path)
+        new_x, new_y = torch.empty_like(x), torch.empty_like(y)
+        bounds = batch.offsets.tolist()
+        a, bb, cc, d, ee, ff = coefficients.unbind(0)
+        for i in range(b):
+            lo, hi = bounds[i], bounds[i + 1]
+            if hi > lo:
+                xs, ys = x[lo:hi], y[lo:hi]
+                torch.addcmul(torch.addcmul(ee[i], a[i], xs), bb[i], ys, out=new_x[lo:hi])
+                torch.addcmul(torch.addcmul(ff[i], cc[i], xs), d[i], ys, out=new_y[lo:hi])
+    else:  # accelerators: six gathers and four fused ops for the whole batch, whatever B
+        sample = batch.sample_index()
+        a, bb, cc, d, ee, ff = (coefficients[i].index_select(0, sample) for i in range(6))
+        new_x = torch.addcmul(torch.addcmul(ee, a, x), bb, y)
+        new_y = torch.addcmul(torch.addcmul(ff, cc, x), d, y)
     return batch._replace(x=_round_to(new_x, torch.int16), y=_round_to(new_y, torch.int16))
 
 
