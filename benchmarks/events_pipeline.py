@@ -175,7 +175,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     events = sum(len(s) for s in streams)
     batch = et.EventBatch.from_streams(streams, sensor_size=SENSOR)
     frame_bytes = count * N_FRAMES * 2 * (CROP[2] // 2) * (CROP[3] // 2) * 4
-    result = run(streams, rounds=2 if args.quick else 5, min_run_time=0.05 if args.quick else 0.2)
+    result = run(streams, rounds=1 if args.quick else 5, min_run_time=0.01 if args.quick else 0.2)
     clone = result["timings"][BASELINE].median
     profile = markdown_table(["transform (EventBatch)", "host syncs", "top-level ops", "where the syncs come from"],
                              profile_rows(streams))
@@ -184,7 +184,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         f"`{command('benchmarks/events_pipeline.py', argv)}`. {count} simulated grasps, {events:,} events "
         f"({batch.nbytes / 1e6:.1f} MB as an EventBatch, 13 B/event) binned to ({count}, 36, 2, 70, 75) float32 "
         f"({frame_bytes / 1e6:.1f} MB, {frame_bytes / batch.nbytes:.1f}× the events); one CPU thread; "
-        f"`frames.clone()` of that batch took {fmt_ms(clone)} (median). '× clone' is the median over 5 interleaved "
+        f"`frames.clone()` of that batch took {fmt_ms(clone)} (median). '× clone' is the median over the interleaved "
         "rounds of the ratio to the clone timed in the same round.",
         result["table"],
         "Host synchronisations and top-level aten ops of one call on the event batch (torch.profiler, CPU; "

@@ -247,3 +247,14 @@ class TestSizeConfound:
         assert mixed["events only"] > 3 * mixed["events + bolt size"]
         assert single["events only"] < 2 * single["events + bolt size"]
         assert "events + bolt size" in _section(path, "size_confound")
+
+
+class TestEventsPipeline:
+    def test_quick_run(self, tmp_path):
+        from benchmarks import events_pipeline
+
+        path = tmp_path / "RESULTS.md"
+        result = events_pipeline.main(["--quick", "--results", str(path)])
+        text = path.read_text()
+        assert "EventBatch transforms + binning" in text and "host syncs" in text
+        assert result["ratios"]["frames.clone() (baseline)"] == 1.0

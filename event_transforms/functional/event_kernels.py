@@ -8,7 +8,7 @@ their dtype, polarity stays int8.
 **Per-sample randomness.** Kernels that draw (TES, event drop, jitter, Poisson noise) use
 one generator per sample, seeded with that sample's 63-bit seed from the params (Philox
 on CUDA, a counter-based stream; Mersenne Twister on the CPU), and draw that sample's
-numbers in event order. So a stream's output depends only on its own events and its own
+numbers in event order, one slice per sample (B small draws per call). So a stream's output depends only on its own events and its own
 seed: ``kernel(batch[i:i+1], params[i:i+1])`` equals ``kernel(batch, params)[i]``. CPU and
 CUDA draws differ (different engines); each is reproducible.
 
@@ -62,25 +62,6 @@ def _generator(seed: int, device: torch.device) -> torch.Generator:
     return generator
 
 
-def _draw(batch: EventBatch, seed: Tensor, kind: str, dtype: torch.dtype = torch.float32,
-          lengths: Sequence[int] | None = None) -> Tensor:
-    """(sum lengths,) uniform (``kind="rand"``) or standard normal (``"randn"``) numbers:
-    sample b's from its own generator (seeded ``seed[b]``), in event order."""
-    lengths = batch.lengths if lengths is None else list(lengths)
-    device = batch.device
-    out = torch.empty(sum(lengths), dtype=dtype, device=device)
-    position = 0
-    for b, (s, n) in enumerate(zip(seed.tolist(), lengths)):
-        if n:
-            piece = out[position : position + n]
-            if kind == "rand":
-                piece.uniform_(generator=_generator(s, device))
-            else:
-                piece.normal_(generator=_generator(s, device))
-        position += n
-    return out
-
-
 def _compact(batch: EventBatch, keep: Tensor, **changes: Any) -> EventBatch:
     """The events where ``keep`` holds (one host read of the kept counts per stream)."""
     sample = batch.sample_index()
@@ -113,7 +94,8 @@ def _require_grid(batch: EventBatch, owner: str, *, frames: bool = True) -> tupl
 
 
 def _round_to(values: Tensor, dtype: torch.dtype) -> Tensor:
-    return torch.round(values).clamp_(-(2**15 - 1), 2**15 - 1).to(dtype) if dtype == torch.int16 else torch.round(values).to(dtype)
+    """Nearest whole pixel, clamped to int16 (in place on ``values``, a temporary)."""
+    return values.round_().clamp_(-(2**15 - 1), 2**15 - 1).to(dtype)
 
 
 # --------------------------------------------------------------------------- space
@@ -225,11 +207,10 @@ def _groups(batch: EventBatch) -> tuple[Tensor, int]:
     """Per event its group ``(sample * T + bin) * 2 + p`` (int32; ``G`` outside the grid's
     window) and the number of groups G."""
     starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
-    from .event_batch import _bins_of
+    from .event_batch import _bins_of, _relative_times
 
     sample = batch.sample_index()
-    rel = batch.t - starts.to(batch.device, batch.t.dtype).index_select(0, sample)
-    bins, inside = _bins_of(rel, frame_us, n_frames)
+    bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
     groups = len(batch) * n_frames * 2
     group = sample.mul(n_frames).add_(bins).mul_(2).add_(batch.p)
     return group.masked_fill_(~inside, groups), groups
@@ -449,8 +430,6 @@ def time_skew(batch: EventBatch, coefficient: Tensor, offset_us: Tensor) -> Even
     if batch.t_start is not None:
         origin = _per_event(batch.t_start.to(torch.float64), batch)
     else:
-        from .event_batch import _segment_first  # noqa: F401
-
         sample = batch.sample_index().to(torch.int64)
         big = torch.full((len(batch),), math.inf, dtype=torch.float64, device=batch.device)
         first = big.scatter_reduce(0, sample, batch.t.to(torch.float64), reduce="amin")
@@ -516,11 +495,10 @@ def drop_window(
     (``time``) or in the sensor rectangle ``top, left, height, width`` (``area``): the
     event form of ``drop_by_time``/``drop_by_area``. One host read of the kept counts."""
     if time is not None:
-        from .event_batch import _bins_of
+        from .event_batch import _bins_of, _relative_times
 
         starts, frame_us, n_frames = _require_grid(batch, "RandomEventDrop (time)")
-        rel = batch.t - starts.to(batch.device, batch.t.dtype).index_select(0, batch.sample_index())
-        bins, inside = _bins_of(rel, frame_us, n_frames)
+        bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
         start, length = (_per_event(v.to(torch.int32), batch) for v in time)
         hit = inside & (bins >= start) & (bins < start + length)
     else:

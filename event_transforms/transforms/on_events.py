@@ -41,7 +41,6 @@ from .._validation import check_pair, describe
 from ..functional import event_kernels as K
 from ..functional.event_batch import EventBatch
 from .base import _EVENT_NEUTRAL, EventTransform, Params, integers, register_event_kernel, seeds, uniform
-from .containers import Compose, OneOf, RandomApply  # noqa: F401  (documented partners)
 from . import affine as _affine
 from . import drop as _drop
 from . import geometry as _geometry
