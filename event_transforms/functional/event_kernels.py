@@ -134,10 +134,15 @@ def event_centroid(batch: EventBatch) -> Tensor:
     if batch.num_events == 0 or len(batch) == 0:
         return torch.tensor([[(height - 1) / 2, (width - 1) / 2]], dtype=torch.float64, device=device).expand(len(batch), 2)
     on_device = lengths.to(device, non_blocking=True)
-    sample = batch.sample_index()
-    sums = torch.zeros(len(batch), 2, dtype=torch.float64, device=device)
-    sums[:, 0].index_add_(0, sample, batch.y.to(torch.float64))
-    sums[:, 1].index_add_(0, sample, batch.x.to(torch.float64))
+    if device.type == "cpu":  # slice sums: no per-event index, no float64 copy of the columns
+        bounds = batch.offsets.tolist()
+        sums = torch.stack([torch.stack([batch.y[lo:hi].sum(dtype=torch.float64), batch.x[lo:hi].sum(dtype=torch.float64)])
+                            for lo, hi in zip(bounds, bounds[1:])])
+    else:
+        sample = batch.sample_index()
+        sums = torch.zeros(len(batch), 2, dtype=torch.float64, device=device)
+        sums[:, 0].index_add_(0, sample, batch.y.to(torch.float64))
+        sums[:, 1].index_add_(0, sample, batch.x.to(torch.float64))
     image = torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=torch.float64, device=device)
     count = on_device.to(torch.float64).unsqueeze(1)
     return torch.where(count > 0, sums / count.clamp_min(1), image)
@@ -182,16 +187,16 @@ def affine_events(
     x, y = batch.x.to(torch.float32), batch.y.to(torch.float32)
     if device.type == "cpu":
         # per-sample slices with the sample's six numbers: no per-event gathers (on the CPU
-        # the coefficients are host memory; the same float32 addcmul as the batched path)
+        # the coefficients are host memory; float32 arithmetic as on accelerators, which may
+        # round the last bit differently)
         new_x, new_y = torch.empty_like(x), torch.empty_like(y)
         bounds = batch.offsets.tolist()
-        a, bb, cc, d, ee, ff = coefficients.unbind(0)
-        for i in range(b):
+        for i, (a, bb, cc, d, ee, ff) in enumerate(coefficients.t().tolist()):
             lo, hi = bounds[i], bounds[i + 1]
             if hi > lo:
                 xs, ys = x[lo:hi], y[lo:hi]
-                torch.addcmul(torch.addcmul(ee[i], a[i], xs), bb[i], ys, out=new_x[lo:hi])
-                torch.addcmul(torch.addcmul(ff[i], cc[i], xs), d[i], ys, out=new_y[lo:hi])
+                torch.mul(xs, a, out=new_x[lo:hi]).add_(ee).add_(ys, alpha=bb)
+                torch.mul(xs, cc, out=new_y[lo:hi]).add_(ff).add_(ys, alpha=d)
     else:  # accelerators: six gathers and four fused ops for the whole batch, whatever B
         sample = batch.sample_index()
         a, bb, cc, d, ee, ff = (coefficients[i].index_select(0, sample) for i in range(6))
