@@ -181,7 +181,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
                              profile_rows(streams))
     body = "\n\n".join([
         "## Events first: EventBatch transforms + binning vs the frame path and tonic" + allocator_suffix(),
-        f"`{command('benchmarks/events_pipeline.py', argv)}`. {count} simulated grasps, {events:,} events "
+        f"`{command('events_pipeline.py', argv)}`. {count} simulated grasps, {events:,} events "
         f"({batch.nbytes / 1e6:.1f} MB as an EventBatch, 13 B/event) binned to ({count}, 36, 2, 70, 75) float32 "
         f"({frame_bytes / 1e6:.1f} MB, {frame_bytes / batch.nbytes:.1f}× the events); one CPU thread; "
         f"`frames.clone()` of that batch took {fmt_ms(clone)} (median). '× clone' is the median over the interleaved "
