@@ -40,6 +40,8 @@ _TRANSFORMS = (
     "DropPixel", "RandomDropPixel", "Denoise",
     # events (issue 20)
     "SpatialJitter", "TimeJitter", "TimeSkew", "RefractoryPeriod", "Decimation",
+    # sequence warps (issue 19)
+    "RandomPerspective", "RandomElastic",
 )
 _NAMES: dict[str, str] = {
     **{name: "transforms" for name in _TRANSFORMS},

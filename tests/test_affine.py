@@ -320,3 +320,193 @@ class TestAffine:
             et.RandomAffine(shear=100.0)
         with pytest.raises(ValueError, match="translate"):
             et.RandomAffine(translate=(0.5, 2.0))
+
+
+# --------------------------------------------------------------------------- perspective and elastic
+
+
+def _bilinear(x: np.ndarray, ys: float, xs: float) -> np.ndarray:
+    """Bilinear sample of (T, P, H, W) ``x`` at one (y, x) point, zero outside."""
+    h, w = x.shape[-2:]
+    out = np.zeros(x.shape[:2])
+    y0, x0 = math.floor(ys), math.floor(xs)
+    for yy, xx in ((y0, x0), (y0, x0 + 1), (y0 + 1, x0), (y0 + 1, x0 + 1)):
+        if 0 <= yy < h and 0 <= xx < w:
+            out += (1 - abs(xs - xx)) * (1 - abs(ys - yy)) * x[:, :, yy, xx]
+    return out
+
+
+def reference_perspective(frames: Tensor, corners: list[list[float]]) -> np.ndarray:
+    """Solve the forward homography (frame corners -> ``corners``) from its eight equations,
+    invert it, and sample every output pixel bilinearly (zero outside)."""
+    x = frames.double().numpy()
+    t, p, h, w = x.shape
+    source = [(0.0, 0.0), (w - 1.0, 0.0), (w - 1.0, h - 1.0), (0.0, h - 1.0)]  # (x, y)
+    rows, rhs = [], []
+    for (sx, sy), (dy, dx) in zip(source, corners):
+        rows.append([sx, sy, 1, 0, 0, 0, -sx * dx, -sy * dx])
+        rhs.append(dx)
+        rows.append([0, 0, 0, sx, sy, 1, -sx * dy, -sy * dy])
+        rhs.append(dy)
+    forward = np.append(np.linalg.solve(np.array(rows), np.array(rhs)), 1.0).reshape(3, 3)
+    inverse = np.linalg.inv(forward)
+    out = np.zeros_like(x)
+    for yo in range(h):
+        for xo in range(w):
+            sx, sy, sw = inverse @ np.array([xo, yo, 1.0])
+            out[:, :, yo, xo] = _bilinear(x, sy / sw, sx / sw)
+    return out
+
+
+def reference_elastic(frames: Tensor, noise: Tensor, alpha: float, sigma: float) -> np.ndarray:
+    """Smooth the noise with a Gaussian over ±3 sigma (zero outside), one pixel at a time, and
+    sample every output pixel at its displaced position bilinearly (zero outside)."""
+    x, n = frames.double().numpy(), noise.double().numpy()
+    t, p, h, w = x.shape
+    radius = math.ceil(3 * sigma)
+    weights = [math.exp(-0.5 * (k / sigma) ** 2) for k in range(-radius, radius + 1)]
+    weights = [v / sum(weights) for v in weights]
+    out = np.zeros_like(x)
+    for yo in range(h):
+        for xo in range(w):
+            field = [0.0, 0.0]
+            for i, wy in enumerate(weights):
+                for j, wx in enumerate(weights):
+                    yy, xx = yo + i - radius, xo + j - radius
+                    if 0 <= yy < h and 0 <= xx < w:
+                        field[0] += wy * wx * n[0, yy, xx]
+                        field[1] += wy * wx * n[1, yy, xx]
+            out[:, :, yo, xo] = _bilinear(x, yo + alpha * field[0], xo + alpha * field[1])
+    return out
+
+
+CORNERS = [[1.0, 0.5], [0.0, 9.0], [15.5, 10.0], [16.0, 1.5]]  # a convex quadrilateral in a 17×11 frame
+
+
+class TestPerspective:
+    def test_matches_slow_reference(self):
+        frames = sparse_frames(3, 2, H, W, density=0.3)
+        out = check_not_modified(lambda x: F.perspective(x, CORNERS), frames)
+        np.testing.assert_allclose(out.double().numpy(), reference_perspective(frames, CORNERS), atol=1e-4)
+
+    def test_frame_corners_are_the_identity_and_nearest_keeps_the_dtype(self):
+        frames = sparse_frames(2, 3, 2, H, W, density=0.3, dtype=torch.int16)
+        corners = [[0, 0], [0, W - 1], [H - 1, W - 1], [H - 1, 0]]
+        out = F.perspective(frames, corners, mode="nearest")
+        assert out.dtype == torch.int16 and torch.equal(out, frames)
+        assert F.perspective(frames, corners).dtype == torch.float32
+
+    def test_per_sample_corners_equal_per_sample_calls(self):
+        frames = sparse_frames(2, 3, 2, H, W, density=0.3)
+        corners = torch.tensor([CORNERS, [[0.0, 0.0], [1.0, 10.0], [16.0, 9.0], [15.0, 0.0]]])
+        out = F.perspective(frames, corners)
+        for b in range(2):
+            torch.testing.assert_close(out[b], F.perspective(frames[b], corners[b]))
+
+    def test_matches_kornia(self):
+        kornia = pytest.importorskip("kornia")
+        frames = sparse_frames(3, 2, H, W, density=0.3)
+        corners = torch.tensor(CORNERS, dtype=torch.float64)
+        source = torch.tensor([[0.0, 0.0], [W - 1.0, 0.0], [W - 1.0, H - 1.0], [0.0, H - 1.0]], dtype=torch.float64)
+        matrix = kornia.geometry.transform.get_perspective_transform(source[None], corners.flip(-1)[None])
+        folded = frames.reshape(1, -1, H, W).double()
+        expected = kornia.geometry.transform.warp_perspective(folded, matrix, (H, W), align_corners=True)
+        torch.testing.assert_close(F.perspective(frames.double().unsqueeze(0), corners), expected.view(1, *frames.shape))
+
+    @pytest.mark.parametrize(
+        "corners, error, message",
+        [
+            ([[0, 0], [0, 10], [16, 10]], ValueError, r"corners must be \(4, 2\)"),
+            ([[0, 0], [16, 10], [0, 10], [16, 0]], ValueError, "convex quadrilateral"),  # crossed
+            ([[0, 0], [0, 10], [16, 10], [16, float("nan")]], ValueError, "finite"),
+            ("corners", TypeError, "corners must be"),
+            ([[True, False]] * 4, TypeError, "real numbers"),
+        ],
+    )
+    def test_bad_corners_are_refused_by_name(self, corners, error, message):
+        with pytest.raises(error, match=message):
+            F.perspective(torch.zeros(3, 2, H, W), corners)
+
+
+class TestElastic:
+    def test_matches_slow_reference(self):
+        frames = sparse_frames(3, 2, H, W, density=0.3)
+        noise = torch.rand(2, H, W, generator=_g(1)) * 2 - 1
+        out = check_not_modified(lambda x: F.elastic(x, noise, alpha=6.0, sigma=1.5), frames)
+        np.testing.assert_allclose(out.double().numpy(), reference_elastic(frames, noise, 6.0, 1.5), atol=1e-4)
+
+    def test_no_strength_is_the_identity(self):
+        frames = sparse_frames(2, 3, 2, H, W, density=0.3, dtype=torch.int32)
+        noise = torch.rand(2, 2, H, W, generator=_g(2)) * 2 - 1
+        out = F.elastic(frames, noise, alpha=torch.tensor([0.0, 0.0]), mode="nearest")
+        assert out.dtype == torch.int32 and torch.equal(out, frames)
+
+    def test_per_sample_strength_equals_per_sample_calls(self):
+        frames = sparse_frames(2, 3, 2, H, W, density=0.3)
+        noise = torch.rand(2, 2, H, W, generator=_g(3)) * 2 - 1
+        out = F.elastic(frames, noise, alpha=torch.tensor([3.0, 8.0]), sigma=2.0)
+        for b, alpha in enumerate((3.0, 8.0)):
+            torch.testing.assert_close(out[b], F.elastic(frames[b], noise[b], alpha=alpha, sigma=2.0))
+
+    def test_matches_kornia(self):
+        kornia = pytest.importorskip("kornia")
+        frames = sparse_frames(3, 2, H, W, density=0.3).double()
+        noise = torch.rand(1, 2, H, W, generator=_g(4), dtype=torch.float64) * 2 - 1
+        size = 2 * math.ceil(3 * 2.0) + 1
+        alpha = (5.0 * 2 / (W - 1), 5.0 * 2 / (H - 1))  # pixels to kornia's normalised units, (x, y)
+        expected = kornia.geometry.transform.elastic_transform2d(
+            frames.reshape(1, -1, H, W), noise.flip(1), (size, size), (2.0, 2.0), alpha, align_corners=True
+        )
+        torch.testing.assert_close(F.elastic(frames, noise[0], alpha=5.0, sigma=2.0), expected.view(frames.shape))
+
+    @pytest.mark.parametrize(
+        "kwargs, error, message",
+        [
+            ({"noise": np.zeros((2, H, W))}, TypeError, "noise must be a tensor"),
+            ({"noise": torch.zeros(2, W, H)}, ValueError, r"noise must be a float tensor \(2, 17, 11\)"),
+            ({"noise": torch.zeros(2, H, W, dtype=torch.int64)}, ValueError, "noise must be a float tensor"),
+            ({"alpha": -1.0}, ValueError, "alpha must be finite and >= 0"),
+            ({"sigma": 0.0}, ValueError, "sigma must be finite and > 0"),
+            ({"mode": "bicubic"}, ValueError, "mode"),
+        ],
+    )
+    def test_bad_arguments_are_refused_by_name(self, kwargs, error, message):
+        arguments = {"noise": torch.zeros(2, H, W), **kwargs}
+        with pytest.raises(error, match=message):
+            F.elastic(torch.zeros(3, 2, H, W), arguments.pop("noise"), **arguments)
+
+
+class TestSequenceWarpModules:
+    def test_random_perspective_draws_corners_inside_the_reach(self):
+        module = et.RandomPerspective(0.4)
+        params = module.make_params((50, 3, 2, H, W), generator=_g(5))
+        moves = (params["corners"] - torch.tensor([[0, 0], [0, W - 1], [H - 1, W - 1], [H - 1, 0]])).abs()
+        reach = torch.tensor([0.4 * (H - 1) / 2, 0.4 * (W - 1) / 2], dtype=torch.float64)
+        assert bool((moves <= reach).all()) and bool((moves > 0).any())
+        frames = sparse_frames(50, 3, 2, H, W, density=0.2)
+        out = module(frames, params=params)
+        for b in (0, 17):
+            torch.testing.assert_close(out[b], F.perspective(frames[b], params["corners"][b]))
+
+    def test_no_distortion_or_strength_is_the_identity(self):
+        frames = sparse_frames(3, 4, 2, H, W, density=0.2)
+        torch.testing.assert_close(et.RandomPerspective(0.0)(frames, generator=_g()), frames)
+        torch.testing.assert_close(et.RandomElastic(alpha=0.0)(frames, generator=_g()), frames)
+
+    def test_random_elastic_replays_its_field(self):
+        module = et.RandomElastic(alpha=(5.0, 10.0), sigma=2.0)
+        frames = sparse_frames(3, 4, 2, H, W, density=0.2)
+        params = module.make_params(frames.shape, generator=_g(6))
+        assert params["noise"].abs().max() <= 1 and bool(((params["alpha"] >= 5) & (params["alpha"] <= 10)).all())
+        expected = F.elastic(frames, params["noise"], alpha=params["alpha"], sigma=2.0)
+        torch.testing.assert_close(module(frames, params=params), expected)
+
+    def test_bad_settings_are_refused_by_name(self):
+        with pytest.raises(ValueError, match=r"distortion_scale must lie in \[0, 1\), got 1.0"):
+            et.RandomPerspective(1.0)
+        with pytest.raises(ValueError, match="alpha"):
+            et.RandomElastic(alpha=-2.0)
+        with pytest.raises(ValueError, match="sigma"):
+            et.RandomElastic(sigma=0.0)
+        with pytest.raises(ValueError, match="mode"):
+            et.RandomElastic(mode="bicubic")

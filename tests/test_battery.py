@@ -19,7 +19,7 @@ from event_transforms.transforms.base import slice_params
 from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse_frames
 
 INTERPOLATING = {"Rotate", "RandomRotation", "Resize", "RandomResize"}
-INTERPOLATING |= {"Affine", "RandomAffine", "RandomCropResize", "CenterCropResize"}
+INTERPOLATING |= {"Affine", "RandomAffine", "RandomCropResize", "CenterCropResize", "RandomPerspective", "RandomElastic"}
 # modules whose kernels need whole, non-negative counts and check them
 VALUE_CHECKED = {"TemporalEventShift", "TemporalEventShiftBinomial", "RandomTemporalEventShift", "RandomEventDrop"}
 
@@ -69,6 +69,9 @@ FACTORIES = {
     # coupled transforms (couples_samples): whole batch, labels mixed through apply_labels
     "CutMix": lambda t, h, w: et.CutMix(),
     "MixUp": lambda t, h, w: et.MixUp(0.4),
+    # sequence warps (issue 19)
+    "RandomPerspective": lambda t, h, w: et.RandomPerspective(0.3),
+    "RandomElastic": lambda t, h, w: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0, p=0.5),
 }
 COUPLED = {"CutMix", "MixUp"}
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from benchmarks import _common, accuracy, peers, scaling, size_confound, streaming, training, transforms
+from benchmarks import _common, accuracy, kornia_warp, peers, scaling, size_confound, streaming, training, transforms
 
 
 def _results(tmp_path):
@@ -104,6 +104,18 @@ class TestTransforms:
         assert "grid_sampler" in transforms.profile("Rotate(15°)", transforms.QUICK_SHAPE, rows=100)
         with pytest.raises(ValueError, match="name"):
             transforms.profile("nope", transforms.QUICK_SHAPE)
+
+
+class TestKorniaWarp:
+    def test_quick_run_writes_its_section(self, tmp_path):
+        path = _results(tmp_path)
+        result = kornia_warp.main(["--quick", "--results", str(path), "--rounds", "1", "--min-run-time", "0.001"])
+        section = _section(path, "kornia_warp")
+        assert "× own warp" in section and "Agreement" in section and "kornia 0." in section
+        for kornia_row, own_row in kornia_warp.PAIRS.items():
+            assert kornia_row in section and own_row in section
+            assert result["counts"][own_row].ops < result["counts"][kornia_row].ops
+        assert max(result["differences"].values()) < 1e-4
 
 
 class TestScaling:

@@ -11,7 +11,8 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from event_transforms.functional.events import EventsOutsideSensorWarning, events_to_frames, iter_frames
+from event_transforms.functional.events import EventsOutsideSensorWarning, events_to_frames
+from event_transforms.functional.streaming import iter_frames
 
 TONIC_DTYPE = [("x", int), ("y", int), ("t", int), ("p", int)]
 

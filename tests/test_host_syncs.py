@@ -114,6 +114,8 @@ MODULES = {
     "DropHotPixels": lambda: et.DropPixel(rate_hz=100.0),
     "RandomDropPixel": lambda: et.RandomDropPixel(0.3),
     "Denoise": lambda: et.Denoise(),
+    "RandomPerspective": lambda: et.RandomPerspective(0.3, p=0.5),
+    "RandomElastic": lambda: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0),
 }
 
 

@@ -22,12 +22,23 @@ def gen(seed: int = 0) -> torch.Generator:
     return torch.Generator().manual_seed(seed)
 
 
+def _noise(frames) -> torch.Tensor:
+    """A fixed (2, H, W) displacement field in [-1, 1] for the frames' size (every sample)."""
+    return torch.rand(2, *frames.shape[-2:], generator=gen(1)) * 2 - 1
+
+
 # name -> (kernel(frames, params, generator), per-sample params for a batch of 3, output dtype rule)
 # The params are lists of per-sample values; a kernel gets them as (B,) tensors.
 KERNELS = {
     "rotate": (lambda x, p, g: F.rotate(x, p[0]), [[30.0, -45.0, 90.0]], "interpolating"),
     "rotate-nearest": (lambda x, p, g: F.rotate(x, p[0], mode="nearest"), [[30.0, -45.0, 90.0]], "kept"),
     "resize": (lambda x, p, g: F.resize(x, p[0]), [[1.25, 0.8, 1.0]], "interpolating"),
+    "perspective": (
+        lambda x, p, g: F.perspective(x, p[0] if p[0].numel() else p[0].reshape(0, 4, 2)),
+        [[[[1, 1], [0, 10], [16, 9], [15, 0]], [[0, 0], [0, 10], [16, 10], [16, 0]], [[2, 1], [1, 9], [14, 8], [15, 2]]]],
+        "interpolating",
+    ),
+    "elastic": (lambda x, p, g: F.elastic(x, _noise(x), alpha=p[0], sigma=2.0), [[4.0, 0.0, 9.0]], "interpolating"),
     "horizontal_flip": (lambda x, p, g: F.horizontal_flip(x), [], "kept"),
     "vertical_flip": (lambda x, p, g: F.vertical_flip(x), [], "kept"),
     "frame_shift": (lambda x, p, g: F.frame_shift(x, p[0]), [[-1, 2, 0]], "kept"),
@@ -114,7 +125,7 @@ class TestKernelBattery:
         if not values:
             return
         frames = sparse_frames(2, 6, 2, H, W)
-        with pytest.raises(ValueError, match=r"must be a scalar or have shape \(2,\)"):
+        with pytest.raises(ValueError, match=r"must be a scalar or have shape \(2,\)|must be \(4, 2\) or \(2, 4, 2\)"):
             kernel(frames, [torch.tensor(v) for v in values], gen())
 
 

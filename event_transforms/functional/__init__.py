@@ -14,6 +14,8 @@ from .noise import *  # noqa: F401,F403
 from .noise import __all__ as _noise
 from .events import *  # noqa: F401,F403
 from .events import __all__ as _events
+from .streaming import *  # noqa: F401,F403
+from .streaming import __all__ as _streaming
 
 from .geometry import *  # noqa: F401,F403
 from .geometry import __all__ as _geometry
@@ -34,6 +36,6 @@ from .event_kernels import *  # noqa: F401,F403
 from .event_kernels import __all__ as _event_kernels
 
 __all__ = [
-    *_affine, *_temporal, *_noise, *_events, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_representations,
+    *_affine, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_representations,
     *_event_batch, *_event_kernels,
 ]

@@ -1,19 +1,27 @@
-"""Affine kernels: the one warp behind rotation, resize and the general affine warp.
+"""Warp kernels: the one affine warp behind rotation, resize and ``affine``, and the
+perspective and elastic warps.
 
 :func:`rotate`, :func:`resize` and :func:`affine` (rotation, scale, translation and shear
 in one 2×3 matrix) are special cases of one private warp, ``_affine``
 (``affine(angle=a)`` equals ``rotate(a)``, ``affine(scale=s)`` equals ``resize(s)``), about
 the event centroid (:func:`center_of_mass`) by default. It folds the T·2 frames of a
-sequence into channels and calls
-``affine_grid`` and ``grid_sample`` once with a (B, 2, 3) matrix built on the host (the
-same sampling as kornia's ``warp_affine``, without its float64 matrix helpers), so one
-sampling grid serves every frame of a sequence (the grasp keeps its orientation), no
-(B·T) grids are built, and the device is never asked for a number.
+sequence into channels and calls ``affine_grid`` and ``grid_sample`` once with a (B, 2, 3)
+matrix built on the host (the same sampling as kornia's ``warp_affine``, without its
+float64 matrix helpers and at a quarter of its dispatched ops; see
+``benchmarks/kornia_warp.py``), so one sampling grid serves every frame of a sequence (the
+grasp keeps its orientation), no (B·T) grids are built, and the device is never asked for
+a number.
+
+:func:`perspective` and :func:`elastic` are warps the affine matrix cannot express; they
+fold the frames the same way and sample them at one grid per sequence built from a host
+homography or a smoothed displacement field (what kornia's ``warp_perspective`` and
+``elastic_transform2d`` compute, with a fraction of their dispatched ops).
 """
 
 from __future__ import annotations
 
 import functools
+import math
 import warnings
 from collections.abc import Sequence
 
@@ -22,7 +30,7 @@ import torch
 from torch import Tensor
 
 from .._validation import (
-    INTERPOLATIONS, as_batch, check_choice, check_frames, describe, on_host, per_sample, per_sample_pairs,
+    INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, on_host, per_sample, per_sample_pairs,
 )
 
 __all__ = [
@@ -30,6 +38,8 @@ __all__ = [
     "rotate",
     "resize",
     "affine",
+    "perspective",
+    "elastic",
 ]
 
 Center = str | Sequence[float] | Tensor
@@ -295,13 +305,32 @@ def _sampling_matrices(
     return matrix.reshape(-1, 6, 3)
 
 
-def rotate(
-    frames: Tensor,
-    angle: float | Sequence[float] | Tensor,
-    *,
-    center: Center = "mass",
-    mode: str = "bilinear",
-) -> Tensor:
+def _angles(angle: object, batch: int) -> Tensor:
+    """(B,) float64 CPU angles in degrees, finite."""
+    angle_t = per_sample(angle, batch, "angle")
+    if not bool(angle_t.isfinite().all()):
+        raise ValueError(f"angle must be finite, got {describe(angle)}")
+    return angle_t
+
+
+def _scales(scale: object, batch: int) -> Tensor:
+    """(B,) float64 CPU zoom factors, finite and > 0."""
+    scale_t = per_sample(scale, batch, "scale")
+    if not bool((scale_t.isfinite() & (scale_t > 0)).all()):
+        raise ValueError(f"scale must be finite and > 0, got {describe(scale)}")
+    return scale_t
+
+
+def _rotate_or_resize(frames: Tensor, name: str, value: object, center: Center, mode: str) -> Tensor:
+    """:func:`rotate` (``name="angle"``) or :func:`resize` (``name="scale"``) from the public arguments."""
+    batch, unbatch = as_batch(check_frames(frames))
+    b = batch.shape[0]
+    angle_t = _angles(value, b) if name == "angle" else None
+    scale_t = _scales(value, b) if name == "scale" else None
+    return unbatch(_affine(batch, angle_t, scale_t, _check_center(center, b), check_choice(mode, "mode", INTERPOLATIONS)))
+
+
+def rotate(frames: Tensor, angle: Scalars, *, center: Center = "mass", mode: str = "bilinear") -> Tensor:
     """Rotate every frame of each sequence by the sequence's angle about its centre.
 
     Positive angles turn counter-clockwise on the displayed image (row 0 at the top), as
@@ -329,22 +358,10 @@ def rotate(
         >>> out.dtype, out[0, 1].nonzero().tolist(), int(out.sum())
         (torch.int16, [[0, 2]], 7)
     """
-    batch, unbatch = as_batch(check_frames(frames))
-    angle_t = per_sample(angle, batch.shape[0], "angle")
-    if not bool(angle_t.isfinite().all()):
-        raise ValueError(f"angle must be finite, got {describe(angle)}")
-    check_choice(mode, "mode", INTERPOLATIONS)
-    center = _check_center(center, batch.shape[0])
-    return unbatch(_affine(batch, angle_t, None, center, mode))
+    return _rotate_or_resize(frames, "angle", angle, center, mode)
 
 
-def resize(
-    frames: Tensor,
-    scale: float | Sequence[float] | Tensor,
-    *,
-    center: Center = "mass",
-    mode: str = "bilinear",
-) -> Tensor:
+def resize(frames: Tensor, scale: Scalars, *, center: Center = "mass", mode: str = "bilinear") -> Tensor:
     """Zoom each sequence by ``scale`` about its centre, keeping H×W (zero margin).
 
     ``scale`` is the paper's β = target object size / source object size: 1.25 makes a
@@ -361,24 +378,13 @@ def resize(
     Returns:
         The resized frames, same shape and device; dtype as in :func:`rotate`.
 
-    Shape:
-        ``(T, 2, H, W)`` -> ``(T, 2, H, W)``; ``(B, T, 2, H, W)`` -> same.
-
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
         >>> frames[0, 0, 2, 3] = 1.0  # one pixel right of the centre
         >>> resize(frames, 2.0, center="image")[0, 0, 2].tolist()
         [0.0, 0.0, 0.0, 0.5, 1.0]
     """
-    batch, unbatch = as_batch(check_frames(frames))
-    scale_t = per_sample(scale, batch.shape[0], "scale")
-    if not bool((scale_t.isfinite() & (scale_t > 0)).all()):
-        raise ValueError(f"scale must be finite and > 0, got {describe(scale)}")
-    check_choice(mode, "mode", INTERPOLATIONS)
-    center = _check_center(center, batch.shape[0])
-    return unbatch(_affine(batch, None, scale_t, center, mode))
-
-
+    return _rotate_or_resize(frames, "scale", scale, center, mode)
 
 
 def affine(
@@ -404,16 +410,11 @@ def affine(
         translate: ``(dy, dx)`` in pixels (down, right), or a ``(B, 2)`` tensor.
         scale: zoom factor > 0, a number or ``(B,)``.
         shear: ``(x, y)`` shear angles in degrees (each in (-90, 90)), or ``(B, 2)``.
-        center: ``"mass"`` (event centroid of the whole sequence, image centre when
-            empty), ``"image"``, a ``(y, x)`` pair, or a ``(B, 2)`` tensor of pairs.
+        center: ``"mass"``, ``"image"``, ``(y, x)`` or a ``(B, 2)`` tensor (see :func:`rotate`).
         mode: ``"bilinear"`` or ``"nearest"``.
 
     Returns:
-        The warped frames, same shape and device. ``bilinear`` returns the input dtype
-        for float input and float32 for integer input; ``nearest`` keeps the dtype.
-
-    Shape:
-        ``(T, 2, H, W)`` -> ``(T, 2, H, W)``; ``(B, T, 2, H, W)`` -> same.
+        The warped frames, same shape and device; dtype as in :func:`rotate`.
 
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
@@ -424,12 +425,7 @@ def affine(
     """
     batch, unbatch = as_batch(check_frames(frames))
     b = batch.shape[0]
-    angle_t = per_sample(angle, b, "angle")
-    scale_t = per_sample(scale, b, "scale")
-    if not bool(angle_t.isfinite().all()):
-        raise ValueError(f"angle must be finite, got {describe(angle)}")
-    if not bool((scale_t.isfinite() & (scale_t > 0)).all()):
-        raise ValueError(f"scale must be finite and > 0, got {describe(scale)}")
+    angle_t, scale_t = _angles(angle, b), _scales(scale, b)
     translate_t = per_sample_pairs(translate, b, "translate")
     shear_t = per_sample_pairs(shear, b, "shear")
     if not bool((shear_t.abs() < 90).all()):
@@ -437,3 +433,220 @@ def affine(
     check_choice(mode, "mode", INTERPOLATIONS)
     center = _check_center(center, b)
     return unbatch(_affine(batch, angle_t, scale_t, center, mode, shear=shear_t, translate=translate_t))
+
+
+# --------------------------------------------------------------------------- perspective and elastic
+
+
+def _image_corners(height: int, width: int) -> Tensor:
+    """(4, 2) float64 (y, x) corners of the frame: top-left, top-right, bottom-right, bottom-left
+    pixel centres (a singleton axis spans [0, 1], so the quadrilateral never degenerates)."""
+    bottom, right = max(height - 1, 1), max(width - 1, 1)
+    return torch.tensor([[0.0, 0.0], [0.0, right], [bottom, right], [bottom, 0.0]], dtype=torch.float64)
+
+
+def _check_corners(corners: object, batch: int) -> Tensor:
+    """(B, 4, 2) float64 CPU (y, x) corners that make a convex quadrilateral in the given order."""
+    if isinstance(corners, (str, bytes)) or not isinstance(corners, (Sequence, Tensor)) and not hasattr(corners, "__array__"):
+        raise TypeError(f"corners must be (4, 2) or ({batch}, 4, 2) (y, x) positions, got {describe(corners)}")
+    try:
+        value = torch.as_tensor(corners).detach().cpu()
+    except (TypeError, ValueError, RuntimeError):
+        raise TypeError(f"corners must hold real numbers, got {corners!r}") from None
+    if value.dtype == torch.bool or value.is_complex():
+        raise TypeError(f"corners must hold real numbers, got dtype {value.dtype}")
+    value = value.to(torch.float64)
+    if tuple(value.shape) == (4, 2):
+        value = value.expand(batch, 4, 2)
+    if tuple(value.shape) != (batch, 4, 2):
+        raise ValueError(f"corners must be (4, 2) or ({batch}, 4, 2) (y, x) positions, got {describe(corners)}")
+    if not bool(value.isfinite().all()):
+        raise ValueError(f"corners must be finite, got {describe(corners)}")
+    edges = value.roll(-1, dims=1) - value  # (B, 4, 2) as (dy, dx)
+    after = edges.roll(-1, dims=1)
+    turns = edges[..., 1] * after[..., 0] - edges[..., 0] * after[..., 1]
+    if not bool((turns > 0).all()):
+        raise ValueError(
+            "corners must make a convex quadrilateral in the order top-left, top-right, bottom-right, "
+            f"bottom-left (as the frame's corners do), got {describe(corners)}"
+        )
+    return value.contiguous()
+
+
+def _normalisation(height: int, width: int) -> np.ndarray:
+    """3×3 map from pixel (x, y, 1) to ``grid_sample``'s ``align_corners=True`` coordinates
+    (D = 2 / (n - 1), e = -1; D = 1, e = 0 on a singleton axis, as in :func:`_sampling_matrices`)."""
+    d = [2.0 / (width - 1) if width > 1 else 1.0, 2.0 / (height - 1) if height > 1 else 1.0]
+    e = [-1.0 if width > 1 else 0.0, -1.0 if height > 1 else 0.0]
+    return np.array([[d[0], 0.0, e[0]], [0.0, d[1], e[1]], [0.0, 0.0, 1.0]])
+
+
+def _perspective_matrices(corners: Tensor, height: int, width: int) -> np.ndarray:
+    """(B, 3, 3) float64 host matrices taking an output grid point (u, v, 1) to its source
+    point in homogeneous normalised coordinates: the homography from ``corners`` back to the
+    frame's corners (four point pairs, eight unknowns, one solve per sample), conjugated by
+    the normalisation. NumPy, not torch: host numbers, no dispatch."""
+    target = np.asarray(corners.tolist(), dtype=np.float64)[..., ::-1]  # (B, 4, 2) as (x, y): output
+    source = _image_corners(height, width).numpy()[:, ::-1]  # (4, 2) as (x, y): input
+    b = target.shape[0]
+    u, v = target[..., 0], target[..., 1]  # (B, 4)
+    x, y = np.broadcast_to(source[:, 0], (b, 4)), np.broadcast_to(source[:, 1], (b, 4))
+    zeros, ones = np.zeros((b, 4)), np.ones((b, 4))
+    rows_x = np.stack([u, v, ones, zeros, zeros, zeros, -u * x, -v * x], -1)
+    rows_y = np.stack([zeros, zeros, zeros, u, v, ones, -u * y, -v * y], -1)
+    system = np.concatenate([rows_x, rows_y], 1)  # (B, 8, 8)
+    solution = np.linalg.solve(system, np.concatenate([x, y], 1)[..., None])[..., 0]
+    homography = np.concatenate([solution, np.ones((b, 1))], 1).reshape(b, 3, 3)
+    norm = _normalisation(height, width)
+    return norm @ homography @ np.linalg.inv(norm)
+
+
+def _sample(batch: Tensor, grid: Tensor, mode: str, work: torch.dtype, out_dtype: torch.dtype) -> Tensor:
+    """All T·2 frames of each sequence folded into channels and sampled at one (B, H, W, 2) grid."""
+    b, t, p, height, width = batch.shape
+    folded = batch.reshape(b, t * p, height, width).to(work)
+    warped = torch.nn.functional.grid_sample(folded, grid.to(work), mode=mode, padding_mode="zeros", align_corners=True)
+    return warped.view(b, t, p, height, width).to(out_dtype)
+
+
+def _base_grid(height: int, width: int, device: torch.device, dtype: torch.dtype) -> Tensor:
+    """(H, W, 2) identity grid in ``align_corners=True`` normalised (x, y) coordinates."""
+    norm = _normalisation(height, width)
+    xs = torch.arange(width, device=device, dtype=dtype).mul_(norm[0, 0]).add_(norm[0, 2])
+    ys = torch.arange(height, device=device, dtype=dtype).mul_(norm[1, 1]).add_(norm[1, 2])
+    return torch.stack(torch.meshgrid(xs, ys, indexing="xy"), -1)
+
+
+def _perspective(batch: Tensor, corners: Tensor, mode: str) -> Tensor:
+    """:func:`perspective` on a (B, T, 2, H, W) batch with checked (B, 4, 2) float64 CPU corners."""
+    b, _, _, height, width = batch.shape
+    out_dtype = _output_dtype(batch.dtype, mode)
+    if batch.numel() == 0:
+        return batch.to(out_dtype, copy=True)
+    work = _work_dtype(batch.dtype, mode)
+    matrix = torch.from_numpy(_perspective_matrices(corners, height, width)).to(batch.device, work, non_blocking=True)
+    base = _base_grid(height, width, batch.device, work)
+    points = torch.cat([base, torch.ones_like(base[..., :1])], -1).view(1, height * width, 3)
+    mapped = points @ matrix.transpose(1, 2)  # (B, H·W, 3), homogeneous
+    grid = (mapped[..., :2] / mapped[..., 2:]).view(b, height, width, 2)
+    return _sample(batch, grid, mode, work, out_dtype)
+
+
+def perspective(frames: Tensor, corners: Sequence[Sequence[float]] | Tensor, *, mode: str = "bilinear") -> Tensor:
+    """Warp every frame of each sequence by the homography that moves the frame's corners to ``corners``.
+
+    One homography per sequence, solved on the host; all T·2 frames are folded into
+    channels and sampled at one grid (kornia's ``warp_perspective`` and torchvision's
+    ``perspective`` give the same result, frame by frame), as a camera tilted against the
+    sensor plane would see the same contact. Pixels that come from outside the frame are
+    zero. On a singleton axis the corners span [0, 1].
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        corners: where the centres of the top-left, top-right, bottom-right and bottom-left
+            pixels go, as ``(y, x)`` pixel positions: ``(4, 2)`` for every sample or
+            ``(B, 4, 2)``; they must make a convex quadrilateral in that order.
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Returns:
+        The warped frames, same shape and device; dtype as in :func:`rotate`.
+
+    Example:
+        >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
+        >>> frames[0, 1, 0, 0] = 3  # the top-left corner
+        >>> corners = [[1, 1], [0, 4], [4, 4], [4, 0]]  # the top-left corner moves to (1, 1)
+        >>> out = perspective(frames, corners, mode="nearest")
+        >>> out.dtype, out[0, 1].nonzero().tolist()
+        (torch.int16, [[1, 1]])
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    check_choice(mode, "mode", INTERPOLATIONS)
+    return unbatch(_perspective(batch, _check_corners(corners, batch.shape[0]), mode))
+
+
+def _gaussian_kernel(sigma: float, device: torch.device, dtype: torch.dtype) -> Tensor:
+    """A normalised 1-D Gaussian of ``sigma`` pixels over ±3 sigma (odd length)."""
+    radius = math.ceil(3 * sigma)
+    offsets = np.arange(-radius, radius + 1, dtype=np.float64)
+    weights = np.exp(-0.5 * (offsets / sigma) ** 2)
+    return torch.from_numpy(weights / weights.sum()).to(device, dtype, non_blocking=True)
+
+
+def _elastic(batch: Tensor, noise: Tensor, alpha: Tensor, sigma: float, mode: str) -> Tensor:
+    """:func:`elastic` on a (B, T, 2, H, W) batch with checked (B, 2, H, W) ``noise`` and (B,)
+    float64 CPU ``alpha`` (pixels): two 1-D Gaussian passes (zero outside the frame) smooth the
+    noise, and the field, in normalised units, moves the identity grid."""
+    b, _, _, height, width = batch.shape
+    out_dtype = _output_dtype(batch.dtype, mode)
+    if batch.numel() == 0:
+        return batch.to(out_dtype, copy=True)
+    work = _work_dtype(batch.dtype, mode)
+    kernel = _gaussian_kernel(sigma, batch.device, work)
+    radius = kernel.shape[0] // 2
+    field = noise.to(batch.device, work, non_blocking=True).reshape(b * 2, 1, height, width)
+    field = torch.nn.functional.conv2d(field, kernel.view(1, 1, -1, 1), padding=(radius, 0))
+    field = torch.nn.functional.conv2d(field, kernel.view(1, 1, 1, -1), padding=(0, radius))
+    norm = _normalisation(height, width)
+    units = torch.from_numpy(alpha.numpy()[:, None] * np.array([norm[1, 1], norm[0, 0]]))  # (B, 2) as (y, x)
+    field = field.view(b, 2, height, width) * units.to(batch.device, work, non_blocking=True).view(b, 2, 1, 1)
+    grid = _base_grid(height, width, batch.device, work) + field.permute(0, 2, 3, 1).flip(-1)  # (x, y) last
+    return _sample(batch, grid, mode, work, out_dtype)
+
+
+def elastic(
+    frames: Tensor,
+    noise: Tensor,
+    *,
+    alpha: Scalars = 50.0,
+    sigma: float = 5.0,
+    mode: str = "bilinear",
+) -> Tensor:
+    """Displace the pixels of every frame of each sequence by one smooth random field per sequence.
+
+    The elastic distortion of Simard et al. (2003), as torchvision's ``ElasticTransform``:
+    the field is ``alpha`` times ``noise`` smoothed by a Gaussian of ``sigma`` pixels (zero
+    outside the frame); output pixel (y, x) samples the input at (y, x) + field(y, x). All
+    T·2 frames of a sequence share the field (the membrane deforms, the contact keeps its
+    shape over time) and are sampled at one grid (kornia's ``elastic_transform2d`` with
+    its ``alpha`` in pixels gives the same result, frame by frame). Pixels that come from
+    outside the frame are zero.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        noise: raw displacements in [-1, 1], ``(2, H, W)`` or ``(B, 2, H, W)``, channel 0
+            along y (down), channel 1 along x (right); e.g. ``2 * torch.rand(B, 2, H, W) - 1``.
+        alpha: strength in pixels (>= 0), a number or ``(B,)``.
+        sigma: smoothness of the field in pixels (> 0).
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Returns:
+        The warped frames, same shape and device; dtype as in :func:`rotate`.
+
+    Example:
+        >>> frames = torch.zeros(1, 2, 9, 9)
+        >>> frames[0, 1, 4, 4] = 1.0
+        >>> noise = torch.zeros(2, 9, 9)
+        >>> noise[1] = 1.0  # sample from the right everywhere: content moves left
+        >>> out = elastic(frames, noise, alpha=2.0, sigma=1.0, mode="nearest")
+        >>> out[0, 1].nonzero().tolist()
+        [[4, 2]]
+    """
+    batch, unbatch = as_batch(check_frames(frames))
+    b, _, _, height, width = batch.shape
+    if not isinstance(noise, Tensor):
+        raise TypeError(f"noise must be a tensor (2, H, W) or (B, 2, H, W), got {type(noise).__name__}")
+    if tuple(noise.shape) == (2, height, width):
+        noise = noise.expand(b, 2, height, width)
+    if tuple(noise.shape) != (b, 2, height, width) or not noise.is_floating_point():
+        raise ValueError(
+            f"noise must be a float tensor (2, {height}, {width}) or ({b}, 2, {height}, {width}), "
+            f"got {describe(noise)} of dtype {noise.dtype}"
+        )
+    alpha_t = per_sample(alpha, b, "alpha")
+    if not bool((alpha_t.isfinite() & (alpha_t >= 0)).all()):
+        raise ValueError(f"alpha must be finite and >= 0, got {describe(alpha)}")
+    sigma = as_number(sigma, "sigma")
+    if not 0 < sigma < math.inf:
+        raise ValueError(f"sigma must be finite and > 0, got {sigma!r}")
+    check_choice(mode, "mode", INTERPOLATIONS)
+    return unbatch(_elastic(batch, noise, alpha_t, sigma, mode))

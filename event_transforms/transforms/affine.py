@@ -1,9 +1,11 @@
-"""Affine transform modules: rotation, resize and the general affine warp.
+"""Warp modules: rotation, resize, the general affine warp, perspective and elastic warps.
 
 :class:`Rotate`, :class:`RandomRotation`, :class:`Resize`, :class:`RandomResize`,
 :class:`Affine` and :class:`RandomAffine` are one affine warp per sequence (every frame of
 a grasp keeps the same orientation), about the event centroid by default; rotation and
-resize are special cases of the affine warp. Bilinear sampling returns the
+resize are special cases of the affine warp. :class:`RandomPerspective` and
+:class:`RandomElastic` warp all frames of a sequence with one homography or one smooth
+displacement field. Bilinear sampling returns the
 input dtype for float input and float32 for integer input; ``mode="nearest"`` keeps the
 dtype. Values are moved or interpolated, never inspected.
 """
@@ -16,7 +18,7 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, per_sample_pairs
-from ..functional.affine import Center, _affine, _check_center
+from ..functional.affine import Center, _affine, _check_center, _elastic, _image_corners, _perspective
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [
@@ -26,6 +28,8 @@ __all__ = [
     "RandomResize",
     "Affine",
     "RandomAffine",
+    "RandomPerspective",
+    "RandomElastic",
 ]
 
 
@@ -33,13 +37,20 @@ def _zeros(batch: int, *size: int) -> Tensor:
     return torch.zeros(batch, *size, dtype=torch.float64)
 
 
-class _Affine(EventTransform):
+class _Warp(EventTransform):
+    """Shared setting of every warp: the interpolation mode."""
+
+    def __init__(self, *, mode: str, p: float) -> None:
+        super().__init__(p=p)
+        self.mode = check_choice(mode, "mode", INTERPOLATIONS)
+
+
+class _Affine(_Warp):
     """Shared settings of the affine modules (centre, interpolation mode) and their one warp."""
 
     def __init__(self, *, center: Center, mode: str, p: float) -> None:
-        super().__init__(p=p)
+        super().__init__(mode=mode, p=p)
         self.center = _check_center(center)
-        self.mode = check_choice(mode, "mode", INTERPOLATIONS)
 
     def _warp(
         self,
@@ -355,3 +366,93 @@ class RandomAffine(_AffineWarp):
             f"degrees={self.degrees}, translate={self.translate}, scale={self.scale}, shear={self.shear}, "
             f"{self._common()}"
         )
+
+
+class RandomPerspective(_Warp):
+    """Warp each sequence by its own random perspective (one homography for all its frames).
+
+    Each corner of the frame moves inwards by up to ``distortion_scale`` times half the
+    frame's height and width (torchvision's ``RandomPerspective``, drawn per sample on the
+    CPU); the homography that takes the corners there warps all T·2 frames of the sequence
+    at once (see :func:`~event_transforms.functional.perspective`).
+
+    Args:
+        distortion_scale: in [0, 1): how far the corners may move (0: identity).
+        mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
+            or ``"nearest"`` (dtype kept).
+        p: probability that a sample is warped.
+
+    Example:
+        >>> transform = RandomPerspective(0.3)
+        >>> frames = torch.ones(2, 4, 2, 9, 11)
+        >>> params = transform.make_params(frames.shape, generator=torch.Generator().manual_seed(0))
+        >>> params["corners"].shape, transform(frames, params=params).shape
+        (torch.Size([2, 4, 2]), torch.Size([2, 4, 2, 9, 11]))
+    """
+
+    def __init__(self, distortion_scale: float = 0.5, *, mode: str = "bilinear", p: float = 1.0) -> None:
+        super().__init__(mode=mode, p=p)
+        self.distortion_scale = as_number(distortion_scale, "distortion_scale")
+        if not 0 <= self.distortion_scale < 1:
+            raise ValueError(f"distortion_scale must lie in [0, 1), got {distortion_scale!r}")
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        b, _, _, height, width = shape
+        reach = self.distortion_scale * torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=torch.float64)
+        inwards = torch.tensor([[1.0, 1.0], [1.0, -1.0], [-1.0, -1.0], [-1.0, 1.0]], dtype=torch.float64)
+        moves = uniform(0.0, 1.0, b * 8, generator).view(b, 4, 2) * reach * inwards
+        return {"corners": _image_corners(height, width) + moves}
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return _perspective(frames, params["corners"].detach().to("cpu", torch.float64), self.mode)
+
+    def _settings(self) -> str:
+        return f"distortion_scale={self.distortion_scale}, mode={self.mode!r}"
+
+
+class RandomElastic(_Warp):
+    """Displace the pixels of each sequence by its own smooth random field (elastic distortion).
+
+    Per sample, raw displacements U(-1, 1) per pixel and axis and a strength from
+    ``alpha`` are drawn on the CPU; the field (``alpha`` times the displacements smoothed
+    by a Gaussian of ``sigma`` pixels) is shared by all frames of the sequence, which are
+    warped together (see :func:`~event_transforms.functional.elastic`; torchvision's
+    ``ElasticTransform`` with one field per sequence).
+
+    Args:
+        alpha: strength in pixels (>= 0), or a ``(min, max)`` range drawn per sample.
+        sigma: smoothness of the field in pixels (> 0).
+        mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
+            or ``"nearest"`` (dtype kept).
+        p: probability that a sample is warped.
+
+    Example:
+        >>> transform = RandomElastic(alpha=20.0, sigma=3.0)
+        >>> frames = torch.ones(2, 4, 2, 9, 11)
+        >>> params = transform.make_params(frames.shape, generator=torch.Generator().manual_seed(0))
+        >>> sorted(params), params["noise"].shape
+        (['alpha', 'noise'], torch.Size([2, 2, 9, 11]))
+    """
+
+    def __init__(
+        self,
+        alpha: float | Sequence[float] = 50.0,
+        sigma: float = 5.0,
+        *,
+        mode: str = "bilinear",
+        p: float = 1.0,
+    ) -> None:
+        super().__init__(mode=mode, p=p)
+        self.alpha = check_pair(alpha, "alpha", low=0.0, single=True)
+        self.sigma = check_positive(sigma, "sigma")
+
+    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+        b, _, _, height, width = shape
+        noise = uniform(-1.0, 1.0, b * 2 * height * width, generator).view(b, 2, height, width)
+        return {"alpha": uniform(*self.alpha, b, generator), "noise": noise}
+
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
+        return _elastic(frames, params["noise"], params["alpha"].detach().to("cpu", torch.float64), self.sigma, self.mode)
+
+    def _settings(self) -> str:
+        return f"alpha={self.alpha}, sigma={self.sigma}, mode={self.mode!r}"

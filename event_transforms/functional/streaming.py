@@ -1,0 +1,179 @@
+"""Bin an event stream that arrives in chunks, one frame at a time.
+
+:func:`iter_frames` bins an iterable of time-sorted chunks (a file read piece by piece, a
+live sensor) and yields one ``(2, H, W)`` frame per bin as soon as the bin is complete,
+by the rules of :func:`~event_transforms.functional.events_to_frames` (input forms,
+``t_start``, sensor and crop, dtype), so the frames equal those of binning the whole
+stream at once; memory stays a few times one chunk plus one frame.
+"""
+
+from __future__ import annotations
+
+__all__ = ["iter_frames"]
+
+from collections.abc import Iterable, Iterator, Mapping
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from .events import (
+    _FIELDS, _T_STARTS, _as_dtype, _empty_window_error, _explicit_starts, _flat_index, _floor_to_grid, _Grid, _grid,
+    _integer, _Source, _source, _Tally, _time_bins, _warn_outside,
+)
+
+
+def iter_frames(
+    chunks: Iterable[Tensor | Mapping[str, Any] | np.ndarray],
+    *,
+    sensor_size: tuple[int, int] | None = None,
+    tonic_sensor_size: tuple[int, int, int] | None = None,
+    t_start: str | float = "floor",
+    frame_ms: float = 10.0,
+    n_frames: int | None = None,
+    crop: tuple[int, int, int, int] | None = None,
+    pool: int = 1,
+    dtype: torch.dtype = torch.float32,
+    frames_per_step: int = 32,
+) -> Iterator[Tensor]:
+    r"""Bin a stream of event chunks and yield one frame ``(2, H', W')`` per bin, in order.
+
+    For recordings too large to hold and for online use: each chunk is any single-stream
+    input :func:`events_to_frames` takes (a slice of a memory-mapped file, a packet from
+    a sensor), the chunks together sorted by ``t`` (as tonic's readers and cameras deliver
+    them). A frame is yielded as soon as a later event shows its bin is complete (the
+    last one when the chunks run out); empty bins between events are yielded as zeros. The
+    frames equal :func:`events_to_frames` on the whole stream with the same options, and
+    feed :meth:`~event_transforms.tactile.models.ForceRegressor.step` directly (after
+    ``frame.unsqueeze(0)``). Memory: one chunk plus ``frames_per_step`` frames.
+
+    Args:
+        chunks: an iterable of event chunks, sorted by time across and within chunks.
+        sensor_size: ``(H, W)``; ``None`` means (180, 240). Events outside it are dropped
+            with an :class:`EventsOutsideSensorWarning` (once, on the first chunk that has
+            any).
+        tonic_sensor_size: tonic's ``(W, H, P)`` instead of ``sensor_size``.
+        t_start: ``"floor"``, ``"first"`` (both from the first event of the stream) or a
+            time in microseconds.
+        frame_ms: bin width in milliseconds.
+        n_frames: stop after this many frames (reading no further chunk); ``None`` runs
+            until the chunks end.
+        crop: ``(top, left, height, width)`` window inside the sensor, or ``None``.
+        pool: side of the square blocks summed into one output pixel.
+        dtype: dtype of the yielded counts.
+        frames_per_step: bins counted at once within a chunk (bounds the buffer).
+
+    Yields:
+        ``(2, H', W')`` counts, one per bin from ``t_start`` on.
+
+    Raises:
+        ValueError: chunks not sorted by time; events none of which falls in the time
+            window; the errors of :func:`events_to_frames`.
+
+    Example:
+        >>> import numpy as np
+        >>> events = np.zeros(6, dtype=[("x", "<i2"), ("y", "<i2"), ("t", "<i8"), ("p", "?")])
+        >>> events["t"] = [1_000, 2_000, 15_000, 41_000, 42_000, 43_000]
+        >>> events["p"] = [True, True, False, True, True, True]
+        >>> chunks = (events[i : i + 4] for i in range(0, len(events), 4))
+        >>> [frame.sum(dim=(1, 2)).tolist() for frame in iter_frames(chunks, sensor_size=(1, 1))]
+        [[0.0, 2.0], [1.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 3.0]]
+    """
+    grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
+    if n_frames is not None:
+        n_frames = _integer(n_frames, "n_frames")
+    step = _integer(frames_per_step, "frames_per_step")
+    if isinstance(t_start, str):
+        if t_start not in _T_STARTS:
+            raise ValueError(f"t_start must be 'floor', 'first' or a number, got {t_start!r}")
+        starts: Tensor | None = None
+    else:
+        starts = _explicit_starts(t_start, 1)
+    return _iter_frames(chunks, grid, t_start, starts, frame_ms, n_frames, step)
+
+def _iter_frames(
+    chunks: Iterable[Any], grid: _Grid, t_start: object, starts: Tensor | None, frame_ms: object,
+    n_frames: int | None, step: int,
+) -> Iterator[Tensor]:
+    size = grid.frame_size
+    shape = (2, grid.out_h, grid.out_w)
+    tally = _Tally(1)
+    warned = False
+    pending = 0  # the bin being filled
+    frame = None  # its counts, created on the device of the first chunk
+    last_t: Any = None
+
+    def emit(counts: Tensor) -> Tensor:
+        return _as_dtype(counts, grid.dtype).view(shape)
+
+    for number, events in enumerate(chunks):
+        source = _source(events)
+        if source.batched:
+            raise ValueError(f"chunks[{number}] must be one stream, got a batch of shape {tuple(events.shape)}")
+        chunk = _stream_chunk(source, number, last_t, starts, t_start, n_frames, grid, tally)
+        if chunk is None:
+            continue
+        starts, last_t, pixel, kept_bins, past_window = chunk
+        del chunk
+        if tally.outside and not warned:
+            _warn_outside(tally, int(tally.events.item()), grid, stacklevel=3)
+            warned = True
+        if frame is None:
+            frame = torch.zeros(size, dtype=torch.int64, device=source.device)
+        # the kept events' bins are sorted: count them ``step`` distinct bins at a time
+        distinct, inverse = torch.unique_consecutive(kept_bins, return_inverse=True)
+        bin_list = distinct.tolist()
+        for g in range(0, len(bin_list), step):
+            group = bin_list[g : g + step]
+            lo = int(torch.searchsorted(inverse, g))
+            hi = int(torch.searchsorted(inverse, g + len(group)))
+            local = torch.bincount((inverse[lo:hi] - g) * size + pixel[lo:hi], minlength=len(group) * size)
+            for k, b in enumerate(group):
+                while pending < b:
+                    yield emit(frame)
+                    frame = torch.zeros_like(frame)
+                    pending += 1
+                frame += local[k * size : (k + 1) * size]
+        del pixel, kept_bins, distinct, inverse  # before the next chunk is read
+        if past_window:
+            break  # every later event is past the window: the remaining bins are complete
+    if tally.events.item() and not tally.in_window.item():
+        raise _empty_window_error(
+            "the stream", starts.item(), t_start, frame_ms, n_frames, grid, tally.t_min[0], tally.t_max[0],
+            int(tally.events.item()),
+        )
+    if frame is None:
+        if n_frames is None:
+            return
+        frame = torch.zeros(size, dtype=torch.int64)
+    end = pending + 1 if n_frames is None else n_frames
+    while pending < end:
+        yield emit(frame)
+        frame = torch.zeros_like(frame)
+        pending += 1
+
+def _stream_chunk(
+    source: _Source, number: int, last_t: Any, starts: Tensor | None, t_start: object, n_frames: int | None,
+    grid: _Grid, tally: _Tally,
+) -> tuple[Tensor, Any, Tensor, Tensor, bool] | None:
+    """Bin one chunk of a stream: (starts, its last t, the kept events' pixels and bins, past the window?)."""
+    if source.length == 0:
+        return None
+    columns = source.read(0, source.length, _FIELDS)
+    t = columns["t"]
+    first_t, chunk_last = t[0, 0].item(), t[0, -1].item()
+    if (last_t is not None and first_t < last_t) or bool((t[0, 1:] < t[0, :-1]).any()):
+        raise ValueError(
+            f"iter_frames needs events sorted by t across chunks; chunks[{number}] goes back in time "
+            f"(to t={t.min().item()} after t={last_t if last_t is not None else first_t})"
+        )
+    if starts is None:
+        starts = torch.tensor([first_t], dtype=torch.float64 if isinstance(first_t, float) else torch.int64)
+        if t_start == "floor":
+            starts = _floor_to_grid(starts, grid.frame_us)
+    tally.add_times(t, None)
+    tally.events += t.shape[1]
+    bins = _time_bins(t, starts, grid.frame_us)
+    pixel, kept_bins = _flat_index(columns, None, bins, n_frames, grid, tally, within_frame=True)
+    return starts, chunk_last, pixel, kept_bins, n_frames is not None and int(bins[0, -1]) >= n_frames
