@@ -24,7 +24,10 @@ class EventsToFrames(EventTransform):
     ready for the frame transforms. It holds settings only, draws nothing and is
     picklable, so it runs as a tonic dataset ``transform=`` or in a ``DataLoader`` worker.
     Put it first in a :class:`~event_transforms.Compose` to make the whole pipeline take
-    events. With ``n_frames=None`` the number of frames follows the recording; give
+    events. An :class:`~event_transforms.EventBatch` is binned on its own device
+    (:func:`~event_transforms.functional.bin_events`, bin by bin equal to this module per
+    stream; the batch's frame grid, if it has one, fixes the starts), and then this module
+    may stand anywhere in a ``Compose``: event transforms before it, frame transforms after. With ``n_frames=None`` the number of frames follows the recording; give
     ``n_frames`` when a ``DataLoader`` must stack samples.
 
     Args:
