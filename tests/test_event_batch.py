@@ -456,3 +456,10 @@ def test_events_to_frames_first_takes_an_event_batch():
     batch = make_batch()
     pipeline = et.Compose([et.EventsToFrames(SENSOR, frame_ms=1.0, n_frames=T), et.HorizontalFlip()])
     assert torch.equal(pipeline(batch), bin_events(batch).flip(-1))
+
+
+def test_modules_still_move_with_to():
+    """The input-type dispatch must not shadow ``nn.Module._apply`` (used by ``.to``)."""
+    rotation = et.RandomRotation(10.0).to("cpu", torch.float64)
+    noise = et.AddNoise(torch.zeros(8, 2, *SENSOR)).to(torch.float64)
+    assert noise.bank.dtype == torch.float64 and isinstance(rotation, et.RandomRotation)

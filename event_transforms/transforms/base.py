@@ -497,7 +497,7 @@ class EventTransform(nn.Module):
             "EventsToFrames (it can stand anywhere in a Compose)"
         )
 
-    def _apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def _dispatch(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         """Dispatch on the input type: :meth:`apply_events` for an EventBatch, else :meth:`apply`."""
         if isinstance(inputs, EventBatch):
             return self.apply_events(inputs, params)
@@ -524,15 +524,15 @@ class EventTransform(nn.Module):
         honours its gate itself."""
         gate = params["apply"] if self.p < 1 else params.get("apply")
         if gate is None or self._gates_itself or self.couples_samples:
-            return self._apply(frames, params)
+            return self._dispatch(frames, params)
         if all(gate.tolist()):  # a CPU tensor from make_params: read on the host, no sync
-            return self._apply(frames, params)
+            return self._dispatch(frames, params)
         if isinstance(frames, EventBatch):
             neutral = _neutral_params(self)
             if neutral is not None:  # one pass over the batch, skipped streams left unchanged
-                return self._apply(frames, _gated(params, gate, neutral))
+                return self._dispatch(frames, _gated(params, gate, neutral))
         return apply_by_group(
-            frames, gate.long(), [None, lambda sub, index: self._apply(sub, slice_params(params, index))]
+            frames, gate.long(), [None, lambda sub, index: self._dispatch(sub, slice_params(params, index))]
         )
 
     def extra_repr(self) -> str:
