@@ -11,7 +11,7 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from event_transforms.functional.events import EventsOutsideSensorWarning, events_to_frames
+from event_transforms.functional.events import EventsOutsideSensorWarning, EventsOutsideWindowWarning, events_to_frames
 from event_transforms.functional.streaming import iter_frames
 
 TONIC_DTYPE = [("x", int), ("y", int), ("t", int), ("p", int)]
@@ -465,10 +465,14 @@ class TestRealRecordings:
         assert "sensor_size=(240, 320)" in message and "tonic_sensor_size=(320, 240, 2)" in message
         assert int(got.sum()) == 1000 - outside
 
-    def test_no_warning_for_the_crop_or_a_window_asked_for(self):
+    def test_no_warning_for_the_crop_and_a_count_for_the_window_asked_for(self):
+        """A crop drops events by design (no warning); a window the caller asked for drops
+        them as asked, with their count reported (issue 19)."""
         events = recording(np.random.default_rng(8), 500)
         with warnings.catch_warnings():
             warnings.simplefilter("error")
+            got = events_to_frames(events, sensor_size=(240, 320), crop=(100, 100, 20, 30))
+        with pytest.warns(EventsOutsideWindowWarning, match=r"^425 events lie outside the window .*n_frames=2 .*\(425 of 500\)"):
             got = events_to_frames(events, sensor_size=(240, 320), crop=(100, 100, 20, 30), n_frames=2)
         assert got.shape == (2, 2, 20, 30)
 
@@ -690,3 +694,52 @@ class TestEventsToFramesModule:
             "EventsToFrames(sensor_size=(180, 240), frame_ms=10.0, n_frames=None, t_start='floor', "
             "crop=(20, 45, 140, 150), pool=2, dtype=torch.int16)"
         )
+
+
+class TestNoSilentLoss:
+    """Issue 19, item 4: binning bounds memory by bytes, refuses dtypes that cannot hold the
+    counts, and reports the events a requested window drops."""
+
+    @staticmethod
+    def _stream(n, t_high, seed=0, t_low=0):
+        g = torch.Generator().manual_seed(seed)
+        t = torch.sort(torch.randint(t_low, t_high, (n,), generator=g)).values
+        return torch.stack([torch.randint(0, 240, (n,), generator=g), torch.randint(0, 180, (n,), generator=g), t, torch.randint(0, 2, (n,), generator=g)], 1)
+
+    @pytest.mark.parametrize("t_high", [300_000_000, 400_000_000], ids=["300 s in us", "0.4 s in ns"])
+    def test_long_recording_refused_quickly_by_bytes(self, t_high):
+        import time
+
+        start = time.perf_counter()
+        with pytest.raises(ValueError, match=r"GB \([0-9,]+ bytes\) .*max_bytes=4,294,967,296.*iter_frames.*n_frames"):
+            events_to_frames(self._stream(1000, t_high), sensor_size=(180, 240))
+        assert time.perf_counter() - start < 2.0
+        with pytest.raises(ValueError, match=r"n_frames asks for 40,000 frames"):
+            events_to_frames(self._stream(1000, 10_000), sensor_size=(180, 240), n_frames=40_000)
+        small = events_to_frames(self._stream(1000, 100_000), sensor_size=(180, 240), max_bytes=10**8)
+        assert small.shape == (10, 2, 180, 240)
+        with pytest.raises(ValueError, match="max_bytes=1,000"):
+            events_to_frames(self._stream(1000, 100_000), sensor_size=(180, 240), max_bytes=1000)
+
+    def test_bfloat16_that_cannot_hold_the_count_is_refused(self):
+        one_pixel = torch.tensor([[3, 4, 10, 1]] * 257)
+        with pytest.raises(ValueError, match=r"a pixel holds 257 events, more than dtype=torch.bfloat16 holds exactly \(256: 257 would become 256\)"):
+            events_to_frames(one_pixel, sensor_size=(8, 8), dtype=torch.bfloat16)
+        assert events_to_frames(one_pixel[:256], sensor_size=(8, 8), dtype=torch.bfloat16).sum().item() == 256
+        assert events_to_frames(one_pixel, sensor_size=(8, 8), dtype=torch.int16).sum().item() == 257
+
+    @pytest.mark.parametrize("dtype", [torch.uint16, torch.uint32])
+    def test_unsigned_wide_dtypes_refused_by_name(self, dtype):
+        with pytest.raises(TypeError, match=rf"dtype must be one the transforms take.*got {dtype}"):
+            events_to_frames(torch.tensor([[3, 4, 10, 1]]), sensor_size=(8, 8), dtype=dtype)
+
+    def test_floored_window_reports_the_events_it_drops(self):
+        # a 360 ms window of a recording with absolute stamps: the floored grid needs a 37th bin
+        events = self._stream(2000, 1_000_365_000, seed=3, t_low=1_000_005_000)
+        with pytest.warns(EventsOutsideWindowWarning, match=r"events lie outside the window t_start='floor', n_frames=36 .*one more frame") as record:
+            frames = events_to_frames(events, sensor_size=(180, 240), n_frames=36)
+        dropped = int(str(record[0].message).split(" ")[0].replace(",", ""))
+        assert dropped > 0 and int(frames.sum()) == 2000 - dropped
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert int(events_to_frames(events, sensor_size=(180, 240), n_frames=37).sum()) == 2000

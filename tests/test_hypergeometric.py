@@ -116,15 +116,12 @@ class TestBinomialCounts:
         assert hg.binomial_counts(empty, torch.tensor([0.5], dtype=torch.float64), empty).numel() == 0
 
 
-@pytest.fixture(params=["cpu", "direct", "rejection"])
+@pytest.fixture(params=["levels", "finish-at-once"])
 def finish(request, monkeypatch):
-    """Run a test with each exact finish: the CPU's choice (binomial levels, then smallest
-    keys), the accelerator's (smallest keys at any draw size), and the rejection finish
-    (taken when rows × widest row is too large for keys)."""
-    if request.param == "direct":
-        monkeypatch.setattr(hg, "direct_finish", lambda device: True)
-    elif request.param == "rejection":
-        monkeypatch.setattr(hg, "_keys_budget", lambda entries: -1)
+    """Run a test with each route a row can take, decided per row: binomial levels then the
+    rejection finish, and (with a large ``_SMALL``) the rejection finish at once."""
+    if request.param == "finish-at-once":
+        monkeypatch.setattr(hg, "_SMALL", 512)
     return request.param
 
 

@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 import event_transforms as et
 from event_transforms import functional as F
 from event_transforms._validation import as_batch
-from event_transforms.transforms.base import kernel_generator
-from event_transforms.functional.temporal import _draw_moved, _entries, _fractions
+from event_transforms.functional._streams import draw_seeds
+from event_transforms.functional.temporal import _draw_moved, _entries, _fractions, _temporal_event_shift
 from event_transforms.transforms import (
     FrameShift,
     RandomFrameShift,
@@ -46,7 +46,8 @@ def _moved_counts(frames, fraction, *, mode="exact", generator=None):
     batch, unbatch = as_batch(frames)
     fractions = _fractions(fraction, batch.shape[0])
     index, sample, values = _entries(batch)
-    moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator)
+    seeds = draw_seeds(batch.shape[0], generator)  # as temporal_event_shift draws them
+    moved, _ = _draw_moved(batch.shape, index, sample, values, fractions, mode, seeds)
     out = torch.zeros(batch.numel(), dtype=frames.dtype, device=frames.device)
     out[index] = moved.to(frames.dtype)
     return unbatch(out.view(batch.shape))
@@ -446,11 +447,10 @@ class TestModules:
         out = module(frames, params=params)
         if mode == "expected":  # deterministic: no seed
             assert sorted(params) == ["fraction", "shift"]
-            kernel = None
-        else:  # the kernel draws from a generator seeded by the per-sample seeds in params
+        else:  # the kernel draws from per-sample streams keyed by the seeds in params
             assert params["seed"].shape == (3,) and params["seed"].dtype == torch.int64
-            kernel = kernel_generator(params["seed"], frames.device)
-        assert torch.equal(out, F.temporal_event_shift(frames, -2, 0.5, mode=mode, generator=kernel))
+        shifts, fractions = torch.full((3,), -2), torch.full((3,), 0.5, dtype=torch.float64)
+        assert torch.equal(out, _temporal_event_shift(frames, shifts, fractions, mode, params.get("seed")))
         assert torch.equal(module(frames, generator=gen(5)), out)
         assert repr(module) == f"TemporalEventShift(shift=-2, fraction=0.5, mode={mode!r})"
         check_pickle(module, frames)
@@ -468,8 +468,7 @@ class TestModules:
         assert params["fraction"].std() > 0.1  # per sample, not one per batch
         frames = sparse_frames(300, 4, 2, 3, 5, high=9, density=0.6, dtype=torch.int64)
         out = module(frames, params=params)
-        kernel = kernel_generator(params["seed"], frames.device)
-        expected = F.temporal_event_shift(frames, params["shift"], params["fraction"], generator=kernel)
+        expected = _temporal_event_shift(frames, params["shift"], params["fraction"], "exact", params["seed"])
         assert torch.equal(out, expected)
         check_pickle(module, frames[:4])
         fixed = RandomTemporalEventShift(range(-1, 2), 0.5, mode="binomial")
@@ -539,3 +538,42 @@ def test_time_reversal_is_an_involution_that_swaps_polarity_totals(shape, seed):
     out = F.time_reversal(frames)
     assert torch.equal(F.time_reversal(out), frames)
     assert torch.equal(out.sum((1, 3, 4)), frames.sum((1, 3, 4)).flip(1))
+
+
+class TestNarrowDtypes:
+    """Issue 19, item 4: TES adds counts in a wide dtype and refuses a result the input dtype
+    cannot hold, by name; it never wraps."""
+
+    @pytest.mark.parametrize("mode", ["exact", "binomial"])
+    @pytest.mark.parametrize("dtype, value", [(torch.uint8, 250), (torch.int8, 120), (torch.int16, 32_760), (torch.bfloat16, 250)])
+    def test_overflow_refused_by_name(self, dtype, value, mode):
+        frames = torch.full((1, 4, 2, 8, 8), value, dtype=dtype)
+        with pytest.raises(ValueError, match=rf"hold up to \d+ events in a pixel, more than {dtype} holds exactly"):
+            F.temporal_event_shift(frames, -1, 0.5, mode=mode, generator=gen(0))
+
+    @pytest.mark.parametrize("dtype", [torch.uint8, torch.int8, torch.int16])
+    def test_results_that_fit_are_exact(self, dtype):
+        frames = torch.full((1, 4, 2, 8, 8), 60, dtype=dtype)
+        out = F.temporal_event_shift(frames, -1, 0.5, generator=gen(0))
+        wide = F.temporal_event_shift(frames.to(torch.int64), -1, 0.5, generator=gen(0))
+        assert out.dtype == dtype and torch.equal(out.to(torch.int64), wide)
+        assert int(out.to(torch.int64).sum()) == 4 * 128 * 60 - 128 * 30  # frame 0's moved half leaves
+
+
+class TestPerSamplePurity:
+    """Issue 19, item 1: a sample's TES draw depends on its own seed and counts only."""
+
+    @pytest.mark.parametrize("mode", ["exact", "binomial"])
+    def test_sample_alone_equals_sample_in_any_batch(self, mode):
+        frames = sparse_frames(6, 5, 2, H, W, high=9, density=0.5, dtype=torch.int64)
+        frames[2, 1, 0, 0, 0] = 10**6  # a count for torch.binomial's per-sample route
+        seeds = torch.arange(6, dtype=torch.int64) * 7919 + 3
+        shifts, fractions = torch.full((6,), -1), torch.linspace(0.1, 0.9, 6, dtype=torch.float64)
+        batched = _temporal_event_shift(frames, shifts, fractions, mode, seeds)
+        for b in range(6):
+            alone = _temporal_event_shift(frames[b : b + 1], shifts[b : b + 1], fractions[b : b + 1], mode, seeds[b : b + 1])
+            assert torch.equal(alone[0], batched[b])
+        other = frames.clone()
+        other[0] = 0  # a neighbour's data changes nothing for the others
+        changed = _temporal_event_shift(other, shifts, fractions, mode, seeds)
+        assert torch.equal(changed[1:], batched[1:])

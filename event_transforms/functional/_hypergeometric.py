@@ -20,12 +20,16 @@ Host synchronisations are few and counted: the numbers a sampler needs from the 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import numpy as np
 import torch
 from torch import Tensor
 
 from .._validation import read_host
+from ._streams import draw_seeds, entry_keys, generator_for, sample_salts, sub_uniform, uniform53
 
-__all__ = ["segment_sum", "binomial_counts", "multivariate_hypergeometric"]
+__all__ = ["segment_sum", "Stream", "binomial_counts", "multivariate_hypergeometric"]
 
 # Up to this many events of an entry are drawn one by one (one uniform each); larger counts
 # go to ``torch.binomial``. Residual subsets of at most _SMALL events per row are drawn
@@ -40,6 +44,53 @@ def segment_sum(values: Tensor, segment: Tensor, num_segments: int) -> Tensor:
     return out.index_add_(0, segment, values)
 
 
+@dataclass
+class Stream:
+    """Where the samplers' random numbers come from: per-sample counter-based streams.
+
+    Every entry (a non-zero pixel) and every row (a frame and polarity of a sample) is
+    named by its sample's salt and its position *within the sample*, so its numbers do
+    not depend on the rest of the batch (see :mod:`._streams`).
+
+    Attributes:
+        seeds: (B,) int64 per-sample seeds (CPU for the module path).
+        entry_sample: (n,) int64 sample of each entry.
+        entry_salt: (n,) int32 salt of each entry's sample.
+        entry_counter: (n,) int64 position of each entry within its sample.
+        row_salt: (R,) int32 salt of each row's sample.
+        row_counter: (R,) int64 position of each row within its sample.
+    """
+
+    seeds: Tensor
+    entry_sample: Tensor
+    entry_salt: Tensor
+    entry_counter: Tensor
+    row_salt: Tensor
+    row_counter: Tensor
+
+    @classmethod
+    def of_samples(cls, seeds: Tensor, entry_sample: Tensor, entry_counter: Tensor, rows_per_sample: int) -> Stream:
+        """Streams for a batch: entries named by (sample, position), rows by (sample, row)."""
+        device = entry_sample.device
+        salts = sample_salts(seeds, device)
+        rows = torch.arange(salts.numel() * rows_per_sample, device=device)
+        return cls(
+            seeds, entry_sample, salts.index_select(0, entry_sample), entry_counter,
+            salts.repeat_interleave(rows_per_sample), rows.remainder(max(rows_per_sample, 1)),
+        )
+
+    @classmethod
+    def single(cls, entries: int, rows: int, generator: torch.Generator | None, device: torch.device) -> Stream:
+        """One stream for a whole problem (the samplers' own ``generator=`` form)."""
+        seeds = draw_seeds(1, generator).to(device)
+        zeros = torch.zeros(entries, dtype=torch.int64, device=device)
+        return cls.of_samples(seeds, zeros, torch.arange(entries, device=device), rows)
+
+
+def _stream(stream: Stream | None, entries: int, rows: int, generator: torch.Generator | None, device) -> Stream:
+    return stream if stream is not None else Stream.single(entries, rows, generator, device)
+
+
 def expansion_stats(counts: Tensor) -> list[Tensor]:
     """0-d tensors a caller reads (in its own synchronisation) for :func:`binomial_counts`:
     the largest count and the number of events drawn one by one."""
@@ -51,6 +102,8 @@ def binomial_counts(
     prob: Tensor,
     key: Tensor,
     *,
+    stream: Stream | None = None,
+    level: int = 0,
     generator: torch.Generator | None = None,
     largest: int | None = None,
     events: int | None = None,
@@ -59,18 +112,22 @@ def binomial_counts(
     """Draw ``Binomial(counts[i], prob[key[i]])`` for every entry.
 
     The first ``_EXPAND_MAX`` events of each entry (all of them for the small counts of
-    event frames) are drawn one by one: one float64 uniform each, kept if below the
-    probability, summed back per entry (``index_add_``). Larger counts use
-    ``torch.binomial`` in float64 (exact integers up to 2**53) for the whole count.
-    Host synchronisations: none when ``largest`` and ``events`` (from
-    :func:`expansion_stats`) are given, else one; plus one to gather the counts above
-    ``_EXPAND_MAX`` when there are any.
+    event frames) are drawn one by one: one uniform each, a hash of the entry's sample
+    salt and the event's position in the sample (``stream``; ``level`` names the draw),
+    kept if below the probability, summed back per entry (``index_add_``). Larger counts
+    use ``torch.binomial`` in float64 (exact integers up to 2**53) for the whole count,
+    one call per sample holding such counts, with a generator seeded from that sample's
+    seed. Host synchronisations: none when ``largest`` and ``events`` (from
+    :func:`expansion_stats`) are given, else one; plus two to gather the counts above
+    ``_EXPAND_MAX`` and their samples when there are any.
 
     Args:
         counts: int64 (n,), non-negative.
         prob: float64 (P,), probabilities in [0, 1].
         key: int64 (n,), which probability each entry uses.
-        generator: source of randomness, on the counts' device.
+        stream: the per-sample streams (default: one stream from ``generator``).
+        level: names this draw among the draws of one stream.
+        generator: source of the stream's seed when ``stream`` is not given.
         largest: the largest count (an upper bound is not enough: it decides the clamp).
         events: ``counts.clamp_max(_EXPAND_MAX).sum()``.
         dtype: of the result (default int64), e.g. the frames' dtype.
@@ -80,47 +137,50 @@ def binomial_counts(
     """
     if counts.numel() == 0:
         return counts.to(dtype or counts.dtype, copy=True)
+    stream = _stream(stream, counts.numel(), 0, generator, counts.device)
     if largest is None or events is None:
         largest, events = (int(v) for v in read_host(torch.stack(expansion_stats(counts))))
     small = counts if largest <= _EXPAND_MAX else counts.clamp_max(_EXPAND_MAX)
     owner = torch.repeat_interleave(small, output_size=events)  # the entry of each event
-    u = torch.rand(events, dtype=torch.float64, device=counts.device, generator=generator)
+    first = small.cumsum(0).sub_(small)  # the first event of each entry
+    within = torch.arange(events, device=counts.device).sub_(first.index_select(0, owner))
+    keys = entry_keys(stream.entry_salt, stream.entry_counter)  # per entry, then one mix per event
+    u = sub_uniform(keys.index_select(0, owner), within, level)
     prob = prob if prob.dtype == torch.float64 else prob.to(torch.float64)
     hit = u < prob.index_select(0, key).index_select(0, owner)
     dtype = counts.dtype if dtype is None else dtype
     out = torch.zeros(counts.shape, dtype=dtype, device=counts.device).index_add_(0, owner, hit.to(dtype))
     if largest > _EXPAND_MAX:
-        large = (counts > _EXPAND_MAX).nonzero().squeeze(1)
-        drawn = torch.binomial(
-            counts.index_select(0, large).to(torch.float64),
-            prob.to(torch.float64).index_select(0, key.index_select(0, large)),
-            generator=generator,
-        )
-        out.index_copy_(0, large, drawn.to(dtype))
+        _large_counts(out, counts, prob, key, stream, level)
     return out
 
 
-def direct_finish(device: torch.device) -> bool:
-    """Whether :func:`multivariate_hypergeometric` finishes by smallest keys at any draw size.
-
-    On an accelerator, yes: one ``topk`` over (rows, widest row) keys replaces a binomial
-    level and its correction (about 35 launches and one host synchronisation). On the CPU,
-    no: the ``topk`` of a few hundred keys per row costs more arithmetic than the level
-    (measured 1.4x slower on the benchmark batch), so a binomial level first shrinks the
-    draws to about their square root.
-    """
-    return torch.device(device).type != "cpu"
-
-
-def _keys_budget(entries: int) -> int:
-    """Most (rows × widest row) keys of the smallest-keys finish: memory O(entries)."""
-    return 4 * entries + 2**16
+def _large_counts(out: Tensor, counts: Tensor, prob: Tensor, key: Tensor, stream: Stream, level: int) -> None:
+    """Overwrite the entries above ``_EXPAND_MAX`` with ``torch.binomial`` draws, one call
+    per sample, from a generator seeded by that sample's seed and ``level`` (pure per sample)."""
+    large = (counts > _EXPAND_MAX).nonzero().squeeze(1)
+    owners = np.asarray(read_host(stream.entry_sample.index_select(0, large)), dtype=np.int64)
+    seeds = stream.seeds.tolist() if stream.seeds.device.type == "cpu" else read_host(stream.seeds)
+    bounds = np.flatnonzero(np.diff(owners)) + 1  # entries are sorted by sample
+    for part in np.split(np.arange(owners.size), bounds):
+        if not part.size:
+            continue
+        index = large.index_select(0, torch.from_numpy(part).to(large.device))
+        generator = generator_for(seeds[int(owners[part[0]])], level, counts.device)
+        drawn = torch.binomial(
+            counts.index_select(0, index).to(torch.float64),
+            prob.index_select(0, key.index_select(0, index)),
+            generator=generator,
+        )
+        out.index_copy_(0, index, drawn.to(out.dtype))
 
 
 def level_stats(size: Tensor, total: Tensor) -> list[Tensor]:
     """0-d tensors :func:`multivariate_hypergeometric` needs on the host, to be read in one
-    synchronisation: the largest draw ``min(size, total - size)`` and the widest row."""
-    return [torch.minimum(size, total - size).max(), total.max()]
+    synchronisation: the largest draw ``d = min(size, total - size)`` and the largest
+    draw of at most ``_SMALL`` (the width of the rows finished at this level)."""
+    draw = torch.minimum(size, total - size)
+    return [draw.max(), torch.where(draw <= _SMALL, draw, 0).max()]
 
 
 def multivariate_hypergeometric(
@@ -129,9 +189,11 @@ def multivariate_hypergeometric(
     size: Tensor,
     *,
     total: Tensor | None = None,
+    stream: Stream | None = None,
     generator: torch.Generator | None = None,
     stats: tuple[int, int] | None = None,
     expansion: tuple[int, int] | None = None,
+    level: int = 0,
 ) -> Tensor:
     """Per-entry counts of a uniformly random ``size[r]``-subset of each row's events.
 
@@ -140,7 +202,10 @@ def multivariate_hypergeometric(
     distributed as the multivariate hypergeometric law (a uniform subset without
     replacement), independently per row.
 
-    Algorithm (binomial draw, then exact correction, recursively): keep each event
+    Algorithm (binomial draw, then exact correction, recursively), decided **per row** from
+    that row's own draw d = min(size, total - size), so a row's result never depends on
+    the other rows of the batch: a row with d <= ``_SMALL`` is finished at once by drawing
+    d distinct event *positions* (:func:`_small_subsets`). Any other row keeps each event
     independently with probability ``q = size / total``, giving Y' ~ Binomial(pool, q)
     with S' = sum(Y'). Conditioned on S', the kept set is a uniform S'-subset. If
     S' > size, remove a uniform (S' - size)-subset of the kept events (a multivariate
@@ -148,29 +213,27 @@ def multivariate_hypergeometric(
     (size - S')-subset of the others (from the counts pool - Y'). The result is invariant
     under permutations of the events and always has exactly ``size`` events, so it is a
     uniform size-subset: exact. The correction is of order sqrt(total q (1 - q)), so each
-    level shrinks the problem from ~N to ~sqrt(N) events (10**7 -> ~1600 -> ~40). Once
-    every row needs at most ``_SMALL`` events (or all but that many; at any size on an
-    accelerator, see :func:`direct_finish`), the residual is
-    drawn as a set of distinct event *positions* that map to entries by ``searchsorted``
-    on the int64 cumsum of the pool: the ``d`` smallest of independent uniform keys, one
-    per position of the row (:func:`_smallest_keys`, when rows × widest row is within a
-    small multiple of the pool), else by rejection (:func:`_small_subsets`).
+    level shrinks the problem from ~N to ~sqrt(N) events (10**7 -> ~1600 -> ~40).
 
-    Cost: per level one binomial draw and a few passes over the pool (length n); the
-    finish works on (rows, widest row) keys or (rows, <= _SMALL) positions. Memory O(n),
-    independent of the counts. Host synchronisations: one per level (:func:`level_stats`,
-    none at the top level when ``stats`` is given), one per binomial draw unless
-    ``expansion`` gives its numbers (the top level's); the rejection finish adds about one
-    per round.
+    Randomness: counter-based, from ``stream`` (entries and rows named within their
+    sample; ``level`` names the recursion level), so a sample's rows give the same result
+    alone as in any batch. Cost: per level one binomial draw and a few passes over the
+    pool (length n); the finish works on (rows, <= _SMALL) positions. Memory O(n),
+    independent of the counts. Host synchronisations: one per level
+    (:func:`level_stats`, none at the top level when ``stats`` is given), one per
+    binomial draw unless ``expansion`` gives its numbers (the top level's), and about one
+    per round of the finish.
 
     Args:
         pool: int64 (n,), non-negative counts.
         segment: int64 (n,), sorted row ids in [0, R).
         size: int64 (R,), ``0 <= size <= total``.
         total: int64 (R,) row totals if already known.
-        generator: source of randomness, on the pool's device.
+        stream: the per-sample streams (default: one stream from ``generator``).
+        generator: source of the stream's seed when ``stream`` is not given.
         stats: :func:`level_stats` as host ints, if already read.
         expansion: :func:`expansion_stats` of the pool as host ints, if already read.
+        level: the recursion level (names the draws).
 
     Returns:
         int64 (n,).
@@ -179,18 +242,20 @@ def multivariate_hypergeometric(
         total = segment_sum(pool, segment, size.numel())
     if pool.numel() == 0:
         return pool.clone()
+    stream = _stream(stream, pool.numel(), size.numel(), generator, pool.device)
     if stats is None:
         stats = tuple(int(v) for v in read_host(torch.stack(level_stats(size, total))))
-    draw, widest = stats
-    direct = direct_finish(pool.device)
-    if (draw <= _SMALL or direct) and size.numel() * widest <= _keys_budget(pool.numel()):
-        return _smallest_keys(pool, segment, size, total, generator, draw, widest)
+    draw, width = stats
     if draw <= _SMALL:
-        return _small_subsets(pool, segment, size, total, generator, draw)
-    # size / total is 0 / 1 = 0 for an empty row.
+        return _small_subsets(pool, segment, size, total, stream, draw, level)
+    finish = torch.minimum(size, total - size) <= _SMALL
+    finish_entry = finish.index_select(0, segment)
+    finished = _small_subsets(pool, segment, torch.where(finish, size, 0), total, stream, width, level)
+    size = torch.where(finish, 0, size)
+    # size / total is 0 / 1 = 0 for an empty row (and for every finished row).
     prob = size.to(torch.float64) / total.clamp_min(1).to(torch.float64)
     largest, events = (None, None) if expansion is None else expansion
-    kept = binomial_counts(pool, prob, segment, generator=generator, largest=largest, events=events)
+    kept = binomial_counts(pool, prob, segment, stream=stream, level=level, largest=largest, events=events)
     kept_total = segment_sum(kept, segment, size.numel())
     excess = kept_total - size
     over = excess > 0
@@ -198,41 +263,13 @@ def multivariate_hypergeometric(
     residual_pool = torch.where(over_entry, kept, pool - kept)
     residual_total = torch.where(over, kept_total, total - kept_total)
     correction = multivariate_hypergeometric(
-        residual_pool, segment, excess.abs(), total=residual_total, generator=generator
+        residual_pool, segment, excess.abs(), total=residual_total, stream=stream, level=level + 1
     )
-    return torch.where(over_entry, kept - correction, kept + correction)
+    return torch.where(finish_entry, finished, torch.where(over_entry, kept - correction, kept + correction))
 
-
-def _smallest_keys(
-    pool: Tensor, segment: Tensor, size: Tensor, total: Tensor, generator: torch.Generator | None, width: int, widest: int
-) -> Tensor:
-    """Exact MVHG for draws d = min(size, total - size) <= ``width`` and rows of at most
-    ``widest`` events, with no loop.
-
-    Every position of row r (0 .. total - 1; the padding up to ``widest`` sorts last) gets
-    an independent float64 uniform key; the d positions with the smallest keys are a
-    uniformly random d-subset (exchangeable keys; ties have probability below
-    widest**2 * 2**-53 and are broken by position). They are the kept events, or the
-    complement when size > total / 2. Positions map to entries through the cumsum of the
-    pool. Work (rows, widest) keys and one ``topk``.
-    """
-    draw = torch.minimum(size, total - size)
-    complement = draw != size
-    if width == 0:  # every row keeps all or none of its events
-        return torch.where(complement.index_select(0, segment), pool, 0)
-    position = torch.arange(widest, device=pool.device)
-    keys = torch.rand(size.numel(), widest, dtype=torch.float64, device=pool.device, generator=generator)
-    keys.masked_fill_(position >= total.unsqueeze(1), 2.0)  # padding after every real position
-    chosen = keys.topk(width, dim=1, largest=False, sorted=True).indices  # (rows, width)
-    held = position[:width] < draw.unsqueeze(1)
-    chosen += (total.cumsum(0) - total).unsqueeze(1)  # first position of each row
-    entries = torch.searchsorted(pool.cumsum(0), chosen.view(-1), right=True)
-    # Slots past a row's draw may point past the last entry: they add 0 anywhere.
-    counted = torch.zeros_like(pool).index_add_(0, entries.clamp_max_(pool.numel() - 1), held.view(-1).to(pool.dtype))
-    return torch.where(complement.index_select(0, segment), pool - counted, counted)
 
 def _small_subsets(
-    pool: Tensor, segment: Tensor, size: Tensor, total: Tensor, generator: torch.Generator | None, width: int
+    pool: Tensor, segment: Tensor, size: Tensor, total: Tensor, stream: Stream, width: int, level: int
 ) -> Tensor:
     """Exact MVHG when every row needs at most ``width`` (<= ``_SMALL``) events or all but that many.
 
@@ -243,8 +280,10 @@ def _small_subsets(
     permutations of the positions and has exactly d elements, so it is a uniform
     d-subset; since d <= total / 2 each draw is accepted with probability >= 1/2, so
     about log2(d) rounds. Positions map to entries through the cumsum of the pool.
-    Uniform integers use float64 (relative bias below total * 2**-53). Every row takes
-    part (rows that draw nothing hold only padding), so no row list is gathered.
+    Uniform integers use 53-bit uniforms (relative bias below total * 2**-53), named by
+    the row's position in its sample, the slot, the level and the round, so a row's
+    draw does not depend on the other rows. Every row takes part (rows that draw nothing
+    hold only padding), so no row list is gathered.
     """
     complement = 2 * size > total
     draw = torch.where(complement, total - size, size)
@@ -258,8 +297,9 @@ def _small_subsets(
         offset = total.cumsum(0) - total
         for start in range(0, rows, chunk):
             part = slice(start, start + chunk)
+            names = (stream.row_salt[part].unsqueeze(1), stream.row_counter[part].unsqueeze(1) * _SMALL)
             positions = offset[part].unsqueeze(1) + _distinct_positions(
-                draw[part].unsqueeze(1), total[part].unsqueeze(1), generator, width
+                draw[part].unsqueeze(1), total[part].unsqueeze(1), names, width, level
             )
             # Padding slots hold large negative positions: they add 0 at entry 0.
             held = positions >= 0
@@ -273,9 +313,10 @@ def _small_subsets(
 _UNCHECKED_ROUNDS = 2
 
 
-def _distinct_positions(want: Tensor, have: Tensor, generator: torch.Generator | None, width: int) -> Tensor:
+def _distinct_positions(want: Tensor, have: Tensor, names: tuple[Tensor, Tensor], width: int, level: int) -> Tensor:
     """Per row, ``want`` (<= ``width``) distinct uniform positions in [0, have) (see
-    :func:`_small_subsets`).
+    :func:`_small_subsets`). ``names`` are each row's salt and first counter: slot k of
+    round r draws the uniform named (salt, counter + k) for purpose (level, r).
 
     Returns (rows, width) int64; padding slots hold -2**62, so ``offset + result >= 0``
     selects the drawn positions. Positions are carried doubled, as ``2 v`` for a held value
@@ -287,6 +328,8 @@ def _distinct_positions(want: Tensor, have: Tensor, generator: torch.Generator |
     # Unused slots hold distinct sentinels >= have, never taken for positions.
     key = torch.where(slot < want, -1, 2 * (have + slot))
     scale = have.to(torch.float64)
+    salt, first = names
+    counter = first + slot
     top = have - 1
     rounds = 0
     while True:
@@ -294,7 +337,7 @@ def _distinct_positions(want: Tensor, have: Tensor, generator: torch.Generator |
         if rounds >= _UNCHECKED_ROUNDS and not bool(empty.any()):
             break
         rounds += 1
-        u = torch.rand(key.shape, dtype=torch.float64, device=device, generator=generator)
+        u = uniform53(salt, counter, 1_000 + 64 * level + rounds)  # (rows, width), small
         fresh = torch.minimum(u.mul_(scale).to(torch.int64), top)
         key, _ = torch.where(empty, 2 * fresh + 1, key).sort(dim=1)
         value = key >> 1

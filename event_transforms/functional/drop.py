@@ -14,7 +14,9 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from .._validation import DROP_MODES, as_batch, check_choice, check_counts, check_frames, check_generator, describe, per_sample
+from .._validation import DROP_MODES, as_batch, check_choice, check_frames, check_generator, count_stats, describe, per_sample
+from ._hypergeometric import _EXPAND_MAX, Stream, binomial_counts
+from ._streams import draw_seeds
 
 __all__ = ["drop_events", "drop_by_time", "drop_by_area", "drop_pixel", "random_pixel_mask"]
 
@@ -56,15 +58,19 @@ def drop_events(
     fraction_t = per_sample(fraction, batch.shape[0], "fraction")
     if fraction_t.numel() and bool(((fraction_t < 0) | (fraction_t > 1)).any()):
         raise ValueError(f"fraction must lie in [0, 1], got {describe(fraction)}")
-    return unbatch(_drop_events(batch, fraction_t, mode, generator))
+    seeds = draw_seeds(batch.shape[0], generator) if mode == "binomial" else None
+    return unbatch(_drop_events(batch, fraction_t, mode, seeds))
 
 _DROP_HINT = 'drop events before interpolating transforms (bilinear rotate/resize), or use mode="expected"'
 
-def _drop_events(
-    batch: Tensor, fraction: Tensor, mode: str, generator: torch.Generator | None, hint: str = _DROP_HINT
-) -> Tensor:
-    """``drop_events`` on a (B, T, 2, H, W) batch with (B,) CPU fractions; ``hint`` ends the
-    error raised for fractional counts."""
+def _drop_events(batch: Tensor, fraction: Tensor, mode: str, seeds: Tensor | None, hint: str = _DROP_HINT) -> Tensor:
+    """``drop_events`` on a (B, T, 2, H, W) batch with (B,) CPU fractions and (B,) int64
+    per-sample ``seeds``; ``hint`` ends the error raised for fractional counts.
+
+    Each event's fate is a counter-based uniform named by its sample's seed and its
+    position in the sample (:class:`~._hypergeometric.Stream`), so a sample's result does
+    not depend on its batch. One ``nonzero`` and one host read (the check and the numbers
+    the sampler needs)."""
     keep = (1.0 - fraction).view(-1, 1, 1, 1, 1)
     if mode == "expected":
         dtype = batch.dtype if batch.is_floating_point() else torch.float32
@@ -75,11 +81,16 @@ def _drop_events(
     flat = batch.reshape(-1)
     index = flat.nonzero().squeeze(1)
     values = flat.index_select(0, index)
-    check_counts(values, "frames", whole=hint)
-    sample = torch.div(index, batch[0].numel(), rounding_mode="floor")
-    prob = keep.view(-1).to(batch.device).index_select(0, sample)
-    kept = torch.binomial(values.to(torch.float64), prob, generator=generator)
-    out = torch.zeros_like(flat).index_copy_(0, index, kept.to(batch.dtype))
+    if index.numel() == 0:
+        return batch.clone()
+    counts = values.to(torch.int64)
+    high, events = count_stats(values, counts, hint=hint, extra=[counts.clamp_max(_EXPAND_MAX).sum()])
+    volume = batch[0].numel()
+    sample = torch.div(index, volume, rounding_mode="floor")
+    stream = Stream.of_samples(seeds, sample, index - sample * volume, 0)
+    prob = keep.view(-1).to(batch.device, torch.float64)
+    kept = binomial_counts(counts, prob, sample, stream=stream, largest=int(high), events=events, dtype=batch.dtype)
+    out = torch.zeros_like(flat).index_copy_(0, index, kept)
     return out.reshape(batch.shape)
 
 def _window_mask(start: Tensor, length: Tensor, size: int, device: torch.device) -> Tensor:

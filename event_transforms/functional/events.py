@@ -39,7 +39,7 @@ that arrives in chunks by the same rules.
 
 from __future__ import annotations
 
-__all__ = ["events_to_frames", "EventsOutsideSensorWarning", "CHUNK_EVENTS"]
+__all__ = ["events_to_frames", "EventsOutsideSensorWarning", "EventsOutsideWindowWarning", "CHUNK_EVENTS", "MAX_BYTES"]
 
 import math
 import warnings
@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 import torch
 from torch import Tensor
+from .._validation import FRAME_DTYPES
 
 #: Events read per chunk by default: the extra memory of a call is a few times this many
 #: 64-bit values plus the output.
@@ -66,8 +67,18 @@ _T_STARTS = ("floor", "first")
 _MAX_INFERRED_FRAMES = 100_000
 
 
+#: Default bound of the memory :func:`events_to_frames` may allocate (its int64 buffer
+#: plus the output), in bytes: 4 GiB. A longer recording is refused by name, quickly.
+MAX_BYTES = 2**32
+
+
 class EventsOutsideSensorWarning(UserWarning):
     """Events lay outside ``sensor_size`` and were dropped (usually a wrong sensor size)."""
+
+
+class EventsOutsideWindowWarning(UserWarning):
+    """Events lay outside the time window the caller asked for (``t_start``, ``n_frames``)
+    and were dropped, as asked; the warning counts them."""
 
 
 # --------------------------------------------------------------------------- columns
@@ -301,6 +312,11 @@ def _check_crop(crop: object, height: int, width: int, pool: int) -> tuple[int, 
 def _check_dtype(dtype: object) -> torch.dtype:
     if not isinstance(dtype, torch.dtype) or dtype == torch.bool or dtype.is_complex:
         raise TypeError(f"dtype must be an integer or float torch.dtype, got {dtype!r}")
+    if dtype not in FRAME_DTYPES:
+        raise TypeError(
+            f"dtype must be one the transforms take, {[str(d) for d in FRAME_DTYPES]}, got {dtype} "
+            "(torch's unsigned 16/32/64-bit types lack the arithmetic the kernels need)"
+        )
     return dtype
 
 
@@ -502,12 +518,33 @@ def _accumulate(counts: Tensor, index: Tensor) -> None:
 
 
 def _as_dtype(counts: Tensor, dtype: torch.dtype) -> Tensor:
-    info = torch.finfo(dtype) if dtype.is_floating_point else torch.iinfo(dtype)
+    """The int64 counts in ``dtype``; refused by name unless ``dtype`` holds every count exactly."""
+    # floats hold every whole number up to 2 / eps exactly (bfloat16: 256, float16: 2048)
+    exact = 2 / torch.finfo(dtype).eps if dtype.is_floating_point else torch.iinfo(dtype).max
     if counts.numel():
         largest = int(counts.max())
-        if largest > info.max:
-            raise ValueError(f"a count of {largest} does not fit dtype {dtype}; use a wider dtype")
+        if largest > exact:
+            raise ValueError(
+                f"a pixel holds {largest:,} events, more than dtype={dtype} holds exactly ({int(exact):,}: "
+                f"{largest:,} would become {counts.max().to(dtype).item():,.0f}); use a wider dtype "
+                "(torch.float32 or an integer dtype)"
+            )
     return counts.to(dtype)
+
+
+def _check_bytes(batch: int, n_frames: int, grid: _Grid, max_bytes: int | None, where: str) -> None:
+    """Refuse, before allocating, a binning that needs more than ``max_bytes``."""
+    if max_bytes is None:
+        return
+    values = batch * n_frames * grid.frame_size
+    needed = values * (8 + (torch.finfo(grid.dtype).bits if grid.dtype.is_floating_point else torch.iinfo(grid.dtype).bits) // 8)
+    if needed > max_bytes:
+        raise ValueError(
+            f"events_to_frames: {where} {n_frames:,} frames of {grid.frame_size:,} values"
+            f"{f' for {batch} streams' if batch > 1 else ''}, {needed / 1e9:,.1f} GB ({needed:,} bytes) with the "
+            f"int64 buffer, more than max_bytes={max_bytes:,}. Timestamps must be in microseconds; to bin a long "
+            "recording, stream it with iter_frames, pass n_frames for a window, or raise max_bytes"
+        )
 
 
 def _warn_outside(tally: _Tally, total: int, grid: _Grid, stacklevel: int) -> None:
@@ -552,6 +589,7 @@ def events_to_frames(
     lengths: Tensor | Sequence[int] | None = None,
     mask: Tensor | None = None,
     chunk_size: int = CHUNK_EVENTS,
+    max_bytes: int | None = MAX_BYTES,
 ) -> Tensor:
     r"""Count events into fixed time bins, one channel per polarity.
 
@@ -590,6 +628,11 @@ def events_to_frames(
         mask: for a batch, a (B, N) bool tensor marking valid events (instead of lengths).
         chunk_size: events read at a time; the extra memory is a few times this many
             64-bit values plus the output.
+        max_bytes: most bytes the binning may allocate (an int64 buffer and the output,
+            ``B·T·2·H'·W'·(8 + itemsize)``); more raises ``ValueError`` with the byte count
+            before anything is allocated (a 300 s recording in 10 ms bins on a 240×180
+            sensor needs 31 GB). ``None``: no bound. Stream long recordings with
+            :func:`iter_frames`.
 
     Shape:
         - events: ``(N, 4)``, ``(B, N, 4)`` or N-long columns.
@@ -629,8 +672,11 @@ def events_to_frames(
     source = _source(events)
     grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
     chunk = max(1, _integer(chunk_size, "chunk_size") // max(source.batch, 1))
+    if max_bytes is not None:
+        max_bytes = _integer(max_bytes, "max_bytes")
     if n_frames is not None:
         n_frames = _integer(n_frames, "n_frames")
+        _check_bytes(source.batch, n_frames, grid, max_bytes, "n_frames asks for")
     if not source.batched and (lengths is not None or mask is not None):
         raise ValueError("lengths and mask apply to a (B, N, 4) batch of events only")
     valid_all = _valid_mask(source.batch, source.length, lengths, mask, source.device)
@@ -668,6 +714,7 @@ def events_to_frames(
                 f"to {max(v for v in ranges.t_max if v is not None)}); timestamps must be in microseconds. "
                 "Pass n_frames to bin a window of that length"
             )
+        _check_bytes(batch, n_frames, grid, max_bytes, "the events span")
 
     # Pass 2: bin chunk by chunk into one int64 buffer.
     tally = _Tally(batch)
@@ -695,6 +742,21 @@ def events_to_frames(
                 frame_ms, n_frames, grid, ranges.t_min[b], ranges.t_max[b], int(tally.events[b])
             )
     _warn_outside(tally, int(tally.events.sum()), grid, stacklevel=3)
+    dropped = (tally.events - tally.in_window).tolist()
+    if any(dropped):
+        streams = [f"{d:,} of {e:,}" for d, e in zip(dropped, tally.events.tolist())]
+        where = f"per stream: {', '.join(streams)}" if source.batched else streams[0]
+        warnings.warn(
+            EventsOutsideWindowWarning(
+                f"{sum(dropped):,} events lie outside the window t_start={t_start!r}, n_frames={n_frames} of "
+                f"frame_ms={frame_ms!r} and were dropped ({where})"
+                + (
+                    "; with t_start='floor' the grid starts before the first event, so a window of n_frames "
+                    "may need one more frame" if t_start == "floor" else ""
+                )
+            ),
+            stacklevel=2,
+        )
     frames = _as_dtype(counts, grid.dtype).view(batch, n_frames, 2, grid.out_h, grid.out_w)
     return frames if source.batched else frames.squeeze(0)
 

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
+from ._streams import draw_seeds, entry_keys, generator_for, sample_salts, sub_uniform
 from .._validation import (
     as_batch,
     check_counts,
@@ -20,6 +21,7 @@ from .._validation import (
     check_positive,
     describe,
     per_sample,
+    read_host,
 )
 
 __all__ = ["add_noise", "add_poisson_noise"]
@@ -148,7 +150,12 @@ def add_poisson_noise(
     rate = per_sample(rate_hz, batch.shape[0], "rate_hz")
     if rate.numel() and not bool((rate.isfinite() & (rate >= 0)).all()):
         raise ValueError(f"rate_hz must be finite and >= 0, got {describe(rate_hz)}")
-    return unbatch(_add_poisson_noise(batch, rate * (frame_ms / 1000.0), generator=generator))
+    lam = rate * (frame_ms / 1000.0)
+    totals = None
+    if lam.numel() and max(lam.tolist()) < 1.0:  # sparse: totals first (an accelerator generator draws there)
+        device = "cpu" if generator is None else generator.device
+        totals = torch.poisson((lam * batch[0].numel()).to(device), generator=generator).long().cpu()
+    return unbatch(_add_poisson_noise(batch, lam, totals=totals, seeds=draw_seeds(batch.shape[0], generator)))
 
 
 def _poisson_totals(lam: Tensor, shape: torch.Size, generator: torch.Generator | None) -> Tensor | None:
@@ -163,31 +170,38 @@ def _poisson_totals(lam: Tensor, shape: torch.Size, generator: torch.Generator |
     return torch.poisson(lam * cells, generator=generator).to(torch.int64)
 
 
-def _add_poisson_noise(
-    batch: Tensor, lam: Tensor, *, totals: Tensor | None = None, generator: torch.Generator | None
-) -> Tensor:
-    """Add Poisson(λ_b) counts per cell to a (B, T, 2, H, W) batch; ``lam`` (B,) CPU float64.
+def _add_poisson_noise(batch: Tensor, lam: Tensor, *, totals: Tensor | None = None, seeds: Tensor) -> Tensor:
+    """Add Poisson(λ_b) counts per cell to a (B, T, 2, H, W) batch; ``lam`` (B,) CPU float64,
+    ``seeds`` (B,) int64 per-sample seeds.
 
-    With ``totals`` (B,) (CPU int64, from :func:`poisson_totals`) the events are placed
+    With ``totals`` (B,) (CPU int64, from :func:`_poisson_totals`) the events are placed
     uniformly among the cells: exactly independent Poisson(λ) per cell (Poissonisation), in
-    O(events) work and with no host synchronisation. Without, sparse noise draws its totals
-    here and dense noise draws every cell with ``torch.poisson``.
+    O(events) work and with no host synchronisation; event k of sample b lands in the cell
+    named by a counter-based uniform of (seed b, k). Without, every cell is drawn with
+    ``torch.poisson``, one call per sample with a generator seeded by that sample's seed.
+    Either way a sample's noise depends on its own seed only, never on its batch.
     """
     if batch.numel() == 0:
         return batch.clone()
     device = batch.device
     cells = batch[0].numel()
-    if totals is None and lam.numel() and max(lam.tolist()) < 1.0:
-        totals = torch.poisson((lam * cells).to(device), generator=generator).long().cpu()
     if totals is not None:
         count = sum(totals.tolist())  # a CPU tensor: read on the host
-        position = torch.randint(cells, (count,), generator=generator, device=device)
         sample = torch.repeat_interleave(
             torch.arange(batch.shape[0], device=device), totals.to(device), output_size=count
         )
+        first = (totals.cumsum(0) - totals).to(device)
+        within = torch.arange(count, device=device) - first.index_select(0, sample)
+        keys = entry_keys(sample_salts(seeds, device), torch.zeros(1, dtype=torch.int64, device=device))
+        position = (sub_uniform(keys.index_select(0, sample), within, 0, bits=53) * cells).to(torch.int64)
+        position = position.clamp_max_(cells - 1)
         return _add_events(batch, sample * cells + position)
-    rates = lam.to(device=device, dtype=torch.float64).view(-1, 1, 1, 1, 1).expand(batch.shape)
-    noise = torch.poisson(rates.contiguous(), generator=generator)
+    rates = lam.to(dtype=torch.float64).tolist()
+    host_seeds = seeds.tolist() if seeds.device.type == "cpu" else read_host(seeds)
+    noise = torch.empty(batch.shape, dtype=torch.float64, device=device)
+    for b, rate in enumerate(rates):
+        generator = generator_for(host_seeds[b], 0, device)
+        noise[b] = torch.poisson(torch.full(batch.shape[1:], rate, dtype=torch.float64, device=device), generator=generator)
     return _add_counts(batch, noise, "Poisson noise")
 
 

@@ -23,10 +23,11 @@ from torch import Tensor
 
 from .._validation import (
     TES_MODES, as_batch, as_number, check_choice, check_counts, check_frames, check_generator, count_stats, describe, on_host,
-    per_sample,
+    per_sample, read_host,
 )
+from ._streams import draw_seeds
 from ._hypergeometric import (
-    _EXPAND_MAX, binomial_counts, direct_finish, level_stats, multivariate_hypergeometric, segment_sum,
+    _EXPAND_MAX, Stream, binomial_counts, level_stats, multivariate_hypergeometric, segment_sum,
 )
 
 __all__ = ["frame_shift", "temporal_event_shift", "time_reversal", "crop_time"]
@@ -181,8 +182,14 @@ def temporal_event_shift(
     Dtype: ``"exact"`` and ``"binomial"`` conserve counts and keep the dtype; they need
     integer-valued counts (integer dtypes, or floats holding whole numbers up to 2**53)
     and raise ``ValueError`` otherwise. ``"expected"`` returns the input dtype for float
-    input and float32 for integer input. The device is kept. With a ``torch.Generator``
-    the result is a deterministic function of the input and the generator state.
+    input and float32 for integer input. The device is kept. Counts are added in a wide
+    dtype where the input's could overflow or round (uint8 at 250, int16 at 32,760,
+    bfloat16 above 256): a result that the input dtype cannot hold exactly raises
+    ``ValueError`` with the largest count, never wraps. With a ``torch.Generator`` the
+    result is a deterministic function of the input and the generator state: it draws
+    one seed per sample, and each sample's events are chosen from a counter-based stream
+    keyed by that seed (:mod:`._streams`), so a sample's result does not depend on the
+    rest of its batch.
 
     Args:
         frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, non-negative.
@@ -214,7 +221,8 @@ def temporal_event_shift(
     shifts = _shifts(shift, batch.shape[0])
     fractions = _fractions(fraction, batch.shape[0])
     check_generator(generator, frames.device)
-    return unbatch(_temporal_event_shift(batch, shifts, fractions, mode, generator))
+    seeds = None if mode == "expected" else draw_seeds(batch.shape[0], generator)
+    return unbatch(_temporal_event_shift(batch, shifts, fractions, mode, seeds))
 
 
 def _temporal_event_shift(
@@ -222,10 +230,11 @@ def _temporal_event_shift(
     shifts: Tensor,
     fractions: Tensor,
     mode: str,
-    generator: torch.Generator | None,
+    seeds: Tensor | None,
     hint: str = _TES_HINT,
 ) -> Tensor:
-    """``temporal_event_shift`` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters;
+    """``temporal_event_shift`` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters
+    and (B,) int64 per-sample ``seeds`` (any device; unused in mode ``"expected"``);
     ``hint`` ends the error raised for fractional counts.
 
     Host synchronisations: one ``nonzero`` (the active pixels), then one read that checks
@@ -244,8 +253,27 @@ def _temporal_event_shift(
     out = batch.clone(memory_format=torch.contiguous_format)
     if index.numel() == 0:
         return out
-    moved = _draw_moved(batch.shape, index, sample, values, fractions, mode, generator, hint)
-    return _move(out, index, sample, moved, shifts)
+    moved, high = _draw_moved(batch.shape, index, sample, values, fractions, mode, seeds, hint)
+    exact = _exact_limit(batch.dtype)
+    if 2 * high <= exact:  # X - Z + Z' <= 2 max X: the dtype holds every result
+        return _move(out, index, sample, moved, shifts)
+    wide = batch.to(torch.float64 if batch.is_floating_point() else torch.int64, memory_format=torch.contiguous_format)
+    wide = _move(wide, index, sample, moved, shifts)
+    peak = read_host(wide.max())
+    if peak > exact:
+        raise ValueError(
+            f"temporal_event_shift: the shifted frames hold up to {peak:g} events in a pixel, more than "
+            f"{batch.dtype} holds exactly ({exact:g}); convert the frames to a wider dtype first "
+            "(e.g. frames.to(torch.int32))"
+        )
+    return wide.to(batch.dtype)
+
+
+def _exact_limit(dtype: torch.dtype) -> float:
+    """The largest count ``dtype`` holds exactly (and every count below it)."""
+    if dtype.is_floating_point:
+        return float(2 / torch.finfo(dtype).eps)  # 2**(mantissa bits + 1)
+    return float(torch.iinfo(dtype).max)
 
 
 def _entries(batch: Tensor) -> tuple[Tensor, Tensor, Tensor]:
@@ -270,41 +298,46 @@ def _draw_moved(
     values: Tensor,
     fractions: Tensor,
     mode: str,
-    generator: torch.Generator | None,
+    seeds: Tensor,
     hint: str = _TES_HINT,
-) -> Tensor:
+) -> tuple[Tensor, float]:
     """Check the values X of the non-zero pixels ``index`` (whole, non-negative, finite) and
     draw the moved counts Z (0 <= Z <= X), ``mode`` ``"exact"`` (int64) or ``"binomial"``
     (in the values' dtype, ready to subtract).
 
     One host synchronisation checks the values and reads what the sampler needs (the
     largest count and the events to expand; in exact mode also the largest draw and the
-    widest frame), so the sampler's top level asks the device for nothing.
+    widest frame), so the sampler's top level asks the device for nothing. Returns Z and
+    the largest count X (read with the check).
+
+    The draws come from per-sample streams (``seeds``): an entry is named by its position
+    within its sample, a row by its frame and polarity, so a sample's Z does not depend on
+    the other samples.
     """
     b, t, p, h, w = shape
     counts = values.to(torch.int64)  # used only once the check below has passed
     if index.numel() == 0:
-        return counts
+        return counts, 0.0
+    stream = Stream.of_samples(seeds, sample, index - sample * (t * p * h * w), t * p)
     limit = min(2**53, 2**62 // (h * w))  # float64-exact counts; row totals fit in int64
     if mode == "binomial":
         high, events = count_stats(values, counts, hint=hint, extra=[counts.clamp_max(_EXPAND_MAX).sum()])
         _check_limit(high, limit)
         prob = fractions.to(values.device, torch.float64)
         return binomial_counts(
-            counts, prob, sample, generator=generator, largest=high, events=events, dtype=values.dtype
-        )
+            counts, prob, sample, stream=stream, largest=high, events=events, dtype=values.dtype
+        ), high
     row = index.div(h * w, rounding_mode="floor")  # (sample, frame, polarity), sorted
     total = segment_sum(counts, row, b * t * p)
     row_fraction = fractions.repeat_interleave(t * p)  # ζ per row (float64), on the host
     size = torch.round(row_fraction.to(values.device, torch.float64) * total).to(torch.int64)
     # The top level's numbers come with the check; the binomial level's only where it runs.
-    needs = level_stats(size, total) + ([] if direct_finish(values.device) else [counts.clamp_max(_EXPAND_MAX).sum()])
+    needs = level_stats(size, total) + [counts.clamp_max(_EXPAND_MAX).sum()]
     high, *stats = count_stats(values, counts, hint=hint, extra=needs)
     _check_limit(high, limit)
-    expansion = (high, stats[2]) if len(stats) == 3 else None
     return multivariate_hypergeometric(
-        counts, row, size, total=total, generator=generator, stats=(stats[0], stats[1]), expansion=expansion
-    )
+        counts, row, size, total=total, stream=stream, stats=(stats[0], stats[1]), expansion=(high, stats[2])
+    ), high
 
 
 def _check_limit(high: float, limit: int) -> None:

@@ -403,6 +403,9 @@ class RandomPerspective(_Warp):
         moves = uniform(0.0, 1.0, b * 8, generator).view(b, 4, 2) * reach * inwards
         return {"corners": _image_corners(height, width) + moves}
 
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"corners": Param("float", shape=(4, 2))}
+
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _perspective(frames, params["corners"].detach().to("cpu", torch.float64), self.mode)
 
@@ -450,6 +453,9 @@ class RandomElastic(_Warp):
         b, _, _, height, width = shape
         noise = uniform(-1.0, 1.0, b * 2 * height * width, generator).view(b, 2, height, width)
         return {"alpha": uniform(*self.alpha, b, generator), "noise": noise}
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"alpha": Param("float", low=0.0), "noise": Param("float", shape=(2, *shape[-2:]), low=-1.0, high=1.0)}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return _elastic(frames, params["noise"], params["alpha"].detach().to("cpu", torch.float64), self.sigma, self.mode)

@@ -6,7 +6,10 @@ A module holds settings. A call has two steps:
    the batch's metadata) and draws *every* random number the call will use, as a dict of
    ``(B, ...)`` CPU tensors (so CPU and CUDA calls draw the same numbers). Kernels that
    need randomness of their own (temporal event shifting, event drop, Poisson noise) get
-   per-sample seeds from it. Containers return one entry per child, so a call's
+   per-sample seeds from it and draw from counter-based streams keyed by each sample's
+   seed (:mod:`event_transforms.functional._streams`), so a sample's output is a function
+   of its own input and its own slice of the tree (per-sample purity): ``module(x[i:i+1],
+   params=slice_params(tree, [i]))`` equals ``module(x, params=tree)[i]``. Containers return one entry per child, so a call's
    parameters are one tree.
 2. :meth:`EventTransform.apply` hands a batch and its parameters to a private kernel from
    :mod:`event_transforms.functional` on the frames' device.
@@ -35,7 +38,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from .._validation import as_batch, check_frames, check_probability, check_shape, describe
+from .._validation import as_batch, check_frames, check_probability, check_shape
 from ..functional.event_batch import EventBatch, merge_streams
 from ._params import CHECK_RANGE, Param, Spec, check_tree
 
@@ -169,19 +172,6 @@ def seeds(batch: int, generator: torch.Generator | None) -> Tensor:
 def _cpu(tensor: Tensor) -> Tensor:
     """``tensor`` on the CPU (a draw from an accelerator generator is copied once)."""
     return tensor if tensor.device.type == "cpu" else tensor.cpu()
-
-
-def kernel_generator(seed: Tensor, device: torch.device) -> torch.Generator:
-    """A generator on ``device`` seeded from a batch's per-sample seeds (no device work).
-
-    The seeds are CPU tensors from :meth:`EventTransform.make_params`; they are read on the
-    host and mixed by NumPy's ``SeedSequence``, so the kernel's draws are a deterministic
-    function of the whole (B,) seed vector: replaying the same parameters replays the draw.
-    """
-    state = np.random.SeedSequence([int(s) for s in seed.tolist()]).generate_state(2, np.uint32)
-    generator = torch.Generator(device=device)
-    generator.manual_seed(int(state[0]) << 31 | int(state[1]) >> 1)
-    return generator
 
 
 # --------------------------------------------------------------------------- groups

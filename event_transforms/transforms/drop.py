@@ -14,7 +14,7 @@ from torch import Tensor
 from .._validation import check_pair, check_positive
 from ..functional.cleaning import _hot_pixels
 from ..functional.drop import _drop_by_area, _drop_by_time, _drop_events, _drop_mask, _pixel_mask, random_pixel_mask
-from .base import EventTransform, Param, Params, apply_by_group, choice, integers, kernel_generator, seeds, slice_params, uniform
+from .base import EventTransform, Param, Params, apply_by_group, choice, integers, seeds, slice_params, uniform
 
 __all__ = ["RandomEventDrop", "DropPixel", "RandomDropPixel"]
 
@@ -95,8 +95,7 @@ class RandomEventDrop(EventTransform):
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         def by_random(sub: Tensor, index: Tensor) -> Tensor:
             part = slice_params(params, index)
-            generator = kernel_generator(part["seed"], sub.device)
-            return _drop_events(sub, part["fraction"], "binomial", generator, _HINT)
+            return _drop_events(sub, part["fraction"], "binomial", part["seed"], _HINT)
 
         def by_time(sub: Tensor, index: Tensor) -> Tensor:
             part = slice_params(params, index)

@@ -15,7 +15,7 @@ from torch import Tensor
 
 from .._validation import check_counts, check_frames, check_pair, check_positive, describe
 from ..functional.noise import _add_counts, _add_entries, _add_poisson_noise, _poisson_totals
-from .base import EventTransform, Param, Params, integers, kernel_generator, seeds, uniform
+from .base import EventTransform, Param, Params, integers, seeds, uniform
 
 __all__ = ["AddNoise", "AddPoissonNoise"]
 
@@ -159,7 +159,7 @@ class AddPoissonNoise(EventTransform):
             frames,
             params["rate_hz"] * (self.frame_ms / 1000.0),
             totals=params.get("count"),
-            generator=kernel_generator(params["seed"], frames.device),
+            seeds=params["seed"],
         )
 
     def _settings(self) -> str:

@@ -17,7 +17,7 @@ from torch import Tensor
 
 from .._validation import TES_MODES, as_number, check_choice, check_pair, check_probability
 from ..functional.temporal import _check_length, _crop_time, _frame_shift, _temporal_event_shift
-from .base import EventTransform, Param, Params, choice, integers, kernel_generator, seeds, uniform
+from .base import EventTransform, Param, Params, choice, integers, seeds, uniform
 
 __all__ = [
     "FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift",
@@ -65,12 +65,11 @@ class _EventShift(EventTransform):
         return spec
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
-        generator = None if self.mode == "expected" else kernel_generator(params["seed"], frames.device)
         hint = (
             f"{type(self).__name__}(mode={self.mode!r}) moves whole events: apply it before interpolating "
             "transforms (bilinear rotate/resize), or use mode='expected'"
         )
-        return _temporal_event_shift(frames, params["shift"], params["fraction"], self.mode, generator, hint)
+        return _temporal_event_shift(frames, params["shift"], params["fraction"], self.mode, params.get("seed"), hint)
 
     def _draws(self, shift: Tensor, fraction: Tensor, generator: torch.Generator | None) -> Params:
         params: Params = {"shift": shift, "fraction": fraction}
