@@ -14,8 +14,12 @@ Samplers:
   random subset of ``size`` of the row's events (without replacement).
 
 Host synchronisations are few and counted: the numbers a sampler needs from the device
-(largest count, events to expand, largest draw, widest row) are read together, in one
-``tolist``, or handed in by the caller who read them with its own checks.
+(largest count, events to expand, largest draw, widest finished draw) are read together, in
+one ``tolist``, or handed in by the caller who read them with its own checks.
+
+Randomness comes from a :class:`Stream`: per-sample counter-based streams in which every
+entry and row is named by its place within its sample, and every route is decided per row,
+so a sample's draw is the same alone as in any batch (per-sample purity).
 """
 
 from __future__ import annotations

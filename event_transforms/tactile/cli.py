@@ -358,7 +358,7 @@ def _show(args: argparse.Namespace) -> int:
         after = frames if transform is None else transform(frames, generator=generator, metadata=meta)
     shown = after[:: args.every]
     out = args.out or Path(f"{args.method.replace(':', '_')}.png")
-    viz.compare_transform(frames[:: args.every], lambda _: shown, out, upscale=args.upscale)
+    viz.compare_transform(frames[:: args.every], lambda batch: shown.view(batch.shape), out, upscale=args.upscale)
     _print(f"wrote {out}")
     return 0
 
