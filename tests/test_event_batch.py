@@ -169,6 +169,21 @@ class TestKernels:
         assert torch.equal(frames_of(et.FlipPolarity()(batch)), frames.flip(2))
         assert torch.equal(frames_of(et.TimeReversal()(batch)), time_reversal(frames))
 
+    def test_crops_match_frames(self):
+        batch = make_batch(3)
+        frames = frames_of(batch)
+        for crop in (et.RandomCrop((7, 9)), et.CenterCrop((5, 12))):
+            params = crop.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(1))
+            out = crop(batch, params=params)
+            assert out.sensor_size == crop.size
+            assert torch.equal(frames_of(out), crop(frames, params=params))
+        crop_time = et.RandomCropTime(4)
+        params = crop_time.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(2))
+        out = crop_time(batch, params=params)
+        assert out.n_frames == 4 and torch.equal(frames_of(out), crop_time(frames, params=params))
+        with pytest.raises(ValueError, match="resize=False"):
+            et.RandomCrop((7, 9), resize=True)(batch)
+
     def test_translate_reference(self):
         batch = make_batch(2)
         shift = torch.tensor([[1, -2], [0, 3]])

@@ -44,6 +44,7 @@ __all__ = [
     "flip_events", "translate_events", "affine_events", "shift_events", "drop_events_random",
     "flip_polarity_events", "time_reversal_events", "poisson_noise_events", "spatial_jitter",
     "time_jitter", "time_skew", "refractory_period", "decimation", "event_centroid", "drop_window",
+    "crop_events", "crop_time_events",
 ]
 
 
@@ -511,3 +512,24 @@ def drop_window(
         y, x = batch.y.to(torch.int64), batch.x.to(torch.int64)
         hit = (y >= top) & (y < top + height) & (x >= left) & (x < left + width)
     return _compact(batch, ~hit)
+
+
+def crop_events(batch: EventBatch, top: Tensor, left: Tensor, size: tuple[int, int]) -> EventBatch:
+    """Crop sample b to the window ``top[b], left[b]`` of ``size`` (H, W): coordinates move
+    by ``(-top, -left)`` and the batch's sensor becomes ``size``. Events outside the window
+    are kept (dropped when binned, as the frame crop drops them). Sync-free."""
+    x = batch.x - _per_event(left.to(torch.int16), batch)
+    y = batch.y - _per_event(top.to(torch.int16), batch)
+    return batch._replace(x=x, y=y, sensor_size=tuple(int(s) for s in size))
+
+
+def crop_time_events(batch: EventBatch, start: Tensor, length: int) -> EventBatch:
+    """Keep bins ``[start[b], start[b] + length)`` of the grid: times move ``start[b]`` bins
+    earlier and the grid becomes ``length`` bins long (events outside it are dropped when
+    binned; equal to the frame kernel after binning). Sync-free."""
+    _, frame_us, n_frames = _require_grid(batch, "CropTime")
+    if isinstance(frame_us, int) and not batch.t.is_floating_point():
+        t = batch.t - _per_event(start.to(torch.int64) * frame_us, batch)
+    else:
+        t = (batch.t.to(torch.float64) - _per_event(start.to(torch.float64) * frame_us, batch)).to(batch.t.dtype)
+    return batch._replace(t=t, n_frames=int(length))

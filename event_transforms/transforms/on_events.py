@@ -19,6 +19,9 @@ Translate, RandomTranslate  whole-pixel moves (sensor pixels)
 FrameShift, TES             on the batch's frame grid (``frame_ms``, ``n_frames``); exact TES
                             moves exactly round(ζN) events of each bin and polarity
 FlipPolarity, TimeReversal  ``p -> 1 - p``; bin i -> T - 1 - i (and polarity swapped)
+RandomCrop, CenterCrop      coordinates shifted, the batch's sensor becomes the crop
+                            (``resize=False`` only)
+CropTime, RandomCropTime    times shifted ``start`` bins; the grid becomes ``length`` bins
 RandomEventDrop             random (per event), time (bins of the grid), area (sensor pixels)
 AddPoissonNoise             uniform events over the grid's window at ``rate_hz`` per pixel
                             and polarity
@@ -96,6 +99,20 @@ def _vflip_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
 @register_event_kernel(_geometry._Roll, neutral={"shift": 0})
 def _translate_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.translate_events(batch, params["shift"])
+
+
+@register_event_kernel(_geometry._Crop)
+def _crop_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
+    if module.resize:
+        raise ValueError(f"{type(module).__name__}(resize=True) interpolates frames; on events crop with resize=False")
+    module._room(batch.frame_shape)
+    return K.crop_events(batch, params["top"], params["left"], module.size)
+
+
+@register_event_kernel(_temporal._CropTime)
+def _crop_time_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
+    module._room(batch.frame_shape)
+    return K.crop_time_events(batch, params["start"], module.length)
 
 
 @register_event_kernel(_temporal._Shift, neutral={"shift": 0})
