@@ -40,6 +40,8 @@ _TRANSFORMS = (
     "FlipPolarity", "RandomFlipPolarity", "TimeReversal", "RandomTimeReversal", "MergePolarities",
     "CropTime", "RandomCropTime", "Cutout", "CutMix", "MixUp",
     "DropPixel", "RandomDropPixel", "Denoise",
+    # events (issue 20)
+    "SpatialJitter", "TimeJitter", "TimeSkew", "RefractoryPeriod", "Decimation",
     # sequence warps (issue 19)
     "RandomPerspective", "RandomElastic",
     # scenes (issue 18)
@@ -52,6 +54,8 @@ _NAMES: dict[str, str] = {
     "StretchToTarget": "scenes",
     "infer_scene": "inference",
     "AugmentedDataset": "data",
+    "EventBatch": "functional",
+    "collate_events": "functional",
 }
 _SUBMODULES = ("functional", "transforms", "scenes", "inference", "data", "viz", "tactile")
 
@@ -60,6 +64,7 @@ __all__ = ["__version__", *_SUBMODULES, *_NAMES]
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from . import data, functional, inference, scenes, tactile, transforms, viz
     from .data import AugmentedDataset
+    from .functional import EventBatch, collate_events
     from .inference import infer_scene
     from .scenes import ResizeToTarget, Scene, StretchToTarget
     from .transforms import *  # noqa: F403

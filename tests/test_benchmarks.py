@@ -273,3 +273,14 @@ class TestFidelity:
         lag = results["paper-lag"]["12 + 18 mm"]
         assert lag["fs-1 + stretch"] < lag["stretch"]
         assert "stretch" in _section(path, "fidelity")
+
+
+class TestEventsPipeline:
+    def test_quick_run(self, tmp_path):
+        from benchmarks import events_pipeline
+
+        path = tmp_path / "RESULTS.md"
+        result = events_pipeline.main(["--quick", "--results", str(path)])
+        text = path.read_text()
+        assert "EventBatch transforms + binning" in text and "host syncs" in text
+        assert result["ratios"]["frames.clone() (baseline)"] == 1.0

@@ -32,6 +32,12 @@ from .drop import __all__ as _drop
 from .representations import *  # noqa: F401,F403
 from .representations import __all__ as _representations
 
+from .event_batch import *  # noqa: F401,F403
+from .event_batch import __all__ as _event_batch
+from .event_kernels import *  # noqa: F401,F403
+from .event_kernels import __all__ as _event_kernels
+
 __all__ = [
     *_affine, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_representations,
+    *_event_batch, *_event_kernels,
 ]

@@ -18,6 +18,7 @@ import torch
 from torch import Tensor
 
 from .._validation import check_choice, per_sample
+from .event_batch import EventBatch
 from .events import _columns, _pair, _polarity_channel, _positive_int, _valid_mask
 
 __all__ = ["to_voxel_grid", "to_time_surface"]
@@ -63,7 +64,9 @@ def to_voxel_grid(
     puts them all in bin 0.
 
     Args:
-        events: events as :func:`~event_transforms.functional.events_to_frames` takes them.
+        events: events as :func:`~event_transforms.functional.events_to_frames` takes them,
+            or an :class:`~event_transforms.EventBatch` (its own sensor size is used; the
+            output is batched, ``(B, n_bins, C, H, W)``, on its device).
         n_bins: number of time bins (>= 1).
         sensor_size: (H, W).
         polarity: ``"signed"`` or ``"split"``.
@@ -81,6 +84,11 @@ def to_voxel_grid(
     """
     n_bins = _positive_int(n_bins, "n_bins")
     check_choice(polarity, "polarity", VOXEL_POLARITIES)
+    if isinstance(events, EventBatch):  # padded once on its device; the batch's sensor size
+        if lengths is not None or mask is not None:
+            raise ValueError("lengths and mask come from the EventBatch itself; do not pass them")
+        sensor_size = events.sensor_size
+        events, lengths = events.to_padded()
     batched, (b, height, width), t, channel, row, col, keep = _parse(events, sensor_size, lengths, mask)
     device = t.device
     inf = torch.tensor(math.inf, dtype=torch.float64, device=device)

@@ -39,9 +39,10 @@ import torch
 from torch import Tensor, nn
 
 from .._validation import as_batch, check_frames, check_probability, check_shape
+from ..functional.event_batch import EventBatch, merge_streams
 from ._params import CHECK_RANGE, Param, Spec, check_tree
 
-__all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY"]
+__all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY", "register_event_kernel"]
 
 #: A call's parameters: a dict whose leaves are ``(B, ...)`` tensors and whose inner nodes
 #: are the parameters of a container's children.
@@ -49,6 +50,54 @@ Params = dict[str, Any]
 
 #: The key under which a dict input holds the frames.
 FRAMES_KEY = "frames"
+
+#: Event kernels of transform classes: ``class -> kernel(module, batch, params) -> batch``
+#: (torchvision v2's kernel registry, keyed by the transform and dispatched on the input
+#: type). Filled by :mod:`event_transforms.transforms.on_events`.
+_EVENT_KERNELS: dict[type, Callable[..., Any]] = {}
+
+
+#: Classes whose event kernel honours the gate ``params["apply"]`` in one pass over the
+#: batch: ``class -> {key: neutral value}`` (the value of each parameter that leaves a
+#: stream unchanged, e.g. angle 0), or ``{}`` for a kernel that reads the gate itself.
+_EVENT_NEUTRAL: dict[type, dict[str, float]] = {}
+
+
+def register_event_kernel(
+    cls: type, *, neutral: dict[str, float] | None = None
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Decorator: ``kernel(module, batch, params)`` is ``cls``'s kernel for an :class:`EventBatch`.
+
+    ``neutral`` (the parameter values that leave a stream unchanged) lets a gated call
+    (``p < 1``) run the kernel once on the whole batch with those values for the streams
+    the gate skips, instead of slicing streams out and back in; ``{}`` means the kernel
+    reads ``params["apply"]`` itself.
+    """
+
+    def register(kernel: Callable[..., Any]) -> Callable[..., Any]:
+        _EVENT_KERNELS[cls] = kernel
+        if neutral is not None:
+            _EVENT_NEUTRAL[cls] = dict(neutral)
+        return kernel
+
+    return register
+
+
+def _neutral_params(module: Any) -> dict[str, float] | None:
+    for cls in type(module).__mro__:
+        if cls in _EVENT_NEUTRAL:
+            return _EVENT_NEUTRAL[cls]
+    return None
+
+
+def _gated(params: Params, gate: Tensor, neutral: dict[str, float]) -> Params:
+    """``params`` with each neutral key set to its neutral value where ``gate`` is off."""
+    out = dict(params)
+    for key, value in neutral.items():
+        leaf = params[key]
+        off = ~gate.to(torch.bool).view(-1, *([1] * (leaf.dim() - 1)))
+        out[key] = torch.where(off, torch.as_tensor(value, dtype=leaf.dtype), leaf)
+    return out
 
 
 def _video_of(frames: object) -> Any:
@@ -144,6 +193,8 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
         group: ``(B,)`` integer CPU tensor with values in ``[0, len(functions))``.
         functions: one callable ``(sub_batch, indices) -> sub_batch`` or ``None`` per group.
     """
+    if isinstance(frames, EventBatch):
+        return _apply_by_group_events(frames, group, functions)
     device = frames.device
     batch = frames.shape[0]
     labels = np.asarray(group.tolist(), dtype=np.int64).reshape(batch)
@@ -188,6 +239,35 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
         if size:
             out.index_copy_(0, on_device, cast(result))
     return out
+
+
+def _apply_by_group_events(batch: EventBatch, group: Tensor, functions: Sequence[GroupFn | None]) -> EventBatch:
+    """:func:`apply_by_group` for an :class:`EventBatch`: streams gathered by slices of the
+    (CPU) offsets, results put back in stream order; no host synchronisation."""
+    size = len(batch)
+    labels = np.asarray(group.tolist(), dtype=np.int64).reshape(size)
+    parts: list[tuple[list[int], EventBatch]] = []
+    for g, function in enumerate(functions):
+        members = np.flatnonzero(labels == g)
+        index = torch.from_numpy(members)
+        if function is None:
+            if members.size:
+                parts.append((members.tolist(), batch if members.size == size else batch.index_select(index)))
+            continue
+        sub = batch if members.size == size else batch.index_select(index)
+        result = function(sub, index)
+        if not isinstance(result, EventBatch):
+            raise TypeError(
+                f"every branch must return an EventBatch for EventBatch input, got {type(result).__name__} "
+                "(bin with EventsToFrames outside OneOf/RandomApply)"
+            )
+        if members.size == size:
+            return result
+        if members.size:
+            parts.append((members.tolist(), result))
+    if not parts:
+        return batch
+    return merge_streams(parts, size, batch)
 
 
 # --------------------------------------------------------------------------- base
@@ -279,6 +359,14 @@ class EventTransform(nn.Module):
                 f"{generator!r}"
             )
         first, rest = inputs[0], inputs[1:]
+        if isinstance(first, EventBatch) and not self.takes_events:
+            if params is None:
+                params = self.make_params(first.frame_shape, generator=generator, metadata=metadata)
+            else:
+                with torch.profiler.record_function(CHECK_RANGE):
+                    params = check_tree(self, params, first.frame_shape)
+            out = self._run(first, params)
+            return (out, *rest) if rest else out
         if self.takes_events:
             first = self.events_to_frames(first)  # events in, frames from here on
         frames = first
@@ -387,6 +475,24 @@ class EventTransform(nn.Module):
         """The batch shape this transform returns for input ``shape`` (the same by default)."""
         return shape
 
+    def apply_events(self, batch: EventBatch, params: Params) -> EventBatch:
+        """The kernel for an :class:`EventBatch`: the one registered for this class (or a
+        base class) with :func:`register_event_kernel`; override in event-aware classes."""
+        for cls in type(self).__mro__:
+            kernel = _EVENT_KERNELS.get(cls)
+            if kernel is not None:
+                return kernel(self, batch, params)
+        raise TypeError(
+            f"{type(self).__name__} has no kernel for an EventBatch; bin the events first with "
+            "EventsToFrames (it can stand anywhere in a Compose)"
+        )
+
+    def _dispatch(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        """Dispatch on the input type: :meth:`apply_events` for an EventBatch, else :meth:`apply`."""
+        if isinstance(inputs, EventBatch):
+            return self.apply_events(inputs, params)
+        return self.apply(inputs, params)
+
     @property
     def takes_events(self) -> bool:
         """Whether a call's first input is an event stream, not frames.
@@ -408,11 +514,15 @@ class EventTransform(nn.Module):
         honours its gate itself."""
         gate = params["apply"] if self.p < 1 else params.get("apply")
         if gate is None or self._gates_itself or self.couples_samples:
-            return self.apply(frames, params)
+            return self._dispatch(frames, params)
         if all(gate.tolist()):  # a CPU tensor from make_params: read on the host, no sync
-            return self.apply(frames, params)
+            return self._dispatch(frames, params)
+        if isinstance(frames, EventBatch):
+            neutral = _neutral_params(self)
+            if neutral is not None:  # one pass over the batch, skipped streams left unchanged
+                return self._dispatch(frames, _gated(params, gate, neutral))
         return apply_by_group(
-            frames, gate.long(), [None, lambda sub, index: self.apply(sub, slice_params(params, index))]
+            frames, gate.long(), [None, lambda sub, index: self._dispatch(sub, slice_params(params, index))]
         )
 
     def extra_repr(self) -> str:

@@ -51,11 +51,10 @@ def _members(transforms: object, name: str, *, events_first: bool = False) -> nn
         )
     members = nn.ModuleList(as_transform(t, f"{name}[{i}]") for i, t in enumerate(transforms))
     for i, member in enumerate(members):
-        if member.takes_events and (i > 0 or not events_first):
-            where = "only as the first member of a Compose" if events_first else "only first in a Compose"
+        if member.takes_events and not events_first:
             raise TypeError(
-                f"{name}[{i}] ({type(member).__name__}) turns events into frames and can stand {where}; "
-                "here it would be handed frames"
+                f"{name}[{i}] ({type(member).__name__}) turns events into frames and can stand only in a "
+                "Compose (first for raw streams, anywhere for an EventBatch)"
             )
     return members
 
@@ -133,14 +132,16 @@ class Compose(EventTransform):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         for i, transform in enumerate(self.transforms):
-            shape = transform.output_shape(frames.shape)
+            shape = transform.output_shape(frames.shape) if isinstance(frames, Tensor) else None  # not for events
             frames = transform._run(frames, params[str(i)])
-            if frames.shape != shape:
+            if shape is not None and frames.shape != shape:
                 raise ValueError(
                     f"transforms[{i}] ({type(transform).__name__}) returned shape {tuple(frames.shape)}, "
                     f"expected {tuple(shape)}"
                 )
         return frames
+
+    apply_events = apply  # members dispatch on what they are handed (events, then frames)
 
 
 class OneOf(EventTransform):
@@ -209,6 +210,8 @@ class OneOf(EventTransform):
         ]
         return apply_by_group(frames, params["index"], branches)
 
+    apply_events = apply
+
     def _settings(self) -> str:
         return f"weights={[round(w, 4) for w in self.weights.tolist()]}"
 
@@ -249,3 +252,5 @@ class RandomApply(EventTransform):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self.transform._run(frames, params["0"])
+
+    apply_events = apply

@@ -8,6 +8,7 @@ import torch
 from torch import Tensor
 
 from .._validation import FRAME_DTYPES
+from ..functional.event_batch import EventBatch, bin_events
 from ..functional.events import CHUNK_EVENTS, _grid, _integer, _T_STARTS, _explicit_starts, events_to_frames
 from .base import EventTransform, Params
 
@@ -23,7 +24,10 @@ class EventsToFrames(EventTransform):
     ready for the frame transforms. It holds settings only, draws nothing and is
     picklable, so it runs as a tonic dataset ``transform=`` or in a ``DataLoader`` worker.
     Put it first in a :class:`~event_transforms.Compose` to make the whole pipeline take
-    events. With ``n_frames=None`` the number of frames follows the recording; give
+    events. An :class:`~event_transforms.EventBatch` is binned on its own device
+    (:func:`~event_transforms.functional.bin_events`, bin by bin equal to this module per
+    stream; the batch's frame grid, if it has one, fixes the starts), and then this module
+    may stand anywhere in a ``Compose``: event transforms before it, frame transforms after. With ``n_frames=None`` the number of frames follows the recording; give
     ``n_frames`` when a ``DataLoader`` must stack samples.
 
     Args:
@@ -103,6 +107,8 @@ class EventsToFrames(EventTransform):
         return True
 
     def events_to_frames(self, events: Any) -> Tensor:
+        if isinstance(events, EventBatch):
+            return self.apply_events(events, {})
         if isinstance(events, Tensor) and events.dim() in (4, 5) and events.shape[-3] == 2:
             raise TypeError(
                 f"EventsToFrames takes an event stream, got what looks like frames of shape {tuple(events.shape)}"
@@ -121,6 +127,24 @@ class EventsToFrames(EventTransform):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return frames  # made from the events in forward, before the parameters were drawn
+
+    def apply_events(self, batch: EventBatch, params: Params) -> Tensor:
+        """Bin an :class:`EventBatch` on its device (:func:`~event_transforms.functional.bin_events`):
+        ``(B, T, 2, H', W')``. The batch's frame grid, if it has one, fixes the starts."""
+        if tuple(batch.sensor_size) != tuple(self.sensor_size):
+            raise ValueError(
+                f"EventsToFrames(sensor_size={self.sensor_size}) was handed an EventBatch of sensor_size "
+                f"{batch.sensor_size}"
+            )
+        return bin_events(
+            batch, frame_ms=self.frame_ms, t_start=self.t_start, n_frames=self.n_frames, crop=self.crop,
+            pool=self.pool, dtype=self.dtype,
+        )
+
+    def output_shape(self, shape: torch.Size) -> torch.Size:
+        height, width = (self.crop[2], self.crop[3]) if self.crop is not None else self.sensor_size
+        frames = self.n_frames if self.n_frames is not None else shape[1]
+        return torch.Size((shape[0], frames, 2, height // self.pool, width // self.pool))
 
     def _settings(self) -> str:
         parts = [f"sensor_size={self.sensor_size}", f"frame_ms={self.frame_ms}", f"n_frames={self.n_frames}",
