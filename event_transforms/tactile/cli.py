@@ -31,9 +31,9 @@ __all__ = ["main", "build_parser", "QUICK", "FULL"]
 #: control's MSE is 0.81 / 0.34 / 0.31 N² after 150 / 300 / 600 steps (paper: 2.19 / 1.49 /
 #: 1.57).
 QUICK: dict[str, Any] = {
-    # the control, the paper's split, the lag scene and one other gapped scene (those that
+    # the control, the paper's split, the lag scene and two other gapped scenes (those that
     # exist); the rest run with --full
-    "scenes": ("control", "paper", "paper-lag", "timing"),
+    "scenes": ("control", "paper", "paper-lag", "timing", "orientation"),
     "seeds": 8,
     "steps": 300,
     "lr": 1e-2,
