@@ -10,7 +10,6 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-
 from event_transforms.tactile.report import SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parent.parent
