@@ -99,7 +99,25 @@ def metadata_values(metadata: Metadata, key: str, batch: int, *, owner: str = "t
     return per_sample(values, batch, f"metadata[{key!r}]")
 
 
-class ResizeToTarget(_Zoom):
+class _ToTarget:
+    """Mixin of the ``*ToTarget`` modules: per-sample factors ``(target / source)^exponent``,
+    the source size read from each sample's metadata under ``key``."""
+
+    def _set_target(self, target_size: float, key: str, exponent: float) -> None:
+        self.target_size = check_positive(target_size, "target_size")
+        self.exponent = check_positive(exponent, "exponent")
+        if not isinstance(key, str):
+            raise TypeError(f"key must be a string, got {key!r}")
+        self.key = key
+
+    def _factors(self, shape: Sequence[int], metadata: Any) -> Tensor:
+        return _target_factors(metadata, self.key, shape[0], self.target_size, self.exponent, type(self).__name__)
+
+    def _settings(self) -> str:
+        return f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, {self._common()}"
+
+
+class ResizeToTarget(_ToTarget, _Zoom):
     """Resize each sample so its object looks ``target_size`` large: β = (target / source)^e.
 
     ``make_params`` reads each sample's source size from its metadata (see
@@ -135,21 +153,10 @@ class ResizeToTarget(_Zoom):
         p: float = 1.0,
     ) -> None:
         super().__init__(center=center, mode=mode, p=p)
-        self.target_size = check_positive(target_size, "target_size")
-        self.exponent = check_positive(exponent, "exponent")
-        if not isinstance(key, str):
-            raise TypeError(f"key must be a string, got {key!r}")
-        self.key = key
+        self._set_target(target_size, key, exponent)
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
-        scale = _target_factors(metadata, self.key, shape[0], self.target_size, self.exponent, type(self).__name__)
-        return {"scale": scale}
-
-    def _settings(self) -> str:
-        return (
-            f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, "
-            f"{self._common()}"
-        )
+        return {"scale": self._factors(shape, metadata)}
 
 
 def _target_factors(metadata: Any, key: str, batch: int, target: float, exponent: float, owner: str) -> Tensor:
@@ -159,7 +166,7 @@ def _target_factors(metadata: Any, key: str, batch: int, target: float, exponent
     return (target / source) ** exponent
 
 
-class StretchToTarget(_StretchWarp):
+class StretchToTarget(_ToTarget, _StretchWarp):
     """Stretch each sample across its contact strip so its object looks ``target_size``
     large: factor (target / source)^γ.
 
@@ -202,18 +209,10 @@ class StretchToTarget(_StretchWarp):
         p: float = 1.0,
     ) -> None:
         super().__init__(axis=axis, center=center, mode=mode, p=p)
-        self.target_size = check_positive(target_size, "target_size")
-        self.exponent = check_positive(exponent, "exponent")
-        if not isinstance(key, str):
-            raise TypeError(f"key must be a string, got {key!r}")
-        self.key = key
+        self._set_target(target_size, key, exponent)
 
     def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
-        factor = _target_factors(metadata, self.key, shape[0], self.target_size, self.exponent, type(self).__name__)
-        return {"factor": factor}
-
-    def _settings(self) -> str:
-        return f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, {self._common()}"
+        return {"factor": self._factors(shape, metadata)}
 
 
 def _positive(value: object, name: str) -> float:

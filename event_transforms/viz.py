@@ -328,11 +328,7 @@ def plot_transform(
     ax.set_title(title or "transform", fontsize=10, loc="left", pad=22)
     ax.set_xlabel("the frames the transform changes most; before and after share one colour scale", fontsize=7)
     fig.subplots_adjust(left=0.08, right=0.98, top=0.8, bottom=0.2)
-    if path is not None:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-    return fig
+    return _saved(fig, path, plt, dpi=110)
 
 
 def plot_scene(
@@ -419,8 +415,13 @@ def plot_scene(
     named = ", ".join(gaps) if gaps else "none (control)"
     fig.suptitle(f"{title}\ngaps: {named}", fontsize=9, x=0.01, ha="left")
     fig.subplots_adjust(left=0.08, right=0.98, top=0.8, bottom=0.12)
+    return _saved(fig, path, plt, dpi=100)
+
+
+def _saved(fig: Any, path: str | Path | None, plt: Any, *, dpi: int) -> Any:
+    """Write ``fig`` to ``path`` (folders made) and close it; the figure either way."""
     if path is not None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=100)
+        fig.savefig(path, dpi=dpi)
         plt.close(fig)
     return fig
