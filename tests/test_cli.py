@@ -592,6 +592,14 @@ class TestCommandLineRealData:
         assert out.exists() and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert str(out) in capsys.readouterr().out
 
+    def test_show_without_matplotlib_is_one_line(self, cache, tmp_path, capsys, monkeypatch):
+        for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
+            monkeypatch.delitem(sys.modules, name)
+        monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib raises ImportError
+        assert cli.main(["show", "none", "--root", str(cache), "--out", str(tmp_path / "x.png")]) == 2
+        err = capsys.readouterr().err
+        assert "show: error:" in err and "event-transforms[plot]" in err and len(err.strip().splitlines()) == 1
+
     def test_show_bad_index(self, cache, tmp_path):
         with pytest.raises(SystemExit, match="index"):
             cli.main(["show", "fs-1", "--root", str(cache), "--index", "48", "--out", str(tmp_path / "x.png")])

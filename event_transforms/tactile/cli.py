@@ -445,6 +445,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = " ".join(str(error).split())
         print(f"{parser.prog} {args.command}: error: {message}", file=sys.stderr)
         return 2
+    except ImportError as error:  # the pictures of show/show-scene need the plot extra
+        if args.command not in ("show", "show-scene"):
+            raise
+        print(f"{parser.prog} {args.command}: error: {error}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

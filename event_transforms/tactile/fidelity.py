@@ -14,9 +14,9 @@ A faithful augmentation scores near the reference; one that simulates the wrong 
 scores far above it, whatever a network later makes of it. The model is the physics
 least-squares model of the design notes: force per frame from the running signed event
 total (OFF − ON: the membrane's indentation), its square, the frame's own totals and a
-per-frame intercept (41 weights for 36 frames). It is fitted here by a small private
-function; after the model work lands it is :class:`~event_transforms.tactile.baselines`'
-``PhysicsLeastSquares``.
+per-frame intercept (40 weights for 36 frames):
+:class:`~event_transforms.tactile.baselines.PhysicsLeastSquares`, the same model that is a
+row of every benchmark table.
 
 Measured on the simulator (``benchmarks/fidelity.py``): 12 mm grasps made to look like
 15 mm score 92 N² after the paper's zoom, 6.5 after a zoom by β^½, 0.4 after a stretch
@@ -25,7 +25,7 @@ across the strip by (15/12)^½, against 0.4 for real 15 mm grasps.
 
 from __future__ import annotations
 
-__all__ = ["physics_features", "fit_physics", "physics_mse", "fidelity", "SIZE_METHODS", "TIME_METHODS"]
+__all__ = ["fidelity", "SIZE_METHODS", "TIME_METHODS"]
 
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -33,7 +33,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from .._validation import check_frames, describe
+from .baselines import PhysicsLeastSquares
 
 #: Size methods: name -> (target size) -> transform reading ``diameter_mm`` metadata.
 SIZE_METHODS: dict[str, Callable[[float], Any]] = {}
@@ -62,58 +62,6 @@ def _size_methods() -> None:
 
 
 _size_methods()
-
-
-def physics_features(frames: Tensor) -> Tensor:
-    """Design matrix of the physics least-squares model, one row per frame.
-
-    Columns: the running signed total OFF − ON and its square (in thousands of events),
-    the frame's OFF and ON totals (thousands), and one intercept per frame index.
-
-    Args:
-        frames: event counts ``(N, T, 2, H, W)``.
-
-    Returns:
-        float64 ``(N·T, 4 + T)``.
-
-    Example:
-        >>> frames = torch.zeros(2, 3, 2, 4, 4)
-        >>> frames[:, 0, 0] = 1.0  # 16 OFF events in the first frame
-        >>> physics_features(frames)[:3, :4].tolist()
-        [[0.016, 0.000256, 0.016, 0.0], [0.016, 0.000256, 0.0, 0.0], [0.016, 0.000256, 0.0, 0.0]]
-    """
-    frames = check_frames(frames)
-    if frames.dim() != 5:
-        raise ValueError(f"frames must be (N, T, 2, H, W), got {tuple(frames.shape)}")
-    totals = frames.double().sum((3, 4)) / 1000  # (N, T, 2)
-    running = totals.cumsum(1)
-    signed = (running[..., 0] - running[..., 1]).unsqueeze(-1)
-    n, t, _ = totals.shape
-    intercepts = torch.eye(t, dtype=torch.float64).expand(n, t, t)
-    return torch.cat([signed, signed**2, totals, intercepts], -1).reshape(n * t, -1)
-
-
-def fit_physics(frames: Tensor, forces: Tensor) -> Tensor:
-    """Least-squares weights of :func:`physics_features` for ``forces`` ``(N, T)``.
-
-    Example:
-        >>> g = torch.Generator().manual_seed(0)
-        >>> frames = torch.randint(0, 3, (8, 4, 2, 3, 3), generator=g).float()
-        >>> weights = fit_physics(frames, torch.rand(8, 4, generator=g))
-        >>> weights.shape
-        torch.Size([8])
-    """
-    x = physics_features(frames)
-    forces = torch.as_tensor(forces, dtype=torch.float64).reshape(-1, 1)
-    if forces.shape[0] != x.shape[0]:
-        raise ValueError(f"forces must be (N, T) = {tuple(frames.shape[:2])}, got {describe(forces)}")
-    return torch.linalg.lstsq(x, forces).solution.squeeze(1)
-
-
-def physics_mse(weights: Tensor, frames: Tensor, forces: Tensor) -> float:
-    """Mean squared error (N²) of the fitted model on ``frames`` against ``forces``."""
-    prediction = physics_features(frames) @ weights
-    return float((prediction - torch.as_tensor(forces, dtype=torch.float64).reshape(-1)).square().mean())
 
 
 def fidelity(
@@ -146,13 +94,18 @@ def fidelity(
         >>> sorted(out), out["none"] < 1e-12
         (['none', 'real deployment'], True)
     """
-    weights = fit_physics(*fit)
-    scores = {"real deployment": physics_mse(weights, *reference)}
+    model = PhysicsLeastSquares().fit(*fit)
+
+    def mse(frames: Tensor, forces: Tensor) -> float:
+        target = torch.as_tensor(forces, dtype=torch.float64).reshape(frames.shape[:2])
+        return float((model.predict(frames) - target).square().mean())
+
+    scores = {"real deployment": mse(*reference)}
     frames, forces, metadata = training
     collated = {key: torch.tensor([float(m[key]) for m in metadata]) for key in (metadata[0] if metadata else {})}
     for name, transform in methods.items():
         copies = frames
         if transform is not None:
             copies = transform(frames, metadata=collated, generator=torch.Generator().manual_seed(seed))
-        scores[name] = physics_mse(weights, copies, forces)
+        scores[name] = mse(copies, forces)
     return scores
