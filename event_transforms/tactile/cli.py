@@ -2,10 +2,12 @@
 
 ``reproduce`` runs the benchmark protocol (:mod:`event_transforms.tactile.experiment`) on the
 simulated scenes (:mod:`event_transforms.tactile.scenes`). Without ``--full`` it runs a quick
-configuration (5 paired seeds, every scene, ``none`` and the matched methods, the paper's
-list on ``paper``; a narrower model and fewer steps) that finishes in minutes on a 2-core
-CPU; ``--full`` runs 10 seeds, every method that each scene can build, and the paper-size
-model. Results are on synthetic data, never the paper's numbers.
+configuration (:data:`QUICK`: 8 paired seeds; the control, ``paper``, ``paper-lag``,
+``timing`` and ``orientation``; ``none``, the matched methods, the paper's list on ``paper``
+and the policy rows ``stretch``/``inferred``/``prior``/``everything`` on gapped scenes; a
+narrower model and fewer steps, with a budget check at twice the steps) that finishes in
+minutes on a 2-core CPU; ``--full`` runs 10 seeds, every scene, every method that each scene
+can build, and the paper-size model. Results are on synthetic data, never the paper's numbers.
 
 Under ``torchrun --nproc-per-node N -m event_transforms.tactile.cli reproduce ...`` the
 runs are spread over the N ranks (gloo on the CPU, nccl with ``--device cuda``) and rank 0
