@@ -12,6 +12,7 @@ import pytest
 import torch
 
 import event_transforms as et
+from event_transforms import functional as F
 from event_transforms.functional import EventBatch, bin_events, collate_events, events_to_frames
 from event_transforms.functional import event_kernels as K
 from event_transforms.functional import frame_shift, time_reversal, to_voxel_grid
@@ -283,6 +284,20 @@ class TestKernels:
             expected = [e for e, ui in zip(rows(batch, b), u.tolist()) if not ui < fraction[b].item()]
             assert rows(out, b) == expected
 
+    def test_pixel_drop_reference_and_frames(self):
+        batch = make_batch(3)
+        drop = et.RandomDropPixel((0.2, 0.6))
+        params = drop.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(5))
+        out = drop(batch, params=params)
+        mask = F.random_pixel_mask(params["seed"], params["fraction"], *SENSOR, torch.device("cpu"))
+        for b in range(3):  # slow reference: an event goes when its pixel is masked for its stream
+            assert rows(out, b) == [e for e in rows(batch, b) if not mask[b, e[1], e[0]]]
+        assert torch.equal(frames_of(out), drop(frames_of(batch), params=params))
+        fixed = et.DropPixel([[1, 2], [4, 0]])
+        assert torch.equal(frames_of(fixed(batch)), fixed(frames_of(batch)))
+        with pytest.raises(TypeError, match="rate_hz"):
+            et.DropPixel(rate_hz=100.0)(batch)
+
     def test_event_drop_time_and_area_match_frames(self):
         batch = make_batch(4)
         drop = et.RandomEventDrop((0.2, 0.6), methods=("time", "area"))
@@ -372,6 +387,8 @@ FACTORIES = {
     "RandomRotation p": lambda: et.RandomRotation(30.0, p=0.5),
     "TES exact p": lambda: et.RandomTemporalEventShift((-1, 1), 0.5, p=0.5),
     "RandomEventDrop p": lambda: et.RandomEventDrop((0.2, 0.6), p=0.5),
+    "RandomDropPixel p": lambda: et.RandomDropPixel((0.1, 0.4), p=0.5),
+    "DropPixel": lambda: et.DropPixel([[1, 1], [3, 5]]),
     "SpatialJitter p": lambda: et.SpatialJitter(1.5, p=0.5),
     "Decimation p": lambda: et.Decimation(2, p=0.5),
 }
@@ -440,7 +457,8 @@ class TestBattery:
             FACTORIES[name]()(torch.zeros(2, T, 2, *SENSOR))
 
 
-@pytest.mark.parametrize("name", ["RandomRotation p", "TES exact p", "RandomEventDrop p", "SpatialJitter p", "Decimation p"])
+@pytest.mark.parametrize("name", ["RandomRotation p", "TES exact p", "RandomEventDrop p", "SpatialJitter p", "Decimation p",
+                                  "RandomDropPixel p"])
 def test_gate_leaves_skipped_streams_unchanged(name):
     batch = make_batch(6)
     transform = FACTORIES[name]()

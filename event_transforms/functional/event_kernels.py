@@ -44,7 +44,7 @@ __all__ = [
     "flip_events", "translate_events", "affine_events", "shift_events", "drop_events_random",
     "flip_polarity_events", "time_reversal_events", "poisson_noise_events", "spatial_jitter",
     "time_jitter", "time_skew", "refractory_period", "decimation", "event_centroid", "drop_window",
-    "crop_events", "crop_time_events",
+    "crop_events", "crop_time_events", "drop_pixels_events",
 ]
 
 
@@ -358,6 +358,33 @@ def drop_events_random(batch: EventBatch, fraction: Tensor, seed: Tensor) -> Eve
     the sample's generator). One host read of the kept counts."""
     _, dropped = _keys(batch, seed, fraction)  # u < fraction, compared per sample slice
     return _compact(batch, ~dropped)
+
+
+def drop_pixels_events(batch: EventBatch, mask: Tensor) -> EventBatch:
+    """Drop the events of stream b that fall on a pixel where ``mask[b]`` holds.
+
+    ``mask`` is ``(B, H, W)`` or ``(1, H, W)`` bool in sensor pixels (``batch.sensor_size``).
+    Events outside the sensor (moved off it by an earlier transform) are kept: binning drops
+    them. One host read of the kept counts.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 5, 1], [1, 0, 6, 0]])], sensor_size=(2, 2))
+        >>> mask = torch.tensor([[[False, True], [False, False]]])  # pixel (y=0, x=1)
+        >>> drop_pixels_events(batch, mask).x.tolist()
+        [0]
+    """
+    height, width = batch.sensor_size
+    if batch.num_events == 0:
+        return batch
+    x, y = batch.x.to(torch.int64), batch.y.to(torch.int64)
+    inside = (x >= 0) & (x < width) & (y >= 0) & (y < height)
+    pixel = y.clamp(0, height - 1) * width + x.clamp(0, width - 1)
+    mask = mask.to(batch.device).reshape(-1, height * width)
+    if mask.shape[0] == 1:
+        dropped = mask[0].index_select(0, pixel)
+    else:
+        dropped = mask.reshape(-1).index_select(0, batch.sample_index().to(torch.int64) * (height * width) + pixel)
+    return _compact(batch, ~(dropped & inside))
 
 
 def poisson_noise_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> EventBatch:

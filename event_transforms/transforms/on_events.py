@@ -23,6 +23,8 @@ RandomCrop, CenterCrop      coordinates shifted, the batch's sensor becomes the 
                             (``resize=False`` only)
 CropTime, RandomCropTime    times shifted ``start`` bins; the grid becomes ``length`` bins
 RandomEventDrop             random (per event), time (bins of the grid), area (sensor pixels)
+RandomDropPixel, DropPixel  events on masked sensor pixels dropped (the frame kernel's
+                            counter-based mask; ``DropPixel(rate_hz=...)`` needs frames)
 AddPoissonNoise             uniform events over the grid's window at ``rate_hz`` per pixel
                             and polarity
 EventsToFrames              binning on the batch's device (anywhere in a ``Compose``)
@@ -42,6 +44,7 @@ from torch import Tensor
 
 from .._validation import check_pair, describe
 from ..functional import event_kernels as K
+from ..functional.drop import _pixel_mask, random_pixel_mask
 from ..functional.event_batch import EventBatch
 from .base import _EVENT_NEUTRAL, EventTransform, Params, integers, register_event_kernel, seeds, uniform
 from . import affine as _affine
@@ -144,6 +147,25 @@ def _time_reversal_events(module: Any, batch: EventBatch, params: Params) -> Eve
 @register_event_kernel(_noise.AddPoissonNoise, neutral={"rate_hz": 0.0})
 def _poisson_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.poisson_noise_events(batch, params["rate_hz"], params["seed"])
+
+
+@register_event_kernel(_drop.RandomDropPixel, neutral={"fraction": 0.0})
+def _random_drop_pixel_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
+    # the same counter-based mask as on frames, over the sensor's pixels
+    height, width = batch.sensor_size
+    mask = random_pixel_mask(params["seed"], params["fraction"], height, width, batch.device)
+    return K.drop_pixels_events(batch, mask)
+
+
+@register_event_kernel(_drop.DropPixel)
+def _drop_pixel_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
+    if module.pixels is None:
+        raise TypeError(
+            "DropPixel(rate_hz=...) finds hot pixels from binned frames; on an EventBatch give the "
+            "pixels (DropPixel(pixels=...)) or bin first with EventsToFrames"
+        )
+    height, width = batch.sensor_size
+    return K.drop_pixels_events(batch, _pixel_mask(module.pixels, len(batch), height, width, batch.device))
 
 
 @register_event_kernel(_drop.RandomEventDrop)
