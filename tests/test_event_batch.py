@@ -284,6 +284,25 @@ class TestKernels:
             expected = [e for e, ui in zip(rows(batch, b), u.tolist()) if not ui < fraction[b].item()]
             assert rows(out, b) == expected
 
+    def test_bank_noise_matches_frames_and_places_events_at_bin_centres(self):
+        batch = make_batch(3)
+        bank = torch.poisson(torch.full((9, 2, *SENSOR), 0.2), generator=torch.Generator().manual_seed(1))
+        noise = et.AddNoise(bank)
+        params = noise.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(2))
+        out = noise(batch, params=params)
+        assert torch.equal(frames_of(out), noise(frames_of(batch), params=params))
+        for b in range(3):  # slow reference: every count of the window is one event at its bin's centre
+            first = int(params["offset"][b])
+            added = rows(out, b)[batch.lengths[b]:]
+            expected = sorted(
+                (x, y, int(batch.t_start[b]) + t * FRAME_US + FRAME_US // 2, p)
+                for t in range(T) for p in range(2) for y in range(SENSOR[0]) for x in range(SENSOR[1])
+                for _ in range(int(bank[first + t, p, y, x]))
+            )
+            assert sorted(added) == expected and rows(out, b)[: batch.lengths[b]] == rows(batch, b)
+        with pytest.raises(ValueError, match="cannot cover frames"):
+            et.AddNoise(torch.zeros(9, 2, 5, 5))(batch)
+
     def test_pixel_drop_reference_and_frames(self):
         batch = make_batch(3)
         drop = et.RandomDropPixel((0.2, 0.6))
@@ -388,6 +407,8 @@ FACTORIES = {
     "TES exact p": lambda: et.RandomTemporalEventShift((-1, 1), 0.5, p=0.5),
     "RandomEventDrop p": lambda: et.RandomEventDrop((0.2, 0.6), p=0.5),
     "RandomDropPixel p": lambda: et.RandomDropPixel((0.1, 0.4), p=0.5),
+    "AddNoise p": lambda: et.AddNoise(torch.poisson(torch.full((9, 2, *SENSOR), 0.3),
+                                                    generator=torch.Generator().manual_seed(4)), p=0.5),
     "DropPixel": lambda: et.DropPixel([[1, 1], [3, 5]]),
     "SpatialJitter p": lambda: et.SpatialJitter(1.5, p=0.5),
     "Decimation p": lambda: et.Decimation(2, p=0.5),
@@ -437,7 +458,7 @@ class TestBattery:
         one = EventBatch.from_streams([torch.tensor([[3, 4, 1500, 1]]), torch.zeros(0, 4)], sensor_size=SENSOR,
                                       frame_ms=1.0, t_start=0, n_frames=T)
         out = transform(one, generator=torch.Generator().manual_seed(0))
-        assert len(out) == 2 and out.lengths[0] <= 1 + (10**6 if name == "AddPoissonNoise" else 0)
+        assert len(out) == 2 and out.lengths[0] <= 1 + (10**6 if name in ("AddPoissonNoise", "AddNoise p") else 0)
 
     def test_in_containers(self, name):
         batch = make_batch()

@@ -44,7 +44,7 @@ __all__ = [
     "flip_events", "translate_events", "affine_events", "shift_events", "drop_events_random",
     "flip_polarity_events", "time_reversal_events", "poisson_noise_events", "spatial_jitter",
     "time_jitter", "time_skew", "refractory_period", "decimation", "event_centroid", "drop_window",
-    "crop_events", "crop_time_events", "drop_pixels_events",
+    "crop_events", "crop_time_events", "drop_pixels_events", "bank_noise_events",
 ]
 
 
@@ -410,17 +410,62 @@ def poisson_noise_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> Ev
         t = t.floor().to(batch.t.dtype)
         p = (u[:, 3] < 0.5).to(torch.int8)
         noise.append((x, y, t, p))
+    return _append(batch, noise)
+
+
+def _append(batch: EventBatch, added: Sequence[tuple[Tensor, Tensor, Tensor, Tensor]]) -> EventBatch:
+    """``batch`` with ``added[b]`` (x, y, t, p columns) after stream b's own events."""
     bounds = batch.offsets.tolist()
     cols = []
     for k, name in enumerate(("x", "y", "t", "p")):
         column = getattr(batch, name)
         pieces = []
         for b in range(len(batch)):
-            pieces += [column[bounds[b] : bounds[b + 1]], noise[b][k]]
+            pieces += [column[bounds[b] : bounds[b + 1]], added[b][k]]
         cols.append(torch.cat(pieces) if pieces else column)
-    lengths = [bounds[b + 1] - bounds[b] + counts[b] for b in range(len(batch))]
+    lengths = [bounds[b + 1] - bounds[b] + int(added[b][0].shape[0]) for b in range(len(batch))]
     offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
     return batch._replace(x=cols[0], y=cols[1], t=cols[2], p=cols[3], offsets=offsets, _sample=None)
+
+
+def bank_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventBatch:
+    """Add the events of a static-scene bank: stream b gets frames ``offset[b] .. offset[b] + T``
+    of ``bank`` ``(N, 2, H, W)`` (sensor-sized whole counts) as events, each at the centre of
+    its bin on the batch's grid (a frame bank has no finer timing), so binning gives the
+    stream's frames plus that window, as :class:`~event_transforms.AddNoise` does on frames.
+    Deterministic; one host read of the window's event count per stream.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.zeros(0, 4)], sensor_size=(1, 2), frame_ms=1.0,
+        ...                                 t_start=0, n_frames=2)
+        >>> bank = torch.zeros(3, 2, 1, 2)
+        >>> bank[2, 1, 0, 1] = 2  # two ON events at x = 1 in the bank's third frame
+        >>> out = bank_noise_events(batch, bank, torch.tensor([1]))
+        >>> out.x.tolist(), out.t.tolist(), out.p.tolist()
+        ([1, 1], [1500, 1500], [1, 1])
+    """
+    starts, frame_us, n_frames = _require_grid(batch, "AddNoise")
+    height, width = batch.sensor_size
+    if tuple(bank.shape[-2:]) != (height, width):
+        raise ValueError(
+            f"bank: AddNoise on events needs a bank of the sensor's size (H, W) = ({height}, {width}), "
+            f"got {tuple(bank.shape)}"
+        )
+    device = batch.device
+    per_pixel = 2 * height * width
+    added = []
+    for b, first in enumerate(offset.tolist()):
+        window = bank[first : first + n_frames].to(device).reshape(-1)
+        counts = window.to(torch.int64)
+        entries = (counts > 0).nonzero().squeeze(1)  # the output size depends on the bank
+        repeats = counts.index_select(0, entries)
+        index = torch.repeat_interleave(entries, repeats)
+        frame, rest = index // per_pixel, index % per_pixel
+        p, pixel = rest // (height * width), rest % (height * width)
+        t = starts.tolist()[b] + frame * frame_us + frame_us // 2
+        added.append(((pixel % width).to(torch.int16), (pixel // width).to(torch.int16),
+                      t.to(batch.t.dtype), p.to(torch.int8)))
+    return _append(batch, added)
 
 
 # --------------------------------------------------------------------------- event-only

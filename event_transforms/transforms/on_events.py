@@ -23,6 +23,8 @@ RandomCrop, CenterCrop      coordinates shifted, the batch's sensor becomes the 
                             (``resize=False`` only)
 CropTime, RandomCropTime    times shifted ``start`` bins; the grid becomes ``length`` bins
 RandomEventDrop             random (per event), time (bins of the grid), area (sensor pixels)
+AddNoise                    the bank window's counts as events at their bins' centres (the
+                            bank is sensor-sized frames of a static scene)
 RandomDropPixel, DropPixel  events on masked sensor pixels dropped (the frame kernel's
                             counter-based mask; ``DropPixel(rate_hz=...)`` needs frames)
 AddPoissonNoise             uniform events over the grid's window at ``rate_hz`` per pixel
@@ -147,6 +149,11 @@ def _time_reversal_events(module: Any, batch: EventBatch, params: Params) -> Eve
 @register_event_kernel(_noise.AddPoissonNoise, neutral={"rate_hz": 0.0})
 def _poisson_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
     return K.poisson_noise_events(batch, params["rate_hz"], params["seed"])
+
+
+@register_event_kernel(_noise.AddNoise)
+def _bank_noise_events(module: Any, batch: EventBatch, params: Params) -> EventBatch:
+    return K.bank_noise_events(batch, module.bank, params["offset"])
 
 
 @register_event_kernel(_drop.RandomDropPixel, neutral={"fraction": 0.0})
