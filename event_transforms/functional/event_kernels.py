@@ -399,6 +399,7 @@ def poisson_noise_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> Ev
     rates = rate_hz.tolist()
     span = n_frames * frame_us
     counts = [int(np.random.default_rng(s).poisson(r * span * 1e-6 * 2 * height * width)) for s, r in zip(seeds, rates)]
+    first = starts.tolist()
     device = batch.device
     noise = []
     for b, (s, n) in enumerate(zip(seeds, counts)):
@@ -406,7 +407,7 @@ def poisson_noise_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> Ev
         u = torch.rand(n, 4, generator=g, device=device, dtype=torch.float64)
         x = (u[:, 0] * width).to(torch.int16)
         y = (u[:, 1] * height).to(torch.int16)
-        t = starts.tolist()[b] + u[:, 2] * span
+        t = first[b] + u[:, 2] * span
         t = t.floor().to(batch.t.dtype)
         p = (u[:, 3] < 0.5).to(torch.int8)
         noise.append((x, y, t, p))
@@ -453,6 +454,7 @@ def bank_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventB
         )
     device = batch.device
     per_pixel = 2 * height * width
+    first_t = starts.tolist()
     added = []
     for b, first in enumerate(offset.tolist()):
         window = bank[first : first + n_frames].to(device).reshape(-1)
@@ -462,7 +464,7 @@ def bank_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventB
         index = torch.repeat_interleave(entries, repeats)
         frame, rest = index // per_pixel, index % per_pixel
         p, pixel = rest // (height * width), rest % (height * width)
-        t = starts.tolist()[b] + frame * frame_us + frame_us // 2
+        t = first_t[b] + frame * frame_us + frame_us // 2
         added.append(((pixel % width).to(torch.int16), (pixel // width).to(torch.int16),
                       t.to(batch.t.dtype), p.to(torch.int8)))
     return _append(batch, added)
