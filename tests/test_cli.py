@@ -24,6 +24,7 @@ from event_transforms.tactile.protocol import (
     parse_method,
     run_protocol,
 )
+from event_transforms.tactile.runs import folder_name
 from event_transforms.tactile.scenes import SCENES, get_scene
 from event_transforms.tactile.stats import holm, paired_t
 from event_transforms.tactile.training import Stopwatch
@@ -323,8 +324,8 @@ class TestRunProtocol:
         largest = max((m for m in deltas if m != "none"), key=lambda m: abs(deltas[m]["delta_vs_none"]["mean"]))
         assert check["method"] == largest and check["delta"] == deltas[largest]["delta_vs_none"]["mean"]
         double = ProtocolConfig(**{**TINY.__dict__, "steps": 2 * TINY.steps})
-        runs = {m: json.loads((out / "runs" / double.key() / f"timing_{m}.json").read_text())[m]
-                for m in ("none", largest)}
+        folder = out / "runs" / folder_name(double, self.seeds)
+        runs = {m: json.loads((folder / f"timing_{m}.json").read_text())["result"][m] for m in ("none", largest)}
         assert all(r["steps"] == 2 * TINY.steps for rs in runs.values() for r in rs)
         expected = paired_t([r["test_mse"] for r in runs["none"]], [r["test_mse"] for r in runs[largest]])
         assert check["delta_2n"] == pytest.approx(expected.mean)

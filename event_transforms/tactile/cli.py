@@ -1,4 +1,4 @@
-"""Command line: ``event-transforms reproduce | simulate | show | show-scene``.
+"""Command line: ``event-transforms reproduce | simulate | show | show-scene | infer-scene | train | predict``.
 
 ``reproduce`` runs the benchmark protocol (:mod:`event_transforms.tactile.experiment`) on the
 simulated scenes (:mod:`event_transforms.tactile.scenes`). Without ``--full`` it runs a quick
@@ -8,6 +8,12 @@ and the policy rows ``stretch``/``inferred``/``prior``/``everything`` on gapped 
 narrower model and fewer steps, with a budget check at twice the steps) that finishes in
 minutes on a 2-core CPU; ``--full`` runs 10 seeds, every scene, every method that each scene
 can build, and the paper-size model. Results are on synthetic data, never the paper's numbers.
+
+``reproduce --data DIR`` runs the same protocol on a folder of your own recordings (the layout
+of :mod:`event_transforms.tactile.recordings`), ``infer-scene --data DIR`` prints the gaps
+inferred between its training and deployment recordings, ``train --data DIR`` saves a model
+checkpoint with its preprocessing and ``predict MODEL EVENTS`` streams an event file through it;
+``simulate --export DIR --scene NAME`` writes a built-in scene in that layout.
 
 Under ``torchrun --nproc-per-node N -m event_transforms.tactile.cli reproduce ...`` the
 runs are spread over the N ranks (gloo on the CPU, nccl with ``--device cuda``) and rank 0
@@ -181,9 +187,42 @@ def build_parser() -> argparse.ArgumentParser:
                      help="skip rerunning none and the largest-|Δ| method at twice the steps on gapped scenes")
     rep.add_argument("--plan", action="store_true",
                      help="print the run's units and member-steps (its cost) and exit without training")
+    rep.add_argument("--data", type=Path, metavar="DIR",
+                     help="a folder of your own recordings (recordings.csv; see README 'Your own recordings') "
+                     "instead of the simulated scenes")
+    _recording_options(rep)
 
-    sim = sub.add_parser("simulate", help="simulate every scene's data into the cache")
+    sim = sub.add_parser("simulate", help="simulate every scene's data into the cache, or export one scene's grasps")
     sim.add_argument("--root", type=Path, help="cache folder (default: the package cache)")
+    sim.add_argument("--export", type=Path, metavar="DIR",
+                     help="write the grasps of --scene in the recording-set layout (recordings.csv, events/*.npy, "
+                     "force/*.csv) to DIR")
+    sim.add_argument("--scene", default="paper", help="the scene to export (default paper)")
+
+    infer = sub.add_parser("infer-scene", help="infer the gaps between training and deployment recordings")
+    infer.add_argument("--data", type=Path, metavar="DIR", required=True, help="a folder of recordings")
+    _recording_options(infer)
+
+    train = sub.add_parser("train", help="train the reference model on your recordings and save a checkpoint")
+    train.add_argument("--data", type=Path, metavar="DIR", required=True, help="a folder of recordings")
+    train.add_argument("--policy", default="none",
+                       help="none, inferred (the policy infer-scene finds) or any method name of reproduce")
+    train.add_argument("--out", type=Path, default=Path("model.pt"), help="checkpoint path (default model.pt)")
+    train.add_argument("--seed", type=int, default=0, help="seed of the weights, batches and augmentation")
+    train.add_argument("--steps", type=_positive, default=QUICK["steps"], help="optimiser steps")
+    train.add_argument("--lr", type=_positive_float, default=QUICK["lr"], help="peak learning rate")
+    train.add_argument("--batch-size", type=_positive, default=QUICK["batch_size"], help="windows per step")
+    train.add_argument("--hidden-channels", type=_channels, default=QUICK["hidden_channels"],
+                       help="ConvLSTM channels per layer")
+    train.add_argument("--input-pool", type=_positive, default=QUICK["input_pool"], help="the model's first pool")
+    train.add_argument("--threads", type=_positive, default=1, help="torch CPU threads")
+    _recording_options(train)
+
+    predict = sub.add_parser("predict", help="stream an event file through a saved model into a force CSV")
+    predict.add_argument("model", type=Path, help="a checkpoint written by train")
+    predict.add_argument("events", type=Path, help="an event file (.npy, .npz, .csv, .aedat4, .h5)")
+    predict.add_argument("--out", type=Path, default=Path("force.csv"), help="output CSV t_us,force_n")
+    predict.add_argument("--threads", type=_positive, default=1, help="torch CPU threads")
 
     show = sub.add_parser("show", help="write a before/after PNG grid of a named transform")
     show.add_argument("method", help="a method name as in reproduce, e.g. rot45, fs-1, tes-2:0.5")
@@ -205,6 +244,68 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return value
+
+
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def _recording_options(parser: argparse.ArgumentParser) -> None:
+    """The layout's settings (RecordingSettings), each recorded with the results."""
+    group = parser.add_argument_group("recordings (with --data)")
+    group.add_argument("--sensor-size", type=_positive, nargs=2, metavar=("H", "W"), default=(180, 240),
+                       help="sensor height and width (default 180 240, the DAVIS240)")
+    group.add_argument("--frame-ms", type=_positive_float, default=10.0, help="bin width in ms (default 10)")
+    group.add_argument("--frames", type=_positive, default=36, help="frames T per window (default 36)")
+    group.add_argument("--stride", type=_positive, help="frames between window starts (default T)")
+    group.add_argument("--crop", type=_non_negative_int, nargs=4, metavar=("TOP", "LEFT", "H", "W"),
+                       help="crop window for every recording (default: recordings.csv's crop columns, else the "
+                       "contact area of the training recordings)")
+    group.add_argument("--pool", type=_positive, default=2, help="sum-pool factor (default 2)")
+    group.add_argument("--force-offset-ms", type=_finite, default=0.0,
+                       help="the force clock's lag behind the events' clock in ms (default 0)")
+
+
+def _recording_settings(args: argparse.Namespace) -> Any:
+    from .recordings import RecordingSettings
+
+    return RecordingSettings(
+        sensor_size=tuple(args.sensor_size), frame_ms=args.frame_ms, frames=args.frames, stride=args.stride,
+        crop=None if args.crop is None else tuple(args.crop), pool=args.pool, force_offset_ms=args.force_offset_ms,
+    )
+
+
+def _load_recordings(args: argparse.Namespace) -> Any:
+    """The folder's SceneData, with one line saying what was read and how."""
+    from .recordings import load_recording_data
+
+    if not args.data.is_dir():
+        raise ValueError(f"--data {str(args.data)!r} is not a folder")
+    root = getattr(args, "root", None)
+    data = load_recording_data(args.data, _recording_settings(args), cache=None if root is None else root / "recordings",
+                               log=_print)
+    d = data.dataset
+    _print(f"data: {d['folder']} ({d['files']} files, content hash {d['content_hash'][:16]}); recordings per split "
+           f"{d['recordings']}, windows {d['windows']} of {args.frames} frames of {args.frame_ms:g} ms (stride "
+           f"{d['settings']['stride']}); crop {tuple(d['crop'])} ({d['crop_source']}), pool {args.pool}; "
+           f"{d['left_out_frames']} frames after the last whole window left out")
+    return data
+
+
 def _print(*args: Any) -> None:
     print(*args, flush=True)
 
@@ -223,9 +324,18 @@ def _writable(path: Path | None, flag: str) -> None:
         raise ValueError(f"{flag} {str(path)!r} is not a writable folder ({error.strerror or error})") from None
 
 
+def _data_methods(scene: Any) -> list[str]:
+    """A folder of recordings runs none and the policies it can build (no oracle: the gaps are inferred)."""
+    from .methods import EXTRA_METHODS, _buildable
+
+    return ["none", *[m for m in EXTRA_METHODS if _buildable(m, scene)]]
+
+
 def _reproduce(args: argparse.Namespace) -> int:
     _writable(args.out, "--out")
     _writable(args.root, "--root")
+    if args.data is not None and args.scenes:
+        raise ValueError("give --data DIR or --scenes, not both")
     import torch
 
     from .distributed import join_from_env
@@ -245,6 +355,10 @@ def _reproduce(args: argparse.Namespace) -> int:
     if device == "cuda" and not distributed:
         jobs = 1  # one process drives the GPU; ensembles fill it
     seeds = args.seeds or list(range(base["seeds"]))
+    given = None
+    if args.data is not None:
+        recorded = _load_recordings(args)
+        given = {recorded.scene.name: recorded}
     config = ProtocolConfig(
         steps=args.steps or base["steps"],
         batch_size=args.batch_size or base["batch_size"],
@@ -257,9 +371,16 @@ def _reproduce(args: argparse.Namespace) -> int:
         copies=args.copies,
     )
     scenes = args.scenes or (list(SCENES) if base["scenes"] is None else [s for s in base["scenes"] if s in SCENES])
-    methods = None if args.methods is None else list(args.methods)
-    chosen = choose_methods(scenes, methods, full=args.full)
-    plan = plan_run(scenes, chosen, seeds, config, group=args.group, budget_check=not args.no_budget_check)
+    methods: Any = None if args.methods is None else list(args.methods)
+    if given is not None:
+        scenes = list(given)
+        if methods is None:
+            methods = {scenes[0]: _data_methods(given[scenes[0]].scene)}
+        _print(f"inferred scene: gaps {list(given[scenes[0]].scene.gaps) or 'none'} "
+               f"(from {given[scenes[0]].dataset['inferred_from']})")
+    chosen = choose_methods(scenes, methods, full=args.full, data=given)
+    plan = plan_run(scenes, chosen, seeds, config, group=args.group, budget_check=not args.no_budget_check,
+                    data=given)
     if args.plan:
         _print(f"plan: scenes {scenes}, {len(seeds)} seeds, {config.steps} steps per run")
         for scene, names in chosen.items():
@@ -287,11 +408,16 @@ def _reproduce(args: argparse.Namespace) -> int:
         scenes, seeds, args.out, config=config, methods=chosen, full=args.full,
         root=None if args.root is None else str(args.root), jobs=1 if distributed else jobs,
         device=device, threads=threads, group=args.group, log=_print, budget_check=not args.no_budget_check,
+        data=given,
     )
     if not results:  # a torchrun rank other than 0
         return 0
     say()
-    say(f"Results on synthetic data ({label} configuration; test MSE in N² over all frames, mean ± sample sd "
+    if given is not None:
+        counts = next(iter(given.values())).dataset["recordings"]
+        say(f"Results on {results['data']}: the intervals rest on {counts['test']} test recordings "
+            f"({counts['val']} validation, {counts['train']} training, {counts['holdout']} hold-out).")
+    say(f"Results on {'your recordings' if given is not None else 'synthetic data'} ({label} configuration; test MSE in N² over all frames, mean ± sample sd "
         f"over {len(seeds)} paired seeds (the same initial weights and the same original items at the same "
         "steps); Δ vs none with a 95 % paired t-interval, ** where the paired t-test, Holm-corrected within the "
         "scene, gives p ≤ 0.05 (the exact Wilcoxon p beside it cannot go below "
@@ -353,9 +479,19 @@ def _plots(results: dict[str, Any], out: Path) -> list[Path]:
 def _simulate(args: argparse.Namespace) -> int:
     _writable(args.root, "--root")
     from .experiment import load_scene_data
-    from .scenes import SCENES
+    from .scenes import SCENES, get_scene
 
     root = None if args.root is None else str(args.root)
+    if args.export is not None:
+        from .recordings import export_scene
+
+        scene = get_scene(args.scene)  # the name first, before any simulation
+        _writable(args.export, "--export")
+        start = time.perf_counter()
+        table = export_scene(scene, args.export, log=_print)
+        _print(f"wrote {table} and the events and force files of scene {scene.name!r} in "
+               f"{time.perf_counter() - start:.1f} s; run: event-transforms reproduce --data {args.export}")
+        return 0
     total = time.perf_counter()
     for name in SCENES:
         data = load_scene_data(name, root)
@@ -432,11 +568,87 @@ def _show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _format_evidence(scene: Any) -> list[str]:
+    """One line per factor: training and deployment estimates, difference, z and the verdict."""
+    lines = []
+    evidence = scene.evidence or {}
+    for factor in ("timing", "orientation", "noise"):
+        e = evidence.get(factor)
+        if e:
+            verdict = "GAP" if e["gap"] else "no gap"
+            lines.append(f"  {factor}: {e['statistic']} train {e['train']['mean']:.3g} ± {e['train']['se']:.2g} "
+                         f"(n {e['train']['n']}), deploy {e['deploy']['mean']:.3g} ± {e['deploy']['se']:.2g} "
+                         f"(n {e['deploy']['n']}), difference {e['difference']:+.3g} (z {e['z']:+.1f}): {verdict}")
+    size = evidence.get("size")
+    if size:
+        width = size["width_px"]
+        lines.append(f"  size: sizes train {size['train_sizes']}, deploy {size['deploy_sizes']} (from diameter_mm): "
+                     f"{'GAP' if size['gap'] else 'no gap'}; contact width ratio deploy/train {width['ratio']:.3f} "
+                     f"± {width['ratio_se']:.3f} (reported, not used: size is not identifiable from frames)")
+    return lines
+
+
+def _infer_scene(args: argparse.Namespace) -> int:
+    data = _load_recordings(args)
+    scene = data.scene.inferred
+    _print(f"inferred from {data.dataset['inferred_from']}: gaps {list(scene.gaps) or 'none'}")
+    for line in _format_evidence(scene):
+        _print(line)
+    policy = scene.policy("independent")
+    _print(f"policy (independent): {[type(t).__name__ for t in policy.transforms] or 'identity'}")
+    return 0
+
+
+def _train(args: argparse.Namespace) -> int:
+    import torch
+
+    from .deployment import train_model
+
+    _writable(args.out.parent if str(args.out.parent) else Path("."), "--out")
+    torch.set_num_threads(args.threads)
+    data = _load_recordings(args)
+    start = time.perf_counter()
+    model, summary = train_model(
+        data, args.policy, steps=args.steps, batch_size=args.batch_size, lr=args.lr,
+        eval_every=min(QUICK["eval_every"], args.steps), hidden_channels=tuple(args.hidden_channels),
+        input_pool=args.input_pool, seed=args.seed,
+    )
+    settings = data.dataset["settings"]
+    preprocessing = {**settings, "force_offset_n": summary["force_offset"], "force_scale_n": summary["force_scale"],
+                     "policy": args.policy, "data": {k: data.dataset[k] for k in ("folder", "content_hash", "files")}}
+    model.save(args.out, preprocessing=preprocessing)
+    _print(f"trained with policy {args.policy!r} for {args.steps} steps in {time.perf_counter() - start:.1f} s "
+           f"(kept step {summary['kept_step']}, hold-out MSE {summary['holdout_mse']:.3g} N²); validation MSE "
+           f"{summary['val_mse']:.3g} N², test MSE {summary['test_mse']:.3g} N² on {data.dataset['recordings']['test']} "
+           f"test recordings")
+    _print(f"wrote {args.out} (weights, model settings, preprocessing: frame_ms {settings['frame_ms']:g}, crop "
+           f"{tuple(settings['crop'])}, pool {settings['pool']}, force scaling; package version)")
+    return 0
+
+
+def _predict(args: argparse.Namespace) -> int:
+    import torch
+
+    from .deployment import predict_stream
+    from .models import ForceRegressor
+
+    torch.set_num_threads(args.threads)
+    _writable(args.out.parent if str(args.out.parent) else Path("."), "--out")
+    model = ForceRegressor.load(args.model)
+    start = time.perf_counter()
+    stats = predict_stream(model, args.events, args.out)
+    _print(f"wrote {args.out}: {stats['frames']} frames from {stats['events']:,} events in "
+           f"{time.perf_counter() - start:.1f} s; step latency p50 {stats['p50_ms']:.3f} ms, p99 "
+           f"{stats['p99_ms']:.3f} ms per frame")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``event-transforms`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    handlers = {"reproduce": _reproduce, "simulate": _simulate, "show": _show, "show-scene": _show_scene}
+    handlers = {"reproduce": _reproduce, "simulate": _simulate, "show": _show, "show-scene": _show_scene,
+                "infer-scene": _infer_scene, "train": _train, "predict": _predict}
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:

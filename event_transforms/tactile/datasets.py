@@ -25,6 +25,7 @@ import hashlib
 import json
 import os
 import tempfile
+import warnings
 from collections.abc import Callable
 from functools import cached_property
 from pathlib import Path
@@ -92,6 +93,24 @@ def _atomic_save(obj: object, path: Path) -> None:
         except FileNotFoundError:
             pass
         raise
+
+
+def _load_cache(path: Path) -> dict[str, Tensor] | None:
+    """A cache file's contents, or ``None`` when there is none; a file that cannot be read
+    (truncated, corrupted) is named in a warning, deleted and rebuilt by the caller."""
+    if not path.exists():
+        return None
+    try:
+        data = torch.load(path, mmap=True, weights_only=True)
+        if not isinstance(data, dict) or not {"frames", "force", "diameter_mm", "seed"} <= set(data):
+            raise ValueError("not a data-set cache file")
+        return data
+    except Exception as error:  # noqa: BLE001 - any unreadable cache file is rebuilt, by name
+        first = str(error).splitlines()[0] if str(error) else ""
+        warnings.warn(f"discarded the unreadable cache file {path} ({type(error).__name__}: {first}); rebuilding it",
+                      stacklevel=3)
+        path.unlink(missing_ok=True)
+        return None
 
 
 def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool: int) -> str:
@@ -221,9 +240,10 @@ class TactileGrasps(Dataset):
         # The cache always holds the full split; the paper split reads its first rows.
         seeds = range(first, first + SPLIT_SIZES[split])
         self.path = self.root / _cache_name(self.session, seeds, self.crop_size, self.pool)
-        if not self.path.exists():
+        data = _load_cache(self.path)
+        if data is None:
             _atomic_save(generate(self.session, seeds, crop_size=self.crop_size, pool=self.pool), self.path)
-        data = torch.load(self.path, mmap=True, weights_only=True)
+            data = torch.load(self.path, mmap=True, weights_only=True)
         self._counts = data["frames"][:size]
         self.forces = data["force"][:size]
         self._diameter = data["diameter_mm"][:size].tolist()

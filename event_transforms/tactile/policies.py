@@ -71,6 +71,8 @@ def other_camera_bank(scene: str | BenchmarkScene, n_frames: int = 360) -> Tenso
     from .datasets import noise_bank
 
     scene = get_scene(scene)
+    if getattr(scene, "prior_bank", None) is not None:  # a folder of recordings: its training camera
+        return scene.prior_bank
     config = scene.train.config
     return noise_bank(n_frames, seed=1, config=config.replace(sensor_seed=config.sensor_seed + 1))
 
@@ -136,8 +138,12 @@ def _inferred(scene: BenchmarkScene, root: str | None) -> Scene:
 
 def inferred_scene(scene: str | BenchmarkScene, root: str | None = None) -> Scene:
     """:func:`~event_transforms.infer_scene` on the scene's 48 training grasps and its 24
-    deployment validation grasps (frames only), bolt sizes as metadata (cached per scene)."""
-    return _inferred(get_scene(scene), None if root is None else str(root))
+    deployment validation grasps (frames only), bolt sizes as metadata (cached per scene); a
+    scene of recordings (:class:`~event_transforms.tactile.recordings.RecordingScene`) holds its own."""
+    scene = get_scene(scene)
+    if getattr(scene, "inferred", None) is not None:
+        return scene.inferred
+    return _inferred(scene, None if root is None else str(root))
 
 
 def inferred_policy(scene: str | BenchmarkScene, root: str | None = None) -> nn.Module:

@@ -142,8 +142,13 @@ def format_report(results: dict[str, Any], *, timings: bool = True) -> str:
         gaps = ", ".join(summary["gaps"]) or "none (control)"
         sizes = summary["split_sizes"]
         holdout = f" ({sizes['holdout']} hold-out from the training session)" if "holdout" in sizes else ""
+        counts = summary.get("recordings")  # a folder of recordings: what the intervals rest on
+        recorded = (f" from {counts['train']} train / {counts['holdout']} hold-out / {counts['val']} val / "
+                    f"{counts['test']} test recordings (the intervals rest on {counts['test']} test recordings)"
+                    if counts else "")
         parts.append(f"### {name}: {summary['description']}\n\ngaps: {gaps}; "
-                     f"{sizes['train']} train{holdout} / {sizes['val']} val / {sizes['test']} test sequences\n")
+                     f"{sizes['train']} train{holdout} / {sizes['val']} val / {sizes['test']} test sequences"
+                     f"{recorded}\n")
         parts.append(format_scene_table(name, summary, timings=timings))
         parts.append("")
         if summary["gaps"]:
