@@ -141,7 +141,7 @@ def predict_stream(
             force, state = model.step(frame.unsqueeze(0), state)
             latencies.append(time.perf_counter() - tick)
             centre = t0 + (count + 0.5) * frame_us - offset_us
-            handle.write(f"{centre:.0f},{float(force[0]):.6g}\n")
+            handle.write(f"{centre:.0f},{float(force[0]):.9g}\n")
             count += 1
     os.replace(temporary, out)
     ms = np.array(latencies) * 1000.0
