@@ -3,9 +3,6 @@ bad input, the exported scene, the run store's resume keys, train/predict and th
 
 from __future__ import annotations
 
-import json
-import math
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -77,7 +74,7 @@ def make_folder(root: Path, *, train: int = 6, deploy: int = 5, unlabeled: int =
     return root
 
 
-SMALL = dict(sensor_size=SENSOR, frames=12, pool=2)
+SMALL = {"sensor_size": SENSOR, "frames": 12, "pool": 2}
 
 
 @pytest.fixture(scope="module")

@@ -23,6 +23,7 @@ writes the results; ``--jobs N`` starts N local ranks itself.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -259,7 +260,7 @@ def _finite(text: str) -> float:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if value != value or value in (float("inf"), float("-inf")):
+    if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
     return value
 

@@ -91,18 +91,18 @@ Example:
 from __future__ import annotations
 
 __all__ = [
-    "RecordingSettings",
+    "SPLITS",
     "Recording",
     "RecordingSet",
-    "read_table",
-    "read_events",
-    "read_force",
-    "frame_labels",
+    "RecordingSettings",
     "contact_crop",
     "content_hash",
-    "load_recording_data",
     "export_scene",
-    "SPLITS",
+    "frame_labels",
+    "load_recording_data",
+    "read_events",
+    "read_force",
+    "read_table",
 ]
 
 import csv
@@ -433,7 +433,7 @@ def _read_hdf5(path: Path) -> dict[str, Any]:
     for name in ("events", "CD/events"):
         if name in handle and getattr(handle[name], "dtype", None) is not None and handle[name].dtype.names:
             dataset = handle[name]
-            return _named_columns(dataset.dtype.names, lambda field: _H5Field(dataset, field), path)
+            return _named_columns(dataset.dtype.names, lambda field, data=dataset: _H5Field(data, field), path)
     group = handle["events"] if "events" in handle and not hasattr(handle["events"], "dtype") else handle
     return _named_columns(list(group.keys()), lambda name: group[name], path)
 
@@ -1137,7 +1137,7 @@ def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = 
     Returns:
         The path of ``recordings.csv``.
     """
-    from .datasets import SPLIT_SIZES, _SPLIT_SEED
+    from .datasets import _SPLIT_SEED, SPLIT_SIZES
     from .scenes import get_scene
     from .simulation import draw_grasp, simulate_grasps
 
