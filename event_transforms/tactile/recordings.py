@@ -262,6 +262,7 @@ def read_table(root: str | os.PathLike[str]) -> list[Recording]:
     Example:
         >>> import tempfile
         >>> root = Path(tempfile.mkdtemp())
+        >>> _ = (root / "a.npy").write_bytes(b"")
         >>> _ = (root / "recordings.csv").write_text("events,force,role\\na.npy,,tain\\n")
         >>> read_table(root)
         Traceback (most recent call last):
@@ -602,9 +603,9 @@ def frame_labels(t_us: np.ndarray, force_n: np.ndarray, *, t_start: float, frame
     of the last bin), else ``ValueError``.
 
     Example:
-        >>> t = np.array([0.0, 4_000.0, 8_000.0, 25_000.0])
+        >>> t = np.array([0.0, 4_000.0, 8_000.0, 22_000.0])  # bin 1 holds no sample: 4.5 at its centre
         >>> frame_labels(t, np.array([1.0, 2.0, 3.0, 6.0]), t_start=0, frame_us=10_000, n_frames=3).tolist()
-        [2.0, 4.0, 6.0]
+        [2.0, 4.5, 6.0]
     """
     edges = float(t_start) + np.arange(n_frames + 1, dtype=np.float64) * float(frame_us)
     if t_us[0] >= edges[1] or t_us[-1] < edges[-2]:
