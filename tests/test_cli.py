@@ -598,7 +598,23 @@ class TestCommandLineRealData:
         monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib raises ImportError
         assert cli.main(["show", "none", "--root", str(cache), "--out", str(tmp_path / "x.png")]) == 2
         err = capsys.readouterr().err
-        assert "show: error:" in err and "event-transforms[plot]" in err and len(err.strip().splitlines()) == 1
+        assert "show: error: matplotlib is not installed" in err and "event-transforms[app]" in err
+        assert len(err.strip().splitlines()) == 1
+
+    def test_missing_tqdm_names_the_app_extra(self, tmp_path, capsys, monkeypatch):
+        monkeypatch.setitem(sys.modules, "tqdm", None)  # import tqdm raises ImportError
+        assert cli.main(["reproduce", "--out", str(tmp_path / "out"), "--root", str(tmp_path / "cache")]) == 2
+        err = capsys.readouterr().err
+        assert "reproduce: error: tqdm is not installed" in err and "event-transforms[app]" in err
+        assert not (tmp_path / "cache").exists()  # refused before simulating anything
+
+    def test_fit_ensemble_without_tqdm_names_the_extra(self, monkeypatch):
+        from event_transforms.tactile.ensemble import EnsembleForceRegressor, fit_ensemble
+
+        monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+        with pytest.raises(ImportError, match=r"event-transforms\[app\]") as info:
+            fit_ensemble(EnsembleForceRegressor(1, hidden_channels=(2,)), [], [], steps=1, batch_size=1, seeds=[0])
+        assert info.value.name == "tqdm"
 
     def test_show_bad_index(self, cache, tmp_path):
         with pytest.raises(SystemExit, match="index"):

@@ -314,7 +314,7 @@ def _plots(results: dict[str, Any], out: Path) -> list[Path]:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        _print("matplotlib not installed (pip install 'event-transforms[plot]'): no figures")
+        _print("matplotlib not installed (pip install 'event-transforms[app]'): no figures")
         return []
     scenes = results["scenes"]
     names = list(dict.fromkeys(m for summary in scenes.values() for m in summary["methods"]))
@@ -438,6 +438,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     handlers = {"reproduce": _reproduce, "simulate": _simulate, "show": _show, "show-scene": _show_scene}
     try:
+        if args.command in _TRAINING_COMMANDS:  # before any simulation: the training loop needs tqdm
+            import tqdm  # noqa: F401
         return handlers[args.command](args)
     except KeyboardInterrupt:
         print("interrupted: finished units are kept; rerun the same command to resume",
@@ -447,12 +449,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = " ".join(str(error).split())
         print(f"{parser.prog} {args.command}: error: {message}", file=sys.stderr)
         return 2
-    except ImportError as error:  # the pictures of show/show-scene need the plot extra
-        if args.command not in ("show", "show-scene"):
+    except ImportError as error:  # tqdm, matplotlib, torchvision: the app extra's packages
+        if error.name not in _APP_PACKAGES:
             raise
-        print(f"{parser.prog} {args.command}: error: {error}", file=sys.stderr)
+        print(f"{parser.prog} {args.command}: error: {error.name} is not installed; the command line needs the "
+              "app extra: pip install 'event-transforms[app]'", file=sys.stderr)
         return 2
 
+
+#: Commands that train (the training loop's progress bar is tqdm's).
+_TRAINING_COMMANDS = ("reproduce",)
+#: What the `app` extra installs beyond the library (the ImportError names the command line reports).
+_APP_PACKAGES = ("tqdm", "matplotlib", "torchvision")
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
