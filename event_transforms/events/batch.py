@@ -159,6 +159,8 @@ class EventBatch:
         t_start: str | float | Sequence[float] | Tensor = "floor",
         n_frames: int | None = None,
         device: torch.device | str | None = None,
+        time_unit: str | None = None,
+        columns: str | Sequence[str] | None = None,
     ) -> EventBatch:
         """Concatenate event streams (every form :func:`events_to_frames` accepts) into one batch.
 
@@ -174,6 +176,9 @@ class EventBatch:
                 per stream), as in ``events_to_frames``; used only with ``frame_ms``.
             n_frames: the grid's number of bins (``None``: enough for the last event).
             device: where the columns go (default: the CPU, or the tensors' device).
+            time_unit: the streams' timestamp unit, as in ``events_to_frames`` (the
+                batch holds microseconds).
+            columns: the order of ``(N, k)`` streams' columns, e.g. ``"txyp"``.
 
         Raises:
             ValueError: malformed streams, coordinates beyond int16, mixed timestamp kinds.
@@ -187,7 +192,7 @@ class EventBatch:
         height, width = _sensor(sensor_size, tonic_sensor_size)
         parts: list[list[Tensor]] = [[], [], [], []]
         for i, stream in enumerate(streams):
-            (x, y, t, p), batched = _columns(stream)
+            (x, y, t, p), batched = _columns(stream, time_unit=time_unit, columns=columns)
             if batched:
                 raise ValueError(f"streams[{i}] is a batch of shape {tuple(x.shape)}; pass one stream per entry")
             x, y, t, p = x[0], y[0], t[0], p[0]
@@ -402,6 +407,8 @@ def collate_events(
     frame_ms: float | None = None,
     t_start: str | float = "floor",
     n_frames: int | None = None,
+    time_unit: str | None = None,
+    columns: str | Sequence[str] | None = None,
 ) -> Any:
     """A ``DataLoader`` ``collate_fn`` body: a list of streams (or of ``(stream, label, ...)``
     tuples) to an :class:`EventBatch` (and the labels collated by torch's default).
@@ -417,7 +424,7 @@ def collate_events(
         ([2, 1], [1.0, 2.0])
     """
     options = dict(sensor_size=sensor_size, tonic_sensor_size=tonic_sensor_size, frame_ms=frame_ms,
-                   t_start=t_start, n_frames=n_frames)
+                   t_start=t_start, n_frames=n_frames, time_unit=time_unit, columns=columns)
     if streams and isinstance(streams[0], tuple):
         from torch.utils.data import default_collate
 

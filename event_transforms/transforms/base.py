@@ -38,7 +38,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from .._validation import as_batch, check_frames, check_probability, check_shape
+from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape
 from ..events.batch import EventBatch, merge_streams
 from ._params import CHECK_RANGE, Param, Spec, check_tree
 
@@ -98,6 +98,27 @@ def _gated(params: Params, gate: Tensor, neutral: dict[str, float]) -> Params:
         off = ~gate.to(torch.bool).view(-1, *([1] * (leaf.dim() - 1)))
         out[key] = torch.where(off, torch.as_tensor(value, dtype=leaf.dtype), leaf)
     return out
+
+
+def _numpy_frames(frames: object) -> Any:
+    """A numpy array of frames (tonic's ``ToFrame``, ``DiskCachedDataset``) as a tensor, converted
+    once at the outermost transform; the memory is shared when torch can (the transforms never
+    write into their input) and copied otherwise (read-only or negative-stride arrays)."""
+    if not isinstance(frames, np.ndarray):
+        return frames
+    if frames.dtype.kind not in "biuf" or frames.dtype == np.uint16 or frames.dtype == np.uint32:
+        raise TypeError(
+            f"frames as a numpy array must have one of the frame dtypes {FRAME_DTYPES}, got numpy dtype {frames.dtype}"
+        )
+    if not frames.flags.writeable or any(stride < 0 for stride in frames.strides):
+        frames = frames.copy()
+    return torch.from_numpy(frames)
+
+
+def _passthrough(frames: Any) -> Any:
+    """What ``torch.from_numpy``/``torch.as_tensor`` become in a container: numpy frames were
+    converted at its boundary already."""
+    return _numpy_frames(frames)
 
 
 def _video_of(frames: object) -> Any:
@@ -328,7 +349,10 @@ class EventTransform(nn.Module):
 
         Args:
             inputs: frames ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` (a tensor, a
-                ``tv_tensors.Video``, or a dict holding them under ``"frames"``), then
+                ``tv_tensors.Video``, a numpy array — tonic's ``ToFrame`` and
+                ``DiskCachedDataset`` output, converted once here with
+                ``torch.from_numpy``, the result a tensor — or a dict holding them under
+                ``"frames"``), then
                 anything (labels, ...), returned unchanged, except that a transform that
                 :attr:`couples_samples` mixes the second input (or the dict's
                 :attr:`label_key` entry), the labels, through :meth:`apply_labels`.
@@ -378,6 +402,7 @@ class EventTransform(nn.Module):
             frames = first[FRAMES_KEY]
             if metadata is None:
                 metadata = {k: v for k, v in first.items() if k != FRAMES_KEY}
+        frames = _numpy_frames(frames)
         video = _video_of(frames)
         like = frames if video is not None else None
         if video is not None:
@@ -578,11 +603,18 @@ class Lambda(EventTransform):
 def as_transform(transform: object, name: str = "transform") -> EventTransform:
     """``transform`` if it is an :class:`EventTransform`, else a :class:`Lambda` around it.
 
+    ``torch.from_numpy`` and ``torch.as_tensor`` become a pass-through: a container
+    converts numpy frames once, before its members run.
+
     Raises:
         TypeError: ``transform`` is not callable.
     """
     if isinstance(transform, EventTransform):
         return transform
+    if transform is torch.from_numpy or transform is torch.as_tensor:
+        # Compose([torch.from_numpy, ...]): the container converts numpy frames once, before
+        # its members run, so the member would get a tensor; it passes the frames through.
+        return Lambda(_passthrough)
     if not callable(transform):
         raise TypeError(f"{name} must be an EventTransform or a callable, got {type(transform).__name__}")
     return Lambda(transform)
