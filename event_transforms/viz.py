@@ -380,7 +380,13 @@ def plot_scene(
     plt = _pyplot()
     check_frames(train, "train")
     check_frames(deploy, "deploy")
-    rows = max(1, min(int(rows), train.shape[0], deploy.shape[0]))
+    if isinstance(rows, bool) or not isinstance(rows, int) or rows < 1:
+        raise ValueError(f"rows must be a positive integer, got {rows!r}")
+    if train.dim() != 5 or deploy.dim() != 5 or rows > min(train.shape[0], deploy.shape[0]):
+        raise ValueError(
+            f"rows={rows} asks for more grasps than the sessions hold (train {tuple(train.shape)}, deploy "
+            f"{tuple(deploy.shape)}): pass (N, T, 2, H, W) with N >= rows"
+        )
     shown = torch.cat([train[:rows], deploy[:rows]]).detach().cpu().double()[:, ::every]
     k, (h, w) = shown.shape[1], shown.shape[-2:]
     padding = 2
@@ -429,8 +435,15 @@ def plot_scene(
 
 
 def _saved(fig: Any, path: str | Path | None, plt: Any, *, dpi: int) -> Any:
-    """Write ``fig`` to ``path`` (folders made) and close it; the figure either way."""
+    """Write ``fig`` to ``path`` (folders made) and close it; the figure either way.
+
+    ``path`` is the file written, exactly: an existing folder or a name without a suffix
+    (which matplotlib would complete to ``<path>.png`` beside it) is refused.
+    """
     if path is not None:
+        if Path(path).is_dir() or not Path(path).suffix:
+            plt.close(fig)
+            raise ValueError(f"path must name an image file (e.g. figure.png), got {str(path)!r}")
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=dpi)
         plt.close(fig)

@@ -539,6 +539,15 @@ class TestCommandLineErrors:
         line = self._error(["reproduce", "--scenes", "control", "--methods", "bogus", "--out", str(tmp_path)], capsys)
         assert "'bogus'" in line and "rot<deg>" in line and "tes<j>:<fraction>" in line
 
+    def test_show_scene_more_rows_than_grasps_is_refused(self, tmp_path, capsys):
+        # it used to say "50 training rows" and draw 2
+        line = self._error(["show-scene", "control", "--rows", "50", "--count", "2", "--out", str(tmp_path / "o")], capsys)
+        assert "--rows 50" in line and "--count 2" in line and not (tmp_path / "o").exists()
+
+    def test_show_out_without_a_suffix_is_refused_before_simulating(self, tmp_path, capsys):
+        line = self._error(["show", "none", "--root", str(tmp_path / "cache"), "--out", str(tmp_path / "picture")], capsys)
+        assert "must name a .png file or an existing folder" in line and not (tmp_path / "cache").exists()
+
     def test_show_unknown_method_before_any_simulation(self, tmp_path, capsys):
         line = self._error(["show", "bogus", "--root", str(tmp_path / "cache"), "--out", str(tmp_path / "x.png")],
                            capsys)
@@ -591,6 +600,15 @@ class TestCommandLineRealData:
         assert cli.main(["show", method, "--root", str(cache), "--out", str(out), "--index", "30"]) == 0
         assert out.exists() and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert str(out) in capsys.readouterr().out
+
+    def test_show_into_an_existing_folder_writes_inside_it(self, cache, tmp_path, capsys):
+        # it used to write <folder>.png beside the folder and say it wrote the folder
+        folder = tmp_path / "figures"
+        folder.mkdir()
+        assert cli.main(["show", "fs-1", "--root", str(cache), "--out", str(folder), "--index", "30"]) == 0
+        written = folder / "fs-1.png"
+        assert written.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and not (tmp_path / "figures.png").exists()
+        assert f"wrote {written}" in capsys.readouterr().out
 
     def test_show_without_matplotlib_is_one_line(self, cache, tmp_path, capsys, monkeypatch):
         for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:

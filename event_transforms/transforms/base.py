@@ -388,7 +388,7 @@ class EventTransform(nn.Module):
                 params = self.make_params(first.frame_shape, generator=generator, metadata=metadata)
             else:
                 with torch.profiler.record_function(CHECK_RANGE):
-                    params = check_tree(self, params, first.frame_shape)
+                    params = self._check_params(params, first.frame_shape)
             out = self._run(first, params)
             return (out, *rest) if rest else out
         if self.takes_events:
@@ -412,8 +412,8 @@ class EventTransform(nn.Module):
             params = self.make_params(batch.shape, generator=generator, metadata=metadata)
         else:
             with torch.profiler.record_function(CHECK_RANGE):
-                params = check_tree(self, params, check_shape(batch.shape))
-        out = unbatch(self._run(batch, params))
+                params = self._check_params(params, check_shape(batch.shape))
+        out = unbatch(self._run(batch, params) if batch.device.type != "meta" else self._run_meta(batch, params))
         if like is not None:
             out = video.wrap(out, like=like)
         if self.couples_samples:
@@ -429,6 +429,31 @@ class EventTransform(nn.Module):
         if isinstance(first, Mapping):
             out = {**first, FRAMES_KEY: out}
         return (out, *rest) if rest else out
+
+    def _check_params(self, params: Params, shape: torch.Size) -> Params:
+        """:func:`check_tree`, with meta-device leaves (which hold no values to apply) refused by name."""
+        stack: list[tuple[str, Any]] = [("params", params)]
+        while stack:
+            path, node = stack.pop()
+            if isinstance(node, Mapping):
+                stack.extend((f"{path}[{key!r}]", value) for key, value in node.items())
+            elif isinstance(node, Tensor) and node.device.type == "meta":
+                raise ValueError(
+                    f"{type(self).__name__}: {path} is on the meta device, which holds no values to apply; "
+                    "pass the CPU tree make_params returns"
+                )
+        return check_tree(self, params, shape)
+
+    def _run_meta(self, batch: Tensor, params: Params) -> Tensor:
+        """:meth:`_run` on meta-device frames (shapes only): a transform that must read the
+        frames' values (exact TES, count checks) cannot run there and says so by name."""
+        try:
+            return self._run(batch, params)
+        except NotImplementedError as error:
+            raise ValueError(
+                f"{type(self).__name__} reads the values of the frames, which frames on the meta device do not "
+                f"hold (frames of shape {tuple(batch.shape)} on device 'meta'); run it on real frames"
+            ) from error
 
     def _mix_labels(self, labels: object, params: Params, single: bool, size: int) -> Any:
         """Check the labels of a coupled call (batch first) and hand them to :meth:`apply_labels`."""
@@ -477,6 +502,11 @@ class EventTransform(nn.Module):
         ``module(frames, params=...)`` to replay the call exactly.
         """
         shape = check_shape(shape)
+        if generator is not None and not isinstance(generator, torch.Generator):
+            raise TypeError(
+                f"{type(self).__name__}.make_params: generator must be a torch.Generator or None, got "
+                f"{type(generator).__name__} {generator!r}"
+            )
         params = self.sample_params(shape, generator=generator, metadata=metadata)
         if self.p < 1:
             params["apply"] = bernoulli(self.p, shape[0], generator)
