@@ -117,7 +117,7 @@ class _ToTarget:
         return _target_factors(metadata, self.key, shape[0], self.target_size, self.exponent, type(self).__name__)
 
     def _settings(self) -> str:
-        return f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, {self._common()}"
+        return f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, {self._common()}"  # type: ignore[attr-defined]
 
 
 class ResizeToTarget(_ToTarget, _Zoom):
@@ -158,7 +158,9 @@ class ResizeToTarget(_ToTarget, _Zoom):
         super().__init__(center=center, mode=mode, p=p)
         self._set_target(target_size, key, exponent)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(
+        self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None
+    ) -> Params:
         return {"scale": self._factors(shape, metadata)}
 
 
@@ -214,7 +216,9 @@ class StretchToTarget(_ToTarget, _StretchWarp):
         super().__init__(axis=axis, center=center, mode=mode, p=p)
         self._set_target(target_size, key, exponent)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(
+        self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None
+    ) -> Params:
         return {"factor": self._factors(shape, metadata)}
 
 
@@ -417,7 +421,7 @@ def _check_shifts(shifts: object) -> None:
 def _check_range(value: object, name: str, *, low: float | None = None, high: float | None = None,
                  symmetric: bool = False) -> None:
     """A finite number (``±d`` when ``symmetric``) or a ``(min, max)`` pair, within ``[low, high]``."""
-    numbers = list(value) if isinstance(value, (tuple, list)) else [value]
+    numbers: list[Any] = list(value) if isinstance(value, (tuple, list)) else [value]
     if len(numbers) not in (1, 2) or isinstance(value, (tuple, list)) and len(numbers) != 2 or any(
         isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) for v in numbers
     ):

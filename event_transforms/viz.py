@@ -222,7 +222,7 @@ def compare_transform(
 def _torchvision_utils() -> Any:
     """``torchvision.utils``, imported on first use (it is slow to import, and an extra)."""
     try:
-        import torchvision.utils
+        import torchvision.utils  # type: ignore[import-untyped]
     except ImportError as error:
         raise ImportError(
             "event_transforms.viz draws its grids with torchvision, which is not installed: "
@@ -280,8 +280,8 @@ def _legend(ax: Any) -> None:
 
     ax.legend(
         handles=[
-            Patch(color=[c / 255 for c in ON_COLOR], label="ON (channel 1)"),
-            Patch(color=[c / 255 for c in OFF_COLOR], label="OFF (channel 0)"),
+            Patch(color=tuple(c / 255 for c in ON_COLOR), label="ON (channel 1)"),  # type: ignore[arg-type]
+            Patch(color=tuple(c / 255 for c in OFF_COLOR), label="OFF (channel 0)"),  # type: ignore[arg-type]
         ],
         loc="upper right",
         fontsize=7,
@@ -434,7 +434,7 @@ def plot_scene(
     return _saved(fig, path, plt, dpi=100)
 
 
-def _saved(fig: Any, path: str | Path | None, plt: Any, *, dpi: int) -> Any:
+def _saved(fig: Any, path: str | os.PathLike[str] | None, plt: Any, *, dpi: int) -> Any:
     """Write ``fig`` to ``path`` (folders made) and close it; the figure either way.
 
     ``path`` is the file written, exactly: an existing folder or a name without a suffix

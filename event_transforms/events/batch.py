@@ -212,12 +212,12 @@ class EventBatch:
         devices = {c.device for c in parts[0]}
         target = torch.device(device) if device is not None else (devices.pop() if len(devices) == 1 else torch.device("cpu"))
         empty = (torch.int16, torch.int16, torch.int64, torch.int8)
-        columns = [
-            (torch.cat([c.to(target) for c in part]) if part else torch.zeros(0, dtype=empty[k], device=target))
+        x, y, t, p = (
+            torch.cat([c.to(target) for c in part]) if part else torch.zeros(0, dtype=empty[k], device=target)
             for k, part in enumerate(parts)
-        ]
+        )
         offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
-        batch = cls(*columns, offsets, (height, width))
+        batch = cls(x, y, t, p, offsets, (height, width))
         if frame_ms is not None:
             batch = batch.with_grid(frame_ms, t_start=t_start, n_frames=n_frames)
         return batch
@@ -273,7 +273,7 @@ class EventBatch:
         )
 
     def _replace(self, **changes: Any) -> EventBatch:
-        fields = {
+        fields: dict[str, Any] = {
             "x": self.x, "y": self.y, "t": self.t, "p": self.p, "offsets": self.offsets,
             "sensor_size": self.sensor_size, "frame_ms": self.frame_ms, "t_start": self.t_start,
             "n_frames": self.n_frames,
@@ -423,7 +423,7 @@ def collate_events(
         >>> batch.lengths, labels.tolist()
         ([2, 1], [1.0, 2.0])
     """
-    options = dict(sensor_size=sensor_size, tonic_sensor_size=tonic_sensor_size, frame_ms=frame_ms,
+    options: dict[str, Any] = dict(sensor_size=sensor_size, tonic_sensor_size=tonic_sensor_size, frame_ms=frame_ms,
                    t_start=t_start, n_frames=n_frames, time_unit=time_unit, columns=columns)
     if streams and isinstance(streams[0], tuple):
         from torch.utils.data import default_collate

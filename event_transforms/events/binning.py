@@ -184,8 +184,8 @@ def _check_float_times(t: Any, unit: str | None) -> None:
             return
         low, high = float(array.min()), float(array.max())
         eps = float(np.finfo(array.dtype).eps)
-        probe = array.reshape(-1)[:_FRACTION_PROBE]
-        fractional = bool((probe != np.floor(probe)).any())
+        head = array.reshape(-1)[:_FRACTION_PROBE]
+        fractional = bool((head != np.floor(head)).any())
         dtype_name = str(array.dtype)
     if not (math.isfinite(low) and math.isfinite(high)):
         return  # _column names the NaN/Inf

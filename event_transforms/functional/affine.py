@@ -165,7 +165,7 @@ def _check_center(center: object, batch: int | None = None) -> Center:
         raise ValueError(f"center must be {expected}, got {describe(center)}")
     if not bool(value.isfinite().all()):
         raise ValueError(f"center must be finite, got {describe(center)}")
-    return center
+    return center  # type: ignore[return-value]  # a checked (y, x) sequence or tensor
 
 
 def _work_dtype(dtype: torch.dtype, mode: str) -> torch.dtype:

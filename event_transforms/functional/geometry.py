@@ -100,7 +100,7 @@ def _size(value: object, name: str) -> tuple[int, int]:
         pair = (number, number)
     if min(pair) < 1:
         raise ValueError(f"{name} must be positive, got {describe(value)}")
-    return pair  # type: ignore[return-value]
+    return pair
 
 
 def _crop(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool, mode: str) -> Tensor:
