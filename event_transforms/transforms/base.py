@@ -522,7 +522,7 @@ class EventTransform(nn.Module):
         """Override: this transform's own parameters for a checked batch ``shape``."""
         return {}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # pragma: no cover - abstract
+    def apply(self, frames: Tensor, params: Params) -> Tensor:  # pragma: no cover - abstract
         """Override: transform a checked batch ``(B, T, 2, H, W)`` with given parameters."""
         raise NotImplementedError
 
