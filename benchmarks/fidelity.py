@@ -17,8 +17,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-import torch
-
 if __package__:
     from ._common import apply_threads, base_parser, command, environment_lines, markdown_table, publish
 else:  # run as a script

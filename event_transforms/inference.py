@@ -78,6 +78,12 @@ def _as_frames(value: object, name: str) -> Tensor:
         raise ValueError(f"{name} must hold at least 2 sequences (N, T, 2, H, W), got {tuple(frames.shape)}")
     if frames.shape[1] < _QUIET_FRAMES + 2:
         raise ValueError(f"{name} needs at least {_QUIET_FRAMES + 2} frames per sequence, got {frames.shape[1]}")
+    if frames.is_floating_point() and not bool(torch.isfinite(frames).all()):
+        bad = (~torch.isfinite(frames)).flatten(1).any(1).nonzero().flatten().tolist()
+        raise ValueError(
+            f"{name} holds NaN or Inf counts (sequences {bad[:10]}{'...' if len(bad) > 10 else ''}); the statistics "
+            "would compare nothing and report no gap"
+        )
     return frames
 
 

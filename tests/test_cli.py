@@ -540,6 +540,15 @@ class TestCommandLineErrors:
         line = self._error(["reproduce", "--scenes", "control", "--methods", "bogus", "--out", str(tmp_path)], capsys)
         assert "'bogus'" in line and "rot<deg>" in line and "tes<j>:<fraction>" in line
 
+    def test_show_scene_more_rows_than_grasps_is_refused(self, tmp_path, capsys):
+        # it used to say "50 training rows" and draw 2
+        line = self._error(["show-scene", "control", "--rows", "50", "--count", "2", "--out", str(tmp_path / "o")], capsys)
+        assert "--rows 50" in line and "--count 2" in line and not (tmp_path / "o").exists()
+
+    def test_show_out_without_a_suffix_is_refused_before_simulating(self, tmp_path, capsys):
+        line = self._error(["show", "none", "--root", str(tmp_path / "cache"), "--out", str(tmp_path / "picture")], capsys)
+        assert "must name a .png file or an existing folder" in line and not (tmp_path / "cache").exists()
+
     def test_show_unknown_method_before_any_simulation(self, tmp_path, capsys):
         line = self._error(["show", "bogus", "--root", str(tmp_path / "cache"), "--out", str(tmp_path / "x.png")],
                            capsys)
@@ -593,13 +602,38 @@ class TestCommandLineRealData:
         assert out.exists() and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert str(out) in capsys.readouterr().out
 
+    def test_show_into_an_existing_folder_writes_inside_it(self, cache, tmp_path, capsys):
+        # it used to write <folder>.png beside the folder and say it wrote the folder
+        folder = tmp_path / "figures"
+        folder.mkdir()
+        assert cli.main(["show", "fs-1", "--root", str(cache), "--out", str(folder), "--index", "30"]) == 0
+        written = folder / "fs-1.png"
+        assert written.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and not (tmp_path / "figures.png").exists()
+        assert f"wrote {written}" in capsys.readouterr().out
+
     def test_show_without_matplotlib_is_one_line(self, cache, tmp_path, capsys, monkeypatch):
         for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
             monkeypatch.delitem(sys.modules, name)
         monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib raises ImportError
         assert cli.main(["show", "none", "--root", str(cache), "--out", str(tmp_path / "x.png")]) == 2
         err = capsys.readouterr().err
-        assert "show: error:" in err and "event-transforms[plot]" in err and len(err.strip().splitlines()) == 1
+        assert "show: error: matplotlib is not installed" in err and "event-transforms[app]" in err
+        assert len(err.strip().splitlines()) == 1
+
+    def test_missing_tqdm_names_the_app_extra(self, tmp_path, capsys, monkeypatch):
+        monkeypatch.setitem(sys.modules, "tqdm", None)  # import tqdm raises ImportError
+        assert cli.main(["reproduce", "--out", str(tmp_path / "out"), "--root", str(tmp_path / "cache")]) == 2
+        err = capsys.readouterr().err
+        assert "reproduce: error: tqdm is not installed" in err and "event-transforms[app]" in err
+        assert not (tmp_path / "cache").exists()  # refused before simulating anything
+
+    def test_fit_ensemble_without_tqdm_names_the_extra(self, monkeypatch):
+        from event_transforms.tactile.ensemble import EnsembleForceRegressor, fit_ensemble
+
+        monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+        with pytest.raises(ImportError, match=r"event-transforms\[app\]") as info:
+            fit_ensemble(EnsembleForceRegressor(1, hidden_channels=(2,)), [], [], steps=1, batch_size=1, seeds=[0])
+        assert info.value.name == "tqdm"
 
     def test_show_bad_index(self, cache, tmp_path):
         with pytest.raises(SystemExit, match="index"):

@@ -61,6 +61,15 @@ class TestEstimators:
         assert out.shape == train[:4].shape
         assert scene.evidence["timing"]["difference"] > 0 and scene.evidence["timing"]["se"] > 0
 
+    @pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+    @pytest.mark.parametrize("side", ["train", "deploy"])
+    def test_non_finite_frames_are_refused(self, bad, side):
+        # they used to give "no gaps": every statistic NaN, every comparison false
+        frames = {"train": _strips(6, 3, seed=1), "deploy": _strips(6, 3, seed=2)}
+        frames[side][2, 4, 0, 5, 5] = bad
+        with pytest.raises(ValueError, match=rf"{side} holds NaN or Inf counts \(sequences \[2\]\)"):
+            infer_scene(frames["train"], frames["deploy"])
+
     def test_empty_and_integer_frames(self):
         empty = torch.zeros(3, 8, 2, 10, 12, dtype=torch.int16)
         scene = infer_scene(empty, empty.clone())

@@ -159,6 +159,8 @@ class EventBatch:
         t_start: str | float | Sequence[float] | Tensor = "floor",
         n_frames: int | None = None,
         device: torch.device | str | None = None,
+        time_unit: str | None = None,
+        columns: str | Sequence[str] | None = None,
     ) -> EventBatch:
         """Concatenate event streams (every form :func:`events_to_frames` accepts) into one batch.
 
@@ -174,6 +176,9 @@ class EventBatch:
                 per stream), as in ``events_to_frames``; used only with ``frame_ms``.
             n_frames: the grid's number of bins (``None``: enough for the last event).
             device: where the columns go (default: the CPU, or the tensors' device).
+            time_unit: the streams' timestamp unit, as in ``events_to_frames`` (the
+                batch holds microseconds).
+            columns: the order of ``(N, k)`` streams' columns, e.g. ``"txyp"``.
 
         Raises:
             ValueError: malformed streams, coordinates beyond int16, mixed timestamp kinds.
@@ -187,7 +192,7 @@ class EventBatch:
         height, width = _sensor(sensor_size, tonic_sensor_size)
         parts: list[list[Tensor]] = [[], [], [], []]
         for i, stream in enumerate(streams):
-            (x, y, t, p), batched = _columns(stream)
+            (x, y, t, p), batched = _columns(stream, time_unit=time_unit, columns=columns)
             if batched:
                 raise ValueError(f"streams[{i}] is a batch of shape {tuple(x.shape)}; pass one stream per entry")
             x, y, t, p = x[0], y[0], t[0], p[0]
@@ -207,12 +212,12 @@ class EventBatch:
         devices = {c.device for c in parts[0]}
         target = torch.device(device) if device is not None else (devices.pop() if len(devices) == 1 else torch.device("cpu"))
         empty = (torch.int16, torch.int16, torch.int64, torch.int8)
-        columns = [
-            (torch.cat([c.to(target) for c in part]) if part else torch.zeros(0, dtype=empty[k], device=target))
+        x, y, t, p = (
+            torch.cat([c.to(target) for c in part]) if part else torch.zeros(0, dtype=empty[k], device=target)
             for k, part in enumerate(parts)
-        ]
+        )
         offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
-        batch = cls(*columns, offsets, (height, width))
+        batch = cls(x, y, t, p, offsets, (height, width))
         if frame_ms is not None:
             batch = batch.with_grid(frame_ms, t_start=t_start, n_frames=n_frames)
         return batch
@@ -268,7 +273,7 @@ class EventBatch:
         )
 
     def _replace(self, **changes: Any) -> EventBatch:
-        fields = {
+        fields: dict[str, Any] = {
             "x": self.x, "y": self.y, "t": self.t, "p": self.p, "offsets": self.offsets,
             "sensor_size": self.sensor_size, "frame_ms": self.frame_ms, "t_start": self.t_start,
             "n_frames": self.n_frames,
@@ -402,6 +407,8 @@ def collate_events(
     frame_ms: float | None = None,
     t_start: str | float = "floor",
     n_frames: int | None = None,
+    time_unit: str | None = None,
+    columns: str | Sequence[str] | None = None,
 ) -> Any:
     """A ``DataLoader`` ``collate_fn`` body: a list of streams (or of ``(stream, label, ...)``
     tuples) to an :class:`EventBatch` (and the labels collated by torch's default).
@@ -416,8 +423,8 @@ def collate_events(
         >>> batch.lengths, labels.tolist()
         ([2, 1], [1.0, 2.0])
     """
-    options = dict(sensor_size=sensor_size, tonic_sensor_size=tonic_sensor_size, frame_ms=frame_ms,
-                   t_start=t_start, n_frames=n_frames)
+    options: dict[str, Any] = dict(sensor_size=sensor_size, tonic_sensor_size=tonic_sensor_size, frame_ms=frame_ms,
+                   t_start=t_start, n_frames=n_frames, time_unit=time_unit, columns=columns)
     if streams and isinstance(streams[0], tuple):
         from torch.utils.data import default_collate
 

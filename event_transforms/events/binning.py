@@ -6,7 +6,14 @@ dtype, uint64 included), a ``(B, N, 4)`` batch of padded streams with ``lengths`
 ``tonic.io.read_aedat4`` returns ``[('t', '<u8'), ('x', '<u2'), ('y', '<u2'),
 (('p', 'on'), '?')]``, whose polarity field is named ``on`` and titled ``p``. Columns are
 found by name: ``x``, ``y``, ``t`` (or ``timestamp``), ``p`` (or ``on``, ``polarity``).
-Timestamps are in microseconds; polarity is bool, {0, 1} or {-1, 1}, with ON (``True``,
+A pandas or polars DataFrame is read by column name too, and an ``(N, k)`` array in another
+order is named with ``columns="txyp"`` (``"_"`` skips a column). Timestamps are in
+microseconds unless ``time_unit=`` says ``"ns"``, ``"ms"`` or ``"s"``; ``timedelta64`` and
+``datetime64`` columns (polars ``Duration``) carry their own unit. Two silent traps are
+refused by name: float timestamps with fractions spanning less than 1e6, which look like
+seconds read as microseconds (every event would land in one bin; pass ``time_unit``), and
+float timestamps too large for their dtype to hold microseconds (float32 past 2**24 µs).
+Polarity is bool, {0, 1} or {-1, 1}, with ON (``True``,
 ``1``) in channel 1 and OFF (``False``, ``0``, ``-1``) in channel 0, tonic's convention.
 
 Where the bins start (``t_start``):
@@ -83,6 +90,41 @@ class EventsOutsideWindowWarning(UserWarning):
 
 # --------------------------------------------------------------------------- columns
 
+#: Microseconds per unit of ``time_unit``.
+_TIME_UNITS: dict[str, float | int] = {"ns": 1e-3, "us": 1, "ms": 1_000, "s": 1_000_000}
+#: Float timestamps with a fractional part spanning less than this (in the unit read, 1 s of
+#: microseconds) look like seconds: refused unless ``time_unit`` is given.
+_SECONDS_SPAN = 1e6
+#: Values read to decide whether float timestamps have fractional parts.
+_FRACTION_PROBE = 1 << 16
+
+
+def _time_unit(time_unit: object) -> str | None:
+    if time_unit is None:
+        return None
+    if not isinstance(time_unit, str) or time_unit not in _TIME_UNITS:
+        raise ValueError(f"time_unit must be one of {', '.join(map(repr, _TIME_UNITS))} or None, got {time_unit!r}")
+    return time_unit
+
+
+def _time_typed(array: np.ndarray, name: str, time_unit: str | None) -> tuple[np.ndarray, str]:
+    """A ``timedelta64``/``datetime64`` column as int64 counts of its own unit (checked)."""
+    unit, count = np.datetime_data(array.dtype)
+    if unit not in _TIME_UNITS or count != 1:
+        raise ValueError(
+            f"events[{name!r}] has dtype {array.dtype}; timestamps in ns, us, ms or s are accepted "
+            f"(cast it, e.g. .astype('{array.dtype.kind == 'm' and 'timedelta64' or 'datetime64'}[us]'))"
+        )
+    if time_unit is not None and time_unit != unit:
+        raise ValueError(
+            f"time_unit={time_unit!r} contradicts events[{name!r}], whose dtype {array.dtype} carries its unit; "
+            "leave time_unit out for time-typed columns"
+        )
+    values = array.view(np.int64)
+    if values.size and bool((values == np.iinfo(np.int64).min).any()):
+        raise ValueError(f"events[{name!r}] holds NaT (a missing time)")
+    return values, unit
+
 
 def _column(values: Any, name: str) -> Tensor:
     """One field as a tensor: int64 for bool and integer input, float64 for float input.
@@ -113,6 +155,8 @@ def _column(values: Any, name: str) -> Tensor:
             array = array.astype(np.int64)
         elif kind == "f":
             array = array.astype(np.float64)
+        elif kind in "mM" and name == "t":
+            array = array.view(np.int64).astype(np.int64)  # a copy; the unit was read (and checked) by _source
         else:
             raise TypeError(f"events[{name!r}] must hold numbers, got numpy dtype {array.dtype}")
         column = torch.from_numpy(np.ascontiguousarray(array))
@@ -121,15 +165,114 @@ def _column(values: Any, name: str) -> Tensor:
     return column
 
 
+def _check_float_times(t: Any, unit: str | None) -> None:
+    """Refuse float timestamps that lost precision or look like seconds read as microseconds.
+
+    ``t`` is the whole timestamp column (a view); integer columns are never checked.
+    """
+    if isinstance(t, Tensor):
+        if not t.is_floating_point() or not t.numel():
+            return
+        low, high = float(t.min()), float(t.max())
+        eps = torch.finfo(t.dtype).eps
+        probe = t.reshape(-1)[:_FRACTION_PROBE]
+        fractional = bool((probe != probe.floor()).any())
+        dtype_name = str(t.dtype)
+    else:
+        array = np.asarray(t)
+        if array.dtype.kind != "f" or not array.size:
+            return
+        low, high = float(array.min()), float(array.max())
+        eps = float(np.finfo(array.dtype).eps)
+        head = array.reshape(-1)[:_FRACTION_PROBE]
+        fractional = bool((head != np.floor(head)).any())
+        dtype_name = str(array.dtype)
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return  # _column names the NaN/Inf
+    scale = _TIME_UNITS[unit or "us"]
+    magnitude = max(abs(low), abs(high))
+    spacing_us = 2.0 ** math.floor(math.log2(magnitude)) * eps * scale if magnitude else 0.0
+    if spacing_us > 1:
+        raise ValueError(
+            f"events['t'] is {dtype_name} with values up to {magnitude:.7g} {unit or 'us'}, where {dtype_name} "
+            f"steps {spacing_us:g} us: the timestamps have already lost microseconds. Read them as int64 or "
+            "float64 (or subtract the first timestamp before casting)"
+        )
+    if unit is None and fractional and high - low < _SECONDS_SPAN:
+        raise ValueError(
+            f"events['t'] holds float timestamps with fractions spanning {high - low:.6g}, which looks like "
+            "seconds (timestamps are read as microseconds, so every event would fall in one bin); pass "
+            "time_unit='s' (or 'ms', 'ns'), or time_unit='us' if they are microseconds"
+        )
+
+
+def _to_microseconds(t: Tensor, unit: str) -> Tensor:
+    """An int64/float64 timestamp column in ``unit`` as microseconds (ns are floored to whole µs)."""
+    if unit == "us":
+        return t
+    if unit == "ns":
+        return t / 1000 if t.is_floating_point() else torch.div(t, 1000, rounding_mode="floor")
+    factor = int(_TIME_UNITS[unit])
+    if t.is_floating_point():
+        return t * factor
+    if t.numel() and int(t.abs().max()) > _INT64_MAX // factor:
+        raise ValueError(f"events['t'] in {unit} holds {int(t.abs().max())}, past what int64 microseconds hold")
+    return t * factor
+
+
 def _field(names: Iterable[str], column: str) -> str | None:
     """The name under which ``column`` is stored, or None."""
     names = set(names)
     return next((alias for alias in _ALIASES[column] if alias in names), None)
 
 
+def _order_names(columns: object) -> list[str]:
+    """``columns`` ("txyp", or a sequence of one-letter names) checked: x, y, t, p once each, '_' to skip."""
+    names = list(columns) if isinstance(columns, (str, Sequence)) else None
+    if (
+        names is None or not all(isinstance(n, str) for n in names)
+        or sorted(n for n in names if n != "_") != ["p", "t", "x", "y"]
+    ):
+        raise ValueError(
+            "columns must name each column of the events with each of x, y, t, p once and '_' for a "
+            f"column to skip (e.g. 'txyp'), got {columns!r}"
+        )
+    return names
+
+
+def _order(columns: object, width: int) -> list[int]:
+    """Indices of x, y, t, p among the ``width`` columns of an (N, k) array (``columns="txyp"``)."""
+    if columns is None:
+        if width != 4:
+            raise ValueError(
+                f"events: expected (N, 4) or (B, N, 4) rows of (x, y, t, p), got {width} columns; "
+                "pass columns= (e.g. columns='txyp', '_' for a column to skip) to name them"
+            )
+        return [0, 1, 2, 3]
+    names = _order_names(columns)
+    if len(names) != width:
+        raise ValueError(f"columns={columns!r} names {len(names)} columns, but the events have {width}")
+    return [names.index(c) for c in _FIELDS]
+
+
+def _frame_columns(events: Any) -> dict[str, Any] | None:
+    """A pandas or polars DataFrame as a dict of numpy columns (only x, y, t, p); None for others."""
+    library = type(events).__module__.split(".")[0]
+    if library not in ("pandas", "polars") or not hasattr(events, "columns"):
+        return None
+    names = [str(c) for c in events.columns]
+    found = {c: _field(names, c) for c in _FIELDS}
+    return {f: events[f].to_numpy() for f in found.values() if f is not None} | {
+        f: None for f in names if f not in found.values()  # kept (empty) so that errors list every column
+    }
+
+
 @dataclass
 class _Source:
-    """Events of B streams of length N, read ``(start, stop)`` along N as columns (B, n)."""
+    """Events of B streams of length N, read ``(start, stop)`` along N as columns (B, n).
+
+    Timestamps are read in microseconds whatever ``time_unit`` the input came in.
+    """
 
     batch: int
     length: int
@@ -138,9 +281,45 @@ class _Source:
     device: torch.device
 
 
-def _source(events: Any) -> _Source:
-    """Wrap any accepted form of ``events`` without converting it as a whole."""
+def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequence[str] | None = None) -> _Source:
+    """Wrap any accepted form of ``events`` without converting it as a whole.
+
+    ``time_unit`` (None: microseconds, checked for float timestamps that look like seconds)
+    and ``columns`` (the order of an (N, k) array's columns) as in :func:`events_to_frames`.
+    """
+    time_unit = _time_unit(time_unit)
+    source, t_whole = _raw_source(events, columns)
+    unit = time_unit
+    if isinstance(t_whole, np.ndarray) and t_whole.dtype.kind in "mM":
+        _, unit = _time_typed(t_whole, "t", time_unit)
+    else:
+        _check_float_times(t_whole, time_unit)
+    if unit is None or unit == "us":
+        return source
+    raw = source.read
+
+    def read(i: int, j: int, names: Sequence[str]) -> dict[str, Tensor]:
+        out = raw(i, j, names)
+        if "t" in out:
+            out["t"] = _to_microseconds(out["t"], unit)
+        return out
+
+    return _Source(source.batch, source.length, source.batched, read, source.device)
+
+
+def _raw_source(events: Any, columns: str | Sequence[str] | None) -> tuple[_Source, Any]:
+    """The source in the input's own time unit, and its whole timestamp column (a view)."""
     cpu = torch.device("cpu")
+    frame = _frame_columns(events)
+    if frame is not None:
+        events = frame
+    if columns is not None and not isinstance(events, (np.ndarray, Tensor)) or (
+        isinstance(events, np.ndarray) and events.dtype.names is not None and columns is not None
+    ):
+        raise ValueError(
+            "columns= names the columns of an (N, k) array or tensor; mappings, data frames and structured "
+            f"arrays are read by name, got {type(events).__name__} with columns={columns!r}"
+        )
     if isinstance(events, np.ndarray) and events.dtype.names is not None:
         fields = events.dtype.fields or {}
         found = {c: _field(fields, c) for c in _FIELDS}
@@ -156,7 +335,7 @@ def _source(events: Any) -> _Source:
         def read_struct(i: int, j: int, names: Sequence[str]) -> dict[str, Tensor]:
             return {c: _column(events[found[c]][i:j], c).unsqueeze(0) for c in names}
 
-        return _Source(1, len(events), False, read_struct, cpu)
+        return _Source(1, len(events), False, read_struct, cpu), events[found["t"]]
     if isinstance(events, Mapping):
         found = {c: _field(events.keys(), c) for c in _FIELDS}
         missing = [c for c, f in found.items() if f is None]
@@ -165,30 +344,31 @@ def _source(events: Any) -> _Source:
                 f"events mapping needs keys x, y, t (or timestamp) and p (or on, polarity), "
                 f"got {sorted(map(str, events))} (missing {', '.join(missing)})"
             )
-        columns = {c: events[found[c]] for c in _FIELDS}
-        columns = {c: v if isinstance(v, (Tensor, np.ndarray)) else np.asarray(v) for c, v in columns.items()}
-        for c, v in columns.items():
+        data = {c: events[found[c]] for c in _FIELDS}
+        data = {c: v if isinstance(v, (Tensor, np.ndarray)) else np.asarray(v) for c, v in data.items()}
+        for c, v in data.items():
             if v.ndim != 1:
                 raise ValueError(f"events[{c!r}] must be 1-D, got shape {tuple(v.shape)}")
-        lengths = {int(v.shape[0]) for v in columns.values()}
+        lengths = {int(v.shape[0]) for v in data.values()}
         if len(lengths) != 1:
             raise ValueError(f"events x, y, t, p must have equal lengths, got {sorted(lengths)}")
-        tensors = [v for v in columns.values() if isinstance(v, Tensor)]
+        tensors = [v for v in data.values() if isinstance(v, Tensor)]
         device = tensors[0].device if tensors else cpu
 
         def read_mapping(i: int, j: int, names: Sequence[str]) -> dict[str, Tensor]:
-            return {c: _column(columns[c][i:j], c).to(device).unsqueeze(0) for c in names}
+            return {c: _column(data[c][i:j], c).to(device).unsqueeze(0) for c in names}
 
-        return _Source(1, lengths.pop(), False, read_mapping, device)
+        return _Source(1, lengths.pop(), False, read_mapping, device), data["t"]
     if not isinstance(events, (np.ndarray, Tensor)):
         raise TypeError(
             "events must be a (N, 4) or (B, N, 4) array or tensor, a mapping of x, y, t, p "
-            f"columns or a numpy structured array, got {type(events).__name__}"
+            f"columns, a pandas/polars DataFrame or a numpy structured array, got {type(events).__name__}"
         )
-    if events.ndim not in (2, 3) or events.shape[-1] != 4:
+    if events.ndim not in (2, 3):
         raise ValueError(
             f"events: expected (N, 4) or (B, N, 4) rows of (x, y, t, p), got {tuple(events.shape)}"
         )
+    order = _order(columns, int(events.shape[-1]))
     if isinstance(events, Tensor) and events.is_complex() or (
         isinstance(events, np.ndarray) and events.dtype.kind not in "biuf"
     ):
@@ -197,21 +377,23 @@ def _source(events: Any) -> _Source:
     rows = events if batched else events[None]
 
     def read_rows(i: int, j: int, names: Sequence[str]) -> dict[str, Tensor]:
-        return {c: _column(rows[:, i:j, _FIELDS.index(c)], c) for c in names}
+        return {c: _column(rows[:, i:j, order[_FIELDS.index(c)]], c) for c in names}
 
     device = events.device if isinstance(events, Tensor) else cpu
-    return _Source(int(rows.shape[0]), int(rows.shape[1]), batched, read_rows, device)
+    return _Source(int(rows.shape[0]), int(rows.shape[1]), batched, read_rows, device), rows[..., order[2]]
 
 
-def _columns(events: Any) -> tuple[list[Tensor], bool]:
-    """All of x, y, t, p as (B, N) columns at once, and whether the input was a batch.
+def _columns(
+    events: Any, *, time_unit: str | None = None, columns: str | Sequence[str] | None = None
+) -> tuple[list[Tensor], bool]:
+    """All of x, y, t, p as (B, N) columns at once (t in microseconds), and whether the input was a batch.
 
     For kernels that need a whole stream in memory (voxel grids, time surfaces); the
     columns are int64 (bool and integer input) or float64, as :func:`_column` makes them.
     """
-    source = _source(events)
-    columns = source.read(0, source.length, _FIELDS)
-    return [columns[c] for c in _FIELDS], source.batched
+    source = _source(events, time_unit=time_unit, columns=columns)
+    read = source.read(0, source.length, _FIELDS)
+    return [read[c] for c in _FIELDS], source.batched
 
 
 def _pair(value: object, name: str) -> tuple[Any, Any]:
@@ -590,6 +772,8 @@ def events_to_frames(
     mask: Tensor | None = None,
     chunk_size: int = CHUNK_EVENTS,
     max_bytes: int | None = MAX_BYTES,
+    time_unit: str | None = None,
+    columns: str | Sequence[str] | None = None,
 ) -> Tensor:
     r"""Count events into fixed time bins, one channel per polarity.
 
@@ -605,7 +789,8 @@ def events_to_frames(
 
     Args:
         events: ``(N, 4)`` rows of ``(x, y, t, p)`` (array or tensor, any integer or float
-            dtype), a ``(B, N, 4)`` batch of padded streams, a mapping of columns, or a
+            dtype; other orders with ``columns``), a ``(B, N, 4)`` batch of padded streams,
+            a mapping of columns (an h5py group too), a pandas or polars DataFrame, or a
             numpy structured array (tonic's dtypes, titled fields included). ``p`` is
             bool, {0, 1} or {-1, 1}; anything else raises.
         sensor_size: ``(H, W)`` of the sensor, height first; ``None`` means the paper's
@@ -633,9 +818,18 @@ def events_to_frames(
             before anything is allocated (a 300 s recording in 10 ms bins on a 240×180
             sensor needs 31 GB). ``None``: no bound. Stream long recordings with
             :func:`iter_frames`.
+        time_unit: unit of plain-number timestamps: ``"us"``, ``"ms"``, ``"s"`` or ``"ns"``
+            (ns are floored to whole microseconds). ``None`` (default) reads microseconds
+            and refuses float timestamps with fractions spanning under 1e6 (they look
+            like seconds: pass ``time_unit`` to say what they are). ``timedelta64`` and
+            ``datetime64`` columns (pandas, polars ``Duration``/``Datetime``) carry their
+            own unit. Float timestamps too coarse to hold microseconds (float32 past
+            2**24 µs, about 16.8 s) are refused whatever the unit.
+        columns: for ``(N, k)`` or ``(B, N, k)`` rows, what each column holds, e.g.
+            ``"txyp"``, with ``"_"`` for a column to skip; ``None`` means ``"xytp"``.
 
     Shape:
-        - events: ``(N, 4)``, ``(B, N, 4)`` or N-long columns.
+        - events: ``(N, 4)`` (or ``(N, k)`` with ``columns``), ``(B, N, 4)`` or N-long columns.
         - output: ``(T, 2, H', W')``, or ``(B, T, 2, H', W')`` for batched input, with
           ``H' = height // pool``, ``W' = width // pool``.
 
@@ -669,7 +863,7 @@ def events_to_frames(
                 [0., 0.],
                 [0., 1.]])
     """
-    source = _source(events)
+    source = _source(events, time_unit=time_unit, columns=columns)
     grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
     chunk = max(1, _integer(chunk_size, "chunk_size") // max(source.batch, 1))
     if max_bytes is not None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 __all__ = ["iter_frames"]
 
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -20,7 +20,7 @@ from torch import Tensor
 
 from .binning import (
     _FIELDS, _T_STARTS, _as_dtype, _empty_window_error, _explicit_starts, _flat_index, _floor_to_grid, _Grid, _grid,
-    _integer, _Source, _source, _Tally, _time_bins, _warn_outside,
+    _integer, _order_names, _Source, _source, _Tally, _time_bins, _time_unit, _warn_outside,
 )
 
 
@@ -36,6 +36,8 @@ def iter_frames(
     pool: int = 1,
     dtype: torch.dtype = torch.float32,
     frames_per_step: int = 32,
+    time_unit: str | None = None,
+    columns: str | Sequence[str] | None = None,
 ) -> Iterator[Tensor]:
     r"""Bin a stream of event chunks and yield one frame ``(2, H', W')`` per bin, in order.
 
@@ -63,6 +65,10 @@ def iter_frames(
         pool: side of the square blocks summed into one output pixel.
         dtype: dtype of the yielded counts.
         frames_per_step: bins counted at once within a chunk (bounds the buffer).
+        time_unit: unit of the chunks' timestamps, as in :func:`events_to_frames`
+            (``"us"``, ``"ms"``, ``"s"``, ``"ns"``; ``None``: microseconds, float
+            timestamps that look like seconds refused).
+        columns: the order of ``(N, k)`` chunks' columns, e.g. ``"txyp"``.
 
     Yields:
         ``(2, H', W')`` counts, one per bin from ``t_start`` on.
@@ -90,11 +96,19 @@ def iter_frames(
         starts: Tensor | None = None
     else:
         starts = _explicit_starts(t_start, 1)
-    return _iter_frames(chunks, grid, t_start, starts, frame_ms, n_frames, step)
+    time_unit = _time_unit(time_unit)  # checked now, not at the first chunk
+    if columns is not None:
+        _order_names(columns)
+
+    def source_of(events: Any) -> _Source:
+        return _source(events, time_unit=time_unit, columns=columns)
+
+    return _iter_frames(chunks, grid, t_start, starts, frame_ms, n_frames, step, source_of)
+
 
 def _iter_frames(
     chunks: Iterable[Any], grid: _Grid, t_start: object, starts: Tensor | None, frame_ms: object,
-    n_frames: int | None, step: int,
+    n_frames: int | None, step: int, source_of: Callable[[Any], _Source],
 ) -> Iterator[Tensor]:
     size = grid.frame_size
     shape = (2, grid.out_h, grid.out_w)
@@ -108,7 +122,7 @@ def _iter_frames(
         return _as_dtype(counts, grid.dtype).view(shape)
 
     for number, events in enumerate(chunks):
-        source = _source(events)
+        source = source_of(events)
         if source.batched:
             raise ValueError(f"chunks[{number}] must be one stream, got a batch of shape {tuple(events.shape)}")
         chunk = _stream_chunk(source, number, last_t, starts, t_start, n_frames, grid, tally)

@@ -38,6 +38,6 @@ from .event_kernels import *  # noqa: F401,F403
 from .event_kernels import __all__ as _event_kernels
 
 __all__ = [
-    *_affine, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_representations,
+    *_affine, *_stretch, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_representations,
     *_event_batch, *_event_kernels,
 ]

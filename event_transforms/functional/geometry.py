@@ -100,7 +100,7 @@ def _size(value: object, name: str) -> tuple[int, int]:
         pair = (number, number)
     if min(pair) < 1:
         raise ValueError(f"{name} must be positive, got {describe(value)}")
-    return pair  # type: ignore[return-value]
+    return pair
 
 
 def _crop(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool, mode: str) -> Tensor:
@@ -223,7 +223,8 @@ def _sum_in(values: Tensor, dim: int | tuple[int, ...], owner: str, *, keepdim: 
     """Sum counts over ``dim`` in a wide dtype and return them in ``values``' dtype.
 
     8/16-bit integer sums that would not fit raise (one host synchronisation, those dtypes
-    only) instead of wrapping.
+    only) instead of wrapping; float16/bfloat16 sums past the dtype's largest finite value
+    raise the same way instead of becoming ``inf``.
     """
     dtype = values.dtype
     if dtype.is_floating_point:
@@ -238,6 +239,14 @@ def _sum_in(values: Tensor, dim: int | tuple[int, ...], owner: str, *, keepdim: 
             raise ValueError(
                 f"{owner}: a sum ({int(high)}) does not fit frames of dtype {dtype} "
                 f"(max {info.max}); convert the frames to a wider dtype first"
+            )
+    if dtype in (torch.float16, torch.bfloat16) and total.numel():
+        largest = torch.finfo(dtype).max
+        high = total.abs().max()
+        if bool(high > largest):
+            raise ValueError(
+                f"{owner}: a sum ({float(high):g}) does not fit frames of dtype {dtype} "
+                f"(largest finite value {largest:g}); convert the frames to a wider dtype first"
             )
     return total.to(dtype)
 
@@ -254,7 +263,8 @@ def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = 
     floor rounding) discards the last ``H mod fy`` rows and ``W mod fx`` columns and their
     events; ``"keep"`` sums them into a last, partial block (ceil rounding), so every event
     is kept. The sums are taken in int64/float32/float64 and returned in the input dtype;
-    8/16-bit integer frames whose block sums would overflow raise instead of wrapping.
+    8/16-bit integer frames whose block sums would overflow raise instead of wrapping, and
+    float16/bfloat16 frames whose sums pass the dtype's range raise instead of giving ``inf``.
 
     Args:
         frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.

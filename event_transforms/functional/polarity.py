@@ -37,7 +37,8 @@ def merge_polarities(frames: Tensor, *, keepdim: bool = True) -> Tensor:
     end of a pipeline, since the transforms here need two channels.
 
     The sum is taken in a wide dtype and returned in the input dtype; 8/16-bit integer
-    frames whose sum would overflow raise instead of wrapping (one host synchronisation,
+    frames whose sum would overflow raise instead of wrapping, float16/bfloat16 frames whose
+    sum passes the dtype's range raise instead of giving ``inf`` (one host synchronisation,
     those dtypes only).
 
     Example:

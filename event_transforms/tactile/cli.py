@@ -228,7 +228,7 @@ def build_parser() -> argparse.ArgumentParser:
     show = sub.add_parser("show", help="write a before/after PNG grid of a named transform")
     show.add_argument("method", help="a method name as in reproduce, e.g. rot45, fs-1, tes-2:0.5")
     show.add_argument("--scene", default="paper", help="the scene whose training data to show (default paper)")
-    show.add_argument("--out", type=Path, default=None, help="PNG path (default ./<method>.png)")
+    show.add_argument("--out", type=Path, default=None, help="PNG path, or an existing folder to write <method>.png in (default ./<method>.png)")
     show.add_argument("--index", type=int, default=0, help="training sequence to show")
     show.add_argument("--seed", type=int, default=0, help="seed of the random draw")
     show.add_argument("--count", type=_positive, default=8, help="frames shown: those the method changes most (default 8)")
@@ -441,7 +441,7 @@ def _plots(results: dict[str, Any], out: Path) -> list[Path]:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        _print("matplotlib not installed (pip install 'event-transforms[plot]'): no figures")
+        _print("matplotlib not installed (pip install 'event-transforms[app]'): no figures")
         return []
     scenes = results["scenes"]
     names = list(dict.fromkeys(m for summary in scenes.values() for m in summary["methods"]))
@@ -512,6 +512,9 @@ def _show_scene(args: argparse.Namespace) -> int:
     from .simulation import simulate_grasps
 
     names = [get_scene(args.scene).name] if args.scene else list(SCENES)
+    if args.rows > args.count:
+        raise ValueError(f"--rows {args.rows} draws more grasps than --count {args.count} simulates per session; "
+                         f"pass --count {args.rows} or more")
     _writable(args.out, "--out")
     args.out.mkdir(parents=True, exist_ok=True)
     simulated: dict = {}  # scenes share sessions (most train on the base session): simulate each once
@@ -548,9 +551,14 @@ def _show(args: argparse.Namespace) -> int:
     from .methods import parse_method
 
     method = parse_method(args.method, scene=args.scene)  # names first, before any simulation
+    name = f"{args.method.replace(':', '_')}.png"
+    out = args.out or Path(name)
+    if out.is_dir():  # an existing folder: the picture goes inside it, under the method's name
+        out = out / name
+    elif not out.suffix:
+        raise ValueError(f"--out {str(out)!r} must name a .png file or an existing folder")
     _writable(args.root, "--root")
-    if args.out is not None:
-        _writable(args.out.parent, "--out")
+    _writable(out.parent, "--out")
     root = None if args.root is None else str(args.root)
     train = datasets.TactileGrasps(split="train", root=root, scene=args.scene)
     if not 0 <= args.index < len(train):
@@ -561,7 +569,6 @@ def _show(args: argparse.Namespace) -> int:
     generator = torch.Generator().manual_seed(args.seed)
     with torch.no_grad():
         after = frames if transform is None else transform(frames, generator=generator, metadata=meta)
-    out = args.out or Path(f"{args.method.replace(':', '_')}.png")
     title = f"{args.method} on {args.scene} training grasp {args.index} ({meta['diameter_mm']:g} mm)"
     viz.plot_transform(frames, after, out, frame_ms=train.config.frame_ms, count=args.count,
                        title=title, upscale=args.upscale)
@@ -651,6 +658,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     handlers = {"reproduce": _reproduce, "simulate": _simulate, "show": _show, "show-scene": _show_scene,
                 "infer-scene": _infer_scene, "train": _train, "predict": _predict}
     try:
+        if args.command in _TRAINING_COMMANDS:  # before any simulation: the training loop needs tqdm
+            import tqdm  # noqa: F401
         return handlers[args.command](args)
     except KeyboardInterrupt:
         print("interrupted: finished units are kept; rerun the same command to resume",
@@ -660,12 +669,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = " ".join(str(error).split())
         print(f"{parser.prog} {args.command}: error: {message}", file=sys.stderr)
         return 2
-    except ImportError as error:  # the pictures of show/show-scene need the plot extra
-        if args.command not in ("show", "show-scene"):
+    except ImportError as error:  # tqdm, matplotlib, torchvision: the app extra's packages
+        if error.name not in _APP_PACKAGES:
             raise
-        print(f"{parser.prog} {args.command}: error: {error}", file=sys.stderr)
+        print(f"{parser.prog} {args.command}: error: {error.name} is not installed; the command line needs the "
+              "app extra: pip install 'event-transforms[app]'", file=sys.stderr)
         return 2
 
+
+#: Commands that train (the training loop's progress bar is tqdm's).
+_TRAINING_COMMANDS = ("reproduce",)
+#: What the `app` extra installs beyond the library (the ImportError names the command line reports).
+_APP_PACKAGES = ("tqdm", "matplotlib", "torchvision")
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

@@ -596,7 +596,13 @@ def fit_ensemble(
         >>> [m.val_steps for m in result.members], len(result.members[0].train_loss)
         ([[3, 6], [3, 6]], 6)
     """
-    from tqdm.auto import tqdm
+    try:
+        from tqdm.auto import tqdm
+    except ImportError as error:
+        raise ImportError(
+            "the training loop needs tqdm, which is not installed: pip install 'event-transforms[app]'",
+            name="tqdm",
+        ) from error
 
     from .baselines import stack_items
     from .training import Stopwatch, collate

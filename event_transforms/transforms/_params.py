@@ -65,7 +65,7 @@ class Param:
 
 #: A module's description of its params dict: a :class:`Param` per own entry and a
 #: ``(child, shape)`` pair per child of a container.
-Spec = dict[str, Union[Param, "tuple[EventTransform, torch.Size]"]]
+Spec = Mapping[str, Union[Param, "tuple[EventTransform, torch.Size]"]]
 
 
 def _values(tensor: Tensor) -> np.ndarray:

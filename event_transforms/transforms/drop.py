@@ -6,6 +6,8 @@ computed on the frames' device; nothing is read back to the host.
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import torch
@@ -63,7 +65,7 @@ class RandomEventDrop(EventTransform):
             raise ValueError(f"methods must be a non-empty subset of {_DROPS}, got {methods!r}")
         self.methods = tuple(methods)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b, t, _, h, w = shape
         codes = torch.tensor([_DROPS.index(m) for m in self.methods])
         method = choice(codes, b, generator)
@@ -192,7 +194,7 @@ class RandomDropPixel(EventTransform):
         super().__init__(p=p)
         self.fraction = check_pair(fraction, "fraction", single=True, low=0.0, high=1.0)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         return {"fraction": uniform(*self.fraction, b, generator), "seed": seeds(b, generator)}
 
