@@ -40,6 +40,10 @@ from torch import Tensor
 from .._validation import read_host
 from .events import (
     _T_STARTS,
+    _accumulate,
+    _accumulator,
+    _bins_of,
+    _event_index,
     _columns,
     _explicit_starts,
     _floor_to_grid,
@@ -516,48 +520,6 @@ def bin_events(
     return counts.view(b, n_frames, 2, grid.out_h, grid.out_w)
 
 
-def _bins_of(rel: Tensor, frame_us: float | int, n_frames: int) -> tuple[Tensor, Tensor]:
-    """``floor(rel / frame_us)`` as int32 and whether ``0 <= rel < n_frames * frame_us``.
-
-    Integer times over a window with ``n_frames * frame_us < 2**23`` (8.4 s):
-    float32 true division is correctly rounded, and for whole ``rel`` and ``frame`` the
-    quotient of an ``rel`` just below a multiple ``k * frame`` is at least ``1 / frame``
-    below ``k``, more than float32's spacing at ``k`` when ``k * frame < 2**23``; so the
-    floor is exact (4x cheaper than int64 floor division on the CPU). Otherwise float64.
-    """
-    span = n_frames * frame_us
-    if isinstance(frame_us, int) and not rel.is_floating_point() and span < 2**23:
-        quotient = rel.to(torch.float32) / frame_us
-    else:
-        quotient = rel.to(torch.float64) / frame_us
-    inside = (quotient >= 0) & (quotient < n_frames)
-    return quotient.to(torch.int32), inside  # truncation = floor where inside
-
-
-def _pixel_table(grid: Any, device: torch.device) -> Tensor:
-    """((H + 2) * (W + 2),) int32: the output pixel ``row * W' + col`` of each sensor pixel
-    after crop and pool, with a border of -1 (coordinates clamped to [-1, H] and [-1, W]
-    land there): one gather replaces the sensor and crop tests and two divisions per event."""
-    key = (grid.height, grid.width, grid.top, grid.left, grid.crop_h, grid.crop_w, grid.pool, str(device))
-    table = _TABLES.get(key)
-    if table is None:
-        rows = torch.arange(-1, grid.height + 1) - grid.top
-        cols = torch.arange(-1, grid.width + 1) - grid.left
-        keep = ((rows >= 0) & (rows < grid.crop_h)).unsqueeze(1) & ((cols >= 0) & (cols < grid.crop_w)).unsqueeze(0)
-        pooled = torch.div(rows, grid.pool, rounding_mode="floor").unsqueeze(1) * grid.out_w + torch.div(
-            cols, grid.pool, rounding_mode="floor").unsqueeze(0)
-        table = torch.where(keep, pooled, -1).to(torch.int32).reshape(-1).to(device)
-        if len(_TABLES) > 32:
-            _TABLES.clear()
-        _TABLES[key] = table
-    return table
-
-
-_TABLES: dict[tuple, Tensor] = {}
-#: Largest whole number each float dtype counts to exactly.
-_EXACT_FLOAT = {torch.float16: 2**11, torch.bfloat16: 2**8, torch.float32: 2**24, torch.float64: 2**53}
-
-
 def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
     """``t - t_start`` of each event's stream: one scalar subtraction when every stream starts
     at the same time (a shared clock, ``t_start`` a number), else a gather of the starts."""
@@ -568,24 +530,11 @@ def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
     return batch.t - start_of.index_select(0, batch.sample_index())
 
 
-def _bin_index(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any) -> tuple[Tensor, Tensor]:
-    """Per event its index inside its own sample's ``(T, 2, H', W')`` block (int32; 0 for an
-    event outside the window, sensor or crop) and whether it counts."""
-    device = batch.device
-    bins, inside = _bins_of(_relative_times(batch, starts), grid.frame_us, n_frames)
-    height, width = grid.height, grid.width
-    x = batch.x.clamp(-1, width).to(torch.int32)
-    y = batch.y.clamp(-1, height).to(torch.int32)
-    pixel = _pixel_table(grid, device).index_select(0, y.mul_(width + 2).add_(x).add_(width + 3))
-    inside &= pixel >= 0
-    index = bins.mul_(2).add_(batch.p).mul_(grid.out_h * grid.out_w).add_(pixel)
-    return index.masked_fill_(~inside, 0), inside
-
-
 def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, total: int) -> Tensor:
-    """(total,) counts in ``grid.dtype``: each event adds its weight (1 inside, 0 outside) with
-    ``index_add_`` straight into the output dtype when every count fits it exactly (float32
-    holds whole numbers to 2**24), else into int32/int64 followed by a checked cast.
+    """(total,) counts in ``grid.dtype``, by the one binning kernel of :mod:`.events`: int32
+    indices from the pixel table and the float32 bin quotient, every event not counted sent
+    to one spare slot, and an ``index_add_`` of ones straight into the output dtype when no
+    count can pass what it holds exactly (float32: 2**24), else into int32 and a checked cast.
 
     On the CPU one sample at a time: its block (``T * 2 * H' * W'`` values) is zeroed, then
     its events are added while the block is still in cache, 2-3x faster than one scatter
@@ -596,21 +545,22 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
     n = batch.num_events
     if n == 0 or total == 0:
         return torch.zeros(total, dtype=dtype, device=device)
-    exact = _EXACT_FLOAT[dtype] if dtype.is_floating_point else torch.iinfo(dtype).max
-    wide = dtype if n <= exact else (torch.int32 if n < 2**31 else torch.int64)
-    index, inside = _bin_index(batch, starts, n_frames, grid)
-    weight = inside.to(wide)
+    index, pixel, in_time = _event_index(
+        batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid, total >= 2**31 - 1
+    )
+    counted = in_time.logical_and_(pixel >= 0)
     block = n_frames * grid.frame_size
     if device.type == "cpu":
-        counts = torch.empty(total, dtype=wide)
+        counts = torch.empty(total + 1, dtype=_accumulator(dtype, n))
+        counts[total] = 0
         bounds = batch.offsets.tolist()
         for b in range(len(batch)):
-            out = counts[b * block : (b + 1) * block].zero_()
-            if bounds[b + 1] > bounds[b]:
-                out.index_add_(0, index[bounds[b] : bounds[b + 1]], weight[bounds[b] : bounds[b + 1]])
+            counts[b * block : (b + 1) * block].zero_()
+            lo, hi = bounds[b], bounds[b + 1]
+            if hi > lo:
+                _accumulate(counts, torch.where(counted[lo:hi], index[lo:hi].add_(b * block), total))
     else:
-        if total >= 2**31 - 1:
-            index = index.to(torch.int64)
         index = index.add_(batch.sample_index().to(index.dtype).mul(block))
-        counts = torch.zeros(total, dtype=wide, device=device).index_add_(0, index, weight)
-    return counts if wide == dtype else _as_dtype(counts, dtype)
+        counts = torch.zeros(total + 1, dtype=_accumulator(dtype, n), device=device)
+        _accumulate(counts, torch.where(counted, index, total))
+    return _as_dtype(counts[:total], dtype)

@@ -419,7 +419,7 @@ class _Tally:
         if t.numel() == 0:
             return
         if valid is None:
-            low, high = t.amin(dim=1).tolist(), t.amax(dim=1).tolist()
+            low, high = (v.tolist() for v in torch.aminmax(t, dim=1))
             present = [True] * t.shape[0]
         else:
             big = math.inf if t.is_floating_point() else _INT64_MAX
@@ -437,89 +437,204 @@ def _merge(bounds: list[Any], low: Any, high: Any) -> None:
     bounds[1] = high if bounds[1] is None else max(bounds[1], high)
 
 
-def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally | None = None) -> Tensor:
-    """Channel per event: 1 for ON (p > 0), 0 for OFF (p in {0, -1}); refuses anything else.
+def _check_polarity(p: Tensor, valid: Tensor | None, tally: _Tally | None = None) -> None:
+    """Refuse polarities other than bool, {0, 1} or {-1, 1} (and a mix of 0 and -1 for OFF).
 
     ``tally`` remembers the OFF values seen in earlier chunks of the same call.
     """
     tally = _Tally(0) if tally is None else tally
     checked = p if valid is None else p[valid]
-    if checked.numel():
-        low, high = (v.item() for v in torch.aminmax(checked))
-        whole = not checked.is_floating_point() or bool((checked == checked.round()).all())
-        if low < -1 or high > 1 or not whole:
-            bad = (checked != 0) & (checked != 1) & (checked != -1)
-            raise ValueError(
-                f"events polarity p must be bool, {{0, 1}} or {{-1, 1}}, got {checked[bad].flatten()[0].item()!r}"
-            )
-        if low == -1:
-            tally.polarities.add(-1)
-        if low == 0 or (low == -1 and 0 not in tally.polarities and bool((checked == 0).any())):
-            tally.polarities.add(0)
-        if tally.polarities == {-1, 0}:
-            raise ValueError(
-                "events polarity p mixes the {0, 1} and {-1, 1} conventions (it holds both -1 and 0); "
-                "OFF must be either 0 or -1"
-            )
+    if not checked.numel():
+        return
+    low, high = (v.item() for v in torch.aminmax(checked))
+    whole = not checked.is_floating_point() or bool((checked == checked.round()).all())
+    if low < -1 or high > 1 or not whole:
+        bad = (checked != 0) & (checked != 1) & (checked != -1)
+        raise ValueError(
+            f"events polarity p must be bool, {{0, 1}} or {{-1, 1}}, got {checked[bad].flatten()[0].item()!r}"
+        )
+    if low == -1:
+        tally.polarities.add(-1)
+    if low == 0 or (low == -1 and 0 not in tally.polarities and bool((checked == 0).any())):
+        tally.polarities.add(0)
+    if tally.polarities == {-1, 0}:
+        raise ValueError(
+            "events polarity p mixes the {0, 1} and {-1, 1} conventions (it holds both -1 and 0); "
+            "OFF must be either 0 or -1"
+        )
+
+
+def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally | None = None) -> Tensor:
+    """Channel per event: 1 for ON (p > 0), 0 for OFF (p in {0, -1}); refuses anything else."""
+    _check_polarity(p, valid, tally)
     return (p > 0).to(torch.int64)
 
 
-def _flat_index(
-    columns: dict[str, Tensor], valid: Tensor | None, bins: Tensor, n_frames: int | None, grid: _Grid,
-    tally: _Tally, *, within_frame: bool = False,
-) -> tuple[Tensor, Tensor | None]:
-    """For a (B, n) chunk: the kept events' flat index into (B, T, 2, H', W') (and their bins).
+# The one binning kernel. Every binning path (events_to_frames, iter_frames, bin_events and
+# so EventsToFrames) turns columns into flat int32 indices with the same three steps and
+# adds ones straight into the output dtype:
+#
+# * time: ``(t - t_start) / frame`` in float32 (exact for a window under 2**23 µs and whole
+#   microsecond bins) or float64 (exact under 2**52 µs), int64 floor division past that;
+# * pixel: one gather from an int32 table over the sensor plus a one-pixel border, crop
+#   and pool folded in (-1 outside the crop, -2 outside the sensor);
+# * count: ``index_add_`` of an expanded one into the output (no int64 buffer, no
+#   bincount); only a count that may not fit the output dtype goes through int32 and a
+#   checked cast, the one place that reads a maximum.
 
-    With ``within_frame`` the index leaves out the sample and frame (it is the index
-    within one frame, ``2 * H' * W'`` values) and the kept events' bins come with it;
-    ``n_frames=None`` (only then) keeps every bin from 0 on.
+#: Largest whole number each float dtype counts to exactly.
+_EXACT_FLOAT = {torch.float16: 2**11, torch.bfloat16: 2**8, torch.float32: 2**24, torch.float64: 2**53}
+#: Pixel table entries: an output pixel ``row * W' + col``, or one of these.
+_OUTSIDE_CROP, _OUTSIDE_SENSOR = -1, -2
+_TABLES: dict[tuple, Tensor] = {}
+
+
+def _exact_count(dtype: torch.dtype) -> int:
+    """Largest count ``dtype`` holds exactly."""
+    return _EXACT_FLOAT[dtype] if dtype.is_floating_point else torch.iinfo(dtype).max
+
+
+def _accumulator(dtype: torch.dtype, n_events: int) -> torch.dtype:
+    """The dtype to count ``n_events`` in: the output's own when no pixel can pass what it
+    holds exactly, else int32 (int64 past 2**31 events) and a checked cast at the end."""
+    if n_events <= _exact_count(dtype):
+        return dtype
+    return torch.int32 if n_events < 2**31 else torch.int64
+
+
+def _pixel_table(grid: _Grid, device: torch.device) -> Tensor:
+    """((H + 2) * (W + 2),) int32: the output pixel ``row * W' + col`` of each sensor pixel
+    after crop and pool, -1 outside the crop, and a border of -2 (coordinates clamped to
+    [-1, H] and [-1, W] land there): one gather replaces the sensor and crop tests and two
+    divisions per event."""
+    key = (grid.height, grid.width, grid.top, grid.left, grid.crop_h, grid.crop_w, grid.pool, str(device))
+    table = _TABLES.get(key)
+    if table is None:
+        rows = torch.arange(-1, grid.height + 1)
+        cols = torch.arange(-1, grid.width + 1)
+        on_sensor = ((rows >= 0) & (rows < grid.height)).unsqueeze(1) & ((cols >= 0) & (cols < grid.width)).unsqueeze(0)
+        rows, cols = rows - grid.top, cols - grid.left
+        keep = ((rows >= 0) & (rows < grid.crop_h)).unsqueeze(1) & ((cols >= 0) & (cols < grid.crop_w)).unsqueeze(0)
+        pooled = torch.div(rows, grid.pool, rounding_mode="floor").unsqueeze(1) * grid.out_w + torch.div(
+            cols, grid.pool, rounding_mode="floor").unsqueeze(0)
+        table = torch.where(keep, pooled, _OUTSIDE_CROP)
+        table = torch.where(on_sensor, table, _OUTSIDE_SENSOR).to(torch.int32).reshape(-1).to(device)
+        if len(_TABLES) > 32:
+            _TABLES.clear()
+        _TABLES[key] = table
+    return table
+
+
+def _relative(t: Tensor, starts: Tensor) -> Tensor:
+    """``t - start`` (starts broadcast against ``t``): int64 when both are whole, else float64."""
+    starts = starts.to(t.device)
+    if t.is_floating_point() or starts.is_floating_point():
+        return t.to(torch.float64) - starts.to(torch.float64)
+    return t - starts
+
+
+def _bins_of(rel: Tensor, frame_us: float | int, n_frames: int) -> tuple[Tensor, Tensor]:
+    """``floor(rel / frame_us)`` and whether ``0 <= rel < n_frames * frame_us``.
+
+    Integer times over a window with ``n_frames * frame_us < 2**23`` (8.4 s): float32 true
+    division is correctly rounded, and for whole ``rel`` and ``frame`` the quotient of an
+    ``rel`` just below a multiple ``k * frame`` is at least ``1 / frame`` below ``k``, more
+    than float32's spacing at ``k`` when ``k * frame < 2**23``; so the floor is exact (4x
+    cheaper than int64 floor division on the CPU). The same holds in float64 under
+    ``2**52``; past that, int64 floor division. Float times: ``floor`` of the float64
+    quotient, as :func:`_time_bins`. The bins are int32 (int64 on the last path) and
+    meaningful only where inside (truncation = floor there).
     """
-    x, y, p = columns["x"], columns["y"], columns["p"]
-    channel = _polarity_channel(p, valid, tally)
-    col = torch.floor(x).to(torch.int64) if x.is_floating_point() else x
-    row = torch.floor(y).to(torch.int64) if y.is_floating_point() else y
-    inside = (col >= 0) & (col < grid.width) & (row >= 0) & (row < grid.height)
-    outside = ~inside if valid is None else (~inside & valid)
+    span = n_frames * frame_us
+    if not rel.is_floating_point() and isinstance(frame_us, int) and span >= 2**52:
+        bins = torch.div(rel, frame_us, rounding_mode="floor")
+        return bins, (bins >= 0) & (bins < n_frames)
+    if isinstance(frame_us, int) and not rel.is_floating_point() and span < 2**23:
+        quotient = rel.to(torch.float32).div_(frame_us)
+    else:
+        quotient = rel.to(torch.float64).div_(frame_us)
+    inside = (quotient >= 0) & (quotient < n_frames)
+    return quotient.to(torch.int32), inside
+
+
+def _pixels(col: Tensor, row: Tensor, grid: _Grid) -> Tensor:
+    """The pixel table entry of each event (integer coordinates, any shape): int32, the
+    output pixel ``row * W' + col``, or -1 off the crop, -2 off the sensor."""
+    width = grid.width
+    flat = row.clamp(-1, grid.height).to(torch.int32).mul_(width + 2)
+    flat.add_(col.clamp(-1, width).to(torch.int32)).add_(width + 3)
+    return _pixel_table(grid, col.device).index_select(0, flat.reshape(-1)).view(flat.shape)
+
+
+def _tally_outside(tally: _Tally, pixel: Tensor, col: Tensor, row: Tensor, valid: Tensor | None) -> None:
+    """Count the (valid) events off the sensor and widen the coordinate ranges the warning names."""
+    outside = pixel == _OUTSIDE_SENSOR
+    if valid is not None:
+        outside &= valid
     n_outside = int(outside.sum())
     if n_outside:
         tally.outside += n_outside
         seen = slice(None) if valid is None else valid
-        _merge(tally.x_range, int(col[seen].min()), int(col[seen].max()))
-        _merge(tally.y_range, int(row[seen].min()), int(row[seen].max()))
-    in_time = bins >= 0
-    if n_frames is not None:
-        in_time &= bins < n_frames
-    if valid is not None:
-        in_time &= valid
-    tally.in_window += in_time.sum(dim=1).cpu()
-    if (grid.crop_h, grid.crop_w) == (grid.height, grid.width):
-        keep = inside & in_time
-    else:
-        keep = (col >= grid.left) & (col < grid.left + grid.crop_w) & (row >= grid.top) & (row < grid.top + grid.crop_h)
-        keep &= in_time
-    if grid.top or grid.left:
-        row, col = row - grid.top, col - grid.left
-    if grid.pool > 1:
-        row, col = row // grid.pool, col // grid.pool
-    pixel = (channel * grid.out_h + row) * grid.out_w + col
-    if within_frame:
-        return pixel[keep], bins[keep]
+        _merge(tally.x_range, *(int(v) for v in torch.aminmax(col[seen])))
+        _merge(tally.y_range, *(int(v) for v in torch.aminmax(row[seen])))
+
+
+def _event_index(
+    col: Tensor, row: Tensor, on: Tensor, rel: Tensor, n_frames: int, grid: _Grid, wide: bool
+) -> tuple[Tensor, Tensor, Tensor]:
+    """Per event (any shape, integer coordinates): its index inside one stream's
+    ``(T, 2, H', W')`` block (int32, int64 if ``wide``; meaningless where not counted), its
+    pixel table entry (negative off the crop or sensor) and whether its time is in the window.
+    """
+    bins, in_time = _bins_of(rel, grid.frame_us, n_frames)
+    pixel = _pixels(col, row, grid)
+    index = bins.to(torch.int64) if wide else bins.to(torch.int32)
+    index = index.mul_(2).add_(on).mul_(grid.out_h * grid.out_w).add_(pixel)
+    return index, pixel, in_time
+
+
+def _count_chunk(
+    counts: Tensor, columns: dict[str, Tensor], valid: Tensor | None, starts: Tensor, n_frames: int, grid: _Grid,
+    tally: _Tally,
+) -> None:
+    """Add a (B, n) chunk of columns to ``counts`` (``B * n_frames`` frames, then one spare
+    slot where the events not counted go); record the chunk's events in the window and
+    off the sensor in ``tally``."""
+    x, y, p = columns["x"], columns["y"], columns["p"]
+    _check_polarity(p, valid, tally)
+    col = torch.floor(x) if x.is_floating_point() else x
+    row = torch.floor(y) if y.is_floating_point() else y
+    rel = _relative(columns["t"], starts.unsqueeze(1))
+    spare = counts.numel() - 1
+    index, pixel, in_time = _event_index(col, row, p > 0, rel, n_frames, grid, spare >= 2**31)
     if x.shape[0] > 1:
-        bins = bins + torch.arange(x.shape[0], device=x.device).unsqueeze(1) * n_frames
-    return (bins * grid.frame_size + pixel)[keep], None
+        block = n_frames * grid.frame_size
+        index += torch.arange(x.shape[0], device=x.device, dtype=index.dtype).unsqueeze(1) * block
+    counted = in_time & (pixel >= 0)
+    if valid is not None:
+        counted &= valid
+    if bool(counted.all()):  # the common case: nothing off the sensor, the crop or the window
+        tally.in_window += x.shape[1]
+    else:
+        _tally_outside(tally, pixel, col, row, valid)
+        if valid is not None:
+            in_time &= valid
+        tally.in_window += in_time.sum(dim=1).cpu()
+        index = torch.where(counted, index, spare)
+    _accumulate(counts, index.reshape(-1))
 
 
 def _accumulate(counts: Tensor, index: Tensor) -> None:
-    """``counts[index] += 1`` for every entry, with one bincount over the touched range."""
-    if index.numel() == 0:
-        return
-    low, high = int(index.min()), int(index.max())
-    counts[low : high + 1] += torch.bincount(index - low, minlength=high - low + 1)
+    """``counts[index] += 1`` for every entry: one ``index_add_`` of an expanded one."""
+    if index.numel():
+        counts.index_add_(0, index, torch.ones((), dtype=counts.dtype, device=counts.device).expand(index.numel()))
 
 
 def _as_dtype(counts: Tensor, dtype: torch.dtype) -> Tensor:
-    """The int64 counts in ``dtype``; refused by name unless ``dtype`` holds every count exactly."""
+    """The counts in ``dtype``; refused by name unless ``dtype`` holds every count exactly."""
     # floats hold every whole number up to 2 / eps exactly (bfloat16: 256, float16: 2048)
+    if counts.dtype == dtype:
+        return counts
     exact = 2 / torch.finfo(dtype).eps if dtype.is_floating_point else torch.iinfo(dtype).max
     if counts.numel():
         largest = int(counts.max())
@@ -532,17 +647,21 @@ def _as_dtype(counts: Tensor, dtype: torch.dtype) -> Tensor:
     return counts.to(dtype)
 
 
-def _check_bytes(batch: int, n_frames: int, grid: _Grid, max_bytes: int | None, where: str) -> None:
+def _check_bytes(
+    batch: int, n_frames: int, grid: _Grid, max_bytes: int | None, where: str, n_events: int
+) -> None:
     """Refuse, before allocating, a binning that needs more than ``max_bytes``."""
     if max_bytes is None:
         return
     values = batch * n_frames * grid.frame_size
-    needed = values * (8 + (torch.finfo(grid.dtype).bits if grid.dtype.is_floating_point else torch.iinfo(grid.dtype).bits) // 8)
+    counting = _accumulator(grid.dtype, n_events)
+    needed = values * grid.dtype.itemsize + (values * counting.itemsize if counting != grid.dtype else 0)
     if needed > max_bytes:
         raise ValueError(
             f"events_to_frames: {where} {n_frames:,} frames of {grid.frame_size:,} values"
-            f"{f' for {batch} streams' if batch > 1 else ''}, {needed / 1e9:,.1f} GB ({needed:,} bytes) with the "
-            f"int64 buffer, more than max_bytes={max_bytes:,}. Timestamps must be in microseconds; to bin a long "
+            f"{f' for {batch} streams' if batch > 1 else ''}, {needed / 1e9:,.1f} GB ({needed:,} bytes)"
+            f"{f' with the {counting} counting buffer' if counting != grid.dtype else ''} for the output, more than "
+            f"max_bytes={max_bytes:,}. Timestamps must be in microseconds; to bin a long "
             "recording, stream it with iter_frames, pass n_frames for a window, or raise max_bytes"
         )
 
@@ -676,7 +795,7 @@ def events_to_frames(
         max_bytes = _integer(max_bytes, "max_bytes")
     if n_frames is not None:
         n_frames = _integer(n_frames, "n_frames")
-        _check_bytes(source.batch, n_frames, grid, max_bytes, "n_frames asks for")
+        _check_bytes(source.batch, n_frames, grid, max_bytes, "n_frames asks for", source.batch * source.length)
     if not source.batched and (lengths is not None or mask is not None):
         raise ValueError("lengths and mask apply to a (B, N, 4) batch of events only")
     valid_all = _valid_mask(source.batch, source.length, lengths, mask, source.device)
@@ -691,11 +810,17 @@ def events_to_frames(
     else:
         starts = _explicit_starts(t_start, batch)
 
+    # A stream that fits one chunk is read once, for both passes.
+    whole = source.read(0, length, _FIELDS) if length <= chunk else None
+
+    def read(i: int, names: Sequence[str]) -> dict[str, Tensor]:
+        return whole if whole is not None else source.read(i, i + chunk, names)
+
     # Pass 1 (only when needed): every stream's time range, for t_start and n_frames.
     ranges = _Tally(batch)
     if isinstance(t_start, str) or n_frames is None:
         for i in range(0, length, chunk):
-            ranges.add_times(source.read(i, i + chunk, ("t",))["t"], valid_of(i, i + chunk))
+            ranges.add_times(read(i, ("t",))["t"], valid_of(i, i + chunk))
     if isinstance(t_start, str):
         firsts = [0 if v is None else v for v in ranges.t_min]
         starts = torch.tensor(firsts, dtype=torch.float64 if any(isinstance(v, float) for v in firsts) else torch.int64)
@@ -714,22 +839,22 @@ def events_to_frames(
                 f"to {max(v for v in ranges.t_max if v is not None)}); timestamps must be in microseconds. "
                 "Pass n_frames to bin a window of that length"
             )
-        _check_bytes(batch, n_frames, grid, max_bytes, "the events span")
+        _check_bytes(batch, n_frames, grid, max_bytes, "the events span", batch * length)
 
-    # Pass 2: bin chunk by chunk into one int64 buffer.
+    # Pass 2: count chunk by chunk straight into the output (and one spare slot).
     tally = _Tally(batch)
-    counts = torch.zeros(batch * n_frames * grid.frame_size, dtype=torch.int64, device=source.device)
+    total = batch * n_frames * grid.frame_size
+    counts = torch.zeros(total + 1, dtype=_accumulator(grid.dtype, batch * length), device=source.device)
 
     def bin_chunk(i: int) -> None:  # a function, so that a chunk's temporaries die before the next
-        columns = source.read(i, i + chunk, _FIELDS)
+        columns = read(i, _FIELDS)
         valid = valid_of(i, i + chunk)
         tally.events += (torch.full((batch,), columns["t"].shape[1]) if valid is None else valid.sum(dim=1).cpu())
-        bins = _time_bins(columns["t"], starts, grid.frame_us)
-        index, _ = _flat_index(columns, valid, bins, n_frames, grid, tally)
-        _accumulate(counts, index)
+        _count_chunk(counts, columns, valid, starts, n_frames, grid, tally)
 
     for i in range(0, length, chunk):
         bin_chunk(i)
+    del whole
 
     for b in range(batch):
         if tally.events[b] and not tally.in_window[b]:
@@ -757,7 +882,7 @@ def events_to_frames(
             ),
             stacklevel=2,
         )
-    frames = _as_dtype(counts, grid.dtype).view(batch, n_frames, 2, grid.out_h, grid.out_w)
+    frames = _as_dtype(counts[:total], grid.dtype).view(batch, n_frames, 2, grid.out_h, grid.out_w)
     return frames if source.batched else frames.squeeze(0)
 
 
