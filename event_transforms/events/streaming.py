@@ -18,7 +18,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .events import (
+from .binning import (
     _FIELDS, _T_STARTS, _accumulate, _as_dtype, _check_polarity, _empty_window_error, _exact_count, _explicit_starts,
     _floor_to_grid, _Grid, _grid, _integer, _pixels, _Source, _source, _Tally, _tally_outside, _time_bins,
     _warn_outside,
