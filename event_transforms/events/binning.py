@@ -545,16 +545,26 @@ def _bins_of(rel: Tensor, frame_us: float | int, n_frames: int) -> tuple[Tensor,
     quotient, as :func:`_time_bins`. The bins are int32 (int64 on the last path) and
     meaningful only where inside (truncation = floor there).
     """
+    quotient = _quotient(rel, frame_us, n_frames)
+    inside = (quotient >= 0) & (quotient < n_frames)
+    return (quotient if quotient.dtype == torch.int64 else quotient.to(torch.int32)), inside
+
+
+def _quotient(rel: Tensor, frame_us: float | int, n_frames: int) -> Tensor:
+    """``rel / frame_us`` in float32 or float64 where that floors exactly (see
+    :func:`_bins_of`), else the int64 floor quotient."""
     span = n_frames * frame_us
     if not rel.is_floating_point() and isinstance(frame_us, int) and span >= 2**52:
-        bins = torch.div(rel, frame_us, rounding_mode="floor")
-        return bins, (bins >= 0) & (bins < n_frames)
+        return torch.div(rel, frame_us, rounding_mode="floor")
     if isinstance(frame_us, int) and not rel.is_floating_point() and span < 2**23:
-        quotient = rel.to(torch.float32).div_(frame_us)
-    else:
-        quotient = rel.to(torch.float64).div_(frame_us)
-    inside = (quotient >= 0) & (quotient < n_frames)
-    return quotient.to(torch.int32), inside
+        return rel.to(torch.float32).div_(frame_us)
+    return rel.to(torch.float64).div_(frame_us)
+
+
+def _within(values: Tensor, size: int) -> bool:
+    """Whether every value lies in ``[0, size)`` (one read-only pass)."""
+    low, high = torch.aminmax(values)
+    return bool(low >= 0) and bool(high < size)
 
 
 def _pixels(col: Tensor, row: Tensor, grid: _Grid) -> Tensor:
@@ -595,31 +605,49 @@ def _event_index(
 
 def _count_chunk(
     counts: Tensor, columns: dict[str, Tensor], valid: Tensor | None, starts: Tensor, n_frames: int, grid: _Grid,
-    tally: _Tally,
+    tally: _Tally, *, in_window: bool = False,
 ) -> None:
     """Add a (B, n) chunk of columns to ``counts`` (``B * n_frames`` frames, then one spare
     slot where the events not counted go); record the chunk's events in the window and
-    off the sensor in ``tally``."""
+    off the sensor in ``tally``. ``in_window``: every event's time is known to lie in the
+    window (pass 1 read the time ranges).
+
+    The common case, a whole stream on the sensor and in the window with no crop or pool,
+    skips the window test, the table and the spare slot: one read-only ``aminmax`` per
+    coordinate shows it.
+    """
     x, y, p = columns["x"], columns["y"], columns["p"]
     _check_polarity(p, valid, tally)
     col = torch.floor(x) if x.is_floating_point() else x
     row = torch.floor(y) if y.is_floating_point() else y
     rel = _relative(columns["t"], starts.unsqueeze(1))
     spare = counts.numel() - 1
-    index, pixel, in_time = _event_index(col, row, p > 0, rel, n_frames, grid, spare >= 2**31)
+    index_dtype = torch.int64 if spare >= 2**31 else torch.int32
+    whole_sensor = (grid.crop_h, grid.crop_w, grid.pool) == (grid.height, grid.width, 1)
+    if (
+        valid is None and in_window and whole_sensor and x.numel()
+        and _within(col, grid.width) and _within(row, grid.height)
+    ):
+        index = _quotient(rel, grid.frame_us, n_frames).to(index_dtype).mul_(2).add_(p > 0)
+        index.mul_(grid.height).add_(row.to(index_dtype)).mul_(grid.width).add_(col.to(index_dtype))
+        counted = None
+    else:
+        index, pixel, in_time = _event_index(col, row, p > 0, rel, n_frames, grid, index_dtype == torch.int64)
+        counted = in_time & (pixel >= 0)
+        if valid is not None:
+            counted &= valid
+        if bool(counted.all()):
+            counted = None
+        else:
+            _tally_outside(tally, pixel, col, row, valid)
+            if valid is not None:
+                in_time &= valid
+            tally.in_window += in_time.sum(dim=1).cpu()
     if x.shape[0] > 1:
-        block = n_frames * grid.frame_size
-        index += torch.arange(x.shape[0], device=x.device, dtype=index.dtype).unsqueeze(1) * block
-    counted = in_time & (pixel >= 0)
-    if valid is not None:
-        counted &= valid
-    if bool(counted.all()):  # the common case: nothing off the sensor, the crop or the window
+        index += torch.arange(x.shape[0], device=x.device, dtype=index.dtype).unsqueeze(1) * (n_frames * grid.frame_size)
+    if counted is None:  # every event counts
         tally.in_window += x.shape[1]
     else:
-        _tally_outside(tally, pixel, col, row, valid)
-        if valid is not None:
-            in_time &= valid
-        tally.in_window += in_time.sum(dim=1).cpu()
         index = torch.where(counted, index, spare)
     _accumulate(counts, index.reshape(-1))
 
@@ -818,7 +846,8 @@ def events_to_frames(
 
     # Pass 1 (only when needed): every stream's time range, for t_start and n_frames.
     ranges = _Tally(batch)
-    if isinstance(t_start, str) or n_frames is None:
+    pass_one = isinstance(t_start, str) or n_frames is None
+    if pass_one:
         for i in range(0, length, chunk):
             ranges.add_times(read(i, ("t",))["t"], valid_of(i, i + chunk))
     if isinstance(t_start, str):
@@ -841,6 +870,16 @@ def events_to_frames(
             )
         _check_bytes(batch, n_frames, grid, max_bytes, "the events span", batch * length)
 
+    # Every event's time in the window (pass 1 shows it): the kernel skips the window test.
+    def last_bin(high: Any, start: Tensor) -> int:
+        high_t = torch.tensor([[high]], dtype=torch.float64 if isinstance(high, float) else torch.int64)
+        return int(_time_bins(high_t, start, grid.frame_us))
+
+    in_window = pass_one and all(
+        low is None or (low >= start and last_bin(high, start_t) < n_frames)
+        for low, high, start, start_t in zip(ranges.t_min, ranges.t_max, starts.tolist(), starts.split(1))
+    )
+
     # Pass 2: count chunk by chunk straight into the output (and one spare slot).
     tally = _Tally(batch)
     total = batch * n_frames * grid.frame_size
@@ -850,7 +889,7 @@ def events_to_frames(
         columns = read(i, _FIELDS)
         valid = valid_of(i, i + chunk)
         tally.events += (torch.full((batch,), columns["t"].shape[1]) if valid is None else valid.sum(dim=1).cpu())
-        _count_chunk(counts, columns, valid, starts, n_frames, grid, tally)
+        _count_chunk(counts, columns, valid, starts, n_frames, grid, tally, in_window=in_window)
 
     for i in range(0, length, chunk):
         bin_chunk(i)
