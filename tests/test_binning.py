@@ -218,3 +218,77 @@ class TestAgainstTonic:
         got = quiet(events_to_frames, events, sensor_size=(24, 32), t_start="first", n_frames=len(expected),
                     dtype=torch.int64)
         assert torch.equal(got, torch.from_numpy(expected.astype(np.int64)))
+
+
+def _same_batch(a, b):
+    return all(torch.equal(getattr(a, k), getattr(b, k)) for k in ("x", "y", "t", "p", "offsets")) and (
+        a.t.dtype == b.t.dtype
+    )
+
+
+class TestFromStreamsValidation:
+    FORMS = {
+        "int16 struct": lambda s: s,
+        "aedat4 (titled p, uint64 t, uint16 x/y)": lambda s: _aedat4(s),
+        "int8 polarity -1/1": lambda s: _signed(s),
+        "(N, 4) tensor": lambda s: torch.from_numpy(np.stack([s[k].astype(np.int64) for k in "xytp"], 1)),
+        "float mapping": lambda s: {k: s[k].astype(np.float64) + (0.5 if k in "xy" else 0) for k in "xytp"},
+    }
+
+    @pytest.mark.parametrize("form", list(FORMS))
+    def test_validate_false_gives_the_same_batch(self, form):
+        streams = [self.FORMS[form](random_stream(s, n, margin=0)) for s, n in ((0, 40), (1, 0), (2, 300))]
+        checked = EventBatch.from_streams(streams, sensor_size=(18, 24), frame_ms=10.0)
+        trusted = EventBatch.from_streams(streams, sensor_size=(18, 24), frame_ms=10.0, validate=False)
+        assert _same_batch(checked, trusted) and torch.equal(checked.t_start, trusted.t_start)
+        # and both equal the column parser's reading of each stream
+        for b, stream in enumerate(streams):
+            expected = events_to_frames(stream, sensor_size=(18, 24), t_start=int(checked.t_start[b]),
+                                        n_frames=12, dtype=torch.int64)
+            assert torch.equal(bin_events(checked, n_frames=12, dtype=torch.int64)[b], expected)
+
+    @pytest.mark.parametrize(
+        "field, value, match",
+        [("x", 40_000, "x must fit int16"), ("y", 2**15, "y must fit int16"), ("p", 2, "polarity"),
+         ("t", 2**63 + 5, "past 2\\*\\*63")],
+    )
+    @pytest.mark.parametrize("form", ["aedat4", "int64 struct", "tensor"])
+    def test_validate_refuses_each_bad_column_by_name(self, field, value, match, form):
+        good = random_stream(0, 20, margin=0)
+        if form == "aedat4":
+            bad = _aedat4(good)
+        else:
+            bad = np.zeros(20, dtype=[("x", "<i8"), ("y", "<i8"), ("t", "<u8" if field == "t" else "<i8"), ("p", "<i8")])
+            for k in "xytp":
+                bad[k] = good[k]
+        if form == "aedat4" and field == "p":
+            bad = bad.astype([("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("p", "u1")])
+        bad[field][3] = value
+        if form == "tensor":
+            if field == "t":
+                pytest.skip("a tensor holds no uint64 past 2**63 in int64")
+            bad = torch.from_numpy(np.stack([bad[k].astype(np.int64) for k in "xytp"], 1))
+        with pytest.raises(ValueError, match=match):
+            EventBatch.from_streams([good, bad], sensor_size=(18, 24))
+
+    def test_collate_events_passes_validate(self):
+        from event_transforms.events.batch import collate_events
+
+        streams = [random_stream(s, 30, margin=0) for s in range(3)]
+        checked, labels = collate_events([(s, float(i)) for i, s in enumerate(streams)], sensor_size=(18, 24))
+        trusted, _ = collate_events([(s, float(i)) for i, s in enumerate(streams)], sensor_size=(18, 24),
+                                    validate=False)
+        assert _same_batch(checked, trusted) and labels.tolist() == [0.0, 1.0, 2.0]
+
+
+def _aedat4(stream):
+    out = np.zeros(len(stream), dtype=[("t", "<u8"), ("x", "<u2"), ("y", "<u2"), (("p", "on"), "?")])
+    out["t"], out["x"], out["y"], out["p"] = stream["t"], stream["x"], stream["y"], stream["p"]
+    return out
+
+
+def _signed(stream):
+    out = np.zeros(len(stream), dtype=[("x", "<i2"), ("y", "<i2"), ("t", "<i8"), ("p", "i1")])
+    out["x"], out["y"], out["t"] = stream["x"], stream["y"], stream["t"]
+    out["p"] = np.where(stream["p"], 1, -1)
+    return out

@@ -42,6 +42,7 @@ from .binning import (
     _T_STARTS,
     _accumulate,
     _accumulator,
+    _to_spare,
     _bins_of,
     _event_index,
     _columns,
@@ -50,7 +51,7 @@ from .binning import (
     _frame_us,
     _grid,
     _integer,
-    _polarity_channel,
+    _check_polarity,
     _sensor,
     _time_bins,
     _as_dtype,
@@ -163,6 +164,7 @@ class EventBatch:
         t_start: str | float | Sequence[float] | Tensor = "floor",
         n_frames: int | None = None,
         device: torch.device | str | None = None,
+        validate: bool = True,
     ) -> EventBatch:
         """Concatenate event streams (every form :func:`events_to_frames` accepts) into one batch.
 
@@ -178,6 +180,12 @@ class EventBatch:
                 per stream), as in ``events_to_frames``; used only with ``frame_ms``.
             n_frames: the grid's number of bins (``None``: enough for the last event).
             device: where the columns go (default: the CPU, or the tensors' device).
+            validate: check every column once (one ``aminmax`` pass each): coordinates
+                fit int16, polarity is bool, {0, 1} or {-1, 1}, uint64 timestamps fit
+                int64. ``False`` skips these checks for data the caller already trusts
+                (the same batch for valid data, about half the time for a list of
+                structured arrays); the parsing itself (field names, NaN in float
+                columns) still refuses malformed input.
 
         Raises:
             ValueError: malformed streams, coordinates beyond int16, mixed timestamp kinds.
@@ -189,32 +197,38 @@ class EventBatch:
         if isinstance(streams, (str, bytes, Mapping)) or not isinstance(streams, Sequence):
             raise TypeError(f"streams must be a sequence of event streams, got {type(streams).__name__}")
         height, width = _sensor(sensor_size, tonic_sensor_size)
-        parts: list[list[Tensor]] = [[], [], [], []]
+        # each stream once: a structured array of narrow integer fields is kept as it is
+        # (filled straight into the batch), anything else goes through the column parser
+        parsed: list[Any] = []
         for i, stream in enumerate(streams):
+            if _narrow_struct(stream):
+                parsed.append(stream)
+                continue
             (x, y, t, p), batched = _columns(stream)
             if batched:
                 raise ValueError(f"streams[{i}] is a batch of shape {tuple(x.shape)}; pass one stream per entry")
-            x, y, t, p = x[0], y[0], t[0], p[0]
-            channel = _polarity_channel(p, None).to(torch.int8)
-            coords = []
-            for name, column in (("x", x), ("y", y)):
-                column = torch.floor(column).to(torch.int64) if column.is_floating_point() else column
-                if column.numel() and (int(column.min()) < -_COORD_MAX or int(column.max()) > _COORD_MAX):
-                    raise ValueError(f"streams[{i}] {name} must fit int16 pixel coordinates, got {int(column.abs().max())}")
-                coords.append(column.to(torch.int16))
-            for k, column in enumerate((*coords, t, channel)):
-                parts[k].append(column)
+            parsed.append((x[0], y[0], t[0], p[0]))
+        lengths = [len(s) if isinstance(s, np.ndarray) else s[0].shape[0] for s in parsed]
         # float timestamps only if a non-empty stream has them (an empty float tensor has none)
-        time_dtype = torch.float64 if any(c.is_floating_point() and c.numel() for c in parts[2]) else torch.int64
-        parts[2] = [c.to(time_dtype) for c in parts[2]]
-        lengths = [c.shape[0] for c in parts[0]]
-        devices = {c.device for c in parts[0]}
+        time_dtype = torch.float64 if any(
+            isinstance(s, tuple) and s[2].is_floating_point() and s[2].numel() for s in parsed
+        ) else torch.int64
+        devices = {s[0].device for s in parsed if isinstance(s, tuple)}
         target = torch.device(device) if device is not None else (devices.pop() if len(devices) == 1 else torch.device("cpu"))
-        empty = (torch.int16, torch.int16, torch.int64, torch.int8)
-        columns = [
-            (torch.cat([c.to(target) for c in part]) if part else torch.zeros(0, dtype=empty[k], device=target))
-            for k, part in enumerate(parts)
-        ]
+        total = sum(lengths)
+        # structured arrays are filled through numpy views: on the CPU, then moved
+        home = torch.device("cpu") if any(isinstance(s, np.ndarray) for s in parsed) else target
+        x_all, y_all = (torch.empty(total, dtype=torch.int16, device=home) for _ in range(2))
+        t_all, p_all = torch.empty(total, dtype=time_dtype, device=home), torch.empty(total, dtype=torch.int8, device=home)
+        start = 0
+        for i, (stream, n) in enumerate(zip(parsed, lengths)):
+            out = (x_all[start : start + n], y_all[start : start + n], t_all[start : start + n], p_all[start : start + n])
+            if isinstance(stream, np.ndarray):
+                _fill_from_struct(out, stream, i, validate)
+            else:
+                _fill_from_columns(out, stream, i, validate)
+            start += n
+        columns = [c.to(target) for c in (x_all, y_all, t_all, p_all)]
         offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
         batch = cls(*columns, offsets, (height, width))
         if frame_ms is not None:
@@ -362,6 +376,57 @@ class EventBatch:
         return rows, torch.tensor(lengths, dtype=torch.int64)
 
 
+def _narrow_struct(stream: Any) -> bool:
+    """Whether ``stream`` is a 1-D structured array whose x and y fit int16 by dtype or
+    are uint16, whose t is an integer and whose p is bool or one byte, under the plain
+    names ``x``, ``y``, ``t``, ``p``: its fields are copied straight into the batch."""
+    if not isinstance(stream, np.ndarray) or stream.dtype.names is None or stream.ndim != 1:
+        return False
+    fields = stream.dtype.fields or {}
+    if not all(name in fields for name in _FIELDS):
+        return False
+    kinds = {name: fields[name][0] for name in _FIELDS}
+    coords = all(kinds[c].kind in "iu" and kinds[c].itemsize <= 2 for c in ("x", "y"))
+    return coords and kinds["t"].kind in "iu" and (kinds["p"].kind == "b" or (kinds["p"].kind in "iu" and kinds["p"].itemsize == 1))
+
+
+def _fill_from_struct(out: tuple[Tensor, ...], stream: np.ndarray, i: int, validate: bool) -> None:
+    """Copy a :func:`_narrow_struct` stream's fields into the batch's column slices (one
+    casting pass each), then check what the cast may have hidden (one pass each)."""
+    x, y, t, p = out
+    for name, column in (("x", x), ("y", y)):
+        field = stream[name]
+        if validate and field.dtype.kind == "u" and field.dtype.itemsize == 2 and field.size and int(field.max()) > _COORD_MAX:
+            raise ValueError(f"streams[{i}] {name} must fit int16 pixel coordinates, got {int(field.max())}")
+        column.numpy()[...] = field
+    t_field = stream["t"]
+    t.numpy()[...] = t_field
+    if validate and t_field.dtype.kind == "u" and t_field.dtype.itemsize == 8 and t.numel() and bool(t.min() < 0):
+        raise ValueError(f"streams[{i}] t holds {int(t_field.max())}, past 2**63 - 1, which int64 cannot hold")
+    p.numpy()[...] = stream["p"]
+    if stream["p"].dtype.kind != "b":
+        if validate:
+            _check_polarity(p if stream["p"].dtype.kind == "i" else torch.from_numpy(stream["p"].astype(np.int16)), None)
+        p.clamp_(min=0)  # OFF as -1 becomes 0
+
+
+def _fill_from_columns(out: tuple[Tensor, ...], columns: tuple[Tensor, ...], i: int, validate: bool) -> None:
+    """Copy parsed int64/float64 columns into the batch's column slices: coordinates
+    floored and checked against int16, polarity checked and mapped to {0, 1}."""
+    x, y, t, p = out
+    for name, column, target in (("x", columns[0], x), ("y", columns[1], y)):
+        column = torch.floor(column) if column.is_floating_point() else column
+        if validate and column.numel():
+            low, high = (int(v) for v in torch.aminmax(column))
+            if low < -_COORD_MAX or high > _COORD_MAX:
+                raise ValueError(f"streams[{i}] {name} must fit int16 pixel coordinates, got {max(-low, high)}")
+        target.copy_(column)
+    t.copy_(columns[2])
+    if validate:
+        _check_polarity(columns[3], None)
+    p.copy_(columns[3] > 0)
+
+
 def _gather_spans(column: Tensor, spans: list[tuple[int, int]]) -> Tensor:
     """The concatenation of ``column[lo:hi]`` for each span (one ``cat``; sizes known on the host)."""
     if len(spans) == 1:
@@ -406,11 +471,13 @@ def collate_events(
     frame_ms: float | None = None,
     t_start: str | float = "floor",
     n_frames: int | None = None,
+    validate: bool = True,
 ) -> Any:
     """A ``DataLoader`` ``collate_fn`` body: a list of streams (or of ``(stream, label, ...)``
     tuples) to an :class:`EventBatch` (and the labels collated by torch's default).
 
-    Bind the sensor and grid with :func:`functools.partial`:
+    ``validate=False`` skips the column checks for trusted data (see
+    :meth:`EventBatch.from_streams`). Bind the sensor and grid with :func:`functools.partial`:
     ``DataLoader(dataset, batch_size=32, collate_fn=partial(collate_events, sensor_size=(180, 240), frame_ms=10.0))``.
 
     Example:
@@ -421,7 +488,7 @@ def collate_events(
         ([2, 1], [1.0, 2.0])
     """
     options = dict(sensor_size=sensor_size, tonic_sensor_size=tonic_sensor_size, frame_ms=frame_ms,
-                   t_start=t_start, n_frames=n_frames)
+                   t_start=t_start, n_frames=n_frames, validate=validate)
     if streams and isinstance(streams[0], tuple):
         from torch.utils.data import default_collate
 
@@ -531,7 +598,7 @@ def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
 
 
 def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, total: int) -> Tensor:
-    """(total,) counts in ``grid.dtype``, by the one binning kernel of :mod:`.events`: int32
+    """(total,) counts in ``grid.dtype``, by the one binning kernel of :mod:`.binning`: int32
     indices from the pixel table and the float32 bin quotient, every event not counted sent
     to one spare slot, and an ``index_add_`` of ones straight into the output dtype when no
     count can pass what it holds exactly (float32: 2**24), else into int32 and a checked cast.
@@ -558,9 +625,10 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
             counts[b * block : (b + 1) * block].zero_()
             lo, hi = bounds[b], bounds[b + 1]
             if hi > lo:
-                _accumulate(counts, torch.where(counted[lo:hi], index[lo:hi].add_(b * block), total))
+                segment = index[lo:hi].add_(b * block - total).mul_(counted[lo:hi]).add_(total)
+                _accumulate(counts, segment)
     else:
         index = index.add_(batch.sample_index().to(index.dtype).mul(block))
         counts = torch.zeros(total + 1, dtype=_accumulator(dtype, n), device=device)
-        _accumulate(counts, torch.where(counted, index, total))
+        _accumulate(counts, _to_spare(index, counted, total))
     return _as_dtype(counts[:total], dtype)

@@ -20,7 +20,7 @@ from torch import Tensor
 
 from .binning import (
     _FIELDS, _T_STARTS, _accumulate, _as_dtype, _check_polarity, _empty_window_error, _exact_count, _explicit_starts,
-    _floor_to_grid, _Grid, _grid, _integer, _pixels, _Source, _source, _Tally, _tally_outside, _time_bins,
+    _floor_to_grid, _Grid, _grid, _integer, _pixels, _Source, _source, _Tally, _tally_outside, _time_bins, _to_spare,
     _warn_outside,
 )
 
@@ -145,7 +145,7 @@ def _iter_frames(
             if in_window + stop - lo >= 2**31 and counts.dtype == torch.int32:
                 counts = counts.to(torch.int64)
             index = (bins[lo:stop] - base).mul_(size).add_(within[lo:stop])
-            _accumulate(counts, torch.where(kept[lo:stop], index, counts.numel() - 1))
+            _accumulate(counts, _to_spare(index, kept[lo:stop], counts.numel() - 1))
             in_window += stop - lo
             end = int(bins[stop - 1]) + 1
             lo = stop
