@@ -354,6 +354,15 @@ def _floor_to_grid(values: Tensor, frame_us: float | int) -> Tensor:
     return torch.floor(values.to(torch.float64) / frame_us) * frame_us
 
 
+def _bin_of(t: Any, start: Any, frame_us: float | int) -> int:
+    """:func:`_time_bins` of one time, in Python arithmetic (the same float64 operations)."""
+    if isinstance(t, float) or isinstance(start, float):
+        return math.floor((float(t) - float(start)) / frame_us)
+    if isinstance(frame_us, int):
+        return (t - start) // frame_us
+    return math.floor(float(t - start) / frame_us)
+
+
 def _time_bins(t: Tensor, starts: Tensor, frame_us: float | int) -> Tensor:
     """Bin index ``floor((t - start) / frame)`` per event, exact in int64 where possible."""
     starts = starts.to(t.device).unsqueeze(1)
@@ -405,8 +414,9 @@ class _Tally:
     """Per-stream counts and ranges gathered while binning, for the errors and the warning."""
 
     def __init__(self, batch: int) -> None:
-        self.events = torch.zeros(batch, dtype=torch.int64)
-        self.in_window = torch.zeros(batch, dtype=torch.int64)
+        # host counters (numpy: a small torch op costs more than the kernel's passes on a short stream)
+        self.events = np.zeros(batch, dtype=np.int64)
+        self.in_window = np.zeros(batch, dtype=np.int64)
         self.t_min: list[Any] = [None] * batch
         self.t_max: list[Any] = [None] * batch
         self.outside = 0
@@ -563,8 +573,8 @@ def _quotient(rel: Tensor, frame_us: float | int, n_frames: int) -> Tensor:
 
 def _within(values: Tensor, size: int) -> bool:
     """Whether every value lies in ``[0, size)`` (one read-only pass)."""
-    low, high = torch.aminmax(values)
-    return bool(low >= 0) and bool(high < size)
+    low, high = (v.item() for v in torch.aminmax(values))
+    return low >= 0 and high < size
 
 
 def _pixels(col: Tensor, row: Tensor, grid: _Grid) -> Tensor:
@@ -582,8 +592,8 @@ def _pixels(col: Tensor, row: Tensor, grid: _Grid) -> Tensor:
 def _clamped(values: Tensor, size: int) -> Tensor:
     """``values`` clamped to [-1, size]; unchanged on the CPU when they already lie there."""
     if values.device.type == "cpu" and values.numel():
-        low, high = torch.aminmax(values)
-        if bool(low >= -1) and bool(high <= size):
+        low, high = (v.item() for v in torch.aminmax(values))
+        if low >= -1 and high <= size:
             return values
     return values.clamp(-1, size)
 
@@ -654,7 +664,7 @@ def _count_chunk(
             _tally_outside(tally, pixel, col, row, valid)
             if valid is not None:
                 in_time &= valid
-            tally.in_window += in_time.sum(dim=1).cpu()
+            tally.in_window += in_time.sum(dim=1).cpu().numpy()
     if x.shape[0] > 1:
         index += torch.arange(x.shape[0], device=x.device, dtype=index.dtype).unsqueeze(1) * (n_frames * grid.frame_size)
     if counted is None:  # every event counts
@@ -873,13 +883,12 @@ def events_to_frames(
         starts = torch.tensor(firsts, dtype=torch.float64 if any(isinstance(v, float) for v in firsts) else torch.int64)
         if t_start == "floor":
             starts = _floor_to_grid(starts, grid.frame_us)
+    start_values = starts.tolist()
     if n_frames is None:
         n_frames = 0
-        for b, last in enumerate(ranges.t_max):
-            if last is not None and last >= starts[b].item():
-                last_t = torch.tensor([[last]], dtype=torch.float64 if isinstance(last, float) else torch.int64)
-                last_bin = int(_time_bins(last_t, starts[b : b + 1], grid.frame_us))
-                n_frames = max(n_frames, last_bin + 1)
+        for last, start in zip(ranges.t_max, start_values):
+            if last is not None and last >= start:
+                n_frames = max(n_frames, _bin_of(last, start, grid.frame_us) + 1)
         if n_frames > _MAX_INFERRED_FRAMES:
             raise ValueError(
                 f"the events span {n_frames:,} bins of frame_ms={frame_ms!r} (t = {min(v for v in ranges.t_min if v is not None)} "
@@ -889,13 +898,9 @@ def events_to_frames(
         _check_bytes(batch, n_frames, grid, max_bytes, "the events span", batch * length)
 
     # Every event's time in the window (pass 1 shows it): the kernel skips the window test.
-    def last_bin(high: Any, start: Tensor) -> int:
-        high_t = torch.tensor([[high]], dtype=torch.float64 if isinstance(high, float) else torch.int64)
-        return int(_time_bins(high_t, start, grid.frame_us))
-
     in_window = pass_one and all(
-        low is None or (low >= start and last_bin(high, start_t) < n_frames)
-        for low, high, start, start_t in zip(ranges.t_min, ranges.t_max, starts.tolist(), starts.split(1))
+        low is None or (low >= start and _bin_of(high, start, grid.frame_us) < n_frames)
+        for low, high, start in zip(ranges.t_min, ranges.t_max, start_values)
     )
 
     # Pass 2: count chunk by chunk straight into the output (and one spare slot).
@@ -906,7 +911,7 @@ def events_to_frames(
     def bin_chunk(i: int) -> None:  # a function, so that a chunk's temporaries die before the next
         columns = read(i, _FIELDS)
         valid = valid_of(i, i + chunk)
-        tally.events += (torch.full((batch,), columns["t"].shape[1]) if valid is None else valid.sum(dim=1).cpu())
+        tally.events += columns["t"].shape[1] if valid is None else valid.sum(dim=1).cpu().numpy()
         _count_chunk(counts, columns, valid, starts, n_frames, grid, tally, in_window=in_window)
 
     for i in range(0, length, chunk):
