@@ -543,8 +543,8 @@ def bin_events(
 
     One scatter for the whole batch: int32 linear indices (int64 past 2**31 slots), an
     event outside the window, sensor or crop counted in one spare slot, one ``index_add_``
-    of ones straight into the output dtype (when every count fits it exactly; else int64
-    and a checked cast). No ``bincount`` (on accelerators it reads its maximum back). No
+    of ones straight into the output dtype (when every count fits it exactly; else int32
+    and a checked cast), by the kernel of ``events_to_frames``. No ``bincount`` (on accelerators it reads its maximum back). No
     host synchronisation, except ``n_frames=None`` without a grid (the last bin is read
     back) and ``t_start="floor"``/``"first"`` without a grid (the first events).
 

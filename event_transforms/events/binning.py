@@ -67,8 +67,8 @@ _T_STARTS = ("floor", "first")
 _MAX_INFERRED_FRAMES = 100_000
 
 
-#: Default bound of the memory :func:`events_to_frames` may allocate (its int64 buffer
-#: plus the output), in bytes: 4 GiB. A longer recording is refused by name, quickly.
+#: Default bound of the memory :func:`events_to_frames` may allocate (the output, plus an
+#: int32 counting buffer when the dtype may not hold a count exactly), in bytes: 4 GiB. A longer recording is refused by name, quickly.
 MAX_BYTES = 2**32
 
 
@@ -577,21 +577,23 @@ def _within(values: Tensor, size: int) -> bool:
     return low >= 0 and high < size
 
 
-def _pixels(col: Tensor, row: Tensor, grid: _Grid) -> Tensor:
+def _pixels(col: Tensor, row: Tensor, grid: _Grid, *, look: bool = False) -> Tensor:
     """The pixel table entry of each event (integer coordinates, any shape): int32, the
     output pixel ``row * W' + col``, or -1 off the crop, -2 off the sensor. Coordinates
-    are clamped to the table's border (on the CPU only where one lies past it: a
-    read-only ``aminmax`` is cheaper than the clamp's copy)."""
+    are clamped to the table's border; with ``look`` (a per-stream call, which reads values
+    anyway) only where one lies past it, on the CPU: a read-only ``aminmax`` is cheaper than
+    the clamp's copy of int64 columns. Without it no value is read (the batch kernel stays
+    free of host reads)."""
     width = grid.width
-    flat = _clamped(row, grid.height).to(torch.int32).mul_(width + 2)
-    col = _clamped(col, width)
+    flat = _clamped(row, grid.height, look).to(torch.int32).mul_(width + 2)
+    col = _clamped(col, width, look)
     flat.add_(col if col.dtype in (torch.int8, torch.int16, torch.int32) else col.to(torch.int32)).add_(width + 3)
     return _pixel_table(grid, col.device).index_select(0, flat.reshape(-1)).view(flat.shape)
 
 
-def _clamped(values: Tensor, size: int) -> Tensor:
-    """``values`` clamped to [-1, size]; unchanged on the CPU when they already lie there."""
-    if values.device.type == "cpu" and values.numel():
+def _clamped(values: Tensor, size: int, look: bool) -> Tensor:
+    """``values`` clamped to [-1, size]; unchanged (``look``, on the CPU) when they already lie there."""
+    if look and values.device.type == "cpu" and values.numel():
         low, high = (v.item() for v in torch.aminmax(values))
         if low >= -1 and high <= size:
             return values
@@ -612,14 +614,14 @@ def _tally_outside(tally: _Tally, pixel: Tensor, col: Tensor, row: Tensor, valid
 
 
 def _event_index(
-    col: Tensor, row: Tensor, on: Tensor, rel: Tensor, n_frames: int, grid: _Grid, wide: bool
+    col: Tensor, row: Tensor, on: Tensor, rel: Tensor, n_frames: int, grid: _Grid, wide: bool, *, look: bool = False
 ) -> tuple[Tensor, Tensor, Tensor]:
     """Per event (any shape, integer coordinates): its index inside one stream's
     ``(T, 2, H', W')`` block (int32, int64 if ``wide``; meaningless where not counted), its
     pixel table entry (negative off the crop or sensor) and whether its time is in the window.
     """
     bins, in_time = _bins_of(rel, grid.frame_us, n_frames)
-    pixel = _pixels(col, row, grid)
+    pixel = _pixels(col, row, grid, look=look)
     index = bins.to(torch.int64) if wide else bins.to(torch.int32)
     index = index.mul_(2).add_(on).mul_(grid.out_h * grid.out_w).add_(pixel)
     return index, pixel, in_time
@@ -654,7 +656,8 @@ def _count_chunk(
         index.mul_(grid.height).add_(row.to(index_dtype)).mul_(grid.width).add_(col.to(index_dtype))
         counted = None
     else:
-        index, pixel, in_time = _event_index(col, row, p > 0, rel, n_frames, grid, index_dtype == torch.int64)
+        index, pixel, in_time = _event_index(
+            col, row, p > 0, rel, n_frames, grid, index_dtype == torch.int64, look=True)
         counted = in_time & (pixel >= 0)
         if valid is not None:
             counted &= valid
@@ -803,10 +806,12 @@ def events_to_frames(
         mask: for a batch, a (B, N) bool tensor marking valid events (instead of lengths).
         chunk_size: events read at a time; the extra memory is a few times this many
             64-bit values plus the output.
-        max_bytes: most bytes the binning may allocate (an int64 buffer and the output,
-            ``B·T·2·H'·W'·(8 + itemsize)``); more raises ``ValueError`` with the byte count
-            before anything is allocated (a 300 s recording in 10 ms bins on a 240×180
-            sensor needs 31 GB). ``None``: no bound. Stream long recordings with
+        max_bytes: most bytes the binning may allocate (the output,
+            ``B·T·2·H'·W'·itemsize``, plus as much again in int32 when more events than
+            ``dtype`` counts exactly could meet in one pixel, e.g. float16 past 2,048
+            events); more raises ``ValueError`` with the byte count before anything is
+            allocated (a 300 s recording in 10 ms bins on a 240×180 sensor needs 10 GB in
+            float32). ``None``: no bound. Stream long recordings with
             :func:`iter_frames`.
 
     Shape:

@@ -192,7 +192,7 @@ def _stream_chunk(
     _check_polarity(p, None, tally)
     col = torch.floor(x) if x.is_floating_point() else x
     row = torch.floor(y) if y.is_floating_point() else y
-    pixel = _pixels(col, row, grid)
+    pixel = _pixels(col, row, grid, look=True)
     _tally_outside(tally, pixel, col, row, None)
     bins = _time_bins(t, starts, grid.frame_us)[0]
     stop = bins[-1].item() + 1 if n_frames is None else n_frames
