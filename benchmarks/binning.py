@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -34,14 +35,14 @@ import torch
 
 if __package__:
     from ._common import (
-        allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table,
-        publish, time_interleaved,
+        allocator_suffix, apply_threads, base_parser, command, count_ops, environment_lines, fmt_ms, fmt_ratio,
+        markdown_table, publish, synthetic_frames, time_interleaved,
     )
     from .events_pipeline import CROP, N_FRAMES, grasp_streams
 else:  # run as a script
     from _common import (  # type: ignore[no-redef]
-        allocator_suffix, apply_threads, base_parser, command, environment_lines, fmt_ms, fmt_ratio, markdown_table,
-        publish, time_interleaved,
+        allocator_suffix, apply_threads, base_parser, command, count_ops, environment_lines, fmt_ms, fmt_ratio,
+        markdown_table, publish, synthetic_frames, time_interleaved,
     )
     from events_pipeline import CROP, N_FRAMES, grasp_streams  # type: ignore[no-redef]
 
@@ -120,6 +121,35 @@ def batch_cases(streams: Sequence[np.ndarray]) -> dict[str, Callable[[], Any]]:
     }
 
 
+def frame_kernel_rows(shape: Sequence[int], batches: Sequence[int], *, rounds: int, min_run_time: float) -> list[list[Any]]:
+    """Exact and binomial TES on frames: host syncs and top-level ops at each B (the
+    accelerator proxies), and time as a multiple of the clone at the largest B, on 5 %-dense
+    grasp-like counts and on Poisson(0.3) counts."""
+    rows = []
+    kernels = {"TES-2(0.5) exact": et.TemporalEventShift(-2, 0.5),
+               "TES-2(0.5) binomial": et.TemporalEventShift(-2, 0.5, mode="binomial")}
+    for data in ("5 %-dense", "Poisson(0.3)"):
+        made = {}
+        for b in batches:
+            full = (b, *shape[1:])
+            if data == "5 %-dense":
+                made[b] = synthetic_frames(full, seed=0)
+            else:
+                made[b] = torch.poisson(torch.full(full, 0.3), generator=torch.Generator().manual_seed(0))
+        largest = made[max(batches)]
+        cases: dict[str, Callable[[], Any]] = {CLONE: largest.clone}
+        for name, kernel in kernels.items():
+            cases[name] = partial(kernel, largest, generator=torch.Generator().manual_seed(0))
+        _, ratios = time_interleaved(cases, baseline=CLONE, rounds=rounds, min_run_time=min_run_time, progress=False)
+        for name, kernel in kernels.items():
+            counts = []
+            for b in batches:
+                params = kernel.make_params(made[b].shape, generator=torch.Generator().manual_seed(0))
+                counts.append(str(count_ops(partial(kernel, made[b], params=params))))
+            rows.append([name, data, *counts, fmt_ratio(ratios[name])])
+    return rows
+
+
 def run(sizes: Sequence[int], *, grasps: int = 32, rounds: int = 3, min_run_time: float = 0.2) -> dict[str, Any]:
     rows = []
     goals = []
@@ -150,7 +180,14 @@ def run(sizes: Sequence[int], *, grasps: int = 32, rounds: int = 3, min_run_time
     building = ratios["EventBatch.from_streams"]
     goals.append(f"- EventsToFrames on a built batch: {binning:.2f}× the clone (goal ≤ 3.5×: {'met' if binning <= 3.5 else 'missed'})")
     goals.append(f"- EventBatch.from_streams: {building:.2f}× the clone (goal ≤ 1×: {'met' if building <= 1 else 'missed'})")
+    batches = (2, 4) if grasps < 32 else (4, 32)
+    shape = (grasps, N_FRAMES, 2, CROP[2] // 2, CROP[3] // 2)
+    frame_rows = frame_kernel_rows(shape, batches, rounds=rounds, min_run_time=min_run_time)
+    frame_table = markdown_table(
+        ["frame kernel", "counts", *(f"B = {b}: syncs, ops" for b in batches), f"× clone (B = {max(batches)})"],
+        frame_rows)
     return {
+        "frame_table": frame_table,
         "stream_table": markdown_table(["setup", "events", "row", "median", "× floor"], rows),
         "batch_table": markdown_table(["row", "median", "IQR", "× clone"], batch_rows),
         "goals": "\n".join(goals),
@@ -176,6 +213,11 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         f"Batch: {grasps} simulated grasps, {result['events']:,} events, binned to ({grasps}, 36, 2, 70, 75) "
         f"float32; `frames.clone()` of that batch took {fmt_ms(result['clone'])} (median).",
         result["batch_table"],
+        "Frame kernels for reference (issue 26 left them as they were): exact and binomial TES on frames "
+        f"{tuple(N_FRAMES if i == 1 else d for i, d in enumerate((0, 0, 2, CROP[2] // 2, CROP[3] // 2)))[1:]} per sample; "
+        "host syncs and top-level aten ops of one call (torch.profiler, the accelerator proxies) at two batch "
+        "sizes, and time as a multiple of the clone of the same batch:",
+        result["frame_table"],
         "Goals (issue 26):",
         result["goals"],
         *environment_lines(["tonic"]),
