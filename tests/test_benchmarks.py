@@ -284,3 +284,22 @@ class TestEventsPipeline:
         text = path.read_text()
         assert "EventBatch transforms + binning" in text and "host syncs" in text
         assert result["ratios"]["frames.clone() (baseline)"] == 1.0
+
+
+class TestBinningBenchmarks:
+    def test_binning_quick_run(self, tmp_path):
+        from benchmarks import binning
+
+        path = tmp_path / "RESULTS.md"
+        result = binning.main(["--quick", "--results", str(path)])
+        text = path.read_text()
+        assert "tonic and the bincount floor" in text and "Goals (issue 26)" in text
+        assert result["ratios"]["frames.clone() (baseline)"] == 1.0
+
+    def test_dataloader_quick_run(self, tmp_path):
+        from benchmarks import dataloader
+
+        path = tmp_path / "RESULTS.md"
+        result = dataloader.main(["--quick", "--results", str(path)])
+        assert "samples/s" in path.read_text()
+        assert all(rate > 0 for rate in result["rates"].values()) and len(result["rates"]) >= 2
