@@ -97,7 +97,7 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
                 r_text = f"{r:+.2f}" if r is not None and not math.isnan(r) else "—"
                 p_text = _p_text(delta)
         versus = "—"
-        if "matched_row" in s:
+        if "matched_row" in s and key == "test_mse":
             if s["matched_row"] is None:
                 versus = "no matched row ran"
             elif original is not None and original == s["matched_row"]:
