@@ -285,3 +285,30 @@ class TestEventsPipeline:
         text = path.read_text()
         assert "EventBatch transforms + binning" in text and "host syncs" in text
         assert result["ratios"]["frames.clone() (baseline)"] == 1.0
+
+
+@pytest.mark.slow
+class TestPhysicsSensitivity:
+    def test_quick_run(self, tmp_path):
+        """Under the default (Hertz) size model the stretch wins; the table names every model."""
+        from benchmarks import physics_sensitivity
+
+        path = _results(tmp_path)
+        results = physics_sensitivity.main(["--quick", "--results", str(path)])
+        assert set(results) == {"hertz", "thin-layer", "hertz-growing", "thin-layer-growing"}
+        for scores in results["hertz"].values():
+            assert physics_sensitivity.best(scores) == "stretch"
+        assert "hertz-growing" in _section(path, "physics_sensitivity")
+
+
+@pytest.mark.slow
+class TestDetectionRate:
+    def test_quick_run(self, tmp_path):
+        from benchmarks import detection_rate
+
+        path = _results(tmp_path)
+        results = detection_rate.main(["--quick", "--results", str(path)])
+        assert set(results) == set(detection_rate.POINTS)
+        assert all(r["blocks"] == 2 for r in results.values())
+        assert results["hot pixels 10×"]["detected"] == 2  # hot pixels declare a noise gap
+        assert "detected" in _section(path, "detection_rate")
