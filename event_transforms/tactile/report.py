@@ -206,7 +206,7 @@ def format_environment(results: dict[str, Any]) -> str:
         >>> format_environment({"environment": {"cpu_model": "X", "cpu_capability": "AVX2",
         ...     "ATEN_CPU_CAPABILITY": None, "torch": "2.0", "threads": 1, "device": "cpu",
         ...     "package_version": "0.1"}})[:45]
-        'One machine\'s numbers: CPU X, torch 2.0 with '
+        "One machine's numbers: CPU X, torch 2.0 with "
     """
     env = results.get("environment", {})
     forced = env.get("ATEN_CPU_CAPABILITY")
