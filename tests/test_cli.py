@@ -185,7 +185,8 @@ class TestScenesAndMethods:
         assert methods_for("paper") == PAPER_METHODS + ("stretch", *policies)
         assert methods_for("timing") == ("none", "fs2", "tes2:0.5", *policies)
         assert methods_for("control") == QUICK_METHODS["control"]
-        assert methods_for("paper-lag") == ("none", "fs-1", "tes-2:0.5", "stretch", *policies)
+        assert methods_for("paper-offset") == ("none", "fs-1", "tes-2:0.5", "stretch", *policies)
+        assert methods_for("paper-membrane") == ("none", "fs1", "tes1:0.5", "stretch", *policies)
         assert methods_for("control")[0] == "none"
         full = methods_for("control", full=True)
         assert "resize" not in full and "rot45" in full and "noise" in full  # no size gap: no resize
@@ -643,3 +644,14 @@ class TestCommandLineRealData:
         assert cli.main(["show-scene", "timing", "--count", "3", "--out", str(tmp_path)]) == 0
         path = tmp_path / "scene_timing.png"
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "deployment" in capsys.readouterr().out
+
+
+def test_a_seed_does_not_depend_on_the_seeds_beside_it():
+    """Issue 24: seed 0 trained alone equals seed 0 trained beside seed 1, bit for bit."""
+    data = fake_data("paper")
+    config = ProtocolConfig(**{**TINY.__dict__, "steps": 12, "eval_every": 4})
+    alone = protocol.run_unit("paper", ["none", "rot45"], [0], config, data)
+    shared = protocol.run_unit("paper", ["none", "rot45"], [0, 1], config, data)
+    for method in ("none", "rot45"):
+        assert alone[method][0]["test_mse"] == shared[method][0]["test_mse"]
+        assert alone[method][0]["holdout_history"] == shared[method][0]["holdout_history"]

@@ -500,8 +500,15 @@ class TestResume:
         first = self.run(tmp_path, data)
         lines = []
         again = self.run(tmp_path, data, log=lines.append)
-        assert sum("resumed from disk" in line for line in lines) == 2 and again["scenes"] == first["scenes"] | {
-            "control": {**first["scenes"]["control"], "generation_s": again["scenes"]["control"]["generation_s"]}}
+        timed = {"generation_s", "single_wall_s", "online_aug_s_per_epoch", "online_wall_s"}
+
+        def untimed(value):  # the time columns are measured again on every run; the results are not
+            if isinstance(value, dict):
+                return {k: untimed(v) for k, v in value.items() if k not in timed}
+            return value
+
+        assert sum("resumed from disk" in line for line in lines) == 2
+        assert untimed(again["scenes"]) == untimed(first["scenes"])
         # other seeds: their own units, never a mix
         more = self.run(tmp_path, data, seeds=(0, 1, 2))
         assert more["scenes"]["control"]["methods"]["none"]["seeds"] == [0, 1, 2]

@@ -43,7 +43,6 @@ from .binning import (
     _accumulate,
     _accumulator,
     _to_spare,
-    _bins_of,
     _event_index,
     _columns,
     _explicit_starts,

@@ -1069,7 +1069,7 @@ def events_to_frames(
     whole = source.read(0, length, _FIELDS) if length <= chunk else None
 
     def read(i: int, names: Sequence[str]) -> dict[str, Tensor]:
-        return whole if whole is not None else source.read(i, i + chunk, names)
+        return whole if whole is not None else source.read(i, i + chunk, names)  # noqa: F821 (deleted after both passes)
 
     # Pass 1 (only when needed): every stream's time range, for t_start and n_frames.
     ranges = _Tally(batch)

@@ -213,7 +213,8 @@ def _groups(batch: EventBatch) -> tuple[Tensor, int]:
     """Per event its group ``(sample * T + bin) * 2 + p`` (int32; ``G`` outside the grid's
     window) and the number of groups G."""
     starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
-    from ..events.batch import _bins_of, _relative_times
+    from ..events.batch import _relative_times
+    from ..events.binning import _bins_of
 
     sample = batch.sample_index()
     bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
@@ -575,7 +576,8 @@ def drop_window(
     (``time``) or in the sensor rectangle ``top, left, height, width`` (``area``): the
     event form of ``drop_by_time``/``drop_by_area``. One host read of the kept counts."""
     if time is not None:
-        from ..events.batch import _bins_of, _relative_times
+        from ..events.batch import _relative_times
+        from ..events.binning import _bins_of
 
         starts, frame_us, n_frames = _require_grid(batch, "RandomEventDrop (time)")
         bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)

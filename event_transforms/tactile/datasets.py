@@ -2,8 +2,9 @@
 
 :class:`TactileGrasps` gives one split of one :class:`~event_transforms.tactile.scenes.BenchmarkScene`:
 ``train`` (48 sequences) and ``holdout`` (24, for the stopping rule) from the training session,
-and ``val`` (24) and ``test`` (96) from the deployment session, each sequence 36 frames of 10 ms cropped to 140×150 around the
-contact and pooled 2×2 to 70×75. ``paper_split=True`` keeps the paper's 6 + 6 evaluation
+and ``val`` (24) and ``test`` (96) from the deployment session, each sequence 36 frames of 10 ms cropped to a fixed 140×150
+window centred on the sensor (not on the true contact: that would be an oracle) and pooled 2×2
+to 70×75. ``paper_split=True`` keeps the paper's 6 + 6 evaluation
 sequences (the first 6 of each, so the two splits are nested). The data come from
 :mod:`event_transforms.tactile.simulation` (the paper's recordings are not public), are
 generated once into a cache directory and reused. Results on them are results on
@@ -123,6 +124,7 @@ def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool
         "seeds": [seeds.start, seeds.stop],
         "crop_size": list(crop_size),
         "pool": pool,
+        "crop": "sensor-centre",  # issue 24: a fixed crop, not the oracle contact crop
     }
     text = json.dumps(description, sort_keys=True)
     return f"tactile-grasps-v{SIMULATOR_VERSION}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.pt"
@@ -130,7 +132,7 @@ def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool
 
 #: Settings added after the cache format was fixed; left at their defaults they do not
 #: enter the cache key, so every earlier scene keeps its cache file.
-_LATER_SETTINGS = ("release_lag_ratio", "label_lowpass_ms")
+_LATER_SETTINGS = ("release_lag_ratio", "label_lowpass_ms", "strip_length_exponent", "contrast_exponent")
 
 
 def _config_key(config: SimulatorConfig) -> dict[str, Any]:
@@ -145,14 +147,16 @@ def _config_key(config: SimulatorConfig) -> dict[str, Any]:
 def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (140, 150), pool: int = 2) -> dict[str, Tensor]:
     """Simulate sequences ``seeds`` of ``session``: frames (int16/int32), force, sizes, seeds.
 
-    Sequence ``seed`` uses ``session.diameter(seed - seeds.start)``: sizes alternate.
+    Sequence ``seed`` uses ``session.diameter(seed - seeds.start)``: sizes alternate. The
+    crop is fixed, centred on the sensor (:meth:`Recording.sensor_crop`), not centred on the
+    true contact (an oracle a real pipeline does not have).
     """
     grasps = [
         draw_grasp(session.diameter(k), seed=seed, config=session.config) for k, seed in enumerate(seeds)
     ]
     recordings = simulate_grasps(grasps, session.config)
     frames = torch.stack(
-        [r.frames(crop=r.contact_crop(crop_size), pool=pool, dtype=torch.int64) for r in recordings]
+        [r.frames(crop=r.sensor_crop(crop_size), pool=pool, dtype=torch.int64) for r in recordings]
     ) if recordings else torch.zeros(0, session.config.n_frames, 2, crop_size[0] // pool, crop_size[1] // pool, dtype=torch.int64)
     storage = torch.int16 if frames.numel() == 0 or int(frames.max()) <= 32767 else torch.int32
     return {
@@ -192,7 +196,7 @@ class TactileGrasps(Dataset):
             ``seed + offset(s) + k``).
         transform: optional event transform applied to the frames of each item, called
             with ``metadata=meta`` (a plain callable is called as ``transform(frames)``).
-        crop_size: (height, width) of the window around the contact, in sensor pixels.
+        crop_size: (height, width) of the fixed window centred on the sensor, in sensor pixels.
         pool: side of the sum-pooled blocks.
 
     Attributes:

@@ -56,6 +56,9 @@ __all__ = [
     "choose_methods",
     "plan_run",
     "PROGRESS_LEGEND",
+    "environment",
+    "online_augmentation_cost",
+    "single_model_wall",
 ]
 
 #: What the columns of the plain progress lines mean (printed once at the start of a run).
@@ -337,10 +340,38 @@ def plan_run(
     }
 
 
-def _environment() -> dict[str, Any]:
+def _cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo``; ``platform.processor()`` elsewhere)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def environment(device: str = "cpu", threads: int | None = None) -> dict[str, Any]:
+    """What a result depends on besides the code: package version and commit, torch, the CPU
+    model and the kernel set torch dispatches to (``ATEN_CPU_CAPABILITY``, and what
+    ``torch.backends.cpu.get_cpu_capability()`` reports), threads and device. The same code
+    under another kernel set gives per-seed MSEs that differ in the last digits, and training
+    amplifies that: compare verdicts (sign, significance) across machines, not digits."""
+    from .. import __version__
+
+    try:
+        capability = torch.backends.cpu.get_cpu_capability()
+    except (AttributeError, RuntimeError):  # pragma: no cover - older torch
+        capability = "unknown"
     return {
+        "package_version": __version__,
+        "commit": git_commit(),
         "torch": torch.__version__,
-        "threads": torch.get_num_threads(),
+        "cpu_model": _cpu_model(),
+        "cpu_capability": capability,
+        "ATEN_CPU_CAPABILITY": os.environ.get("ATEN_CPU_CAPABILITY"),
+        "threads": threads if threads is not None else torch.get_num_threads(),
+        "device": str(device),
         "platform": platform.platform(),
         "processor": platform.processor() or platform.machine(),
         "cpu_count": os.cpu_count(),
@@ -527,6 +558,55 @@ def _describe_data(data: dict[str, SceneData], scenes: Sequence[str]) -> str:
     if simulated:
         parts.append(f"{', '.join(simulated)}: simulated tactile grasps (synthetic data, not the paper's recordings)")
     return "; ".join(parts)
+def online_augmentation_cost(method_name: str, scene: str | BenchmarkScene, data: SceneData, *,
+                             batch_size: int = 8, copies: int = 1, repeats: int = 3, seed: int = 0) -> float | None:
+    """Seconds to augment one epoch's copies online, as a DataLoader would: every training
+    item's ``copies`` copies transformed once, ``batch_size`` at a time, through the
+    :class:`~event_transforms.tactile.copies.DeviceAugment` the online protocol uses (median of
+    ``repeats`` passes; ``None`` for a method without copies)."""
+    method = parse_method(method_name, copies=copies, scene=scene)
+    transform = method.build(data.noise_bank)
+    if transform is None:
+        return None
+    online = OnlineCopies(data.train, method.copies)
+    order = list(range(len(data.train), len(online)))  # the copies
+    times = []
+    for _ in range(repeats):
+        augment = DeviceAugment(transform, seed)
+        for start in range(0, len(order), batch_size):
+            items = [online[i] for i in order[start:start + batch_size]]
+            frames = torch.stack([torch.as_tensor(item[0]) for item in items]).float()
+            augment(frames, [item[2] for item in items])
+        times.append(augment.stopwatch.seconds)
+    return statistics.median(times)
+
+
+def single_model_wall(scene: str | BenchmarkScene, data: SceneData, config: ProtocolConfig, *,
+                      repeats: int = 3, seed: int = 0) -> dict[str, Any]:
+    """One model (``none``, one seed) trained alone for ``config.steps`` steps, ``repeats``
+    times: wall seconds per run (median, min, max). With fixed copies every method does this
+    same training work, so it is every method's training time per run."""
+    times = []
+    for _ in range(repeats):
+        tick = time.perf_counter()
+        run_unit(scene, ["none"], [seed], config, data, progress=False)
+        times.append(time.perf_counter() - tick)
+    return {"median": statistics.median(times), "min": min(times), "max": max(times), "repeats": repeats,
+            "runs_s": times}
+
+
+def _timing(scenes: Sequence[str], chosen: dict[str, Sequence[str]], data: dict[str, SceneData],
+            config: ProtocolConfig, threads: int | None) -> dict[str, Any]:
+    """The time columns: one model's wall time per run (measured on the first scene: every
+    scene's data have the same shape) and each scene's methods' online augmentation cost."""
+    if threads:
+        torch.set_num_threads(threads)
+    wall = single_model_wall(data[scenes[0]].scene, data[scenes[0]], config)
+    online: dict[str, dict[str, float | None]] = {}
+    for scene in scenes:
+        online[scene] = {m: online_augmentation_cost(m, data[scene].scene, data[scene], batch_size=config.batch_size,
+                                                     copies=config.copies) for m in chosen[scene]}
+    return {"single_model_wall_s": wall, "single_model_scene": scenes[0], "online_aug_s_per_epoch": online}
 
 
 def run_protocol(
@@ -546,6 +626,7 @@ def run_protocol(
     progress: bool | None = None,
     log: Callable[[str], None] | None = None,
     budget_check: bool = True,
+    measure_time: bool = True,
 ) -> dict[str, Any]:
     """Run every scene's methods for every seed; write ``results.json`` and ``results.md``.
 
@@ -561,6 +642,14 @@ def run_protocol(
     and records ``scenes.NAME.budget_check = {"method", "steps", "steps_2n", "delta",
     "delta_2n", "ci95_halfwidth", "robust"}``: robust when Δ keeps its sign and moves by less
     than the CI half-width.
+
+    With ``measure_time``, rank 0 then measures the time columns: one model trained alone
+    for ``config.steps`` steps, three times (:func:`single_model_wall`), and per method the
+    online augmentation cost of one epoch (:func:`online_augmentation_cost`); per method
+    ``online_wall_s`` is one model's time plus that cost times the epochs of a run.
+
+    ``results.json`` records the environment (:func:`environment`): package version and
+    commit, torch, CPU model, kernel set, threads and device.
 
     ``data`` (scene name -> :class:`~event_transforms.tactile.copies.SceneData`) replaces the
     simulated scenes, e.g. with your own recordings; it is sent to every worker. Without it,
@@ -616,6 +705,7 @@ def run_protocol(
                       if budget_units else {})
     if results is None:  # a torchrun rank other than 0
         return {}
+    timing = _timing(scenes, chosen, data, config, threads) if measure_time else {}
 
     scene_results = {}
     for scene in scenes:
@@ -629,6 +719,14 @@ def run_protocol(
         if isinstance(dataset, dict):  # a folder of recordings: how many recordings the intervals rest on
             summary["recordings"] = dataset["recordings"]
             summary["dataset"] = dataset
+        if timing:
+            wall = timing["single_model_wall_s"]
+            epochs_of = lambda s_: config.steps * config.batch_size / max(s_["train_items"], 1)  # noqa: E731
+            for method, s_ in summary["methods"].items():
+                cost = timing["online_aug_s_per_epoch"][scene].get(method)
+                s_["single_wall_s"] = wall
+                s_["online_aug_s_per_epoch"] = cost
+                s_["online_wall_s"] = wall["median"] + (cost or 0.0) * epochs_of(s_)
         if scene in choices:
             method = choices[scene]
             summary["budget_check"] = _budget_check(
@@ -642,7 +740,8 @@ def run_protocol(
                    "threads_per_job": threads, "group": group, "full": full, "budget_check": budget_check},
         "plan": plan,
         "wall_s": time.perf_counter() - start,
-        "environment": _environment(),
+        "environment": environment(device, threads),
+        "timing": timing,
         "data": _describe_data(data, scenes),
         "scenes": scene_results,
     }
