@@ -17,7 +17,7 @@ column          meaning
 ``split``       overrides the split rule below for this recording: ``train``/``holdout``
                 (training role), ``val``/``test`` (deployment role) (optional)
 ``crop_top``,   this recording's crop window, all four or none (optional; the simulator's
-``crop_left``,  export writes them: its crops follow each grasp's contact)
+``crop_left``,  export writes them: the built-in data set's fixed crop)
 ``crop_height``,
 ``crop_width``
 anything else   kept as text in each item's metadata
@@ -1131,8 +1131,8 @@ def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = 
     ``val`` then ``test``, all labelled) is simulated again from its seed and written as
     ``events/<split>_<k>.npy`` (structured ``x, y, t, p``) and ``force/<split>_<k>.csv`` (one
     sample per frame at its centre, the simulator's F/T reading), with ``diameter_mm``,
-    ``split``, the grasp's crop window (the 140 × 150 window centred on its contact, as the
-    built-in data set crops) and the seed in ``recordings.csv``. So
+    ``split``, the grasp's crop window (the fixed 140 × 150 window centred on the sensor, as
+    the built-in data set crops) and the seed in ``recordings.csv``. So
     ``reproduce --data OUT`` reads the same frames and labels as ``reproduce --scenes NAME``.
 
     Returns:
@@ -1163,7 +1163,7 @@ def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = 
                 with open(out / "force" / f"{name}.csv", "w") as handle:
                     handle.write("t_us,force_n\n")
                     handle.writelines(f"{int(t)},{float(np.float32(f))!r}\n" for t, f in force)
-                top, left, height, width = recording.contact_crop((140, 150))
+                top, left, height, width = recording.sensor_crop((140, 150))
                 rows.append(f"events/{name}.npy,force/{name}.csv,{role},{recording.grasp.diameter_mm:g},{split},"
                             f"{top},{left},{height},{width},{seed},{scene.name}")
         if log:
