@@ -167,6 +167,20 @@ def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (14
     }
 
 
+def item_index(index: object, length: int, what: str) -> int:
+    """A data set's ``index`` checked (an integer in ``[-length, length)``) and made non-negative.
+
+    Example:
+        >>> item_index(-1, 4, "sequences")
+        3
+    """
+    if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+        raise TypeError(f"index must be an integer, got {type(index).__name__}")
+    if not -length <= index < length:
+        raise IndexError(f"index {index} is out of range for {length} {what}")
+    return int(index) % length
+
+
 class TactileGrasps(Dataset):
     """Synthetic grasps of bolts on a DVS tactile sensor: one split of a benchmark scene.
 
@@ -262,11 +276,7 @@ class TactileGrasps(Dataset):
         return {"diameter_mm": float(self._diameter[index]), "seed": int(self._seeds[index]), "index": int(index)}
 
     def __getitem__(self, index: int) -> tuple[Tensor, Tensor, dict[str, Any]]:
-        if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
-            raise TypeError(f"index must be an integer, got {type(index).__name__}")
-        if not -len(self) <= index < len(self):
-            raise IndexError(f"index {index} is out of range for {len(self)} sequences")
-        index = int(index) % len(self)
+        index = item_index(index, len(self), "sequences")
         frames = self._counts[index].to(torch.float32)
         meta = self.meta(index)
         if self.transform is not None:

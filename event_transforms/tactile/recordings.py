@@ -868,11 +868,9 @@ class RecordingSet(Dataset):
         return meta
 
     def __getitem__(self, index: int) -> tuple[Tensor, Tensor, dict[str, Any]]:
-        if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
-            raise TypeError(f"index must be an integer, got {type(index).__name__}")
-        if not -len(self) <= index < len(self):
-            raise IndexError(f"index {index} is out of range for {len(self)} windows")
-        index = int(index) % len(self)
+        from .datasets import item_index
+
+        index = item_index(index, len(self), "windows")
         k, start = self._windows[index]
         data = self._data[k]
         stop = start + self.settings.frames
