@@ -23,6 +23,7 @@ from event_transforms.tactile.protocol import (
     methods_for,
     parse_method,
     run_protocol,
+    run_unit,
 )
 from event_transforms.tactile.runs import folder_name
 from event_transforms.tactile.scenes import SCENES, get_scene
@@ -655,3 +656,56 @@ def test_a_seed_does_not_depend_on_the_seeds_beside_it():
     for method in ("none", "rot45"):
         assert alone[method][0]["test_mse"] == shared[method][0]["test_mse"]
         assert alone[method][0]["holdout_history"] == shared[method][0]["holdout_history"]
+
+
+class TestEqualTime:
+    """MSE at equal wall time (issue 24, item 6): each method retrained for the steps its
+    online augmentation leaves in none's wall time."""
+
+    def test_steps_from_the_timings(self):
+        assert experiment.equal_time_steps(300, 10.0, 20.0) == 150
+        assert experiment.equal_time_steps(300, 10.0, 20.0, grain=40) == 120  # rounded down
+        assert experiment.equal_time_steps(300, 10.0, 10.0, grain=25) == 300
+        assert experiment.equal_time_steps(300, 10.0, 1e6, grain=25) == 25  # never below one grain
+        with pytest.raises(ValueError, match="online_wall_s"):
+            experiment.equal_time_steps(300, 10.0, 9.0)
+        with pytest.raises(ValueError, match="online_wall_s"):
+            experiment.equal_time_steps(300, 10.0, float("nan"))
+        with pytest.raises(ValueError, match="steps"):
+            experiment.equal_time_steps(0, 10.0, 20.0)
+
+    def test_retrains_at_the_affordable_steps(self, monkeypatch, tmp_path):
+        config = ProtocolConfig(**{**TINY.__dict__, "steps": 8, "eval_every": 4})
+        data = {"paper": fake_data("paper")}
+        # one model: 10 s per run; stretch's online augmentation doubles that, fs-1's is free
+        epochs = config.steps * config.batch_size / 12  # 6 items + 6 copies
+        timing = {"single_model_wall_s": {"median": 10.0, "min": 9.0, "max": 11.0, "repeats": 3},
+                  "single_model_scene": "paper",
+                  "online_aug_s_per_epoch": {"paper": {"none": None, "stretch": 10.0 / epochs, "fs-1": 0.0}}}
+        monkeypatch.setattr(experiment, "_timing", lambda *a, **k: timing)
+        results = run_protocol(["paper"], [0, 1], tmp_path, config=config, methods=["none", "stretch", "fs-1"],
+                               data=data, budget_check=False, equal_time=True)
+        methods = results["scenes"]["paper"]["methods"]
+        assert "equal_time" not in methods["none"]
+        assert methods["stretch"]["equal_time"]["steps"] == 4  # 8 · 10 / 20, a multiple of eval_every // 2
+        direct = run_unit("paper", ["stretch"], [0, 1], ProtocolConfig(**{**config.__dict__, "steps": 4}),
+                          data["paper"], progress=False)
+        assert methods["stretch"]["equal_time"]["test_mse"] == [r["test_mse"] for r in direct["stretch"]]
+        assert methods["stretch"]["equal_time"]["test_mse"] != methods["stretch"]["test_mse"]
+        # no online cost: every step affordable, the main run is the equal-time run
+        assert methods["fs-1"]["equal_time"]["steps"] == 8
+        assert methods["fs-1"]["equal_time"]["test_mse"] == methods["fs-1"]["test_mse"]
+        # Δ against none's main run, paired by seed, one family of two
+        delta = methods["stretch"]["equal_time"]["delta_vs_none"]
+        expected = paired_t(methods["none"]["test_mse"], methods["stretch"]["equal_time"]["test_mse"])
+        assert delta["mean"] == pytest.approx(expected.mean) and delta["family_size"] == 2
+        table = format_scene_table("paper", results["scenes"]["paper"])
+        assert "Δ vs none at equal time" in table.splitlines()[0]
+        assert "| 8 (the budget) | — |" in table
+        assert results["config"]["equal_time"] is True
+
+    def test_off_by_default_in_run_protocol_and_full(self, tmp_path):
+        plan = experiment.plan_run(["paper"], {"paper": ["none", "stretch"]}, [0, 1], TINY, equal_time=True)
+        assert plan["equal_time_member_steps_max"] == 1 * 2 * TINY.steps
+        assert experiment.plan_run(["paper"], {"paper": ["none"]}, [0], TINY)["equal_time_member_steps_max"] == 0
+        assert cli.QUICK["equal_time"] and not cli.FULL["equal_time"]

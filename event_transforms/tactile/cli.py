@@ -52,6 +52,9 @@ QUICK: dict[str, Any] = {
     "eval_every": 50,
     "threads": 1,
     "jobs": 2,
+    # MSE at equal wall time too: every method retrained for the steps its online augmentation
+    # leaves in none's wall time (a second column and figure)
+    "equal_time": True,
 }
 #: The full configuration (``--full``): the paper's 10 seeds and layer sizes.
 FULL: dict[str, Any] = {
@@ -65,6 +68,7 @@ FULL: dict[str, Any] = {
     "eval_every": 100,
     "threads": 1,
     "jobs": None,  # one per core
+    "equal_time": False,  # --equal-time adds it (it retrains every method once more)
 }
 
 
@@ -186,6 +190,12 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     rep.add_argument("--no-budget-check", action="store_true",
                      help="skip rerunning none and the largest-|Δ| method at twice the steps on gapped scenes")
+    rep.add_argument(
+        "--equal-time", action=argparse.BooleanOptionalAction, default=None,
+        help="also train every method for the steps its online augmentation leaves in the wall time one "
+        "'none' model takes (MSE at equal wall time: a column and accuracy_at_equal_time.png; default: on in "
+        "the quick configuration, off with --full; --no-equal-time skips it)",
+    )
     rep.add_argument("--plan", action="store_true",
                      help="print the run's units and member-steps (its cost) and exit without training")
     rep.add_argument("--data", type=Path, metavar="DIR",
@@ -225,6 +235,14 @@ def build_parser() -> argparse.ArgumentParser:
     predict.add_argument("--out", type=Path, default=Path("force.csv"), help="output CSV t_us,force_n")
     predict.add_argument("--threads", type=_positive, default=1, help="torch CPU threads")
 
+    compare = sub.add_parser(
+        "compare", help="compare the verdicts (sign, significance) of two runs' summary tables, not their digits",
+        description="Read the summary table of two runs (results.md of reproduce, or benchmarks/reproduce_quick.md) "
+        "and print how many Δ verdicts (better / worse / unresolved, family-wise) agree and every cell that moved. "
+        "Exit status 1 when a verdict is reversed (significant in both runs with opposite signs).",
+    )
+    compare.add_argument("a", type=Path, help="the first run's results.md")
+    compare.add_argument("b", type=Path, help="the second run's results.md")
     show = sub.add_parser("show", help="write a before/after PNG grid of a named transform")
     show.add_argument("method", help="a method name as in reproduce, e.g. rot45, fs-1, tes-2:0.5")
     show.add_argument("--scene", default="paper", help="the scene whose training data to show (default paper)")
@@ -380,8 +398,9 @@ def _reproduce(args: argparse.Namespace) -> int:
         _print(f"inferred scene: gaps {list(given[scenes[0]].scene.gaps) or 'none'} "
                f"(from {given[scenes[0]].dataset['inferred_from']})")
     chosen = choose_methods(scenes, methods, full=args.full, data=given)
+    equal_time = base["equal_time"] if args.equal_time is None else args.equal_time
     plan = plan_run(scenes, chosen, seeds, config, group=args.group, budget_check=not args.no_budget_check,
-                    data=given)
+                    data=given, equal_time=equal_time)
     if args.plan:
         _print(f"plan: scenes {scenes}, {len(seeds)} seeds, {config.steps} steps per run")
         for scene, names in chosen.items():
@@ -390,6 +409,10 @@ def _reproduce(args: argparse.Namespace) -> int:
                f"member-steps; budget check on {plan['budget_check_scenes']}: {plan['budget_units']} units, "
                f"{plan['budget_member_steps']:,} member-steps at {2 * config.steps} steps; total "
                f"{plan['total_member_steps']:,} member-steps (× the seconds per member-step a unit reports)")
+        if equal_time:
+            _print(f"equal wall time: at most {plan['equal_time_member_steps_max']:,} more member-steps (every "
+                   "method but none retrained for the steps its measured online cost leaves, at most "
+                   f"{config.steps}); total at most {plan['total_member_steps'] + plan['equal_time_member_steps_max']:,}")
         return 0
     rank = int(os.environ.get("RANK", "0")) if distributed else 0
     say = _print if rank == 0 else (lambda *a: None)
@@ -409,7 +432,7 @@ def _reproduce(args: argparse.Namespace) -> int:
         scenes, seeds, args.out, config=config, methods=chosen, full=args.full,
         root=None if args.root is None else str(args.root), jobs=1 if distributed else jobs,
         device=device, threads=threads, group=args.group, log=_print, budget_check=not args.no_budget_check,
-        data=given,
+        data=given, equal_time=equal_time,
     )
     if not results:  # a torchrun rank other than 0
         return 0
@@ -427,7 +450,10 @@ def _reproduce(args: argparse.Namespace) -> int:
         "unpaired (Welch) interval and r, the correlation of none's and the method's per-seed MSEs; policy rows "
         "also Δ vs the scene's matched row; kept step: the median step whose weights the "
                 "stopping rule kept (in brackets the share of members that stopped before the step cap); time "
-        "columns: see the scene tables; baselines are fitted on the same training data):")
+        "columns: see the scene tables"
+        + ("; equal wall time: each method retrained for the steps its online augmentation leaves in the wall "
+           "time of one none model (its Δ vs none's main run, a family of its own)" if equal_time else "")
+        + "; baselines are fitted on the same training data):")
     say(format_report(results))
     if not args.no_plots:
         for path in _plots(results, args.out):
@@ -495,7 +521,45 @@ def _plots(results: dict[str, Any], out: Path) -> list[Path]:
         fig.savefig(path, dpi=120)
         plt.close(fig)
         paths.append(path)
+    if any("equal_time" in s for summary in scenes.values() for s in summary["methods"].values()):
+        paths.append(_plot_equal_time(plt, scenes, out))
     return paths
+
+
+def _plot_equal_time(plt: Any, scenes: dict[str, Any], out: Path) -> Path:
+    """Per scene and method: Δ test MSE vs none (family 95 % CI) at equal steps (open) and at
+    equal wall time with online augmentation (filled), ``accuracy_at_equal_time.png``."""
+    fig, axes = plt.subplots(1, len(scenes), figsize=(3.2 * len(scenes), 3.8), squeeze=False)
+    for ax, (name, summary) in zip(axes[0], scenes.items()):
+        methods = [m for m, s in summary["methods"].items() if m != "none" and not s.get("duplicate_of")]
+        for k, method in enumerate(methods):
+            s = summary["methods"][method]
+            for offset, delta, fill in ((-0.15, s["delta_vs_none"], "none"),
+                                        (0.15, (s.get("equal_time") or {}).get("delta_vs_none"), "full")):
+                if not delta:
+                    continue
+                lo, hi = delta.get("ci_family") or delta["ci95"] or (delta["mean"], delta["mean"])
+                ax.errorbar([k + offset], [delta["mean"]], yerr=[[delta["mean"] - lo], [hi - delta["mean"]]], fmt="o",
+                            color="C0" if fill == "none" else "C1", mfc="white" if fill == "none" else None, capsize=3)
+        ax.axhline(0.0, color="0.6", lw=0.8)
+        ax.set_xticks(range(len(methods)))
+        ax.set_xticklabels(
+            [f"{m}\n{(summary['methods'][m].get('equal_time') or {}).get('steps', '—')}" for m in methods],
+            rotation=90, fontsize=6)
+        ax.set_title(name, fontsize=9)
+        ax.tick_params(labelsize=7)
+    axes[0][0].set_ylabel("Δ test MSE vs none (N²)")
+    handles = [plt.Line2D([], [], color="C0", marker="o", mfc="white", ls="none"),
+               plt.Line2D([], [], color="C1", marker="o", ls="none")]
+    fig.legend(handles, ["equal steps", "equal wall time (steps under each name)"], loc="lower center", ncol=2,
+               fontsize=7, frameon=False)
+    fig.suptitle("Δ at equal steps and at equal wall time with online augmentation (family 95 % CI) — synthetic "
+                 "scenes", fontsize=9)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    path = out / "accuracy_at_equal_time.png"
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
 
 
 def _simulate(args: argparse.Namespace) -> int:
@@ -672,12 +736,28 @@ def _predict(args: argparse.Namespace) -> int:
     return 0
 
 
+def _compare(args: argparse.Namespace) -> int:
+    from .report import compare_verdicts, format_verdict_comparison, summary_verdicts
+
+    verdicts = []
+    for name in ("a", "b"):
+        path = getattr(args, name)
+        if not path.is_file():
+            raise ValueError(f"{name}: no such file {str(path)!r}")
+        try:
+            verdicts.append(summary_verdicts(path.read_text()))
+        except ValueError as error:
+            raise ValueError(f"{name} ({path}): {error}") from None
+    _print(format_verdict_comparison(*verdicts, names=(str(args.a), str(args.b))))
+    return 1 if compare_verdicts(*verdicts)["reversed"] else 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``event-transforms`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
     handlers = {"reproduce": _reproduce, "simulate": _simulate, "show": _show, "show-scene": _show_scene,
-                "infer-scene": _infer_scene, "train": _train, "predict": _predict}
+                "infer-scene": _infer_scene, "train": _train, "predict": _predict, "compare": _compare}
     try:
         if args.command in _TRAINING_COMMANDS:  # before any simulation: the training loop needs tqdm
             import tqdm  # noqa: F401

@@ -59,6 +59,7 @@ __all__ = [
     "environment",
     "online_augmentation_cost",
     "single_model_wall",
+    "equal_time_steps",
 ]
 
 #: What the columns of the plain progress lines mean (printed once at the start of a run).
@@ -311,12 +312,15 @@ def choose_methods(
 def plan_run(
     scenes: Sequence[str], methods: dict[str, Sequence[str]], seeds: Sequence[int], config: ProtocolConfig, *,
     group: str = "method", budget_check: bool = True, data: dict[str, SceneData] | None = None,
+    equal_time: bool = False,
 ) -> dict[str, Any]:
     """What a run costs before it starts: units, members and member-steps (one member = one
     method × seed trained for ``config.steps``), the budget check's share included.
 
     Multiply ``member_steps`` by the measured seconds per member-step (printed after a unit:
-    ``ensemble_train_s / (ensemble_members · steps)`` in a unit file) for the run's time.
+    ``ensemble_train_s / (ensemble_members · steps)`` in a unit file) for the run's time. With
+    ``equal_time``, ``equal_time_member_steps_max`` bounds the retraining at equal wall time
+    (its steps depend on the timings measured after the main units).
 
     Example:
         >>> plan = plan_run(["control", "timing"], {"control": ["none", "fs2"], "timing": ["none", "fs2"]},
@@ -337,6 +341,11 @@ def plan_run(
         "budget_members": budget_members,
         "budget_member_steps": budget_members * 2 * config.steps,
         "total_member_steps": members * config.steps + budget_members * 2 * config.steps,
+        # equal wall time retrains every method but none for at most config.steps (known after timing)
+        "equal_time_member_steps_max": (
+            sum(len([m for m in methods[s] if m != "none"]) for s in scenes) * len(seeds) * config.steps
+            if equal_time else 0
+        ),
     }
 
 
@@ -546,6 +555,29 @@ def _budget_check(method: str, steps: int, delta: dict[str, Any], runs_2n: dict[
             "robust": robust}
 
 
+def _attach_equal_time(summary: dict[str, Any], steps_of: dict[str, int], runs: dict[str, list],
+                       steps: int) -> None:
+    """Per method of ``steps_of``: ``equal_time`` = its steps, per-seed test MSEs and Δ vs ``none``'s
+    main run (one family: the scene's methods at equal wall time); duplicates copy their row's."""
+    methods = summary["methods"]
+    none = methods["none"]
+    table: dict[str, Any] = {"none": {"seeds": none["seeds"], "test_mse": none["test_mse"]}}
+    for method, n in steps_of.items():
+        if n >= steps:  # the online cost leaves every step: the main run is the equal-time run
+            table[method] = {"seeds": methods[method]["seeds"], "test_mse": methods[method]["test_mse"]}
+        else:
+            table[method] = {"seeds": [r["seed"] for r in runs[method]],
+                             "test_mse": [r["test_mse"] for r in runs[method]]}
+    deltas = deltas_vs_none(table, "test_mse")
+    for method, n in steps_of.items():
+        methods[method]["equal_time"] = {"steps": n, "test_mse": table[method]["test_mse"],
+                                         "delta_vs_none": deltas.get(method)}
+    for method, s_ in methods.items():
+        original = s_.get("duplicate_of")
+        if original and "equal_time" in methods.get(original, {}):
+            s_["equal_time"] = dict(methods[original]["equal_time"])
+
+
 def _describe_data(data: dict[str, SceneData], scenes: Sequence[str]) -> str:
     """What the results rest on: simulated grasps, or folders of recordings (path, files, content hash)."""
     parts = []
@@ -609,6 +641,31 @@ def _timing(scenes: Sequence[str], chosen: dict[str, Sequence[str]], data: dict[
     return {"single_model_wall_s": wall, "single_model_scene": scenes[0], "online_aug_s_per_epoch": online}
 
 
+def equal_time_steps(steps: int, single_wall_s: float, online_wall_s: float, *, grain: int = 1) -> int:
+    """The optimiser steps a method affords in the wall time ``none`` takes for ``steps``.
+
+    One model trains ``steps`` steps in ``single_wall_s`` seconds; augmenting online as well
+    takes ``online_wall_s`` seconds for those steps, so per step the method costs
+    ``online_wall_s / steps`` and affords ``steps · single_wall_s / online_wall_s`` steps in
+    ``none``'s time, rounded down to a multiple of ``grain`` (at least ``grain``; never more
+    than ``steps``).
+
+    Example:
+        >>> equal_time_steps(300, 45.7, 64.8, grain=25)  # 211.6 steps, rounded down
+        200
+        >>> equal_time_steps(300, 45.7, 45.7, grain=25)  # no online cost: the same steps
+        300
+    """
+    check_positive(steps, "steps", integer=True)
+    check_positive(grain, "grain", integer=True)
+    check_positive(single_wall_s, "single_wall_s")
+    if not math.isfinite(online_wall_s) or online_wall_s < single_wall_s:
+        raise ValueError(f"online_wall_s must be finite and at least single_wall_s ({single_wall_s}), "
+                         f"got {online_wall_s}")
+    affordable = math.floor(steps * single_wall_s / online_wall_s + 1e-9)
+    return min(steps, max(grain, affordable // grain * grain))
+
+
 def run_protocol(
     scenes: Sequence[str] | None,
     seeds: Sequence[int],
@@ -627,6 +684,7 @@ def run_protocol(
     log: Callable[[str], None] | None = None,
     budget_check: bool = True,
     measure_time: bool = True,
+    equal_time: bool = False,
 ) -> dict[str, Any]:
     """Run every scene's methods for every seed; write ``results.json`` and ``results.md``.
 
@@ -647,6 +705,14 @@ def run_protocol(
     for ``config.steps`` steps, three times (:func:`single_model_wall`), and per method the
     online augmentation cost of one epoch (:func:`online_augmentation_cost`); per method
     ``online_wall_s`` is one model's time plus that cost times the epochs of a run.
+
+    With ``equal_time`` (and ``measure_time``), every method that is not ``none`` and not a
+    duplicate row is trained again, like the main runs (same seeds, same augmentation mode),
+    for the steps its online augmentation leaves in the wall time one ``none`` model takes
+    for ``config.steps`` (:func:`equal_time_steps`, rounded down to a multiple of
+    ``config.eval_every // 2``); ``scenes.NAME.methods.M.equal_time`` records the steps, the
+    per-seed test MSEs and the Δ vs ``none``'s main run (one family per scene, as above).
+    A method whose online cost leaves every step keeps its main run.
 
     ``results.json`` records the environment (:func:`environment`): package version and
     commit, torch, CPU model, kernel set, threads and device.
@@ -703,12 +769,10 @@ def run_protocol(
     budget_units = _units(list(choices), {s: ("none", m) for s, m in choices.items()}, group, given)
     budget_results = (_run_units(budget_units, seeds, double, out, jobs, options, "budget check", 0.0, data_keys)
                       if budget_units else {})
-    if results is None:  # a torchrun rank other than 0
-        return {}
-    timing = _timing(scenes, chosen, data, config, threads) if measure_time else {}
+    timing = _timing(scenes, chosen, data, config, threads) if measure_time and results is not None else {}
 
     scene_results = {}
-    for scene in scenes:
+    for scene in scenes if results is not None else ():
         d = data[scene]
         sizes = {"train": len(d.train), "val": len(d.val), "test": len(d.test)}
         if d.holdout is not None:
@@ -734,10 +798,41 @@ def run_protocol(
                 _per_method(budget_units, budget_results, scene, ("none", method)),
             )
         scene_results[scene] = summary
+
+    # Equal wall time: each method again for the steps its online augmentation leaves.
+    if equal_time and measure_time:
+        grain = max(1, config.eval_every // 2)
+        steps_of: dict[str, dict[str, int]] = {}
+        if results is not None:
+            for scene, summary in scene_results.items():
+                for method, s_ in summary["methods"].items():
+                    if method == "none" or s_.get("duplicate_of") or s_.get("online_wall_s") is None:
+                        continue
+                    steps_of.setdefault(scene, {})[method] = equal_time_steps(
+                        config.steps, s_["single_wall_s"]["median"], s_["online_wall_s"], grain=grain)
+        if distributed.current_group() is not None:
+            steps_of = distributed.broadcast_from_rank0(steps_of)
+        equal_runs: dict[str, dict[str, list]] = {}
+        for steps in sorted({n for per in steps_of.values() for n in per.values() if n < config.steps},
+                            reverse=True):
+            subset = {s_: tuple(m for m, n in per.items() if n == steps) for s_, per in steps_of.items()}
+            subset = {s_: ms for s_, ms in subset.items() if ms}
+            equal_units = _units(list(subset), subset, group, given)
+            shorter = ProtocolConfig(**{**asdict(config), "steps": steps})
+            done = _run_units(equal_units, seeds, shorter, out, jobs, options, f"equal time ({steps} steps)", 0.0,
+                              data_keys)
+            if done is not None:
+                for scene, names in subset.items():
+                    equal_runs.setdefault(scene, {}).update(_per_method(equal_units, done, scene, names))
+        for scene, per in steps_of.items():
+            _attach_equal_time(scene_results[scene], per, equal_runs.get(scene, {}), config.steps)
+    if results is None:  # a torchrun rank other than 0
+        return {}
     results_json = {
         "commit": git_commit(),
         "config": {**asdict(config), "seeds": seeds, "scenes": scenes, "jobs": jobs, "device": device,
-                   "threads_per_job": threads, "group": group, "full": full, "budget_check": budget_check},
+                   "threads_per_job": threads, "group": group, "full": full, "budget_check": budget_check,
+                   "equal_time": equal_time},
         "plan": plan,
         "wall_s": time.perf_counter() - start,
         "environment": environment(device, threads),

@@ -7,14 +7,16 @@ writes (per scene: baselines, and per method the per-seed values and Δ vs ``non
 from __future__ import annotations
 
 import math
+import re
 import statistics
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from .stats import mean_sd, significant
 
 __all__ = ["format_summary_table", "format_scene_table", "format_budget_check", "format_findings", "format_environment",
-           "format_report"]
+           "format_report", "Verdict", "summary_verdicts", "compare_verdicts", "format_verdict_comparison"]
 
 #: The columns of the summary table (the README's table), in order.
 SUMMARY_COLUMNS = ("scene", "method", "test MSE", "Δ vs none [family 95 % CI]", "unpaired CI", "r",
@@ -70,17 +72,24 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
     stopped before the cap. Timings: augmentation once (fixed copies); online augmentation
     per epoch (every training item transformed once, batch by batch as a DataLoader would);
     one model's training wall time alone (median [min, max] over repeats); one model's wall
-    time with online augmentation (training + online augmentation × epochs).
+    time with online augmentation (training + online augmentation × epochs). Where the run
+    measured MSE at equal wall time: the steps each method affords in ``none``'s wall time
+    when it augments online, and its Δ vs ``none`` retrained at those steps (a family of its
+    own).
     """
     head = ["method", "test MSE", "Δ vs none [family 95 % CI]", "unpaired CI", "r", "family p: t / Wilcoxon",
             "Δ vs matched [family 95 % CI]", "kept step (stopped early)"]
     if timings:
         head += ["aug s once", "online aug s/epoch", "1 model s/run", "1 model s/run online"]
+    equal = timings and key == "test_mse" and any("equal_time" in s for s in summary["methods"].values())
+    if equal:
+        head += ["steps at equal time", "Δ vs none at equal time [family 95 % CI]"]
+    extra = len(head) - 8
     rows = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * len(head)) + "|"]
     baseline_key = "test_mse_paper_split" if key.endswith("paper_split") else "test_mse"
     for base, values in summary["baselines"].items():
         cells = [f"*{base}* (baseline)", f"{values[baseline_key]:.2f}"] + ["—"] * 6
-        rows.append("| " + " | ".join(cells + (["—"] * 4 if timings else [])) + " |")
+        rows.append("| " + " | ".join(cells + ["—"] * extra) + " |")
     matched = set(summary["matched_methods"])
     for method, s in summary["methods"].items():
         delta = s["delta_vs_none" if key == "test_mse" else "delta_vs_none_paper_split"]
@@ -116,6 +125,16 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
         cells = [label, _format_mean_sd(s[key]), delta_text, welch_text, r_text, p_text, versus, kept_text]
         if timings:
             cells += _time_cells(s)
+        if equal:
+            same = s.get("equal_time")
+            if method == "none":
+                cells += [f"{s['steps']} (the budget)", "—"]
+            elif same is None:
+                cells += ["—", "—"]
+            elif original is not None:
+                cells += [str(same["steps"]), f"= row {original}"]
+            else:
+                cells += [str(same["steps"]), _ci_text(same["delta_vs_none"])]
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join(rows)
 
@@ -250,3 +269,134 @@ def format_report(results: dict[str, Any], *, timings: bool = True) -> str:
         parts.append(format_scene_table(name, summary, timings=False, key="test_mse_paper_split"))
         parts.append("")
     return "\n".join(parts)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What one cell of the summary table says, without its digits.
+
+    Attributes:
+        mean: the Δ as printed (N²).
+        significant: its family-wise interval excludes 0 (the cell is bold).
+    """
+
+    mean: float
+    significant: bool
+
+    @property
+    def sign(self) -> int:
+        """-1 (the method is better: lower MSE), +1 (worse) or 0."""
+        return (self.mean > 0) - (self.mean < 0)
+
+    @property
+    def word(self) -> str:
+        """``"better"`` / ``"worse"`` when significant, else ``"unresolved"``."""
+        if not self.significant:
+            return "unresolved"
+        return "better" if self.sign < 0 else "worse"
+
+
+#: The summary table's columns that carry a verdict, and the short name used in comparisons.
+VERDICT_COLUMNS = {"Δ vs none [family 95 % CI]": "vs none", "Δ vs matched [family 95 % CI]": "vs matched"}
+_CELL = re.compile(r"^(?:(?P<ref>[^:\[\]*]+): )?(?P<bold>\*\*)?(?P<mean>[+-]?\d+\.\d+) "
+                   r"\[[+-]?\d+\.\d+, [+-]?\d+\.\d+\](?P=bold)?$")
+
+
+def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
+    """The verdicts of the summary table in ``text`` (a ``results.md`` or the README).
+
+    Keys are ``(scene, method, "vs none" | "vs matched")``; cells without an interval (``—``,
+    ``= row X``, baselines) carry no verdict and are left out.
+
+    Raises:
+        ValueError: ``text`` holds no summary table, or a Δ cell cannot be read.
+
+    Example:
+        >>> table = "\\n".join(["| " + " | ".join(SUMMARY_COLUMNS) + " |", "|---" * 9 + "|",
+        ...     "| paper | stretch | 1.07 | **-0.92 [-1.24, -0.60]** | — | — | — | — | — |"])
+        >>> summary_verdicts(table)
+        {('paper', 'stretch', 'vs none'): Verdict(mean=-0.92, significant=True)}
+    """
+    rows = None
+    for line in text.splitlines() + [""]:
+        line = line.strip()
+        if line.startswith("|") and line.endswith("|"):
+            cells = [cell.strip() for cell in line[1:-1].split("|")]
+            if rows is None and tuple(cells) == SUMMARY_COLUMNS:
+                rows = []
+            elif rows is not None and not all(re.fullmatch(r":?-{3,}:?", c) for c in cells):
+                rows.append(cells)
+        elif rows is not None:
+            break
+    if rows is None:
+        raise ValueError("text holds no summary table (a table whose header is SUMMARY_COLUMNS)")
+    verdicts: dict[tuple[str, str, str], Verdict] = {}
+    for cells in rows:
+        if len(cells) != len(SUMMARY_COLUMNS):
+            raise ValueError(f"summary table row has {len(cells)} cells, expected {len(SUMMARY_COLUMNS)}: {cells!r}")
+        row = dict(zip(SUMMARY_COLUMNS, cells))
+        method = row["method"].removesuffix(" (matched)")
+        for column, short in VERDICT_COLUMNS.items():
+            cell = row[column]
+            if cell == "—" or cell.startswith("= row") or cell == "no matched row ran":
+                continue
+            match = _CELL.match(cell)
+            if match is None:
+                raise ValueError(f"cannot read the {column!r} cell of {row['scene']} / {method}: {cell!r}")
+            verdicts[(row["scene"], method, short)] = Verdict(float(match["mean"]), bool(match["bold"]))
+    return verdicts
+
+
+def compare_verdicts(
+    a: dict[tuple[str, str, str], Verdict], b: dict[tuple[str, str, str], Verdict]
+) -> dict[str, list[tuple[str, str, str]]]:
+    """Compare two runs' verdicts on the cells both have (sign and significance, not digits).
+
+    Returns the cells by outcome: ``"same"`` (same word: better / worse / unresolved),
+    ``"reversed"`` (significant in both, opposite signs: the runs contradict each other),
+    ``"significance"`` (significant in one run only; the point estimates' signs agree),
+    ``"significance and sign"`` (significant in one run, the other's estimate has the other
+    sign), and ``"only in one"`` (cells one run lacks).
+
+    Example:
+        >>> a = {("s", "m", "vs none"): Verdict(-1.0, True), ("s", "k", "vs none"): Verdict(0.2, False)}
+        >>> b = {("s", "m", "vs none"): Verdict(+0.9, True), ("s", "k", "vs none"): Verdict(0.3, True)}
+        >>> {k: v for k, v in compare_verdicts(a, b).items() if v}
+        {'reversed': [('s', 'm', 'vs none')], 'significance': [('s', 'k', 'vs none')]}
+    """
+    out: dict[str, list[tuple[str, str, str]]] = {
+        "same": [], "reversed": [], "significance": [], "significance and sign": [], "only in one": []}
+    for key in sorted(set(a) | set(b)):
+        if key not in a or key not in b:
+            out["only in one"].append(key)
+            continue
+        x, y = a[key], b[key]
+        if x.word == y.word:
+            out["same"].append(key)
+        elif x.significant and y.significant:
+            out["reversed"].append(key)
+        elif x.sign == y.sign:
+            out["significance"].append(key)
+        else:
+            out["significance and sign"].append(key)
+    return out
+
+
+def format_verdict_comparison(a: dict[tuple[str, str, str], Verdict], b: dict[tuple[str, str, str], Verdict],
+                              names: tuple[str, str] = ("a", "b")) -> str:
+    """A markdown paragraph and table: how many verdicts two runs share, and every cell that moved."""
+    outcome = compare_verdicts(a, b)
+    shared = len(a.keys() & b.keys())
+    moved = [(kind, key) for kind in ("reversed", "significance and sign", "significance") for key in outcome[kind]]
+    lines = [f"{shared} verdicts in both runs: {len(outcome['same'])} the same (better / worse / unresolved), "
+             f"{len(outcome['significance'])} changed significance only, "
+             f"{len(outcome['significance and sign'])} changed significance and sign, "
+             f"{len(outcome['reversed'])} reversed (significant in both with opposite signs); "
+             f"{len(outcome['only in one'])} cells in one run only.", ""]
+    if moved:
+        lines += [f"| scene | method | Δ | {names[0]} | {names[1]} | outcome |", "|---|---|---|---|---|---|"]
+        for kind, (scene, method, column) in moved:
+            x, y = a[(scene, method, column)], b[(scene, method, column)]
+            lines.append(f"| {scene} | {method} | {column} | {x.mean:+.2f} ({x.word}) | {y.mean:+.2f} ({y.word}) "
+                         f"| {kind} |")
+    return "\n".join(lines)
