@@ -1,0 +1,166 @@
+"""Two runs agree on verdicts (sign, significance), not digits (issue 24, item 5).
+
+``report.summary_verdicts`` reads the verdict cells of a run's summary table and
+``report.compare_verdicts`` sorts the cells two runs share by outcome. The committed run
+(``benchmarks/reproduce_quick.md``, the README's table) and a second run of part of it under
+another CPU kernel set (``benchmarks/reproduce_kernel_default.md``, ``ATEN_CPU_CAPABILITY=default``)
+are compared here: the spread a user should expect.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from event_transforms.tactile import cli
+from event_transforms.tactile.report import (
+    SUMMARY_COLUMNS,
+    Verdict,
+    compare_verdicts,
+    format_verdict_comparison,
+    summary_verdicts,
+)
+
+ROOT = Path(__file__).resolve().parent.parent
+COMMITTED = ROOT / "benchmarks" / "reproduce_quick.md"
+OTHER_KERNELS = ROOT / "benchmarks" / "reproduce_kernel_default.md"
+
+
+def table(*rows: tuple[str, str, str, str]) -> str:
+    """A summary table with (scene, method, Δ vs none cell, Δ vs matched cell) rows."""
+    lines = ["| " + " | ".join(SUMMARY_COLUMNS) + " |", "|" + "---|" * len(SUMMARY_COLUMNS)]
+    for scene, method, vs_none, vs_matched in rows:
+        lines.append(f"| {scene} | {method} | 1.00 ± 0.10 | {vs_none} | — | — | — | {vs_matched} | — |")
+    return "intro\n\n" + "\n".join(lines) + "\n\nafter\n"
+
+
+class TestReading:
+    def test_cells_with_and_without_bold_and_the_matched_prefix(self):
+        text = table(
+            ("paper", "none", "—", "—"),
+            ("paper", "resize (matched)", "-0.03 [-0.69, +0.63]", "—"),
+            ("paper", "stretch", "**-0.92 [-1.24, -0.60]**", "—"),
+            ("paper", "inferred", "= row stretch", "= row stretch"),
+            ("paper", "prior", "**-0.29 [-0.54, -0.04]**", "resize: -0.26 [-0.74, +0.22]"),
+            ("paper-offset", "prior", "-0.15 [-0.81, +0.51]", "fs-1: **+1.52 [+0.80, +2.25]**"),
+            ("paper-offset", "everything", "+0.10 [-0.81, +0.51]", "no matched row ran"),
+        )
+        assert summary_verdicts(text) == {
+            ("paper", "resize", "vs none"): Verdict(-0.03, False),  # "(matched)" dropped from the name
+            ("paper", "stretch", "vs none"): Verdict(-0.92, True),
+            ("paper", "prior", "vs none"): Verdict(-0.29, True),
+            ("paper", "prior", "vs matched"): Verdict(-0.26, False),
+            ("paper-offset", "prior", "vs none"): Verdict(-0.15, False),
+            ("paper-offset", "prior", "vs matched"): Verdict(1.52, True),
+            ("paper-offset", "everything", "vs none"): Verdict(0.10, False),
+        }
+
+    def test_words(self):
+        assert Verdict(-0.5, True).word == "better" and Verdict(0.5, True).word == "worse"
+        assert Verdict(-0.5, False).word == Verdict(0.5, False).word == "unresolved"
+        assert (Verdict(-0.5, False).sign, Verdict(0.0, False).sign, Verdict(0.1, True).sign) == (-1, 0, 1)
+
+    def test_refuses_text_without_a_summary_table_and_unreadable_cells(self):
+        with pytest.raises(ValueError, match="no summary table"):
+            summary_verdicts("| a | b |\n|---|---|\n| 1 | 2 |\n")
+        with pytest.raises(ValueError, match="paper / stretch.*'about -1'"):
+            summary_verdicts(table(("paper", "stretch", "about -1", "—")))
+        with pytest.raises(ValueError, match="3 cells"):
+            summary_verdicts("| " + " | ".join(SUMMARY_COLUMNS) + " |\n|---|\n| a | b | c |\n")
+
+    def test_reads_what_the_report_prints(self):
+        """The printer's cells read back: significant exactly where stats.significant says so."""
+        from event_transforms.tactile.report import format_summary_table
+
+        def delta(mean, lo, hi):
+            return {"mean": mean, "ci_family": [lo, hi], "ci95": [lo, hi], "t_p_family": 0.5, "p_family": 0.5, "p_holm": 0.5}
+
+        results = {"scenes": {"s": {
+            "baselines": {}, "matched_methods": ["a"],
+            "methods": {
+                "none": {"test_mse": [1.0, 1.2], "delta_vs_none": None},
+                "a": {"test_mse": [0.5, 0.6], "delta_vs_none": delta(-0.55, -0.9, -0.2)},
+                "b": {"test_mse": [1.5, 1.1], "delta_vs_none": delta(0.2, -0.4, 0.8)},
+            }}}}
+        assert summary_verdicts(format_summary_table(results)) == {
+            ("s", "a", "vs none"): Verdict(-0.55, True), ("s", "b", "vs none"): Verdict(0.2, False)}
+
+
+class TestCompare:
+    a = {("s", "m", "vs none"): Verdict(-1.0, True), ("s", "k", "vs none"): Verdict(0.2, False),
+         ("s", "j", "vs none"): Verdict(0.4, True), ("s", "i", "vs none"): Verdict(-0.1, False),
+         ("s", "h", "vs none"): Verdict(-0.3, True), ("s", "only", "vs none"): Verdict(1.0, True)}
+    b = {("s", "m", "vs none"): Verdict(+0.9, True), ("s", "k", "vs none"): Verdict(0.3, True),
+         ("s", "j", "vs none"): Verdict(0.1, True), ("s", "i", "vs none"): Verdict(0.2, False),
+         ("s", "h", "vs none"): Verdict(0.1, False)}
+
+    def test_outcomes(self):
+        outcome = compare_verdicts(self.a, self.b)
+        assert outcome == {
+            "same": [("s", "i", "vs none"), ("s", "j", "vs none")],  # unresolved in both; worse in both
+            "reversed": [("s", "m", "vs none")],
+            "significance": [("s", "k", "vs none")],
+            "significance and sign": [("s", "h", "vs none")],
+            "only in one": [("s", "only", "vs none")],
+        }
+        # symmetric up to the order of the arguments
+        assert compare_verdicts(self.b, self.a) == outcome
+
+    def test_identical_runs_agree_everywhere(self):
+        outcome = compare_verdicts(self.a, dict(self.a))
+        assert outcome["same"] == sorted(self.a) and not any(outcome[k] for k in outcome if k != "same")
+
+    def test_text_names_every_moved_cell(self):
+        text = format_verdict_comparison(self.a, self.b, names=("first", "second"))
+        assert text.startswith("5 verdicts in both runs: 2 the same")
+        assert "1 reversed" in text and "1 changed significance only" in text
+        assert "| s | m | vs none | -1.00 (better) | +0.90 (worse) | reversed |" in text
+        assert "| s | i |" not in text  # unchanged cells are not listed
+
+    def test_command_exit_status(self, tmp_path, capsys):
+        first, second = tmp_path / "a.md", tmp_path / "b.md"
+        first.write_text(table(("s", "m", "**-1.00 [-1.5, -0.5]**", "—")))
+        second.write_text(table(("s", "m", "**+0.90 [+0.5, +1.3]**", "—")))
+        assert cli.main(["compare", str(first), str(second)]) == 1
+        assert "1 reversed" in capsys.readouterr().out
+        assert cli.main(["compare", str(first), str(first)]) == 0
+        assert cli.main(["compare", str(first), str(tmp_path / "missing.md")]) == 2
+        assert "no such file" in capsys.readouterr().err
+        (tmp_path / "plain.md").write_text("no table here\n")
+        assert cli.main(["compare", str(first), str(tmp_path / "plain.md")]) == 2
+        assert "no summary table" in capsys.readouterr().err
+
+
+class TestCommittedRuns:
+    """The README's run against the same protocol under ATEN_CPU_CAPABILITY=default."""
+
+    def test_the_second_run_used_another_kernel_set(self):
+        committed, other = COMMITTED.read_text(), OTHER_KERNELS.read_text()
+        assert "ATEN_CPU_CAPABILITY=default" in other and "DEFAULT kernels" in other
+        assert "ATEN_CPU_CAPABILITY" not in committed.split("###")[0]
+        for text in (committed, other):
+            assert re.search(r"Produced by commit `[0-9a-f]{40}`", text)
+
+    def test_no_verdict_reverses_and_significance_moves_only_where_stated(self):
+        committed, other = summary_verdicts(COMMITTED.read_text()), summary_verdicts(OTHER_KERNELS.read_text())
+        outcome = compare_verdicts(committed, other)
+        shared = len(committed.keys() & other.keys())
+        assert shared >= 20, f"only {shared} verdicts in both runs"
+        assert outcome["reversed"] == []
+        assert outcome["significance and sign"] == []
+        assert outcome["significance"] == EXPECTED_SIGNIFICANCE_CHANGES
+
+
+#: Cells whose significance differs between the two kernel sets (the spread the README states).
+EXPECTED_SIGNIFICANCE_CHANGES: list[tuple[str, str, str]] = []
+
+
+def test_command_runs_as_a_module():
+    done = subprocess.run([sys.executable, "-m", "event_transforms.tactile.cli", "compare", str(COMMITTED),
+                           str(OTHER_KERNELS)], capture_output=True, text=True, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert "verdicts in both runs" in done.stdout
