@@ -330,3 +330,49 @@ class TestDetectionRate:
         assert all(r["blocks"] == 2 for r in results.values())
         assert results["hot pixels 10×"]["detected"] == 2  # hot pixels declare a noise gap
         assert "detected" in _section(path, "detection_rate")
+
+
+class TestSizeModelNetwork:
+    """benchmarks/size_model_network.py without its training (the run takes minutes)."""
+
+    def test_variant_changes_the_size_model_of_both_sessions_only(self):
+        from benchmarks import size_model_network
+        from event_transforms.tactile.scenes import SCENES
+
+        for name in size_model_network.METHODS:
+            scene = SCENES[name]
+            thin = size_model_network.variant(scene, "thin-layer")
+            assert thin.name == f"{name}@thin-layer" and thin.gaps == scene.gaps
+            assert thin.train.config.width_exponent == thin.deploy.config.width_exponent == pytest.approx(1 / 3)
+            assert thin.train.diameters_mm == scene.train.diameters_mm
+            assert thin.deploy.diameters_mm == scene.deploy.diameters_mm
+            assert thin.matched_methods == scene.matched_methods
+            grow = size_model_network.variant(scene, "hertz-growing")
+            assert grow.deploy.config.strip_length_exponent == grow.deploy.config.contrast_exponent == 0.5
+            assert size_model_network.variant(scene, "hertz").train == scene.train
+
+    def test_rows_pair_by_seed(self):
+        from benchmarks import size_model_network
+
+        def method(values, delta=None):
+            return {"test_mse": values, "delta_vs_none": delta}
+
+        scenes = {
+            "paper@thin-layer": {"methods": {
+                "none": method([2.0, 2.2, 2.1]),
+                "resize": method([2.0, 2.3, 2.0], {"mean": 0.0, "ci_family": [-0.3, 0.3]}),
+                "stretch": method([1.0, 1.25, 1.1], {"mean": -1.0, "ci_family": [-1.2, -0.8]}),
+            }},
+            "paper-offset@thin-layer": {"methods": {
+                "none": method([4.0, 4.0, 4.1]), "fs-1": method([3.0, 3.1, 3.0], {"mean": -1.0, "ci_family": [-1.3, -0.7]})}},
+            "paper-membrane@thin-layer": {"methods": {
+                "none": method([9.0, 9.0, 9.1]), "fs-1": method([9.5, 9.0, 9.9], {"mean": 0.4, "ci_family": [-0.6, 1.4]})}},
+        }
+        rows = {(r[1], r[2]): r for r in size_model_network.verdict_rows({"thin-layer": {"scenes": scenes}})}
+        stretch_vs_resize = rows[("paper", "stretch − resize")]
+        # paired: differences -1.0, -1.05, -0.9 → mean -0.983, a narrow interval below 0
+        assert stretch_vs_resize[4].startswith("**-0.98 [") and stretch_vs_resize[5] == "3/3"
+        assert stretch_vs_resize[6] == "better"
+        assert rows[("paper-membrane", "fs-1 − none")][6] == "not resolved"
+        assert rows[("paper-membrane", "fs-1 − none")][5] == "0/3"
+        assert rows[("paper-offset", "fs-1 − none")][4] == "**-1.00 [-1.30, -0.70]**"
