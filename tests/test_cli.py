@@ -703,6 +703,10 @@ class TestEqualTime:
         assert "Δ vs none at equal time" in table.splitlines()[0]
         assert "| 8 (the budget) | — |" in table
         assert results["config"]["equal_time"] is True
+        pytest.importorskip("matplotlib")
+        paths = cli._plots(results, tmp_path)
+        assert tmp_path / "accuracy_at_equal_time.png" in paths
+        assert (tmp_path / "accuracy_at_equal_time.png").stat().st_size > 0
 
     def test_off_by_default_in_run_protocol_and_full(self, tmp_path):
         plan = experiment.plan_run(["paper"], {"paper": ["none", "stretch"]}, [0, 1], TINY, equal_time=True)
