@@ -513,7 +513,23 @@ def bin_events(
     b = len(batch)
     total = b * n_frames * grid.frame_size
     counts = _bin_counts(batch, starts, n_frames, grid, total)
+    _warn_lost(batch, starts, n_frames, grid.frame_us, frame_ms)
     return counts.view(b, n_frames, 2, grid.out_h, grid.out_w)
+
+
+def _warn_lost(batch: EventBatch, starts: Tensor, n_frames: int, frame_us: float | int, frame_ms: float) -> None:
+    """The warnings of :func:`events_to_frames` for the events binning drops (outside the
+    sensor or the window): one host read of the counts."""
+    from ..functional._event_ops import warn_dropped
+
+    if batch.num_events == 0:
+        return
+    height, width = batch.sensor_size
+    x, y = batch.x, batch.y
+    outside_sensor = (x < 0) | (x >= width) | (y < 0) | (y >= height)
+    _, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
+    warn_dropped(batch, outside_sensor=outside_sensor, outside_window=~inside & ~outside_sensor,
+                 window=f"n_frames={n_frames} of frame_ms={frame_ms!r}", stacklevel=4)
 
 
 def _bins_of(rel: Tensor, frame_us: float | int, n_frames: int) -> tuple[Tensor, Tensor]:

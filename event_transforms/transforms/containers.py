@@ -141,7 +141,6 @@ class Compose(EventTransform):
                 )
         return frames
 
-    apply_events = apply  # members dispatch on what they are handed (events, then frames)
 
 
 class OneOf(EventTransform):
@@ -210,7 +209,6 @@ class OneOf(EventTransform):
         ]
         return apply_by_group(frames, params["index"], branches)
 
-    apply_events = apply
 
     def _settings(self) -> str:
         return f"weights={[round(w, 4) for w in self.weights.tolist()]}"
@@ -253,4 +251,3 @@ class RandomApply(EventTransform):
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self.transform._run(frames, params["0"])
 
-    apply_events = apply
