@@ -544,14 +544,16 @@ def bin_events(
     stream with the same ``t_start``, ``frame_ms``, ``n_frames``, ``crop`` and ``pool``
     (and the same bin arithmetic: int64 for integer timestamps). If the batch carries a
     frame grid, its starts are used (``t_start`` is ignored, ``frame_ms`` must match or be
-    ``None``, ``n_frames`` defaults to the grid's). Events outside the sensor, the crop or
-    the time window are dropped silently (a transform may have moved them there).
+    ``None``, ``n_frames`` defaults to the grid's). Events outside the crop are left out by
+    request; events outside the sensor or the time window (a transform may have moved them
+    there) are dropped with an :class:`EventsOutsideSensorWarning` or
+    :class:`EventsOutsideWindowWarning` that gives their count, as :func:`events_to_frames` does.
 
     One scatter for the whole batch: int32 linear indices (int64 past 2**31 slots), an
     event outside the window, sensor or crop counted in one spare slot, one ``index_add_``
     of ones straight into the output dtype (when every count fits it exactly; else int32
     and a checked cast), by the kernel of ``events_to_frames``. No ``bincount`` (on accelerators it reads its maximum back). No
-    host synchronisation, except ``n_frames=None`` without a grid (the last bin is read
+    host synchronisation, except the one read of the dropped counts for the warnings, ``n_frames=None`` without a grid (the last bin is read
     back) and ``t_start="floor"``/``"first"`` without a grid (the first events).
 
     Example:
@@ -590,7 +592,24 @@ def bin_events(
     b = len(batch)
     total = b * n_frames * grid.frame_size
     counts = _bin_counts(batch, starts, n_frames, grid, total)
+    _warn_lost(batch, starts, n_frames, grid.frame_us, frame_ms)
     return counts.view(b, n_frames, 2, grid.out_h, grid.out_w)
+
+
+def _warn_lost(batch: EventBatch, starts: Tensor, n_frames: int, frame_us: float | int, frame_ms: float) -> None:
+    """The warnings of :func:`events_to_frames` for the events binning drops (outside the
+    sensor or the window): one host read of the counts."""
+    from ..functional._event_ops import warn_dropped
+    from .binning import _bins_of
+
+    if batch.num_events == 0:
+        return
+    height, width = batch.sensor_size
+    x, y = batch.x, batch.y
+    outside_sensor = (x < 0) | (x >= width) | (y < 0) | (y >= height)
+    _, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
+    warn_dropped(batch, outside_sensor=outside_sensor, outside_window=~inside & ~outside_sensor,
+                 window=f"n_frames={n_frames} of frame_ms={frame_ms!r}", stacklevel=4)
 
 
 def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:

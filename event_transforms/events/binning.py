@@ -53,7 +53,7 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from numbers import Integral, Real
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -907,7 +907,14 @@ def _check_bytes(
         )
 
 
-def _warn_outside(tally: _Tally, total: int, grid: _Grid, stacklevel: int) -> None:
+class _SensorSize(NamedTuple):
+    """The two fields of a grid that the sensor warning reads."""
+
+    height: int
+    width: int
+
+
+def _warn_outside(tally: _Tally, total: int, grid: _Grid | _SensorSize, stacklevel: int) -> None:
     if not tally.outside:
         return
     (x_low, x_high), (y_low, y_high) = tally.x_range, tally.y_range

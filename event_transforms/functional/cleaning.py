@@ -11,8 +11,9 @@ import torch
 from torch import Tensor
 
 from .._validation import as_batch, as_number, check_frames, check_positive
+from ._dispatch import kernel_for, register_kernel
 
-__all__ = ["hot_pixels", "denoise"]
+__all__ = ["hot_pixels", "denoise", "denoise_frames"]
 
 
 def hot_pixels(frames: Tensor, rate_hz: float, *, frame_ms: float = 10.0) -> Tensor:
@@ -70,10 +71,11 @@ def denoise(frames: Tensor, *, radius: int = 1, temporal_radius: int = 1) -> Ten
         >>> denoise(frames).nonzero().tolist()
         [[0, 0, 3, 3], [1, 1, 4, 4]]
     """
+    kernel = kernel_for(denoise, frames)
     batch, unbatch = as_batch(check_frames(frames))
     spatial = as_number(radius, "radius", integer=True, low=0)
     temporal = as_number(temporal_radius, "temporal_radius", integer=True, low=0)
-    return unbatch(_denoise(batch, spatial, temporal))
+    return unbatch(kernel(batch, spatial, temporal))
 
 
 def _box_sum(values: Tensor, dim: int, radius: int) -> Tensor:
@@ -87,7 +89,8 @@ def _box_sum(values: Tensor, dim: int, radius: int) -> Tensor:
     return total.narrow(dim, 2 * radius + 1, size) - total.narrow(dim, 0, size)
 
 
-def _denoise(batch: Tensor, radius: int, temporal_radius: int) -> Tensor:
+@register_kernel(denoise, Tensor)
+def denoise_frames(batch: Tensor, radius: int, temporal_radius: int) -> Tensor:
     if batch.numel() == 0:
         return batch.clone()
     occupied = batch > 0  # (B, T, 2, H, W)

@@ -15,8 +15,9 @@ import torch
 from torch import Tensor
 
 from .._validation import as_batch, as_number, check_frames, describe, per_sample
+from ._dispatch import kernel_for, register_kernel
 
-__all__ = ["cutout", "cutmix", "mixup", "mix_labels"]
+__all__ = ["cutout", "cutout_frames", "cutmix", "cutmix_frames", "mixup", "mixup_frames", "mix_labels"]
 
 Scalars = float | Sequence[float] | Tensor
 
@@ -67,11 +68,13 @@ def cutout(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, width: 
         >>> cutout(torch.ones(1, 2, 3, 4, dtype=torch.int16), 1, 1, 2, 2)[0, 0].tolist()
         [[1, 1, 1, 1], [1, 0, 0, 1], [1, 0, 0, 1]]
     """
+    kernel = kernel_for(cutout, frames)
     batch, unbatch = as_batch(check_frames(frames))
-    return unbatch(_cutout(batch, *_check_box(batch, top, left, height, width)))
+    return unbatch(kernel(batch, *_check_box(batch, top, left, height, width)))
 
 
-def _cutout(batch: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
+@register_kernel(cutout, Tensor)
+def cutout_frames(batch: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
     mask = _box_mask(top, left, height, width, batch.shape[-2:], batch.device)
     return batch.masked_fill(mask, 0)
 
@@ -94,12 +97,14 @@ def cutmix(frames: Tensor, partner: Scalars, top: Scalars, left: Scalars, height
         >>> cutmix(frames, [1, 0], 0, 1, 2, 1)[0, 0, 0].tolist()
         [[0.0, 1.0, 0.0], [0.0, 1.0, 0.0]]
     """
+    kernel = kernel_for(cutmix, frames)
     batch, unbatch = as_batch(check_frames(frames))
     partner_t = _check_partner(partner, batch.shape[0])
-    return unbatch(_cutmix(batch, partner_t, *_check_box(batch, top, left, height, width)))
+    return unbatch(kernel(batch, partner_t, *_check_box(batch, top, left, height, width)))
 
 
-def _cutmix(batch: Tensor, partner: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
+@register_kernel(cutmix, Tensor)
+def cutmix_frames(batch: Tensor, partner: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
     mask = _box_mask(top, left, height, width, batch.shape[-2:], batch.device)
     return torch.where(mask, batch.index_select(0, partner.to(batch.device, non_blocking=True)), batch)
 
@@ -120,10 +125,11 @@ def mixup(frames: Tensor, partner: Scalars, weight: Scalars) -> Tensor:
         >>> mixup(frames, [1, 0], [0.75, 0.5]).flatten().tolist()
         [0.25, 0.25, 0.5, 0.5]
     """
+    kernel = kernel_for(mixup, frames)
     batch, unbatch = as_batch(check_frames(frames))
     partner_t = _check_partner(partner, batch.shape[0])
     weight_t = _check_weight(weight, batch.shape[0])
-    return unbatch(_mixup(batch, partner_t, weight_t))
+    return unbatch(kernel(batch, partner_t, weight_t))
 
 
 def _check_weight(weight: object, batch: int) -> Tensor:
@@ -133,7 +139,8 @@ def _check_weight(weight: object, batch: int) -> Tensor:
     return weight_t
 
 
-def _mixup(batch: Tensor, partner: Tensor, weight: Tensor) -> Tensor:
+@register_kernel(mixup, Tensor)
+def mixup_frames(batch: Tensor, partner: Tensor, weight: Tensor) -> Tensor:
     out_dtype = batch.dtype if batch.dtype.is_floating_point else torch.float32
     work = torch.float64 if batch.dtype == torch.float64 else torch.float32
     w = weight.to(batch.device, work, non_blocking=True).view(-1, 1, 1, 1, 1)

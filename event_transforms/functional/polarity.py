@@ -11,19 +11,54 @@ import torch
 from torch import Tensor
 
 from .._validation import as_batch, check_frames
-from .geometry import _sum_in
+from ..events.batch import EventBatch
+from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
+from ._event_ops import _per_event
+from .geometry import _flags, _sum_in
 
-__all__ = ["flip_polarity", "merge_polarities"]
+__all__ = [
+    "flip_polarity", "flip_polarity_frames", "flip_polarity_events", "merge_polarities", "merge_polarities_frames",
+]
 
 
-def flip_polarity(frames: Tensor) -> Tensor:
+def flip_polarity(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Tensor | EventBatch:
     """Swap the OFF and ON channels of every frame. Counts and dtype are kept.
+
+    Args:
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch
+            (``p -> 1 - p``).
+        flip: ``(B,)`` bool, the samples to flip (default: all).
 
     Example:
         >>> flip_polarity(torch.tensor([[[[1]], [[5]]]]))[0, :, 0, 0].tolist()
         [5, 1]
     """
-    return check_frames(frames).flip(-3)
+    batch, b, restore = batch_of(inputs)
+    return restore(call_kernel(flip_polarity, batch, _flags(flip, b)))
+
+
+@register_kernel(flip_polarity, Tensor)
+def flip_polarity_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
+    """Kernel of :func:`flip_polarity` for frames ``(B, T, 2, H, W)``: the flagged samples flipped."""
+    swapped = frames.flip(-3)
+    if flip is None or all(flip.tolist()):
+        return swapped
+    return torch.where(flip.to(frames.device).view(-1, 1, 1, 1, 1), swapped, frames)
+
+
+@register_kernel(flip_polarity, EventBatch)
+def flip_polarity_events(batch: EventBatch, flip: Tensor | None = None) -> EventBatch:
+    """Kernel of :func:`flip_polarity` for an EventBatch: ON and OFF swapped in the flagged samples. Sync-free."""
+    flags = [True] * len(batch) if flip is None else flip.tolist()
+    if not any(flags):
+        return batch
+    swapped = 1 - batch.p
+    if all(flags):
+        p = swapped
+    else:
+        assert flip is not None  # not every flag is set, so flip was given
+        p = torch.where(_per_event(flip, batch), swapped, batch.p)
+    return batch._replace(p=p.to(torch.int8))
 
 
 def merge_polarities(frames: Tensor, *, keepdim: bool = True) -> Tensor:
@@ -48,11 +83,14 @@ def merge_polarities(frames: Tensor, *, keepdim: bool = True) -> Tensor:
     """
     if not isinstance(keepdim, bool):
         raise TypeError(f"keepdim must be a bool, got {keepdim!r}")
+    kernel = kernel_for(merge_polarities, frames)
     batch, unbatch = as_batch(check_frames(frames))
-    return unbatch(_merge_polarities(batch, keepdim))
+    return unbatch(kernel(batch, keepdim))
 
 
-def _merge_polarities(batch: Tensor, keepdim: bool) -> Tensor:
+@register_kernel(merge_polarities, Tensor)
+def merge_polarities_frames(batch: Tensor, keepdim: bool = True) -> Tensor:
+    """Kernel of :func:`merge_polarities` for frames ``(B, T, 2, H, W)``."""
     merged = _sum_in(batch, 2, "merge_polarities", keepdim=True)
     if not keepdim:
         return merged

@@ -16,9 +16,10 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, per_sample
+from ._dispatch import kernel_for, register_kernel
 from .affine import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _output_dtype, _warp
 
-__all__ = ["stretch", "contact_axis"]
+__all__ = ["stretch", "stretch_frames", "contact_axis"]
 
 Scalars = float | Tensor
 
@@ -97,7 +98,7 @@ def contact_axis(frames: Tensor) -> Tensor:
     return unbatch(torch.rad2deg(_axis_radians(covariance)))
 
 
-def _stretch(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Center, mode: str) -> Tensor:
+def stretch_frames(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Center, mode: str) -> Tensor:
     """:func:`stretch` on a (B, T, 2, H, W) batch: (B,) float64 CPU ``factor``; ``axis`` is
     ``"contact"`` or (B,) float64 CPU degrees.
 
@@ -207,12 +208,14 @@ def stretch(
         >>> out[0, 1].tolist()
         [[0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.5, 0.5, 0.0], [0.0, 1.0, 1.0, 1.0, 0.0], [0.0, 0.5, 0.5, 0.5, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0]]
     """
+    kernel = kernel_for(stretch, frames)
     batch, unbatch = as_batch(check_frames(frames))
     b = batch.shape[0]
     factor_t = _check_factor(factor, b)
     axis_t = _check_axis(axis, b)
     check_choice(mode, "mode", INTERPOLATIONS)
     center = _check_center(center, b)
-    return unbatch(_stretch(batch, factor_t, axis_t, center, mode))
+    return unbatch(kernel(batch, factor_t, axis_t, center, mode))
 
 
+register_kernel(stretch, Tensor)(stretch_frames)

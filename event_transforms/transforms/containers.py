@@ -143,7 +143,6 @@ class Compose(EventTransform):
                 )
         return frames
 
-    apply_events = apply  # type: ignore[assignment]  # members dispatch on what they are handed (events, then frames)
 
 
 class OneOf(EventTransform):
@@ -214,7 +213,6 @@ class OneOf(EventTransform):
         ]
         return apply_by_group(frames, params["index"], branches)
 
-    apply_events = apply  # type: ignore[assignment]  # members take events or frames
 
     def _settings(self) -> str:
         return f"weights={[round(w, 4) for w in self.weights.tolist()]}"
@@ -257,4 +255,3 @@ class RandomApply(EventTransform):
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self.transform._run(frames, params["0"])
 
-    apply_events = apply  # type: ignore[assignment]  # the member takes events or frames

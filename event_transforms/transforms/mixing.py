@@ -36,7 +36,9 @@ from torch import Tensor
 
 from .._validation import as_number, check_positive
 from ..functional.geometry import _size
-from ..functional.mixing import _check_classes, _cutmix, _cutout, _mix_labels, _mixup
+from .. import functional as F
+from ..functional._dispatch import call_kernel
+from ..functional.mixing import _check_classes, _mix_labels
 from .base import EventTransform, Param, Params, _draw_device, integers, seeds
 
 __all__ = ["Cutout", "CutMix", "MixUp"]
@@ -103,7 +105,7 @@ class Cutout(EventTransform):
         return _box_spec(shape)
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _cutout(frames, params["top"], params["left"], params["height"], params["width"])
+        return call_kernel(F.cutout, frames, params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
         return f"size={self.size}"
@@ -205,7 +207,7 @@ class CutMix(_Mixing):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         partner, _ = self._effective(params)
-        return _cutmix(frames, partner, params["top"], params["left"], params["height"], params["width"])
+        return call_kernel(F.cutmix, frames, partner, params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
         return self._common()
@@ -244,7 +246,7 @@ class MixUp(_Mixing):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         partner, weight = self._effective(params)
-        return _mixup(frames, partner, weight)
+        return call_kernel(F.mixup, frames, partner, weight)
 
     def _settings(self) -> str:
         return self._common()

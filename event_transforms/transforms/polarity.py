@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from torch import Tensor
 
-from ..functional.polarity import _merge_polarities
+from .. import functional as F
+from ..events.batch import EventBatch
+from ..functional._dispatch import call_kernel
 from .base import EventTransform, Params
 
 __all__ = ["FlipPolarity", "RandomFlipPolarity", "MergePolarities"]
@@ -27,8 +29,10 @@ class FlipPolarity(EventTransform):
         [5, 1]
     """
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return frames.flip(2)
+    _gates_itself = True
+
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.flip_polarity, inputs, params.get("apply"))
 
 
 class RandomFlipPolarity(FlipPolarity):
@@ -65,7 +69,7 @@ class MergePolarities(EventTransform):
         [[3, 3], [0, 0]]
     """
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _merge_polarities(frames, True)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.merge_polarities, inputs, True)
 
 

@@ -17,7 +17,9 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
 from ..functional.affine import Center, _check_center
-from ..functional.stretch import CONTACT, _check_axis, _stretch
+from .. import functional as F
+from ..functional._dispatch import call_kernel
+from ..functional.stretch import CONTACT, _check_axis
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = ["Stretch", "RandomStretch"]
@@ -41,7 +43,7 @@ class _StretchWarp(EventTransform):
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         b = frames.shape[0]
         axis = self.axis if isinstance(self.axis, str) else torch.full((b,), self.axis, dtype=torch.float64)
-        return _stretch(frames, params["factor"], axis, self.center, self.mode)
+        return call_kernel(F.stretch, frames, params["factor"], axis, self.center, self.mode)
 
     def _common(self) -> str:
         return f"axis={self.axis!r}, center={self.center!r}, mode={self.mode!r}"
