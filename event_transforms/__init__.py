@@ -57,7 +57,7 @@ _NAMES: dict[str, str] = {
     "EventBatch": "functional",
     "collate_events": "functional",
 }
-_SUBMODULES = ("functional", "transforms", "scenes", "inference", "data", "viz", "tactile")
+_SUBMODULES = ("functional", "events", "transforms", "scenes", "inference", "data", "viz", "tactile")
 
 __all__ = ["__version__", *_SUBMODULES, *_NAMES]
 

@@ -16,7 +16,7 @@ from event_transforms import functional as F
 from event_transforms.functional import EventBatch, bin_events, collate_events, events_to_frames
 from event_transforms.functional import event_kernels as K
 from event_transforms.functional import frame_shift, time_reversal, to_voxel_grid
-from event_transforms.functional.event_batch import merge_streams
+from event_transforms.events.batch import merge_streams
 from event_transforms.transforms.base import slice_params
 
 SENSOR = (11, 17)  # non-square, H first

@@ -11,8 +11,8 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from event_transforms.functional.events import EventsOutsideSensorWarning, EventsOutsideWindowWarning, events_to_frames
-from event_transforms.functional.streaming import iter_frames
+from event_transforms.events.binning import EventsOutsideSensorWarning, EventsOutsideWindowWarning, events_to_frames
+from event_transforms.events.streaming import iter_frames
 
 TONIC_DTYPE = [("x", int), ("y", int), ("t", int), ("p", int)]
 
@@ -488,7 +488,7 @@ class TestRealRecordings:
             events_to_frames(events, tonic_sensor_size=(320, 240, 1))
 
     def test_chunks_bound_what_is_converted_at_once(self, monkeypatch):
-        import event_transforms.functional.events as module
+        import event_transforms.events.binning as module
 
         seen = []
         original = module._column

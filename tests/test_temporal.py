@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import event_transforms as et
 from event_transforms import functional as F
 from event_transforms._validation import as_batch
-from event_transforms.functional._streams import draw_seeds
+from event_transforms.functional._random import draw_seeds
 from event_transforms.functional.temporal import _draw_moved, _entries, _fractions, _temporal_event_shift
 from event_transforms.transforms import (
     FrameShift,

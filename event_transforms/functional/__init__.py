@@ -14,10 +14,10 @@ from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
 from .noise import *  # noqa: F401,F403
 from .noise import __all__ as _noise
-from .events import *  # noqa: F401,F403
-from .events import __all__ as _events
-from .streaming import *  # noqa: F401,F403
-from .streaming import __all__ as _streaming
+from ..events.binning import *  # noqa: F401,F403
+from ..events.binning import __all__ as _events
+from ..events.streaming import *  # noqa: F401,F403
+from ..events.streaming import __all__ as _streaming
 
 from .geometry import *  # noqa: F401,F403
 from .geometry import __all__ as _geometry
@@ -32,8 +32,8 @@ from .drop import __all__ as _drop
 from .representations import *  # noqa: F401,F403
 from .representations import __all__ as _representations
 
-from .event_batch import *  # noqa: F401,F403
-from .event_batch import __all__ as _event_batch
+from ..events.batch import *  # noqa: F401,F403
+from ..events.batch import __all__ as _event_batch
 from .event_kernels import *  # noqa: F401,F403
 from .event_kernels import __all__ as _event_kernels
 

@@ -31,7 +31,7 @@ import torch
 from torch import Tensor
 
 from .._validation import read_host
-from ._streams import draw_seeds, entry_keys, generator_for, sample_salts, sub_uniform, uniform53
+from ._random import draw_seeds, entry_keys, generator_for, sample_salts, sub_uniform, uniform53
 
 __all__ = ["segment_sum", "Stream", "binomial_counts", "multivariate_hypergeometric"]
 

@@ -16,7 +16,7 @@ from torch import Tensor
 
 from .._validation import DROP_MODES, as_batch, check_choice, check_frames, check_generator, count_stats, describe, per_sample
 from ._hypergeometric import _EXPAND_MAX, Stream, binomial_counts
-from ._streams import draw_seeds
+from ._random import draw_seeds
 
 __all__ = ["drop_events", "drop_by_time", "drop_by_area", "drop_pixel", "random_pixel_mask"]
 

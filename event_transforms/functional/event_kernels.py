@@ -37,8 +37,8 @@ import torch
 from torch import Tensor
 
 from .._validation import read_host
-from .event_batch import EventBatch
-from .events import _frame_us
+from ..events.batch import EventBatch
+from ..events.binning import _frame_us
 
 __all__ = [
     "flip_events", "translate_events", "affine_events", "shift_events", "drop_events_random",
@@ -213,7 +213,7 @@ def _groups(batch: EventBatch) -> tuple[Tensor, int]:
     """Per event its group ``(sample * T + bin) * 2 + p`` (int32; ``G`` outside the grid's
     window) and the number of groups G."""
     starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
-    from .event_batch import _bins_of, _relative_times
+    from ..events.batch import _bins_of, _relative_times
 
     sample = batch.sample_index()
     bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
@@ -575,7 +575,7 @@ def drop_window(
     (``time``) or in the sensor rectangle ``top, left, height, width`` (``area``): the
     event form of ``drop_by_time``/``drop_by_area``. One host read of the kept counts."""
     if time is not None:
-        from .event_batch import _bins_of, _relative_times
+        from ..events.batch import _bins_of, _relative_times
 
         starts, frame_us, n_frames = _require_grid(batch, "RandomEventDrop (time)")
         bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from ._streams import draw_seeds, entry_keys, generator_for, sample_salts, sub_uniform
+from ._random import draw_seeds, entry_keys, generator_for, sample_salts, sub_uniform
 from .._validation import (
     as_batch,
     check_counts,

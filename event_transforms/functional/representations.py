@@ -18,8 +18,8 @@ import torch
 from torch import Tensor
 
 from .._validation import check_choice, per_sample
-from .event_batch import EventBatch
-from .events import _columns, _pair, _polarity_channel, _positive_int, _valid_mask
+from ..events.batch import EventBatch
+from ..events.binning import _columns, _pair, _polarity_channel, _positive_int, _valid_mask
 
 __all__ = ["to_voxel_grid", "to_time_surface"]
 

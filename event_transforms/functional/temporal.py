@@ -25,7 +25,7 @@ from .._validation import (
     TES_MODES, as_batch, as_number, check_choice, check_counts, check_frames, check_generator, count_stats, describe, on_host,
     per_sample, read_host,
 )
-from ._streams import draw_seeds
+from ._random import draw_seeds
 from ._hypergeometric import (
     _EXPAND_MAX, Stream, binomial_counts, level_stats, multivariate_hypergeometric, segment_sum,
 )

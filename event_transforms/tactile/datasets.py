@@ -37,7 +37,7 @@ from torch.utils.data import Dataset
 
 from .._validation import check_seed
 from ..transforms.base import as_transform
-from ..functional.events import events_to_frames
+from ..events.binning import events_to_frames
 from .scenes import BenchmarkScene, Session, get_scene
 from .simulation import (
     SIMULATOR_VERSION,

@@ -58,7 +58,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..functional.events import events_to_frames
+from ..events.binning import events_to_frames
 
 #: Bumped whenever the model changes what a seed produces (keys the data-set cache).
 SIMULATOR_VERSION = 2

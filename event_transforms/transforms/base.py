@@ -39,7 +39,7 @@ import torch
 from torch import Tensor, nn
 
 from .._validation import as_batch, check_frames, check_probability, check_shape
-from ..functional.event_batch import EventBatch, merge_streams
+from ..events.batch import EventBatch, merge_streams
 from ._params import CHECK_RANGE, Param, Spec, check_tree
 
 __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY", "register_event_kernel"]

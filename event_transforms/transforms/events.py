@@ -8,8 +8,8 @@ import torch
 from torch import Tensor
 
 from .._validation import FRAME_DTYPES
-from ..functional.event_batch import EventBatch, bin_events
-from ..functional.events import CHUNK_EVENTS, _grid, _integer, _T_STARTS, _explicit_starts, events_to_frames
+from ..events.batch import EventBatch, bin_events
+from ..events.binning import CHUNK_EVENTS, _grid, _integer, _T_STARTS, _explicit_starts, events_to_frames
 from .base import EventTransform, Params
 
 __all__ = ["EventsToFrames"]

@@ -47,7 +47,7 @@ from torch import Tensor
 from .._validation import check_pair, describe
 from ..functional import event_kernels as K
 from ..functional.drop import _pixel_mask, random_pixel_mask
-from ..functional.event_batch import EventBatch
+from ..events.batch import EventBatch
 from .base import _EVENT_NEUTRAL, EventTransform, Params, integers, register_event_kernel, seeds, uniform
 from . import affine as _affine
 from . import drop as _drop

@@ -38,7 +38,7 @@ import torch
 from torch import Tensor
 
 from .._validation import read_host
-from .events import (
+from .binning import (
     _T_STARTS,
     _columns,
     _explicit_starts,

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .events import (
+from .binning import (
     _FIELDS, _T_STARTS, _as_dtype, _empty_window_error, _explicit_starts, _flat_index, _floor_to_grid, _Grid, _grid,
     _integer, _Source, _source, _Tally, _time_bins, _warn_outside,
 )
