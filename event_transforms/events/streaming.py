@@ -64,6 +64,11 @@ def iter_frames(
         dtype: dtype of the yielded counts.
         frames_per_step: bins counted at once within a chunk (bounds the buffer).
 
+    Shape:
+        - chunks: each ``(N_k, 4)`` rows ``(x, y, t, p)``, a structured array or a mapping of
+          ``(N_k,)`` columns.
+        - yields: ``(2, H', W')``, ``(H', W')`` the crop divided by ``pool``.
+
     Yields:
         ``(2, H', W')`` counts, one per bin from ``t_start`` on.
 

@@ -60,6 +60,10 @@ def center_of_mass(frames: Tensor) -> Tensor:
         float64 tensor ``(2,)`` for one sequence or ``(B, 2)`` for a batch, on the
         frames' device, in pixel coordinates (row, column).
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(2,)`` or ``(B, 2)`` float ``(y, x)`` on the frames' device.
+
     Example:
         >>> frames = torch.zeros(3, 2, 5, 7)
         >>> frames[0, 1, 1, 2] = 1.0
@@ -389,6 +393,12 @@ def resize(frames: Tensor, scale: Scalars, *, center: Center = "mass", mode: str
     Returns:
         The resized frames, same shape and device; dtype as in :func:`rotate`.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - scale: a number or ``(B,)``.
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
         >>> frames[0, 0, 2, 3] = 1.0  # one pixel right of the centre
@@ -426,6 +436,12 @@ def affine(
 
     Returns:
         The warped frames, same shape and device; dtype as in :func:`rotate`.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - angle, scale: a number or ``(B,)``; translate, shear: a pair or ``(B, 2)``.
 
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
@@ -562,6 +578,12 @@ def perspective(frames: Tensor, corners: Sequence[Sequence[float]] | Tensor, *, 
     Returns:
         The warped frames, same shape and device; dtype as in :func:`rotate`.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - corners: ``(4, 2)`` or ``(B, 4, 2)``.
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
         >>> frames[0, 1, 0, 0] = 3  # the top-left corner
@@ -632,6 +654,12 @@ def elastic(
 
     Returns:
         The warped frames, same shape and device; dtype as in :func:`rotate`.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - noise: ``(2, H, W)`` or ``(B, 2, H, W)``; alpha: a number or ``(B,)``.
 
     Example:
         >>> frames = torch.zeros(1, 2, 9, 9)

@@ -29,6 +29,10 @@ def hot_pixels(frames: Tensor, rate_hz: float, *, frame_ms: float = 10.0) -> Ten
     Returns:
         bool ``(H, W)`` or ``(B, H, W)`` on the frames' device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: bool ``(H, W)`` or ``(B, H, W)`` on the frames' device.
+
     Example:
         >>> frames = torch.zeros(10, 2, 2, 3)
         >>> frames[:, 1, 0, 2] = 1.0  # one event per 10 ms frame: 100 Hz
@@ -62,6 +66,10 @@ def denoise(frames: Tensor, *, radius: int = 1, temporal_radius: int = 1) -> Ten
         frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
         radius: spatial half-width of the window in pixels (>= 0).
         temporal_radius: temporal half-width in frames (>= 0).
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
 
     Example:
         >>> frames = torch.zeros(3, 2, 5, 5, dtype=torch.int16)

@@ -46,6 +46,11 @@ def drop_events(
         mode: ``"binomial"`` or ``"expected"``.
         generator: a ``torch.Generator`` on the frames' device, or ``None``.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - fraction: a number or ``(B,)``.
+
     Example:
         >>> frames = torch.full((4, 2, 8, 8), 10, dtype=torch.int32)
         >>> out = drop_events(frames, 0.5, generator=torch.Generator().manual_seed(0))
@@ -116,6 +121,11 @@ def drop_by_time(frames: Tensor, start: Scalars, length: Scalars) -> Tensor:
     Returns:
         Frames with the window zeroed; dtype kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - start, length: integers or ``(B,)``.
+
     Example:
         >>> frames = torch.ones(5, 2, 1, 1, dtype=torch.uint8)
         >>> drop_by_time(frames, 1, 2)[:, 0, 0, 0].tolist()
@@ -140,6 +150,11 @@ def drop_by_area(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, w
 
     Returns:
         Frames with the rectangle zeroed; dtype kept.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - top, left, height, width: integers or ``(B,)``.
 
     Example:
         >>> frames = torch.ones(1, 2, 3, 4)
@@ -200,6 +215,11 @@ def drop_pixel(frames: Tensor, pixels: Tensor | Sequence[Sequence[int]]) -> Tens
     Returns:
         The frames with those pixels zeroed; dtype and device kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - pixels: ``(N, 2)`` integers, or a bool ``(H, W)`` or ``(B, H, W)`` mask.
+
     Example:
         >>> drop_pixel(torch.ones(1, 2, 2, 3, dtype=torch.uint8), [[0, 1], [1, 2]])[0, 0].tolist()
         [[1, 0, 1], [1, 1, 0]]
@@ -231,6 +251,18 @@ def random_pixel_mask(seed: Tensor, fraction: Tensor, height: int, width: int, d
         fraction: ``(B,)`` drop probabilities in [0, 1] (CPU).
         height, width: the frame size.
         device: where the mask is built.
+
+    Shape:
+        - seed, fraction: ``(B,)``.
+        - output: bool ``(B, height, width)`` on ``device``.
+
+    Example:
+        >>> mask = random_pixel_mask(torch.tensor([1, 2]), torch.tensor([0.5, 0.0]), 3, 4, torch.device("cpu"))
+        >>> mask.shape, mask[1].any().item()  # nothing dropped at fraction 0
+        (torch.Size([2, 3, 4]), False)
+        >>> alone = random_pixel_mask(torch.tensor([1]), torch.tensor([0.5]), 3, 4, torch.device("cpu"))
+        >>> torch.equal(mask[:1], alone)  # a sample's mask depends on its own seed only
+        True
     """
     pixel = torch.arange(height * width, dtype=torch.int64, device=device)
     seed = seed.to(device, non_blocking=True).unsqueeze(1)

@@ -77,6 +77,11 @@ def translate(frames: Tensor, shift: Pairs) -> Tensor:
     Returns:
         The moved frames, same shape, dtype and device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - shift: a pair or ``(B, 2)``.
+
     Example:
         >>> frames = torch.arange(1, 7).reshape(1, 1, 2, 3).expand(1, 2, 2, 3)
         >>> translate(frames, (1, -1))[0, 0].tolist()
@@ -186,6 +191,17 @@ def crop(
 def center_crop(frames: Tensor, size: int | Sequence[int], *, resize: bool = False, mode: str = "bilinear") -> Tensor:
     """:func:`crop` at the image centre (the top-left corner rounds down, as in torchvision).
 
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        size: ``n`` or ``(h, w)`` pixels, at most the frame size.
+        resize: resize the window back to ``H × W`` (see :func:`crop`).
+        mode: ``"bilinear"`` or ``"nearest"``, for ``resize=True``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(..., h, w)``, dtype kept; with ``resize=True`` the frames' shape (dtype as in
+          :func:`resize`).
+
     Example:
         >>> center_crop(torch.ones(3, 2, 7, 8), (3, 4)).shape
         torch.Size([3, 2, 3, 4])
@@ -265,6 +281,10 @@ def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = 
         ``(…, H', W')`` with ``H' = H // fy`` (``"drop"``) or ``ceil(H / fy)`` (``"keep"``);
         dtype and device kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(..., H // fy, W // fx)`` (``"keep"``: rounded up), dtype and device kept.
+
     Example:
         >>> frames = torch.ones(1, 2, 5, 4, dtype=torch.int32)
         >>> downsample(frames, 2)[0, 0].tolist(), downsample(frames, 2, remainder="keep")[0, 0].tolist()
@@ -280,6 +300,13 @@ def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = 
 def horizontal_flip(frames: Tensor) -> Tensor:
     """Mirror every frame left-right (along W). Counts and dtype are kept.
 
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
     Example:
         >>> horizontal_flip(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
@@ -288,6 +315,13 @@ def horizontal_flip(frames: Tensor) -> Tensor:
 
 def vertical_flip(frames: Tensor) -> Tensor:
     """Mirror every frame top-bottom (along H). Counts and dtype are kept.
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
 
     Example:
         >>> vertical_flip(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()

@@ -61,6 +61,11 @@ def cutout(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, width: 
         top, left: the box's first row and column, integers >= 0 or ``(B,)``.
         height, width: its size in pixels.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - top, left, height, width: integers or ``(B,)``.
+
     Example:
         >>> cutout(torch.ones(1, 2, 3, 4, dtype=torch.int16), 1, 1, 2, 2)[0, 0].tolist()
         [[1, 1, 1, 1], [1, 0, 0, 1], [1, 0, 0, 1]]
@@ -87,6 +92,11 @@ def cutmix(frames: Tensor, partner: Scalars, top: Scalars, left: Scalars, height
         partner: ``(B,)`` sample indices in ``[0, B)``.
         top, left, height, width: the box per sample, as in :func:`cutout`.
 
+    Shape:
+        - frames: ``(B, T, 2, H, W)`` (or ``(T, 2, H, W)``).
+        - partner: ``(B,)``; top, left, height, width: integers or ``(B,)``.
+        - output: the frames' shape, dtype and device.
+
     Example:
         >>> frames = torch.stack([torch.zeros(1, 2, 2, 3), torch.ones(1, 2, 2, 3)])
         >>> cutmix(frames, [1, 0], 0, 1, 2, 1)[0, 0, 0].tolist()
@@ -112,6 +122,12 @@ def mixup(frames: Tensor, partner: Scalars, weight: Scalars) -> Tensor:
 
     Returns:
         Blended frames: the input dtype for float input, float32 for integer input.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)`` (or ``(T, 2, H, W)``).
+        - partner: ``(B,)``; weight: a number or ``(B,)``.
+        - output: the frames' shape and device; float input keeps its dtype, integer input gives
+          float32.
 
     Example:
         >>> frames = torch.stack([torch.zeros(1, 2, 1, 1), torch.ones(1, 2, 1, 1)]).to(torch.int32)
@@ -154,6 +170,11 @@ def mix_labels(labels: Tensor, partner: Scalars, weight: Scalars, *, num_classes
         partner: ``(B,)`` sample indices, as given to the frames' kernel.
         weight: the sample's own share, a number or ``(B,)``.
         num_classes: number of classes, for integer labels.
+
+    Shape:
+        - labels: ``(B, ...)`` float, or ``(B,)`` integer.
+        - partner: ``(B,)``; weight: a number or ``(B,)``.
+        - output: float labels' shape and dtype; ``(B, num_classes)`` float32 for integer labels.
 
     Example:
         >>> mix_labels(torch.tensor([0, 2]), [1, 0], [0.75, 1.0], num_classes=3).tolist()

@@ -94,6 +94,11 @@ def add_noise(frames: Tensor, noise: Tensor) -> Tensor:
     Returns:
         ``frames + noise`` in the frames' dtype, on the frames' device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - noise: the frames' shape, or ``(T, 2, H, W)`` for a batch.
+        - output: the frames' shape, dtype and device.
+
     Example:
         >>> frames = torch.zeros(2, 2, 3, 4, dtype=torch.int16)
         >>> noise = torch.ones(2, 2, 3, 4, dtype=torch.int16)
@@ -137,6 +142,11 @@ def add_poisson_noise(
 
     Returns:
         Frames plus noise counts, in the frames' dtype.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - rate_hz: a number or ``(B,)``.
 
     Example:
         >>> frames = torch.zeros(36, 2, 70, 75)

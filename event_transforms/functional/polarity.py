@@ -19,6 +19,13 @@ __all__ = ["flip_polarity", "merge_polarities"]
 def flip_polarity(frames: Tensor) -> Tensor:
     """Swap the OFF and ON channels of every frame. Counts and dtype are kept.
 
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
     Example:
         >>> flip_polarity(torch.tensor([[[[1]], [[5]]]]))[0, :, 0, 0].tolist()
         [5, 1]
@@ -39,6 +46,15 @@ def merge_polarities(frames: Tensor, *, keepdim: bool = True) -> Tensor:
     The sum is taken in a wide dtype and returned in the input dtype; 8/16-bit integer
     frames whose sum would overflow raise instead of wrapping (one host synchronisation,
     those dtypes only).
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        keepdim: keep two channels (channel 1 zero) or return one.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: the same shape with ``keepdim=True``; ``(..., T, 1, H, W)`` otherwise. Dtype and
+          device kept.
 
     Example:
         >>> frames = torch.tensor([[[[1, 0]], [[2, 3]]]])

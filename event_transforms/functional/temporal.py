@@ -377,6 +377,13 @@ def time_reversal(frames: Tensor) -> Tensor:
     reversed in time has the opposite sign), as tonic's ``RandomTimeReversal`` does with
     ``flip_polarities=True``. Counts and dtype are kept.
 
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
     Example:
         >>> frames = torch.zeros(3, 2, 1, 1, dtype=torch.int8)
         >>> frames[0, 1] = 4  # ON events in the first frame
@@ -405,6 +412,11 @@ def crop_time(frames: Tensor, start: Scalars, length: int) -> Tensor:
 
     Returns:
         ``(length, 2, H, W)`` or ``(B, length, 2, H, W)``; dtype and device kept.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - start: an integer or ``(B,)``.
+        - output: ``(length, 2, H, W)`` or ``(B, length, 2, H, W)``, dtype and device kept.
 
     Example:
         >>> frames = torch.arange(5).view(5, 1, 1, 1).expand(5, 2, 1, 1)

@@ -40,6 +40,10 @@ class RandomEventDrop(EventTransform):
         methods: the methods to choose from, uniformly.
         p: probability that a sample loses events.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (fewer events).
+
     Example:
         >>> drop = RandomEventDrop(fraction=(0.1, 0.5))
         >>> frames = torch.ones(3, 36, 2, 70, 75)
@@ -126,6 +130,10 @@ class DropPixel(EventTransform):
         frame_ms: the duration of one frame, for ``rate_hz``.
         p: probability that a sample is cleaned.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (``pixels=`` only).
+
     Example:
         >>> frames = torch.zeros(10, 2, 2, 3, dtype=torch.int32)
         >>> frames[:, 1, 0, 2] = 1  # 100 Hz
@@ -181,6 +189,10 @@ class RandomDropPixel(EventTransform):
     Args:
         fraction: share of pixels dropped, in [0, 1], or a ``(min, max)`` range.
         p: probability that a sample is thinned.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> out = RandomDropPixel(0.5)(torch.ones(2, 3, 2, 20, 20), generator=torch.Generator().manual_seed(0))

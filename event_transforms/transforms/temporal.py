@@ -248,6 +248,10 @@ class TimeReversal(EventTransform):
     Args:
         p: probability that a sample is reversed.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` on the same frame grid.
+
     Example:
         >>> frames = torch.zeros(3, 2, 1, 1)
         >>> frames[0, 1] = 4.0
@@ -260,6 +264,13 @@ class TimeReversal(EventTransform):
 
 class RandomTimeReversal(TimeReversal):
     """Reverse each sequence in time (and swap polarities) with probability ``p`` (default 0.5).
+
+    Args:
+        p: probability that a sample is reversed (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` on the same frame grid.
 
     Example:
         >>> RandomTimeReversal(p=1.0)(torch.arange(4.).view(2, 2, 1, 1))[:, :, 0, 0].tolist()
@@ -338,6 +349,10 @@ class RandomCropTime(_CropTime):
 
     Args:
         length: number of kept frames (at most T).
+
+    Shape:
+        ``(B, T, 2, H, W)`` -> ``(B, length, 2, H, W)``; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` whose grid is ``length`` bins.
 
     Example:
         >>> transform = RandomCropTime(30)
