@@ -171,3 +171,50 @@ def test_site_builds_strict(tmp_path):
         assert (tmp_path / "site" / f"{page}.html").is_file(), page
     functional = (tmp_path / "site" / "api" / "functional" / "index.html").read_text()
     assert 'id="event_transforms.functional.rotate"' in functional  # the API pages are generated
+
+
+# --------------------------------------------------------------------------- the transforms table
+
+
+def transform_rows() -> list[tuple[list[str], str]]:
+    """The rows of docs/transforms.md's table: (module names in the first cell, events cell)."""
+    from tests.test_readme_table import markdown_tables
+
+    text = (ROOT / "docs" / "transforms.md").read_text().replace("\\|", "/")
+    table = next(t for t in markdown_tables(text) if t[0][:3] == ["module", "frames", "events"])
+    return [(re.findall(r"`(\w+)", row[0]), row[2]) for row in table[1:]]
+
+
+def takes_events(cls: type) -> bool:
+    """Whether a transform class has a kernel for an EventBatch (registered, or its own)."""
+    from event_transforms.transforms import base
+
+    registry = getattr(base, "_EVENT_KERNELS")
+    return cls.apply_events is not base.EventTransform.apply_events or any(k in registry for k in cls.__mro__)
+
+
+def test_transforms_table_lists_every_transform():
+    import event_transforms as et
+    from event_transforms.transforms import EventTransform
+
+    listed = {name for names, _ in transform_rows() for name in names}
+    public = {
+        name for name in et.__all__
+        if inspect.isclass(obj := getattr(et, name)) and issubclass(obj, EventTransform) and obj is not EventTransform
+    }
+    assert public - listed == set(), f"transforms missing from docs/transforms.md's table: {sorted(public - listed)}"
+    assert listed - public == set(), f"names in docs/transforms.md's table that are not transforms: {sorted(listed - public)}"
+
+
+def test_transforms_table_events_column_is_true():
+    import event_transforms as et
+
+    for names, cell in transform_rows():
+        if cell.startswith("if every member"):  # containers: as their members
+            continue
+        only = re.findall(r"`(\w+)`", cell) if cell.startswith("`") else None  # "`A`": A of the row only
+        for name in names:
+            claimed = name in only if only is not None else cell.startswith("yes")
+            assert claimed == takes_events(getattr(et, name)), (
+                f"docs/transforms.md says {name} {'takes' if claimed else 'does not take'} an EventBatch; the code disagrees"
+            )
