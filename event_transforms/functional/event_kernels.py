@@ -105,6 +105,23 @@ def _round_to(values: Tensor, dtype: torch.dtype) -> Tensor:
 def flip_events(batch: EventBatch, flip: Tensor, *, axis: str = "x") -> EventBatch:
     """Mirror the samples whose ``flip`` (B,) bool is set: ``x -> W - 1 - x`` (``axis="x"``,
     a horizontal flip) or ``y -> H - 1 - y``. Sync-free; equal to the frame flip after binning.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples to mirror.
+        axis: ``"x"`` (left-right) or ``"y"`` (top-bottom).
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> flip_events(batch, torch.tensor([True, False])).x.tolist()  # W = 3: x -> 2 - x in stream 0
+        [2, 0, 1]
     """
     column = batch.x if axis == "x" else batch.y
     size = batch.sensor_size[1] if axis == "x" else batch.sensor_size[0]
@@ -119,7 +136,25 @@ def flip_events(batch: EventBatch, flip: Tensor, *, axis: str = "x") -> EventBat
 
 
 def translate_events(batch: EventBatch, shift: Tensor) -> EventBatch:
-    """Move sample b's events by ``shift[b] = (dy, dx)`` whole pixels (int). Sync-free."""
+    """Move sample b's events by ``shift[b] = (dy, dx)`` whole pixels (int). Sync-free.
+
+    Args:
+        batch: the event streams.
+        shift: ``(B, 2)`` integer ``(dy, dx)`` per sample (down, right).
+
+    Shape:
+        - batch: B streams, N events.
+        - shift: ``(B, 2)``.
+        - output: the same streams and events (events may leave the sensor).
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> moved = translate_events(batch, torch.tensor([[1, 0], [0, -1]]))
+        >>> moved.y.tolist(), moved.x.tolist()
+        ([2, 1, 1], [0, 2, 0])
+    """
     shift = shift.to(torch.int16)
     x = batch.x + _per_event(shift[:, 1].contiguous(), batch)
     y = batch.y + _per_event(shift[:, 0].contiguous(), batch)
@@ -128,7 +163,22 @@ def translate_events(batch: EventBatch, shift: Tensor) -> EventBatch:
 
 def event_centroid(batch: EventBatch) -> Tensor:
     """(B, 2) float64 ``(y, x)`` mean event position per stream on the batch's device; an
-    empty stream gets the image centre ``((H - 1) / 2, (W - 1) / 2)``. Sync-free."""
+    empty stream gets the image centre ``((H - 1) / 2, (W - 1) / 2)``. Sync-free.
+
+    Args:
+        batch: the event streams.
+
+    Shape:
+        - batch: B streams, N events.
+        - output: ``(B, 2)`` float64 ``(y, x)`` on the batch's device.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> event_centroid(batch).tolist()
+        [[0.5, 1.0], [1.0, 1.0]]
+    """
     height, width = batch.sensor_size
     lengths = torch.tensor(batch.lengths, dtype=torch.int64)
     device = batch.device
@@ -164,6 +214,23 @@ def affine_events(
     of the stream (``center="mass"``, float64, all events), the image centre
     (``"image"``) or a given ``(y, x)``. Count-conserving (a bilinear frame warp spreads
     counts instead). Sync-free: a handful of per-event ops whatever B.
+
+    Args:
+        batch: the event streams.
+        angle: ``(B,)`` degrees, counter-clockwise; ``None`` for 0.
+        scale: ``(B,)`` zoom factors > 0; ``None`` for 1.
+        center: ``"mass"`` (each stream's event centroid), ``"image"`` or ``(y, x)``.
+
+    Shape:
+        - batch: B streams, N events.
+        - angle, scale: ``(B,)``.
+        - output: the same streams and events, each at its nearest pixel.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[2, 1, 0, 1]])], sensor_size=(3, 3))
+        >>> turned = affine_events(batch, angle=torch.tensor([90.0]), center="image")
+        >>> turned.y.tolist(), turned.x.tolist()  # (y, x) = (1, 2) -> (0, 1) about (1, 1)
+        ([0], [1])
     """
     b = len(batch)
     radians = np.deg2rad(np.asarray(angle.tolist() if angle is not None else [0.0] * b, dtype=np.float64))
@@ -245,6 +312,26 @@ def shift_events(
     deficit per group, fixed by ranking only the events whose keys lie in a narrow band
     next to ζ (no full sort). Host syncs: one read of the per-group surplus, one band
     gather (retried wider only if a band held too few events), one read of the kept counts.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        shift: ``(B,)`` integer bins ``j`` (``t += j * frame``).
+        fraction: ``(B,)`` ζ in [0, 1] for TES; ``None`` moves every event (frame shift).
+        seed: ``(B,)`` int64 per-sample seeds (with ``fraction``).
+        mode: ``"exact"`` or ``"binomial"``.
+
+    Shape:
+        - batch: B streams, N events.
+        - shift, fraction, seed: ``(B,)``.
+        - output: B streams, at most N events (those pushed out of the window dropped).
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> shifted = shift_events(batch, torch.tensor([1, 1]))  # FS+1: a bin later
+        >>> shifted.t.tolist(), shifted.lengths  # the event in the last bin left the window
+        ([10100, 10050], [1, 1])
     """
     group, groups = _groups(batch)
     frame_us = _frame_us(batch.frame_ms)
@@ -331,7 +418,24 @@ def _exact_fixup(group: Tensor, groups: int, u: Tensor, moved: Tensor, fraction:
 def time_reversal_events(batch: EventBatch, reverse: Tensor) -> EventBatch:
     """Reverse time in the grid's window for the samples flagged in ``reverse``: bin i goes to
     T - 1 - i (integer timestamps: ``t -> 2 t0 + T frame - 1 - t``, so the binned frames
-    are exactly the frame kernel's reversal). Sync-free."""
+    are exactly the frame kernel's reversal). Sync-free.
+
+    Args:
+        batch: the event streams, with a frame grid.
+        reverse: ``(B,)`` bool, the samples to reverse.
+
+    Shape:
+        - batch: B streams, N events.
+        - reverse: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> time_reversal_events(batch, torch.tensor([True, False])).t.tolist()  # t -> 19999 - t
+        [19899, 4999, 50]
+    """
     starts, frame_us, n_frames = _require_grid(batch, "TimeReversal")
     end = starts.to(batch.t.dtype) * 2 + n_frames * frame_us - (0 if batch.t.is_floating_point() else 1)
     mirrored = _per_event(end, batch) - batch.t
@@ -344,7 +448,24 @@ def time_reversal_events(batch: EventBatch, reverse: Tensor) -> EventBatch:
 
 
 def flip_polarity_events(batch: EventBatch, flip: Tensor) -> EventBatch:
-    """Swap ON and OFF in the samples flagged in ``flip``. Sync-free."""
+    """Swap ON and OFF in the samples flagged in ``flip``. Sync-free.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples whose polarities swap.
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> flip_polarity_events(batch, torch.tensor([True, False])).p.tolist()
+        [0, 1, 0]
+    """
     flags = flip.tolist()
     if not any(flags):
         return batch
@@ -355,7 +476,25 @@ def flip_polarity_events(batch: EventBatch, flip: Tensor) -> EventBatch:
 
 def drop_events_random(batch: EventBatch, fraction: Tensor, seed: Tensor) -> EventBatch:
     """Drop each event of sample b with probability ``fraction[b]`` (its own uniform, from
-    the sample's generator). One host read of the kept counts."""
+    the sample's generator). One host read of the kept counts.
+
+    Args:
+        batch: the event streams.
+        fraction: ``(B,)`` drop probabilities in [0, 1].
+        seed: ``(B,)`` int64 per-sample seeds.
+
+    Shape:
+        - batch: B streams, N events.
+        - fraction, seed: ``(B,)``.
+        - output: B streams, at most N events.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> drop_events_random(batch, torch.tensor([1.0, 0.0]), torch.tensor([3, 4])).lengths
+        [0, 1]
+    """
     _, dropped = _keys(batch, seed, fraction)  # u < fraction, compared per sample slice
     return _compact(batch, ~dropped)
 
@@ -367,6 +506,16 @@ def drop_pixels_events(batch: EventBatch, mask: Tensor) -> EventBatch:
     Events outside the sensor (moved off it by an earlier transform) are kept: binning drops
     them. One host read of the kept counts.
 
+
+    Args:
+        batch: the event streams.
+        mask: bool, ``True`` on the pixels whose events go: ``(B, H, W)`` per stream or
+            ``(1, H, W)`` for all.
+
+    Shape:
+        - batch: B streams, N events.
+        - mask: ``(B, H, W)`` or ``(1, H, W)``, the sensor's size.
+        - output: B streams, at most N events.
     Example:
         >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 5, 1], [1, 0, 6, 0]])], sensor_size=(2, 2))
         >>> mask = torch.tensor([[[False, True], [False, False]]])  # pixel (y=0, x=1)
@@ -392,7 +541,26 @@ def poisson_noise_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> Ev
     over the grid's window, i.e. Poisson(rate · T · frame · 2HW) events of uniform pixel,
     polarity and time. The counts are drawn on the host from the seeds (NumPy), so sizes
     are known without a host synchronisation; positions come from the sample's generator.
-    Added events follow the sample's own events (the stream is no longer time-sorted)."""
+    Added events follow the sample's own events (the stream is no longer time-sorted).
+
+    Args:
+        batch: the event streams, with a frame grid.
+        rate_hz: ``(B,)`` events per second per pixel and polarity (>= 0).
+        seed: ``(B,)`` int64 per-sample seeds.
+
+    Shape:
+        - batch: B streams, N events.
+        - rate_hz, seed: ``(B,)``.
+        - output: B streams, N events plus the noise.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> noisy = poisson_noise_events(batch, torch.tensor([0.0, 1000.0]), torch.tensor([1, 2]))
+        >>> noisy.lengths[0], noisy.lengths[1] > 1  # 1000 Hz x 20 ms x 12 pixel-polarities: about 240 added
+        (2, True)
+    """
     starts, frame_us, n_frames = _require_grid(batch, "AddPoissonNoise")
     height, width = batch.sensor_size
     seeds = [int(s) for s in seed.tolist()]
@@ -436,6 +604,16 @@ def bank_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventB
     stream's frames plus that window, as :class:`~event_transforms.AddNoise` does on frames.
     Deterministic; one host read of the window's event count per stream.
 
+
+    Args:
+        batch: the event streams, with a frame grid of ``n_frames`` bins.
+        bank: ``(N, 2, H, W)`` whole counts of a static scene, the sensor's size.
+        offset: ``(B,)`` the first bank frame of each stream's window.
+
+    Shape:
+        - batch: B streams, N events.
+        - bank: ``(N, 2, H, W)``; offset: ``(B,)``.
+        - output: B streams, N events plus the window's counts.
     Example:
         >>> batch = EventBatch.from_streams([torch.zeros(0, 4)], sensor_size=(1, 2), frame_ms=1.0,
         ...                                 t_start=0, n_frames=2)
@@ -475,7 +653,26 @@ def bank_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventB
 
 def spatial_jitter(batch: EventBatch, sigma: Tensor, seed: Tensor) -> EventBatch:
     """Add Gaussian noise of standard deviation ``sigma[b]`` pixels to x and y, rounded to
-    whole pixels (events leaving the sensor are dropped when binned). Sync-free."""
+    whole pixels (events leaving the sensor are dropped when binned). Sync-free.
+
+    Args:
+        batch: the event streams.
+        sigma: ``(B,)`` standard deviations in pixels (>= 0).
+        seed: ``(B,)`` int64 per-sample seeds.
+
+    Shape:
+        - batch: B streams, N events.
+        - sigma, seed: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> jittered = spatial_jitter(batch, torch.tensor([0.0, 2.0]), torch.tensor([1, 2]))
+        >>> jittered.x[:2].tolist(), jittered.t.tolist()  # sigma 0 moves nothing; times kept
+        ([0, 2], [100, 15000, 50])
+    """
     lengths = batch.lengths
     bounds = batch.offsets.tolist()
     noise_x = torch.empty(batch.num_events, dtype=torch.float32, device=batch.device)
@@ -493,7 +690,26 @@ def spatial_jitter(batch: EventBatch, sigma: Tensor, seed: Tensor) -> EventBatch
 
 def time_jitter(batch: EventBatch, std_us: Tensor, seed: Tensor) -> EventBatch:
     """Add Gaussian noise of ``std_us[b]`` microseconds to the timestamps (rounded for
-    integer timestamps). Streams are no longer time-sorted. Sync-free."""
+    integer timestamps). Streams are no longer time-sorted. Sync-free.
+
+    Args:
+        batch: the event streams.
+        std_us: ``(B,)`` standard deviations in microseconds (>= 0).
+        seed: ``(B,)`` int64 per-sample seeds.
+
+    Shape:
+        - batch: B streams, N events.
+        - std_us, seed: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> jittered = time_jitter(batch, torch.tensor([0.0, 30.0]), torch.tensor([1, 2]))
+        >>> jittered.t[:2].tolist(), jittered.x.tolist()  # std 0 moves nothing; pixels kept
+        ([100, 15000], [0, 2, 1])
+    """
     bounds = batch.offsets.tolist()
     noise = torch.empty(batch.num_events, dtype=torch.float64, device=batch.device)
     for b, (s, std) in enumerate(zip(seed.tolist(), std_us.tolist())):
@@ -506,7 +722,25 @@ def time_jitter(batch: EventBatch, std_us: Tensor, seed: Tensor) -> EventBatch:
 
 def time_skew(batch: EventBatch, coefficient: Tensor, offset_us: Tensor) -> EventBatch:
     """``t -> t0 + coefficient[b] (t - t0) + offset_us[b]`` about the stream's grid start
-    ``t0`` (the first event's time without a grid), rounded for integer timestamps. Sync-free."""
+    ``t0`` (the first event's time without a grid), rounded for integer timestamps. Sync-free.
+
+    Args:
+        batch: the event streams.
+        coefficient: ``(B,)`` time stretch factors.
+        offset_us: ``(B,)`` shifts in microseconds.
+
+    Shape:
+        - batch: B streams, N events.
+        - coefficient, offset_us: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> time_skew(batch, torch.tensor([2.0, 1.0]), torch.tensor([0.0, 10.0])).t.tolist()  # about t0 = 0
+        [200, 30000, 60]
+    """
     if batch.t_start is not None:
         origin = _per_event(batch.t_start.to(torch.float64), batch)
     else:
@@ -539,7 +773,23 @@ def refractory_period(batch: EventBatch, period_us: Tensor) -> EventBatch:
     """Drop an event when its pixel (either polarity) had an event less than ``period_us[b]``
     before it (the previous event, kept or not: a pixel's dead time restarts with every
     event it saw). The first event of each pixel is kept. Output in (time) order of the
-    input. One host read of the kept counts."""
+    input. One host read of the kept counts.
+
+    Args:
+        batch: the event streams.
+        period_us: ``(B,)`` dead time of a pixel in microseconds.
+
+    Shape:
+        - batch: B streams, N events.
+        - period_us: ``(B,)``.
+        - output: B streams, at most N events, in input order.
+
+    Example:
+        >>> events = torch.tensor([[0, 0, 0, 1], [0, 0, 400, 0], [0, 0, 1_000, 1], [1, 0, 10, 1]])
+        >>> batch = EventBatch.from_streams([events], sensor_size=(1, 2))
+        >>> refractory_period(batch, torch.tensor([500.0])).t.tolist()  # 400 follows 0 too soon
+        [0, 1000, 10]
+    """
     if batch.num_events == 0:
         return batch
     order, start, _ = _pixel_runs(batch)
@@ -555,7 +805,23 @@ def refractory_period(batch: EventBatch, period_us: Tensor) -> EventBatch:
 
 def decimation(batch: EventBatch, n: Tensor) -> EventBatch:
     """Keep every ``n[b]``-th event of each pixel (the n-th, 2n-th, ... in time), as tonic's
-    ``Decimation``. One host read of the kept counts."""
+    ``Decimation``. One host read of the kept counts.
+
+    Args:
+        batch: the event streams.
+        n: ``(B,)`` positive integers: keep each pixel's n-th, 2n-th, ... event.
+
+    Shape:
+        - batch: B streams, N events.
+        - n: ``(B,)``.
+        - output: B streams, at most N events, in input order.
+
+    Example:
+        >>> events = torch.tensor([[0, 0, 0, 1], [0, 0, 400, 0], [0, 0, 1_000, 1], [1, 0, 10, 1]])
+        >>> batch = EventBatch.from_streams([events], sensor_size=(1, 2))
+        >>> decimation(batch, torch.tensor([2])).t.tolist()  # pixel x = 0: its 2nd event; x = 1 has one
+        [400]
+    """
     if batch.num_events == 0:
         return batch
     order, _, rank = _pixel_runs(batch)
@@ -573,7 +839,25 @@ def drop_window(
 ) -> EventBatch:
     """Drop sample b's events in bins ``[start[b], start[b] + length[b])`` of the grid
     (``time``) or in the sensor rectangle ``top, left, height, width`` (``area``): the
-    event form of ``drop_by_time``/``drop_by_area``. One host read of the kept counts."""
+    event form of ``drop_by_time``/``drop_by_area``. One host read of the kept counts.
+
+    Args:
+        batch: the event streams (with a frame grid for ``time``).
+        time: ``(start, length)``, each ``(B,)`` bins.
+        area: ``(top, left, height, width)``, each ``(B,)`` sensor pixels.
+
+    Shape:
+        - batch: B streams, N events.
+        - the entries of time or area: ``(B,)``.
+        - output: B streams, at most N events.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> drop_window(batch, time=(torch.tensor([1, 0]), torch.tensor([1, 1]))).t.tolist()
+        [100]
+    """
     if time is not None:
         from ..events.batch import _bins_of, _relative_times
 
@@ -591,7 +875,26 @@ def drop_window(
 def crop_events(batch: EventBatch, top: Tensor, left: Tensor, size: tuple[int, int]) -> EventBatch:
     """Crop sample b to the window ``top[b], left[b]`` of ``size`` (H, W): coordinates move
     by ``(-top, -left)`` and the batch's sensor becomes ``size``. Events outside the window
-    are kept (dropped when binned, as the frame crop drops them). Sync-free."""
+    are kept (dropped when binned, as the frame crop drops them). Sync-free.
+
+    Args:
+        batch: the event streams.
+        top, left: ``(B,)`` the window's first row and column per sample.
+        size: ``(h, w)`` of the window, the new sensor size.
+
+    Shape:
+        - batch: B streams, N events.
+        - top, left: ``(B,)``.
+        - output: the same streams and events on an ``(h, w)`` sensor.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> cropped = crop_events(batch, torch.tensor([0, 1]), torch.tensor([1, 1]), (1, 2))
+        >>> cropped.sensor_size, cropped.x.tolist(), cropped.y.tolist()
+        ((1, 2), [-1, 1, 0], [1, 0, 0])
+    """
     x = batch.x - _per_event(left.to(torch.int16), batch)
     y = batch.y - _per_event(top.to(torch.int16), batch)
     return batch._replace(x=x, y=y, sensor_size=tuple(int(s) for s in size))
@@ -600,7 +903,26 @@ def crop_events(batch: EventBatch, top: Tensor, left: Tensor, size: tuple[int, i
 def crop_time_events(batch: EventBatch, start: Tensor, length: int) -> EventBatch:
     """Keep bins ``[start[b], start[b] + length)`` of the grid: times move ``start[b]`` bins
     earlier and the grid becomes ``length`` bins long (events outside it are dropped when
-    binned; equal to the frame kernel after binning). Sync-free."""
+    binned; equal to the frame kernel after binning). Sync-free.
+
+    Args:
+        batch: the event streams, with a frame grid.
+        start: ``(B,)`` first kept bin per sample.
+        length: number of kept bins.
+
+    Shape:
+        - batch: B streams, N events.
+        - start: ``(B,)``.
+        - output: the same streams and events, the grid ``length`` bins long.
+
+    Example:
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> cropped = crop_time_events(batch, torch.tensor([1, 0]), 1)
+        >>> cropped.t.tolist(), cropped.n_frames
+        ([-9900, 5000, 50], 1)
+    """
     _, frame_us, n_frames = _require_grid(batch, "CropTime")
     if isinstance(frame_us, int) and not batch.t.is_floating_point():
         t = batch.t - _per_event(start.to(torch.int64) * frame_us, batch)

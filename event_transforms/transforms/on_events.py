@@ -225,6 +225,10 @@ class SpatialJitter(_EventOnly):
         sigma: standard deviation in pixels, or a ``(min, max)`` range.
         p: probability that a sample is jittered.
 
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (moved). Frames raise ``TypeError`` (an event-only augmentation).
+
     Example:
         >>> import event_transforms as et
         >>> batch = et.EventBatch.from_streams([torch.tensor([[5, 5, 0, 1]] * 4)], sensor_size=(10, 10))
@@ -257,6 +261,10 @@ class TimeJitter(_EventOnly):
         std_us: standard deviation in µs, or a ``(min, max)`` range.
         p: probability that a sample is jittered.
 
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (retimed; no longer time-sorted). Frames raise ``TypeError`` (an event-only augmentation).
+
     Example:
         >>> import event_transforms as et
         >>> batch = et.EventBatch.from_streams([torch.tensor([[0, 0, 1000, 1]] * 3)], sensor_size=(2, 2))
@@ -288,6 +296,10 @@ class TimeSkew(_EventOnly):
         coefficient: factor, or a ``(min, max)`` range (must be positive).
         offset_us: shift in µs, or a ``(min, max)`` range.
         p: probability that a sample is skewed.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (retimed). Frames raise ``TypeError`` (an event-only augmentation).
 
     Example:
         >>> import event_transforms as et
@@ -328,6 +340,10 @@ class RefractoryPeriod(_EventOnly):
         period_us: refractory period in µs, or a ``(min, max)`` range.
         p: probability that a sample is filtered.
 
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams, fewer events. Frames raise ``TypeError`` (an event-only augmentation).
+
     Example:
         >>> import event_transforms as et
         >>> rows = torch.tensor([[1, 1, 0, 1], [1, 1, 500, 0], [1, 1, 2000, 1], [0, 0, 100, 1]])
@@ -357,6 +373,10 @@ class Decimation(_EventOnly):
     Args:
         n: keep one event in n, or a ``(min, max)`` range of whole numbers (inclusive).
         p: probability that a sample is decimated.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams, fewer events. Frames raise ``TypeError`` (an event-only augmentation).
 
     Example:
         >>> import event_transforms as et
