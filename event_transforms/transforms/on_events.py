@@ -263,7 +263,8 @@ class TimeJitter(_EventOnly):
 
     Shape:
         An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
-        the same streams and events (retimed; no longer time-sorted). Frames raise ``TypeError`` (an event-only augmentation).
+        the same streams and events (retimed; no longer time-sorted). Frames raise ``TypeError``
+        (an event-only augmentation).
 
     Example:
         >>> import event_transforms as et
