@@ -21,7 +21,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from ..transforms.base import EventTransform, as_transform
+from ..transforms.base import EventTransform, Param, as_transform
 
 __all__ = [
     "Stopwatch",
@@ -91,6 +91,10 @@ class TimedTransform(EventTransform):
     def sample_params(self, shape, *, generator=None, metadata=None):
         with self.stopwatch:
             return self.transform.make_params(shape, generator=generator, metadata=metadata)
+
+    def params_spec(self, shape):
+        # the wrapped transform's tree, as it is (its own gate included)
+        return {**self.transform.params_spec(shape), "apply": Param("bool", optional=True)}
 
     def output_shape(self, shape):
         return self.transform.output_shape(shape)
