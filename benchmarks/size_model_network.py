@@ -29,9 +29,11 @@ from collections.abc import Sequence
 from typing import Any
 
 if __package__:
-    from ._common import base_parser, command, environment_lines, markdown_table, publish
+    from ._common import apply_threads, base_parser, command, environment_lines, markdown_table, publish
 else:  # run as a script
-    from _common import base_parser, command, environment_lines, markdown_table, publish  # type: ignore[no-redef]
+    from _common import (  # type: ignore[no-redef]
+        apply_threads, base_parser, command, environment_lines, markdown_table, publish,
+    )
 
 from event_transforms.tactile.cli import _seeds as parse_seeds
 from event_transforms.tactile.copies import load_scene_data
@@ -111,6 +113,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--seeds", default="0-7", help="seeds, e.g. 0-7 (default) or 0,1")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     args = parser.parse_args(argv)
+    apply_threads(args.threads or 1)  # the data simulation here; every job trains on 1 thread too
     seeds = parse_seeds("0-1" if args.quick else args.seeds)
     config = ProtocolConfig(steps=30 if args.quick else 300, hidden_channels=(4,), input_pool=14,
                             eval_every=10 if args.quick else 50)
