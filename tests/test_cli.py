@@ -683,6 +683,8 @@ class TestEqualTime:
                   "single_model_scene": "paper",
                   "online_aug_s_per_epoch": {"paper": {"none": None, "stretch": 10.0 / epochs, "fs-1": 0.0}}}
         monkeypatch.setattr(experiment, "_timing", lambda *a, **k: timing)
+        commits = iter(["a" * 40, "b" * 40, "b" * 40])  # the checkout moves during the run
+        monkeypatch.setattr(experiment, "git_commit", lambda: next(commits))
         results = run_protocol(["paper"], [0, 1], tmp_path, config=config, methods=["none", "stretch", "fs-1"],
                                data=data, budget_check=False, equal_time=True)
         methods = results["scenes"]["paper"]["methods"]
@@ -703,6 +705,7 @@ class TestEqualTime:
         assert "Δ vs none at equal time" in table.splitlines()[0]
         assert "| 8 (the budget) | — |" in table
         assert results["config"]["equal_time"] is True
+        assert results["commit"] == "a" * 40  # the commit that trained, read when the run started
         pytest.importorskip("matplotlib")
         paths = cli._plots(results, tmp_path)
         assert tmp_path / "accuracy_at_equal_time.png" in paths

@@ -737,6 +737,7 @@ def run_protocol(
     units = _units(scenes, chosen, group, given)
     plan = plan_run(scenes, chosen, seeds, config, group=group, budget_check=budget_check, data=given)
     start = time.perf_counter()
+    commit = git_commit()  # the code that trains: read before the run, not after (the checkout may move)
 
     # Data first, in this process: the cache is written once, workers only read it.
     data = dict(given) if given is not None else {scene: load_scene_data(scene, root) for scene in scenes}
@@ -829,7 +830,7 @@ def run_protocol(
     if results is None:  # a torchrun rank other than 0
         return {}
     results_json = {
-        "commit": git_commit(),
+        "commit": commit,
         "config": {**asdict(config), "seeds": seeds, "scenes": scenes, "jobs": jobs, "device": device,
                    "threads_per_job": threads, "group": group, "full": full, "budget_check": budget_check,
                    "equal_time": equal_time},
