@@ -305,13 +305,14 @@ def read_table(root: str | os.PathLike[str]) -> list[Recording]:
                     raise ValueError
             except ValueError:
                 raise ValueError(f"{where}: diameter_mm must be a positive number, got {row['diameter_mm']!r}") from None
-        crop = None
+        crop: tuple[int, int, int, int] | None = None
         if has_crop:
-            crop = tuple(row[c] for c in _CROP_COLUMNS)
+            texts = tuple(row[c] for c in _CROP_COLUMNS)
             try:
-                crop = tuple(int(v) for v in crop)
+                top, left, height, width = (int(v) for v in texts)
             except ValueError:
-                raise ValueError(f"{where}: crop columns must be integers, got {crop}") from None
+                raise ValueError(f"{where}: crop columns must be integers, got {texts}") from None
+            crop = (top, left, height, width)
         split = row.get("split", "").lower()
         allowed = {"train": ("train", "holdout"), "deploy": ("val", "test")}[role]
         if split and (split not in allowed or force is None):
@@ -496,7 +497,8 @@ def _scan(source: _EventFile, sensor: tuple[int, int], where: str) -> _Scan:
     height, width = sensor
     totals = np.zeros(height * width, dtype=np.int64)
     last = None
-    t_min = t_max = None
+    t_min: int | float | None = None
+    t_max: int | float | None = None
     offset = 0
     fractional = False
     for chunk in source.chunks():
@@ -532,7 +534,7 @@ def _scan(source: _EventFile, sensor: tuple[int, int], where: str) -> _Scan:
         t_min = t[0].item() if t_min is None else t_min
         t_max = last = t[-1].item()
         offset += t.size
-    if t_min is None:
+    if t_min is None or t_max is None:
         raise ValueError(f"{where}: the event file holds no events")
     span = t_max - t_min
     if fractional and span < 1e4:
@@ -803,7 +805,7 @@ class RecordingSet(Dataset):
         if settings.crop is not None:
             return settings.crop, "given"
         if all(r.crop is not None for r in table):
-            sizes = {r.crop[2:] for r in table}  # type: ignore[index]
+            sizes = {r.crop[2:] for r in table if r.crop is not None}
             if len(sizes) != 1:
                 raise ValueError(f"recordings.csv: every row's crop must have one size, got {sorted(sizes)}")
             first = table[0]
@@ -891,9 +893,9 @@ class RecordingSet(Dataset):
     def diameters(self) -> tuple[float, ...] | None:
         """The distinct sizes of the chosen recordings (``None`` without ``diameter_mm``)."""
         sizes = [r.diameter_mm for r in self.recordings]
-        if not sizes or any(s is None for s in sizes):
+        if not sizes or None in sizes:
             return None
-        return tuple(sorted(set(sizes)))  # type: ignore[arg-type]
+        return tuple(sorted({s for s in sizes if s is not None}))
 
     def __getstate__(self) -> dict[str, Any]:  # workers reload the memory-mapped cache
         state = dict(self.__dict__)
@@ -1048,10 +1050,9 @@ def load_recording_data(
     }
     scene = RecordingScene.build(name or root.resolve().name, settings, train_sizes, deploy_sizes, inferred,
                                  quiet(train_frames), dataset)
-    data = SceneData(scene, splits["train"], splits["val"], splits["test"], quiet(deploy_frames),
-                     time.perf_counter() - start, holdout=splits["holdout"] if len(splits["holdout"]) else None)
-    data.dataset = dataset  # type: ignore[attr-defined]
-    return data
+    return SceneData(scene, splits["train"], splits["val"], splits["test"], quiet(deploy_frames),
+                     time.perf_counter() - start, holdout=splits["holdout"] if len(splits["holdout"]) else None,
+                     dataset=dataset)
 
 
 def _sizes(*sets: RecordingSet) -> tuple[float, ...] | None:
@@ -1153,7 +1154,7 @@ def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = 
         for block in range(0, SPLIT_SIZES[split], 24):
             seeds = range(first + block, first + min(block + 24, SPLIT_SIZES[split]))
             grasps = [draw_grasp(session.diameter(s - first), seed=s, config=session.config) for s in seeds]
-            for seed, recording in zip(seeds, simulate_grasps(grasps, session.config)):
+            for seed, grasp, recording in zip(seeds, grasps, simulate_grasps(grasps, session.config)):
                 k = seed - first
                 name = f"{split}_{k:03d}"
                 np.save(out / "events" / f"{name}.npy", recording.events)
@@ -1162,7 +1163,7 @@ def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = 
                     handle.write("t_us,force_n\n")
                     handle.writelines(f"{int(t)},{float(np.float32(f))!r}\n" for t, f in force)
                 top, left, height, width = recording.sensor_crop((140, 150))
-                rows.append(f"events/{name}.npy,force/{name}.csv,{role},{recording.grasp.diameter_mm:g},{split},"
+                rows.append(f"events/{name}.npy,force/{name}.csv,{role},{grasp.diameter_mm:g},{split},"
                             f"{top},{left},{height},{width},{seed},{scene.name}")
         if log:
             log(f"exported {SPLIT_SIZES[split]} {split} grasps of {scene.name!r} in {time.perf_counter() - tick:.1f} s")

@@ -14,14 +14,14 @@ import json
 import os
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import torch
 from torch import Tensor, nn
 
-from ..transforms.base import EventTransform, as_transform
+from ..transforms.base import EventTransform, Params, as_transform
 
 __all__ = [
     "Stopwatch",
@@ -88,14 +88,20 @@ class TimedTransform(EventTransform):
         self.transform = as_transform(transform)
         self.stopwatch = Stopwatch() if stopwatch is None else stopwatch
 
-    def sample_params(self, shape, *, generator=None, metadata=None):
+    def sample_params(
+        self,
+        shape: torch.Size,
+        *,
+        generator: torch.Generator | None = None,
+        metadata: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
+    ) -> Params:
         with self.stopwatch:
             return self.transform.make_params(shape, generator=generator, metadata=metadata)
 
-    def output_shape(self, shape):
+    def output_shape(self, shape: torch.Size) -> torch.Size:
         return self.transform.output_shape(shape)
 
-    def apply(self, frames: Tensor, params) -> Tensor:
+    def apply(self, frames: Tensor, params: Params) -> Tensor:
         with self.stopwatch:
             return self.transform(frames, params=params)
 
