@@ -279,6 +279,9 @@ def _recording_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--pool", type=_positive, default=2, help="sum-pool factor (default 2)")
     group.add_argument("--force-offset-ms", type=_finite, default=0.0,
                        help="the force clock's lag behind the events' clock in ms (default 0)")
+    group.add_argument("--time-unit", choices=("us", "ms", "s", "ns"),
+                       help="unit of the event files' timestamps (default: microseconds; float timestamps that "
+                       "look like seconds are refused without it); force files stay in t_us")
 
 
 def _recording_settings(args: argparse.Namespace) -> Any:
@@ -287,6 +290,7 @@ def _recording_settings(args: argparse.Namespace) -> Any:
     return RecordingSettings(
         sensor_size=tuple(args.sensor_size), frame_ms=args.frame_ms, frames=args.frames, stride=args.stride,
         crop=None if args.crop is None else tuple(args.crop), pool=args.pool, force_offset_ms=args.force_offset_ms,
+        time_unit=args.time_unit,
     )
 
 

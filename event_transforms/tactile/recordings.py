@@ -29,10 +29,12 @@ anything else   kept as text in each item's metadata
 ``t``, ``p``), ``.csv`` with a header naming the columns, and through optional extras
 ``.aedat4`` (the ``aedat`` package) and HDF5 ``.h5``/``.hdf5`` (``h5py``: a structured
 ``events`` or Prophesee-style ``CD/events`` dataset, or one dataset per column). Timestamps
-are microseconds, sorted; polarity bool, {0, 1} or {-1, 1}.
+are microseconds unless ``time_unit`` (``--time-unit``) says ``"ns"``, ``"ms"`` or ``"s"``,
+sorted; float timestamps with fractions spanning less than 1e6 look like seconds and are
+refused without a ``time_unit``. Polarity bool, {0, 1} or {-1, 1}.
 
 **Force files**: CSV with a header holding ``t_us`` (microseconds on the events' clock, after
-the declared offset) and ``force_n`` (newtons), sorted by time, at any rate. The force clock
+the declared offset, whatever ``time_unit`` the event files use) and ``force_n`` (newtons), sorted by time, at any rate. The force clock
 runs ``force_offset_ms`` behind the camera's: a sample at ``t_us`` on the force clock is at
 ``t_us + 1000 · force_offset_ms`` on the events' clock (default 0).
 
@@ -153,10 +155,15 @@ class RecordingSettings:
             of ``recordings.csv`` where given, else the contact area of the training data.
         pool: side of the sum-pooled blocks.
         force_offset_ms: the force clock's lag behind the events' clock.
+        time_unit: unit of the event files' timestamps: ``"us"``, ``"ms"``, ``"s"`` or
+            ``"ns"`` (``None``: microseconds, float timestamps that look like seconds
+            refused). Force files stay in ``t_us``.
 
     Example:
         >>> RecordingSettings(frames=36).window_stride
         36
+        >>> RecordingSettings(time_unit="s").as_dict()["time_unit"]
+        's'
     """
 
     sensor_size: tuple[int, int] = (180, 240)
@@ -166,9 +173,13 @@ class RecordingSettings:
     crop: tuple[int, int, int, int] | None = None
     pool: int = 2
     force_offset_ms: float = 0.0
+    time_unit: str | None = None
 
     def __post_init__(self) -> None:
         from .._validation import check_positive
+        from ..events.binning import _time_unit
+
+        _time_unit(self.time_unit)  # ValueError naming time_unit and the value
 
         size = tuple(self.sensor_size)
         if len(size) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1 for v in size):
@@ -196,11 +207,14 @@ class RecordingSettings:
         return int(round(width)) if abs(width - round(width)) < 1e-9 * width else width
 
     def as_dict(self) -> dict[str, Any]:
-        """The settings as plain JSON values."""
+        """The settings as plain JSON values (``time_unit`` only when given, so that the
+        keys of data binned before the setting existed stay valid)."""
         out = dataclasses.asdict(self)
         out["sensor_size"] = list(self.sensor_size)
         out["crop"] = None if self.crop is None else list(self.crop)
         out["stride"] = self.window_stride
+        if self.time_unit is None:
+            del out["time_unit"]
         return out
 
 
@@ -491,9 +505,11 @@ class _Scan:
     totals: np.ndarray  # (H, W) int64
 
 
-def _scan(source: _EventFile, sensor: tuple[int, int], where: str) -> _Scan:
+def _scan(source: _EventFile, sensor: tuple[int, int], where: str, time_unit: str | None = None) -> _Scan:
     """Check an event file chunk by chunk (sorted, inside the sensor, polarity, units) and
-    count events per pixel."""
+    count events per pixel; ``t_min``/``t_max`` in microseconds (read in ``time_unit``)."""
+    from ..events.binning import _SECONDS_SPAN, _to_microseconds
+
     height, width = sensor
     totals = np.zeros(height * width, dtype=np.int64)
     last = None
@@ -537,11 +553,14 @@ def _scan(source: _EventFile, sensor: tuple[int, int], where: str) -> _Scan:
     if t_min is None or t_max is None:
         raise ValueError(f"{where}: the event file holds no events")
     span = t_max - t_min
-    if fractional and span < 1e4:
+    if time_unit is None and fractional and span < _SECONDS_SPAN:
         raise ValueError(
             f"{where}: timestamps look like seconds, not microseconds (fractional values spanning {span:g}); "
-            "multiply them by 1e6"
+            "give their unit: time_unit='s' (--time-unit s), or 'ms', 'ns', or 'us' if they are microseconds"
         )
+    if time_unit is not None:  # to microseconds exactly as the binning converts them
+        dtype = torch.float64 if isinstance(t_min, float) else torch.int64
+        t_min, t_max = _to_microseconds(torch.tensor([t_min, t_max], dtype=dtype), time_unit).tolist()
     return _Scan(offset, t_min, t_max, totals.reshape(height, width))
 
 
@@ -733,7 +752,7 @@ class RecordingSet(Dataset):
         cache: cache folder (default ``default_cache_dir() / "recordings"``).
         log: called with one line per recording binned (not per one read from the cache).
         **overrides: fields of :class:`RecordingSettings` (``sensor_size``, ``frame_ms``,
-            ``frames``, ``stride``, ``crop``, ``pool``, ``force_offset_ms``).
+            ``frames``, ``stride``, ``crop``, ``pool``, ``force_offset_ms``, ``time_unit``).
 
     Attributes:
         recordings: the rows of the chosen recordings.
@@ -820,11 +839,14 @@ class RecordingSet(Dataset):
 
     def _scan(self, recording: Recording) -> _Scan:
         settings = self.settings
-        path = self.cache / f"scan-{_key({'events': self._hashes[recording.row][0], 'sensor': settings.sensor_size})}.pt"
+        described: dict[str, Any] = {"events": self._hashes[recording.row][0], "sensor": settings.sensor_size}
+        if settings.time_unit is not None:  # t_min, t_max are microseconds converted from that unit
+            described["time_unit"] = settings.time_unit
+        path = self.cache / f"scan-{_key(described)}.pt"
         data = _load_cached(path)
         if data is None:
             try:
-                scan = _scan(_EventFile(recording.events), settings.sensor_size, recording.where())
+                scan = _scan(_EventFile(recording.events), settings.sensor_size, recording.where(), settings.time_unit)
             except ValueError as error:
                 raise _named(error, recording) from None
             data = {"format": _CACHE_FORMAT, "events": scan.events, "t_min": scan.t_min, "t_max": scan.t_max,
@@ -839,6 +861,8 @@ class RecordingSet(Dataset):
         description = {"format": _CACHE_FORMAT, "events": events_hash, "force": force_hash,
                        "sensor": settings.sensor_size, "frame_ms": settings.frame_ms, "crop": crop,
                        "pool": settings.pool, "force_offset_ms": settings.force_offset_ms}
+        if settings.time_unit is not None:
+            description["time_unit"] = settings.time_unit
         path = self.cache / f"recording-{_key(description)}.pt"
         data = _load_cached(path)
         if data is not None:
@@ -961,8 +985,11 @@ def _bin_recording(recording: Recording, scan: _Scan, settings: RecordingSetting
     out = torch.zeros(shape, dtype=torch.int32)
     source = _EventFile(recording.events)
     try:
+        # the scan checked the whole file's units (seconds-looking floats refused without a unit),
+        # so the chunks are read as that unit, microseconds by default
         stream = iter_frames(source.chunks(), sensor_size=settings.sensor_size, t_start=t0,
-                             frame_ms=settings.frame_ms, n_frames=n_frames, crop=crop, pool=pool, dtype=torch.int32)
+                             frame_ms=settings.frame_ms, n_frames=n_frames, crop=crop, pool=pool, dtype=torch.int32,
+                             time_unit=settings.time_unit or "us")
         for k, frame in enumerate(stream):
             out[k] = frame
     except ValueError as error:
