@@ -27,39 +27,19 @@ from typing import TYPE_CHECKING, Any
 
 __version__ = "0.2.0.dev0"
 
-# public name -> the module that defines it
-_TRANSFORMS = (
-    "EventTransform", "Params", "Lambda", "as_transform",
-    "Rotate", "RandomRotation", "Resize", "RandomResize",
-    "HorizontalFlip", "VerticalFlip", "RandomHorizontalFlip", "RandomVerticalFlip",
-    "FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift",
-    "AddNoise", "AddPoissonNoise", "RandomEventDrop",
-    "Compose", "OneOf", "RandomApply", "EventsToFrames",
-    # transform coverage (issue 13)
-    "Affine", "RandomAffine", "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample",
-    "FlipPolarity", "RandomFlipPolarity", "TimeReversal", "RandomTimeReversal", "MergePolarities",
-    "CropTime", "RandomCropTime", "Cutout", "CutMix", "MixUp",
-    "DropPixel", "RandomDropPixel", "Denoise",
-    # events (issue 20)
-    "SpatialJitter", "TimeJitter", "TimeSkew", "RefractoryPeriod", "Decimation",
-    # sequence warps (issue 19)
-    "RandomPerspective", "RandomElastic",
-    # scenes (issue 18)
-    "Stretch", "RandomStretch",
-)
+# public name -> the module that defines it; every name in ``transforms.__all__`` (the one
+# list of transforms) is a top-level name as well, looked up there on first use
 _NAMES: dict[str, str] = {
-    **{name: "transforms" for name in _TRANSFORMS},
     "Scene": "scenes",
     "ResizeToTarget": "scenes",
     "StretchToTarget": "scenes",
     "infer_scene": "inference",
     "AugmentedDataset": "data",
-    "EventBatch": "functional",
-    "collate_events": "functional",
+    "EventBatch": "events",
+    "collate_events": "events",
 }
 _SUBMODULES = ("functional", "events", "transforms", "scenes", "inference", "data", "viz", "tactile")
 
-__all__ = ["__version__", *_SUBMODULES, *_NAMES]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     # the `as` aliases mark these as re-exports (__all__ is computed, so linters cannot see it)
@@ -72,15 +52,25 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .transforms import *  # noqa: F403
 
 
+def _transform_names() -> list[str]:
+    return list(importlib.import_module(f"{__name__}.transforms").__all__)
+
+
 def __getattr__(name: str) -> Any:
+    if name == "__all__":  # imports the transforms (``from event_transforms import *``)
+        return ["__version__", *_SUBMODULES, *_transform_names(), *_NAMES]
     if name in _SUBMODULES:
         return importlib.import_module(f"{__name__}.{name}")
     if name in _NAMES:
         value = getattr(importlib.import_module(f"{__name__}.{_NAMES[name]}"), name)
         globals()[name] = value  # later lookups skip this function
         return value
+    if not name.startswith("_") and (name[:1].isupper() or name == "as_transform") and name in _transform_names():
+        value = getattr(importlib.import_module(f"{__name__}.transforms"), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+    return sorted(set(globals()) | set(__getattr__("__all__")))

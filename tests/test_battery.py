@@ -16,6 +16,7 @@ import event_transforms as et
 from event_transforms.transforms._params import check_tree
 from event_transforms.transforms.base import slice_params
 
+from ._topics import collect
 from .checkers import H, W, check_not_modified, check_pickle, check_sane, sparse_frames
 
 INTERPOLATING = {"Rotate", "RandomRotation", "Resize", "RandomResize"}
@@ -25,59 +26,9 @@ INTERPOLATING |= {"Stretch", "StretchAtAngle", "RandomStretch", "StretchToTarget
 VALUE_CHECKED = {"TemporalEventShift", "TemporalEventShiftBinomial", "RandomTemporalEventShift", "RandomEventDrop"}
 
 
-def _bank(t: int, h: int, w: int) -> torch.Tensor:
-    return sparse_frames(t + 5, 2, h, w, seed=9)
-
-
 # name -> factory(T, H, W) -> module
-FACTORIES = {
-    "Rotate": lambda t, h, w: et.Rotate(30.0),
-    "RandomRotation": lambda t, h, w: et.RandomRotation(45.0),
-    "Resize": lambda t, h, w: et.Resize(1.25),
-    "RandomResize": lambda t, h, w: et.RandomResize(choices=(15 / 18, 15 / 12)),
-    "HorizontalFlip": lambda t, h, w: et.HorizontalFlip(),
-    "VerticalFlip": lambda t, h, w: et.VerticalFlip(),
-    "RandomHorizontalFlip": lambda t, h, w: et.RandomHorizontalFlip(0.5),
-    "RandomVerticalFlip": lambda t, h, w: et.RandomVerticalFlip(0.5),
-    "FrameShift": lambda t, h, w: et.FrameShift(-1),
-    "RandomFrameShift": lambda t, h, w: et.RandomFrameShift((-2, 2)),
-    "TemporalEventShift": lambda t, h, w: et.TemporalEventShift(-2, 0.5),
-    "TemporalEventShiftBinomial": lambda t, h, w: et.TemporalEventShift(-2, 0.5, mode="binomial"),
-    "RandomTemporalEventShift": lambda t, h, w: et.RandomTemporalEventShift((-2, 2), (0.2, 0.8)),
-    "AddNoise": lambda t, h, w: et.AddNoise(_bank(t, h, w)),
-    "AddPoissonNoise": lambda t, h, w: et.AddPoissonNoise((0.5, 20.0)),
-    "RandomEventDrop": lambda t, h, w: et.RandomEventDrop((0.1, 0.5)),
-    "Compose": lambda t, h, w: et.Compose([et.FrameShift(-1), et.RandomRotation(10.0)]),
-    "OneOf": lambda t, h, w: et.OneOf([et.RandomResize(choices=(0.83, 1.25)), et.FrameShift(-1)]),
-    "RandomApply": lambda t, h, w: et.RandomApply(et.RandomFrameShift((-1, 1)), p=0.5),
-    # transform coverage (issue 13); size-changing modules run tests/test_shape_battery.py
-    "Affine": lambda t, h, w: et.Affine(angle=15.0, translate=(1.5, -1.0), scale=1.1, shear=(5.0, 0.0)),
-    "RandomAffine": lambda t, h, w: et.RandomAffine(20.0, translate=(0.1, 0.1), scale=(0.9, 1.1), shear=5.0),
-    "Translate": lambda t, h, w: et.Translate((1, -2)),
-    "RandomTranslate": lambda t, h, w: et.RandomTranslate(2),
-    "RandomCropResize": lambda t, h, w: et.RandomCrop((max(1, h - 3), max(1, w - 2)), resize=True),
-    "CenterCropResize": lambda t, h, w: et.CenterCrop((max(1, h - 4), max(1, w - 1)), resize=True),
-    "FlipPolarity": lambda t, h, w: et.FlipPolarity(),
-    "RandomFlipPolarity": lambda t, h, w: et.RandomFlipPolarity(0.5),
-    "TimeReversal": lambda t, h, w: et.TimeReversal(),
-    "RandomTimeReversal": lambda t, h, w: et.RandomTimeReversal(0.5),
-    "MergePolarities": lambda t, h, w: et.MergePolarities(),
-    "Cutout": lambda t, h, w: et.Cutout((3, 2)),
-    "DropPixel": lambda t, h, w: et.DropPixel([[0, 0], [h - 1, w - 1]]),
-    "DropHotPixels": lambda t, h, w: et.DropPixel(rate_hz=150.0),
-    "RandomDropPixel": lambda t, h, w: et.RandomDropPixel((0.1, 0.3)),
-    "Denoise": lambda t, h, w: et.Denoise(),
-    # coupled transforms (couples_samples): whole batch, labels mixed through apply_labels
-    "CutMix": lambda t, h, w: et.CutMix(),
-    "MixUp": lambda t, h, w: et.MixUp(0.4),
-    # sequence warps (issue 19)
-    "RandomPerspective": lambda t, h, w: et.RandomPerspective(0.3),
-    "RandomElastic": lambda t, h, w: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0, p=0.5),
-    # scenes (issue 18)
-    "Stretch": lambda t, h, w: et.Stretch(1.3),
-    "StretchAtAngle": lambda t, h, w: et.Stretch(0.8, axis=30.0, center="image"),
-    "RandomStretch": lambda t, h, w: et.RandomStretch((0.8, 1.25)),
-}
+# name -> factory: each topic test file holds its own entries (BATTERY in test_<topic>.py)
+FACTORIES = collect("BATTERY")
 COUPLED = {"CutMix", "MixUp"}
 
 NAMES = sorted(FACTORIES)
@@ -321,6 +272,9 @@ class _Probe(et.EventTransform):
 
     def sample_params(self, shape, *, generator=None, metadata=None):
         self.seen.append(metadata)
+        return {}
+
+    def params_spec(self, shape):
         return {}
 
     def apply(self, frames, params):

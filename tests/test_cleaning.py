@@ -68,3 +68,12 @@ def test_denoise_only_removes_whole_entries(shape, seed, radius, temporal_radius
     out = F.denoise(frames, radius=radius, temporal_radius=temporal_radius)
     kept = out > 0
     assert torch.equal(out[kept], frames[kept]) and bool((out <= frames).all())
+
+
+# --------------------------------------------------------------------------- batteries
+# This topic's entries of the shared batteries (tests/test_battery.py on frames,
+# tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
+
+BATTERY = {
+    "Denoise": lambda t, h, w: et.Denoise(),
+}

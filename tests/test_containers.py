@@ -195,3 +195,14 @@ class TestCoupledMembers:
         assert not et.Compose([et.FrameShift(1)]).couples_samples
         out, same = et.Compose([et.FrameShift(1)])(frames, labels)
         assert same is labels
+
+
+# --------------------------------------------------------------------------- batteries
+# This topic's entries of the shared batteries (tests/test_battery.py on frames,
+# tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
+
+BATTERY = {
+    "Compose": lambda t, h, w: et.Compose([et.FrameShift(-1), et.RandomRotation(10.0)]),
+    "OneOf": lambda t, h, w: et.OneOf([et.RandomResize(choices=(0.83, 1.25)), et.FrameShift(-1)]),
+    "RandomApply": lambda t, h, w: et.RandomApply(et.RandomFrameShift((-1, 1)), p=0.5),
+}

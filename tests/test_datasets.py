@@ -183,6 +183,9 @@ class AddUniform(et.EventTransform):
     def sample_params(self, shape, *, generator=None, metadata=None):
         return {"noise": torch.rand(shape, generator=generator)}
 
+    def params_spec(self, shape):
+        return {"noise": et.Param("float", shape=tuple(shape[1:]))}
+
     def apply(self, frames, params):
         return frames + params["noise"]
 
@@ -192,6 +195,9 @@ class ScaleBySize(et.EventTransform):
 
     def sample_params(self, shape, *, generator=None, metadata=None):
         return {"size": metadata_values(metadata, "diameter_mm", shape[0])}
+
+    def params_spec(self, shape):
+        return {"size": et.Param("float")}
 
     def apply(self, frames, params):
         return frames * params["size"].view(-1, 1, 1, 1, 1).to(frames.dtype)

@@ -13,6 +13,7 @@ import event_transforms as et
 from event_transforms import functional as F
 from event_transforms.transforms.base import slice_params
 
+from .event_data import SENSOR, frames_of, make_batch, make_streams, rows
 from .checkers import H, W, check_not_modified, check_sane, sparse_frames
 
 
@@ -170,3 +171,104 @@ class TestRandomDropPixel:
             assert torch.equal(module(frames[n : n + 1], params=slice_params(params, torch.tensor([n])))[0], out[n])
         other = module.make_params(frames.shape, generator=gen(3))
         assert not torch.equal(module(frames, params=other), out)
+
+# --------------------------------------------------------------------------- on events (EventBatch kernels)
+
+
+class TestOnEvents:
+    """The event kernels of this topic: slow per-event references, and equality with the
+    frame kernel after binning where the semantics coincide."""
+
+    def test_random_drop_reference(self):
+        batch = make_batch(3)
+        fraction, seed = torch.tensor([0.2, 0.5, 0.9]), torch.tensor([5, 6, 7])
+        out = F.drop_random_events(batch, fraction, "binomial", seed)
+        for b in range(3):
+            u = torch.empty(batch.lengths[b]).uniform_(generator=torch.Generator().manual_seed(int(seed[b])))
+            expected = [e for e, ui in zip(rows(batch, b), u.tolist()) if not ui < fraction[b].item()]
+            assert rows(out, b) == expected
+
+    def test_pixel_drop_reference_and_frames(self):
+        batch = make_batch(3)
+        drop = et.RandomDropPixel((0.2, 0.6))
+        params = drop.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(5))
+        out = drop(batch, params=params)
+        mask = F.random_pixel_mask(params["seed"], params["fraction"], *SENSOR, torch.device("cpu"))
+        for b in range(3):  # slow reference: an event goes when its pixel is masked for its stream
+            assert rows(out, b) == [e for e in rows(batch, b) if not mask[b, e[1], e[0]]]
+        assert torch.equal(frames_of(out), drop(frames_of(batch), params=params))
+        fixed = et.DropPixel([[1, 2], [4, 0]])
+        assert torch.equal(frames_of(fixed(batch)), fixed(frames_of(batch)))
+        with pytest.raises(TypeError, match="rate_hz"):
+            et.DropPixel(rate_hz=100.0)(batch)
+
+    def test_event_drop_time_and_area_match_frames(self):
+        batch = make_batch(4)
+        drop = et.RandomEventDrop((0.2, 0.6), methods=("time", "area"))
+        params = drop.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(3))
+        assert torch.equal(frames_of(drop(batch, params=params)), drop(frames_of(batch), params=params))
+
+    def test_refractory_and_decimation_reference(self):
+        streams = [torch.stack([s[:, 0] % 3, s[:, 1] % 3, s[:, 2], s[:, 3]], 1) for s in make_streams(3, seed=4, n=150)]
+        batch = F.EventBatch.from_streams(streams, sensor_size=(3, 3))  # crowded pixels
+        period = torch.tensor([300.0, 0.0, 2000.0])
+        out = F.refractory_period_events(batch, period)
+        n = torch.tensor([2, 1, 3])
+        dec = F.decimation_events(batch, n)
+        for b in range(3):
+            last: dict = {}
+            counts: dict = {}
+            kept, decimated = [], []
+            for event in rows(batch, b):
+                x, y, t, _ = event
+                if (x, y) not in last or t - last[(x, y)] >= period[b]:
+                    kept.append(event)
+                last[(x, y)] = t
+                counts[(x, y)] = counts.get((x, y), 0) + 1
+                if counts[(x, y)] % int(n[b]) == 0:
+                    decimated.append(event)
+            assert rows(out, b) == kept
+            assert rows(dec, b) == decimated
+
+    def test_decimation_params_are_checked_by_the_spec(self):
+        batch = make_batch(1)
+        with pytest.raises(ValueError, match=r"Decimation: params\['n'\] must lie in \[1, inf\]"):
+            et.Decimation(2)(batch, params={"n": torch.tensor([0])})
+        with pytest.raises(ValueError, match="n must be >= 1"):
+            F.decimation(batch, 0)
+        with pytest.raises(ValueError, match=r"RefractoryPeriod: params\['period_us'\] must lie in \[0.0, inf\]"):
+            et.RefractoryPeriod(10.0)(batch, params={"period_us": torch.tensor([-1.0])})
+
+    def test_dispatchers_take_events(self):
+        batch = make_batch(3)
+        frames = frames_of(batch)
+        assert torch.equal(frames_of(F.drop_by_time(batch, 1, 2)), F.drop_by_time(frames, 1, 2))
+        assert torch.equal(frames_of(F.drop_by_area(batch, 2, 3, 4, 5)), F.drop_by_area(frames, 2, 3, 4, 5))
+        assert torch.equal(frames_of(F.drop_pixel(batch, [[1, 2]])), F.drop_pixel(frames, [[1, 2]]))
+        out = F.drop_random(batch, 0.5, generator=torch.Generator().manual_seed(0))
+        assert out.num_events < batch.num_events
+        assert F.drop_events is F.drop_random  # the former name, kept as an alias
+        with pytest.raises(TypeError, match="refractory_period works on events only"):
+            F.refractory_period(frames, 10.0)
+
+
+# --------------------------------------------------------------------------- batteries
+# This topic's entries of the shared batteries (tests/test_battery.py on frames,
+# tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
+
+BATTERY = {
+    "RandomEventDrop": lambda t, h, w: et.RandomEventDrop((0.1, 0.5)),
+    "DropPixel": lambda t, h, w: et.DropPixel([[0, 0], [h - 1, w - 1]]),
+    "DropHotPixels": lambda t, h, w: et.DropPixel(rate_hz=150.0),
+    "RandomDropPixel": lambda t, h, w: et.RandomDropPixel((0.1, 0.3)),
+}
+
+EVENT_BATTERY = {
+    "RandomEventDrop": lambda: et.RandomEventDrop((0.1, 0.5)),
+    "RefractoryPeriod": lambda: et.RefractoryPeriod((100.0, 2000.0)),
+    "Decimation": lambda: et.Decimation((1, 3)),
+    "RandomEventDrop p": lambda: et.RandomEventDrop((0.2, 0.6), p=0.5),
+    "RandomDropPixel p": lambda: et.RandomDropPixel((0.1, 0.4), p=0.5),
+    "DropPixel": lambda: et.DropPixel([[1, 1], [3, 5]]),
+    "Decimation p": lambda: et.Decimation(2, p=0.5),
+}

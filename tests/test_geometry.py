@@ -3,6 +3,7 @@ loops over pixels), and their invariants (hypothesis)."""
 
 from __future__ import annotations
 
+
 import pytest
 import torch
 from hypothesis import given, settings
@@ -11,6 +12,7 @@ from hypothesis import strategies as st
 import event_transforms as et
 from event_transforms import functional as F
 
+from .event_data import frames_of, make_batch, rows
 from .checkers import H, W, check_not_modified, count_shapes, random_counts, sparse_frames
 
 
@@ -174,3 +176,108 @@ def test_translate_there_and_back_keeps_what_stayed_inside(shape, seed, dy, dx):
     assert bool((there.sum() <= frames.sum()).all())
     assert bool((back == frames)[back > 0].all())  # whatever came back is where it was
     assert int(back.sum()) == int(there.sum())
+
+# --------------------------------------------------------------------------- on events (EventBatch kernels)
+
+
+class TestOnEvents:
+    """The event kernels of this topic: slow per-event references, and equality with the
+    frame kernel after binning where the semantics coincide."""
+
+    def test_flips_match_frames(self):
+        batch = make_batch()
+        frames = frames_of(batch)
+        assert torch.equal(frames_of(et.HorizontalFlip()(batch)), frames.flip(-1))
+        assert torch.equal(frames_of(et.VerticalFlip()(batch)), frames.flip(-2))
+        assert torch.equal(frames_of(F.horizontal_flip(batch)), F.horizontal_flip(frames))
+        flags = torch.tensor([True, False, True, False])
+        assert torch.equal(frames_of(F.vertical_flip(batch, flags)), F.vertical_flip(frames, flags))
+
+    def test_crops_match_frames(self):
+        batch = make_batch(3)
+        frames = frames_of(batch)
+        for crop in (et.RandomCrop((7, 9)), et.CenterCrop((5, 12))):
+            params = crop.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(1))
+            out = crop(batch, params=params)
+            assert out.sensor_size == crop.size
+            assert torch.equal(frames_of(out), crop(frames, params=params))
+        crop_time = et.RandomCropTime(4)
+        params = crop_time.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(2))
+        out = crop_time(batch, params=params)
+        assert out.n_frames == 4 and torch.equal(frames_of(out), crop_time(frames, params=params))
+        with pytest.raises(ValueError, match="resize=False"):
+            et.RandomCrop((7, 9), resize=True)(batch)
+
+    def test_translate_reference(self):
+        batch = make_batch(2)
+        shift = torch.tensor([[1, -2], [0, 3]])
+        out = F.translate_events(batch, shift)
+        for b in range(2):
+            assert rows(out, b) == [(x + int(shift[b, 1]), y + int(shift[b, 0]), t, p) for x, y, t, p in rows(batch, b)]
+        frames = frames_of(batch)
+        assert torch.equal(frames_of(et.Translate((1, -2))(batch)), et.Translate((1, -2))(frames))
+
+    def test_spatial_jitter_reference(self):
+        batch = make_batch(2)
+        sigma, seed = torch.tensor([1.5, 0.0]), torch.tensor([3, 4])
+        out = F.spatial_jitter_events(batch, sigma, seed)
+        for b in range(2):
+            n = batch.lengths[b]
+            g = torch.Generator().manual_seed(int(seed[b]))
+            noise_x, noise_y = torch.empty(n).normal_(generator=g), torch.empty(n).normal_(generator=g)
+            for i, ((x, y, t, p), (ox, oy, ot, op)) in enumerate(zip(rows(batch, b), rows(out, b))):
+                assert ox == round(x + noise_x[i].item() * sigma[b].item())
+                assert oy == round(y + noise_y[i].item() * sigma[b].item())
+                assert (ot, op) == (t, p)
+
+    def test_jitter_sigma_is_checked(self):
+        batch = make_batch(1)
+        with pytest.raises(ValueError, match="sigma"):
+            et.SpatialJitter(-1.0)
+        with pytest.raises(ValueError, match=r"SpatialJitter: params\['sigma'\] must lie in \[0.0, inf\]"):
+            et.SpatialJitter(1.0)(batch, params={"sigma": torch.tensor([-1.0]), "seed": torch.tensor([1])})
+        with pytest.raises(ValueError, match="sigma must be finite and >= 0"):
+            F.spatial_jitter(batch, -1.0, 1)
+
+    def test_dispatchers_take_events(self):
+        batch = make_batch(3)
+        frames = frames_of(batch)
+        assert torch.equal(frames_of(F.translate(batch, (1, -2))), F.translate(frames, (1, -2)))
+        out = F.crop(batch, 1, 2, (5, 6))
+        assert out.sensor_size == (5, 6) and torch.equal(frames_of(out), F.crop(frames, 1, 2, (5, 6)))
+        with pytest.raises(TypeError, match="downsample has no kernel for an EventBatch"):
+            F.downsample(batch, 2)
+
+
+# --------------------------------------------------------------------------- batteries
+# This topic's entries of the shared batteries (tests/test_battery.py on frames,
+# tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
+
+BATTERY = {
+    "HorizontalFlip": lambda t, h, w: et.HorizontalFlip(),
+    "VerticalFlip": lambda t, h, w: et.VerticalFlip(),
+    "RandomHorizontalFlip": lambda t, h, w: et.RandomHorizontalFlip(0.5),
+    "RandomVerticalFlip": lambda t, h, w: et.RandomVerticalFlip(0.5),
+    "Translate": lambda t, h, w: et.Translate((1, -2)),
+    "RandomTranslate": lambda t, h, w: et.RandomTranslate(2),
+    "RandomCropResize": lambda t, h, w: et.RandomCrop((max(1, h - 3), max(1, w - 2)), resize=True),
+    "CenterCropResize": lambda t, h, w: et.CenterCrop((max(1, h - 4), max(1, w - 1)), resize=True),
+}
+
+SHAPE_BATTERY = {
+    "RandomCrop": lambda t, h, w: et.RandomCrop((max(1, h - 3), max(1, w - 2))),
+    "CenterCrop": lambda t, h, w: et.CenterCrop((max(1, h - 4), max(1, w - 1))),
+    "Downsample": lambda t, h, w: et.Downsample(2),
+    "DownsampleKeep": lambda t, h, w: et.Downsample((3, 2), remainder="keep"),
+}
+
+EVENT_BATTERY = {
+    "HorizontalFlip": lambda: et.HorizontalFlip(),
+    "VerticalFlip": lambda: et.VerticalFlip(),
+    "Translate": lambda: et.Translate((1, -2)),
+    "RandomHorizontalFlip": lambda: et.RandomHorizontalFlip(),
+    "RandomVerticalFlip": lambda: et.RandomVerticalFlip(),
+    "RandomTranslate": lambda: et.RandomTranslate((2, 3)),
+    "SpatialJitter": lambda: et.SpatialJitter((0.5, 2.0)),
+    "SpatialJitter p": lambda: et.SpatialJitter(1.5, p=0.5),
+}

@@ -208,3 +208,14 @@ def test_cutmix_counts_are_outside_own_plus_inside_partner(shape, seed, data):
     inside = F.cutout(torch.ones_like(frames), top, left, height, width) == 0
     expected = (frames * ~inside).sum((1, 2, 3, 4)) + (frames[partner] * inside).sum((1, 2, 3, 4))
     assert torch.equal(out.sum((1, 2, 3, 4)), expected)
+
+
+# --------------------------------------------------------------------------- batteries
+# This topic's entries of the shared batteries (tests/test_battery.py on frames,
+# tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
+
+BATTERY = {
+    "Cutout": lambda t, h, w: et.Cutout((3, 2)),
+    "CutMix": lambda t, h, w: et.CutMix(),
+    "MixUp": lambda t, h, w: et.MixUp(0.4),
+}

@@ -11,6 +11,7 @@ import torch
 import event_transforms as et
 from event_transforms import functional as F
 
+from .event_data import FRAME_US, SENSOR, T, frames_of, make_batch, rows
 from .checkers import H, W, check_not_modified, check_sane, sparse_frames
 
 
@@ -155,4 +156,59 @@ class TestPoissonNoise:
         with pytest.raises(ValueError, match="rate_hz"):
             et.AddPoissonNoise((5.0, 1.0))
 
+# --------------------------------------------------------------------------- on events (EventBatch kernels)
 
+
+class TestOnEvents:
+    """The event kernels of this topic: slow per-event references, and equality with the
+    frame kernel after binning where the semantics coincide."""
+
+    def test_bank_noise_matches_frames_and_places_events_at_bin_centres(self):
+        batch = make_batch(3)
+        bank = torch.poisson(torch.full((9, 2, *SENSOR), 0.2), generator=torch.Generator().manual_seed(1))
+        noise = et.AddNoise(bank)
+        params = noise.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(2))
+        out = noise(batch, params=params)
+        assert torch.equal(frames_of(out), noise(frames_of(batch), params=params))
+        for b in range(3):  # slow reference: every count of the window is one event at its bin's centre
+            first = int(params["offset"][b])
+            added = rows(out, b)[batch.lengths[b]:]
+            expected = sorted(
+                (x, y, int(batch.t_start[b]) + t * FRAME_US + FRAME_US // 2, p)
+                for t in range(T) for p in range(2) for y in range(SENSOR[0]) for x in range(SENSOR[1])
+                for _ in range(int(bank[first + t, p, y, x]))
+            )
+            assert sorted(added) == expected and rows(out, b)[: batch.lengths[b]] == rows(batch, b)
+        with pytest.raises(ValueError, match="cannot cover frames"):
+            et.AddNoise(torch.zeros(9, 2, 5, 5))(batch)
+
+    def test_poisson_noise(self):
+        batch = make_batch(3)
+        noise = et.AddPoissonNoise(200.0)
+        out = noise(batch, generator=torch.Generator().manual_seed(0))
+        expected = 200.0 * T * 1e-3 * 2 * SENSOR[0] * SENSOR[1]
+        added = [a - b for a, b in zip(out.lengths, batch.lengths)]
+        assert all(abs(a - expected) < 6 * math.sqrt(expected) for a in added)
+        frames = frames_of(out)
+        assert frames.sum() == out.num_events  # every added event lies in the window and sensor
+        assert bool((frames >= frames_of(batch)).all())
+
+
+# --------------------------------------------------------------------------- batteries
+# This topic's entries of the shared batteries (tests/test_battery.py on frames,
+# tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
+
+
+def _bank(t: int, h: int, w: int) -> torch.Tensor:
+    return sparse_frames(t + 5, 2, h, w, seed=9)
+
+BATTERY = {
+    "AddNoise": lambda t, h, w: et.AddNoise(_bank(t, h, w)),
+    "AddPoissonNoise": lambda t, h, w: et.AddPoissonNoise((0.5, 20.0)),
+}
+
+EVENT_BATTERY = {
+    "AddPoissonNoise": lambda: et.AddPoissonNoise((1.0, 100.0)),
+    "AddNoise p": lambda: et.AddNoise(torch.poisson(torch.full((9, 2, *SENSOR), 0.3),
+                                                    generator=torch.Generator().manual_seed(4)), p=0.5),
+}

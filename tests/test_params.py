@@ -117,14 +117,27 @@ def test_dtypes_are_canonicalised_and_replay(x):
     assert torch.equal(module(x, params=loose), module(x, params=params))
 
 
-def test_a_subclass_without_spec_is_checked_for_structure(x):
-    class Scale(et.EventTransform):
+def test_a_subclass_that_draws_must_declare_its_spec(x):
+    with pytest.raises(TypeError, match="Scale draws parameters .* must declare them: override params_spec"):
+        class Scale(et.EventTransform):
+            def sample_params(self, shape, *, generator=None, metadata=None):
+                return {"factor": torch.full((shape[0],), 2.0)}
+
+            def apply(self, frames, params):
+                return frames * params["factor"].view(-1, 1, 1, 1, 1)
+
+    class Declared(et.EventTransform):
         def sample_params(self, shape, *, generator=None, metadata=None):
             return {"factor": torch.full((shape[0],), 2.0)}
+
+        def params_spec(self, shape):
+            return {"factor": et.Param("float", low=0.0)}
 
         def apply(self, frames, params):
             return frames * params["factor"].view(-1, 1, 1, 1, 1)
 
-    with pytest.raises(ValueError, match=r"Scale: params\['factor'\] must be a \(2, \.\.\.\) tensor"):
-        Scale()(x, params={"factor": torch.ones(3)})
-    assert torch.equal(Scale()(x, params={"factor": torch.ones(2)}), x)
+    with pytest.raises(ValueError, match=r"Declared: params\['factor'\] must have shape \(2,\)"):
+        Declared()(x, params={"factor": torch.ones(3)})
+    with pytest.raises(ValueError, match=r"Declared: params\['factor'\] must lie in \[0.0, inf\]"):
+        Declared()(x, params={"factor": -torch.ones(2)})
+    assert torch.equal(Declared()(x, params={"factor": torch.ones(2)}), x)

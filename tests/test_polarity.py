@@ -3,12 +3,14 @@ and channels)."""
 
 from __future__ import annotations
 
+
 import pytest
 import torch
 
 import event_transforms as et
 from event_transforms import functional as F
 
+from .event_data import frames_of, make_batch
 from .checkers import H, W, check_not_modified, sparse_frames
 
 
@@ -67,4 +69,32 @@ class TestMergePolarities:
         with pytest.raises(TypeError, match="keepdim"):
             F.merge_polarities(frames, keepdim=1)
 
+# --------------------------------------------------------------------------- on events (EventBatch kernels)
 
+
+class TestOnEvents:
+    """The event kernels of this topic: slow per-event references, and equality with the
+    frame kernel after binning where the semantics coincide."""
+
+    def test_flip_polarity_matches_frames(self):
+        batch = make_batch()
+        frames = frames_of(batch)
+        assert torch.equal(frames_of(et.FlipPolarity()(batch)), frames.flip(2))
+        flags = torch.tensor([False, True, True, False])
+        assert torch.equal(frames_of(F.flip_polarity(batch, flags)), F.flip_polarity(frames, flags))
+
+
+# --------------------------------------------------------------------------- batteries
+# This topic's entries of the shared batteries (tests/test_battery.py on frames,
+# tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
+
+BATTERY = {
+    "FlipPolarity": lambda t, h, w: et.FlipPolarity(),
+    "RandomFlipPolarity": lambda t, h, w: et.RandomFlipPolarity(0.5),
+    "MergePolarities": lambda t, h, w: et.MergePolarities(),
+}
+
+EVENT_BATTERY = {
+    "FlipPolarity": lambda: et.FlipPolarity(),
+    "RandomFlipPolarity": lambda: et.RandomFlipPolarity(),
+}

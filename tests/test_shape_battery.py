@@ -13,16 +13,11 @@ import torch
 import event_transforms as et
 from event_transforms.transforms.base import slice_params
 
+from ._topics import collect
 from .checkers import H, W, check_not_modified, sparse_frames
 
-SHAPE_FACTORIES = {
-    "RandomCrop": lambda t, h, w: et.RandomCrop((max(1, h - 3), max(1, w - 2))),
-    "CenterCrop": lambda t, h, w: et.CenterCrop((max(1, h - 4), max(1, w - 1))),
-    "Downsample": lambda t, h, w: et.Downsample(2),
-    "DownsampleKeep": lambda t, h, w: et.Downsample((3, 2), remainder="keep"),
-    "CropTime": lambda t, h, w: et.CropTime(min(1, t - 1), max(1, t - 2)),
-    "RandomCropTime": lambda t, h, w: et.RandomCropTime(max(1, t - 2)),
-}
+# name -> factory: each topic test file holds its own entries (SHAPE_BATTERY in test_<topic>.py)
+SHAPE_FACTORIES = collect("SHAPE_BATTERY")
 NAMES = sorted(SHAPE_FACTORIES)
 DTYPES = [torch.float32, torch.float16, torch.bfloat16, torch.float64, torch.uint8, torch.int16, torch.int32, torch.int64]
 # conserve every event (the others may cut some away)

@@ -161,3 +161,14 @@ class TestStretch:
         torch.testing.assert_close(out, F.stretch(frames, torch.tensor([1.25, 15 / 18]).sqrt()))
         with pytest.raises(ValueError, match="diameter_mm"):
             et.StretchToTarget(15.0)(frames)
+
+
+# --------------------------------------------------------------------------- batteries
+# This topic's entries of the shared batteries (tests/test_battery.py on frames,
+# tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
+
+BATTERY = {
+    "Stretch": lambda t, h, w: et.Stretch(1.3),
+    "StretchAtAngle": lambda t, h, w: et.Stretch(0.8, axis=30.0, center="image"),
+    "RandomStretch": lambda t, h, w: et.RandomStretch((0.8, 1.25)),
+}

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import textwrap
 from collections import Counter
+from itertools import product
 
 import pytest
 import torch
@@ -18,7 +19,7 @@ import event_transforms as et
 from event_transforms import functional as F
 from event_transforms._validation import as_batch
 from event_transforms.functional._random import draw_seeds
-from event_transforms.functional.temporal import _draw_moved, _entries, _fractions, _temporal_event_shift
+from event_transforms.functional.temporal import _draw_moved, _entries, _fractions, temporal_event_shift_frames
 from event_transforms.transforms import (
     FrameShift,
     RandomFrameShift,
@@ -26,6 +27,7 @@ from event_transforms.transforms import (
     TemporalEventShift,
 )
 
+from .event_data import SENSOR, T, frames_of, make_batch, make_streams, rows
 from .checkers import H, W, check_not_modified, check_pickle, check_sane, count_shapes, random_counts, sparse_frames
 from .test_hypergeometric import chi_square_p_value
 
@@ -450,7 +452,7 @@ class TestModules:
         else:  # the kernel draws from per-sample streams keyed by the seeds in params
             assert params["seed"].shape == (3,) and params["seed"].dtype == torch.int64
         shifts, fractions = torch.full((3,), -2), torch.full((3,), 0.5, dtype=torch.float64)
-        assert torch.equal(out, _temporal_event_shift(frames, shifts, fractions, mode, params.get("seed")))
+        assert torch.equal(out, temporal_event_shift_frames(frames, shifts, fractions, mode, params.get("seed")))
         assert torch.equal(module(frames, generator=gen(5)), out)
         assert repr(module) == f"TemporalEventShift(shift=-2, fraction=0.5, mode={mode!r})"
         check_pickle(module, frames)
@@ -468,7 +470,7 @@ class TestModules:
         assert params["fraction"].std() > 0.1  # per sample, not one per batch
         frames = sparse_frames(300, 4, 2, 3, 5, high=9, density=0.6, dtype=torch.int64)
         out = module(frames, params=params)
-        expected = _temporal_event_shift(frames, params["shift"], params["fraction"], "exact", params["seed"])
+        expected = temporal_event_shift_frames(frames, params["shift"], params["fraction"], "exact", params["seed"])
         assert torch.equal(out, expected)
         check_pickle(module, frames[:4])
         fixed = RandomTemporalEventShift(range(-1, 2), 0.5, mode="binomial")
@@ -569,11 +571,128 @@ class TestPerSamplePurity:
         frames[2, 1, 0, 0, 0] = 10**6  # a count for torch.binomial's per-sample route
         seeds = torch.arange(6, dtype=torch.int64) * 7919 + 3
         shifts, fractions = torch.full((6,), -1), torch.linspace(0.1, 0.9, 6, dtype=torch.float64)
-        batched = _temporal_event_shift(frames, shifts, fractions, mode, seeds)
+        batched = temporal_event_shift_frames(frames, shifts, fractions, mode, seeds)
         for b in range(6):
-            alone = _temporal_event_shift(frames[b : b + 1], shifts[b : b + 1], fractions[b : b + 1], mode, seeds[b : b + 1])
+            alone = temporal_event_shift_frames(frames[b : b + 1], shifts[b : b + 1], fractions[b : b + 1], mode, seeds[b : b + 1])
             assert torch.equal(alone[0], batched[b])
         other = frames.clone()
         other[0] = 0  # a neighbour's data changes nothing for the others
-        changed = _temporal_event_shift(other, shifts, fractions, mode, seeds)
+        changed = temporal_event_shift_frames(other, shifts, fractions, mode, seeds)
         assert torch.equal(changed[1:], batched[1:])
+
+# --------------------------------------------------------------------------- on events (EventBatch kernels)
+
+
+class TestOnEvents:
+    """The event kernels of this topic: slow per-event references, and equality with the
+    frame kernel after binning where the semantics coincide."""
+
+    def test_frame_shift_matches_frames(self):
+        batch = make_batch()
+        for shift in (-2, 1, 0):
+            assert torch.equal(frames_of(et.FrameShift(shift)(batch)), F.frame_shift(frames_of(batch), shift))
+
+    @pytest.mark.parametrize("fraction, shift", [(0.5, -2), (0.3, 1), (1.0, -1), (0.0, 2), (0.77, 3)])
+    def test_tes_exact_moves_round_zeta_n(self, fraction, shift):
+        batch = make_batch(4, n=300)
+        tes = et.TemporalEventShift(shift, fraction)
+        out = tes(batch, generator=torch.Generator().manual_seed(1))
+        n = frames_of(batch).sum(dim=(3, 4))
+        k = torch.round(fraction * n.double()).long()
+        expected = n - k
+        if shift >= 0:
+            expected[:, shift:] += k[:, : T - shift]
+        else:
+            expected[:, :shift] += k[:, -shift:]
+        assert torch.equal(frames_of(out).sum(dim=(3, 4)), expected)
+        # the same per-(frame, polarity) totals as the frame kernel, whose totals are deterministic too
+        frame_out = tes(frames_of(batch), generator=torch.Generator().manual_seed(1))
+        assert torch.equal(frames_of(out).sum(dim=(3, 4)), frame_out.sum(dim=(3, 4)))
+        assert bool((frames_of(out)[:, :] >= 0).all())
+
+    def test_tes_chi_square(self):
+        """Moved counts per pixel of one group: multivariate hypergeometric (a uniform subset of k of N)."""
+        pixels = [3, 2, 1]  # N = 6 events in three pixels of frame 1, ON; k = 3
+        events = [[i, 0, 1_000 + 10 * j, 1] for i, c in enumerate(pixels) for j in range(c)]
+        batch = F.EventBatch.from_streams([torch.tensor(events)], sensor_size=SENSOR, frame_ms=1.0, t_start=0, n_frames=T)
+        runs = 600
+        seen = Counter()
+        for seed in range(runs):
+            out = F.temporal_event_shift_events(batch, torch.tensor([1]), torch.tensor([0.5]), "exact", torch.tensor([seed * 7919 + 11]))
+            moved = frames_of(out)[0, 2, 1, 0, :3]
+            seen[tuple(moved.tolist())] += 1
+        outcomes = [z for z in product(*(range(c + 1) for c in pixels)) if sum(z) == 3]
+        total = math.comb(6, 3)
+        chi2 = 0.0
+        for z in outcomes:
+            expected = runs * math.prod(math.comb(c, k) for c, k in zip(pixels, z)) / total
+            chi2 += (seen[z] - expected) ** 2 / expected
+        assert set(seen) <= set(outcomes)
+        assert chi2 < 24.3  # chi-square, 5 degrees of freedom, p = 0.0002
+
+    def test_binomial_tes_and_expected_mode(self):
+        batch = make_batch(2, n=400)
+        out = et.TemporalEventShift(-1, 0.5, mode="binomial")(batch, generator=torch.Generator().manual_seed(0))
+        assert out.num_events <= batch.num_events
+        with pytest.raises(ValueError, match="expected"):
+            et.TemporalEventShift(-1, 0.5, mode="expected")(batch)
+
+    def test_time_needs_a_grid(self):
+        batch = F.EventBatch.from_streams(make_streams(2), sensor_size=SENSOR)
+        with pytest.raises(ValueError, match="frame grid"):
+            et.FrameShift(1)(batch)
+
+    def test_time_reversal_matches_frames(self):
+        batch = make_batch()
+        frames = frames_of(batch)
+        assert torch.equal(frames_of(et.TimeReversal()(batch)), F.time_reversal(frames))
+        flags = torch.tensor([True, False, False, True])
+        assert torch.equal(frames_of(F.time_reversal(batch, flags)), F.time_reversal(frames, flags))
+
+    def test_time_jitter_reference(self):
+        batch = make_batch(2)
+        seed = torch.tensor([3, 4])
+        std = torch.tensor([50.0, 200.0])
+        out = F.time_jitter_events(batch, std, seed)
+        for b in range(2):
+            noise = torch.empty(batch.lengths[b], dtype=torch.float64).normal_(generator=torch.Generator().manual_seed(int(seed[b])))
+            noise = torch.round(noise * std[b].item()).long().tolist()
+            assert [e[2] for e in rows(out, b)] == [t + v for (_, _, t, _), v in zip(rows(batch, b), noise)]
+
+    def test_time_skew_reference(self):
+        batch = F.EventBatch.from_streams([torch.tensor([[0, 0, 100, 1], [0, 0, 300, 0]])] * 2, sensor_size=SENSOR)
+        out = F.time_skew_events(batch, torch.tensor([2.0, 0.5]), torch.tensor([10.0, 0.0]))
+        assert out.t.tolist() == [110, 510, 100, 200]
+
+
+# --------------------------------------------------------------------------- batteries
+# This topic's entries of the shared batteries (tests/test_battery.py on frames,
+# tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
+
+BATTERY = {
+    "FrameShift": lambda t, h, w: et.FrameShift(-1),
+    "RandomFrameShift": lambda t, h, w: et.RandomFrameShift((-2, 2)),
+    "TemporalEventShift": lambda t, h, w: et.TemporalEventShift(-2, 0.5),
+    "TemporalEventShiftBinomial": lambda t, h, w: et.TemporalEventShift(-2, 0.5, mode="binomial"),
+    "RandomTemporalEventShift": lambda t, h, w: et.RandomTemporalEventShift((-2, 2), (0.2, 0.8)),
+    "TimeReversal": lambda t, h, w: et.TimeReversal(),
+    "RandomTimeReversal": lambda t, h, w: et.RandomTimeReversal(0.5),
+}
+
+SHAPE_BATTERY = {
+    "CropTime": lambda t, h, w: et.CropTime(min(1, t - 1), max(1, t - 2)),
+    "RandomCropTime": lambda t, h, w: et.RandomCropTime(max(1, t - 2)),
+}
+
+EVENT_BATTERY = {
+    "FrameShift": lambda: et.FrameShift(-1),
+    "TemporalEventShift": lambda: et.TemporalEventShift(-2, 0.5),
+    "TimeReversal": lambda: et.TimeReversal(),
+    "RandomFrameShift": lambda: et.RandomFrameShift((-1, 1, 2)),
+    "TES exact": lambda: et.RandomTemporalEventShift((-2, -1), (0.3, 0.7)),
+    "TES binomial": lambda: et.RandomTemporalEventShift((-2, -1), (0.3, 0.7), mode="binomial"),
+    "RandomTimeReversal": lambda: et.RandomTimeReversal(),
+    "TimeJitter": lambda: et.TimeJitter((10.0, 300.0)),
+    "TimeSkew": lambda: et.TimeSkew((0.8, 1.2), (-100.0, 100.0)),
+    "TES exact p": lambda: et.RandomTemporalEventShift((-1, 1), 0.5, p=0.5),
+}

@@ -8,13 +8,38 @@
   in chunks.
 
 Every name here is also importable from :mod:`event_transforms.functional`.
+
+An :class:`EventBatch` is registered with ``torch.utils._pytree`` as a node that refuses to
+be flattened: torchvision's v2 transforms flatten their inputs that way, so
+``torchvision.transforms.v2.RandomRotation(30)(batch)`` raises a ``TypeError`` that names the
+EventBatch instead of returning it untouched (v2 passes through every type it does not know).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import Any
+
 from .batch import EventBatch, bin_events, collate_events
 from .binning import CHUNK_EVENTS, MAX_BYTES, EventsOutsideSensorWarning, EventsOutsideWindowWarning, events_to_frames
 from .streaming import iter_frames
+
+from torch.utils import _pytree
+
+
+def _refuse_flatten(batch: EventBatch) -> tuple[list, None]:
+    raise TypeError(
+        f"an EventBatch ({len(batch)} streams) cannot be taken apart into tensors: torchvision's transforms "
+        "would pass it through untouched; use the event_transforms transforms (they take an EventBatch) or "
+        "bin it first with event_transforms.EventsToFrames"
+    )
+
+
+def _unflatten(children: Iterable[Any], context: Any) -> EventBatch:  # pragma: no cover - never flattened
+    raise TypeError("an EventBatch cannot be rebuilt from a pytree")
+
+
+_pytree.register_pytree_node(EventBatch, _refuse_flatten, _unflatten)
 
 __all__ = [
     "EventBatch", "events_to_frames", "iter_frames", "collate_events", "bin_events",

@@ -1,7 +1,11 @@
-"""Pure kernels: tensor first, options keyword-only, per-sample parameters as (B,) tensors.
+"""Operations, one topic file each: a public dispatcher and its kernels per input type.
 
-Every kernel accepts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` event frames, never modifies
-its input, and returns a tensor on the input's device.
+Each operation (``rotate``, ``frame_shift``, ``drop_random``, ...) is a dispatcher that
+takes event frames ``(T, 2, H, W)`` / ``(B, T, 2, H, W)`` or an
+:class:`~event_transforms.EventBatch`, checks its arguments and calls the kernel registered
+for the input's type (:func:`register_kernel`): ``<op>_frames`` or ``<op>_events``, side by
+side in the same file. Nothing is modified in place; the device is kept. An input type
+without a kernel is refused by name (``TypeError``).
 """
 
 from __future__ import annotations
@@ -34,10 +38,9 @@ from .representations import __all__ as _representations
 
 from ..events.batch import *  # noqa: F401,F403
 from ..events.batch import __all__ as _event_batch
-from .event_kernels import *  # noqa: F401,F403
-from .event_kernels import __all__ as _event_kernels
+from ._dispatch import call_kernel, has_kernel, kernel_for, register_kernel
 
 __all__ = [
-    *_affine, *_stretch, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_representations,
-    *_event_batch, *_event_kernels,
+    *_affine, *_stretch, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop,
+    *_representations, *_event_batch, "register_kernel", "kernel_for", "call_kernel", "has_kernel",
 ]

@@ -54,7 +54,7 @@ class Stream:
 
     Every entry (a non-zero pixel) and every row (a frame and polarity of a sample) is
     named by its sample's salt and its position *within the sample*, so its numbers do
-    not depend on the rest of the batch (see :mod:`._streams`).
+    not depend on the rest of the batch (see :mod:`._random`).
 
     Attributes:
         seeds: (B,) int64 per-sample seeds (CPU for the module path).

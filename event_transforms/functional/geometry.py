@@ -20,10 +20,24 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, per_sample, per_sample_pairs
+import numpy as np
+
+from .._validation import (
+    INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, on_host, per_sample, per_sample_pairs,
+)
+from ..events.batch import EventBatch
+from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
+from ._event_ops import _generator, _per_event, _round_to
 from .affine import _output_dtype, _work_dtype
 
-__all__ = ["horizontal_flip", "vertical_flip", "translate", "crop", "center_crop", "downsample"]
+__all__ = [
+    "horizontal_flip", "horizontal_flip_frames", "horizontal_flip_events",
+    "vertical_flip", "vertical_flip_frames", "vertical_flip_events",
+    "translate", "translate_frames", "translate_events",
+    "crop", "crop_frames", "crop_events", "center_crop",
+    "downsample", "downsample_frames",
+    "spatial_jitter", "spatial_jitter_events",
+]
 
 Scalars = float | Sequence[float] | Tensor
 Pairs = Sequence[float] | Tensor
@@ -35,8 +49,17 @@ _NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
 # --------------------------------------------------------------------------- translate
 
 
-def _translate(batch: Tensor, shift: Tensor) -> Tensor:
-    """:func:`translate` on a batch with a (B, 2) int64 CPU ``shift`` of (dy, dx)."""
+def translate_frames(batch: Tensor, shift: Tensor) -> Tensor:
+    """:func:`translate` on a batch with a (B, 2) int64 CPU ``shift`` of (dy, dx).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        shift: ``(dy, dx)`` integer pixels (down, right), or a ``(B, 2)`` integer tensor.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`translate` gives for a batch.
+    """
     b, t, p, height, width = batch.shape
     if batch.numel() == 0:
         return batch.clone()
@@ -64,26 +87,66 @@ def _gather_pixels(batch: Tensor, source: Tensor, valid: Tensor | None = None) -
     return out.view(b, t, p, h, w)
 
 
-def translate(frames: Tensor, shift: Pairs) -> Tensor:
+def translate(inputs: Tensor | EventBatch, shift: Pairs) -> Tensor | EventBatch:
     """Move every frame of each sequence by whole pixels, filling the vacated border with zeros.
 
     Neuromorphic Data Augmentation's "rolling", without the wrap-around: events moved past
     the border are dropped, so the count can only fall. Counts and dtype are kept.
 
+    On an EventBatch (:func:`translate_events`) events moved off the sensor are kept and
+    dropped when binned.
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
         shift: ``(dy, dx)`` integer pixels (down, right), or a ``(B, 2)`` integer tensor.
 
     Returns:
         The moved frames, same shape, dtype and device.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - shift: a pair or ``(B, 2)``.
 
     Example:
         >>> frames = torch.arange(1, 7).reshape(1, 1, 2, 3).expand(1, 2, 2, 3)
         >>> translate(frames, (1, -1))[0, 0].tolist()
         [[0, 0, 0], [2, 3, 0]]
     """
-    batch, unbatch = as_batch(check_frames(frames))
-    return unbatch(_translate(batch, per_sample_pairs(shift, batch.shape[0], "shift", dtype=torch.int64)))
+    batch, b, restore = batch_of(inputs)
+    return restore(call_kernel(translate, batch, per_sample_pairs(shift, b, "shift", dtype=torch.int64)))
+
+
+register_kernel(translate, Tensor)(translate_frames)
+
+
+@register_kernel(translate, EventBatch)
+def translate_events(batch: EventBatch, shift: Tensor) -> EventBatch:
+    """Move sample b's events by ``shift[b] = (dy, dx)`` whole pixels (int). Sync-free.
+
+    Args:
+        batch: the event streams.
+        shift: ``(B, 2)`` integer ``(dy, dx)`` per sample (down, right).
+
+    Shape:
+        - batch: B streams, N events.
+        - shift: ``(B, 2)``.
+        - output: the same streams and events (events may leave the sensor).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> moved = translate_events(batch, torch.tensor([[1, 0], [0, -1]]))
+        >>> moved.y.tolist(), moved.x.tolist()
+        ([2, 1, 1], [0, 2, 0])
+    """
+    shift = shift.to(torch.int16)
+    x = batch.x + _per_event(shift[:, 1].contiguous(), batch)
+    y = batch.y + _per_event(shift[:, 0].contiguous(), batch)
+    return batch._replace(x=x, y=y)
+
 
 
 # --------------------------------------------------------------------------- crop
@@ -103,8 +166,23 @@ def _size(value: object, name: str) -> tuple[int, int]:
     return pair
 
 
-def _crop(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool, mode: str) -> Tensor:
-    """Crop ``size`` at per-sample (B,) int64 CPU ``top``/``left``; optionally resize back to H×W."""
+def crop_frames(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool = False, mode: str = "bilinear") -> Tensor:
+    """Crop ``size`` at per-sample (B,) int64 CPU ``top``/``left``; optionally resize back to H×W.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        top: the window's first row and column, integers or ``(B,)``; the window
+            must fit inside the frame.
+        left: the window's first row and column, integers or ``(B,)``; the window
+            must fit inside the frame.
+        size: ``n`` or ``(h, w)``, the window's size.
+        resize: resize the window back to H×W.
+        mode: ``"bilinear"`` or ``"nearest"``, for ``resize=True``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`crop` gives for a batch.
+    """
     b, t, p, height, width = batch.shape
     h, w = size
     device = batch.device
@@ -138,22 +216,24 @@ def _check_fits(size: tuple[int, int], height: int, width: int) -> None:
 
 
 def crop(
-    frames: Tensor,
+    inputs: Tensor | EventBatch,
     top: Scalars,
     left: Scalars,
     size: int | Sequence[int],
     *,
     resize: bool = False,
     mode: str = "bilinear",
-) -> Tensor:
+) -> Tensor | EventBatch:
     """Cut an ``(h, w)`` window at ``(top, left)`` out of every frame of each sequence.
 
     By default the output is ``(…, h, w)`` (torchvision's ``crop``). With ``resize=True``
     the window is resized back to H×W (torchvision's ``resized_crop``): values are
-    interpolated as an image, so the total count grows by about ``H·W / (h·w)``.
+    interpolated as an image, so the total count grows by about ``H·W / (h·w)``. On an
+    EventBatch (:func:`crop_events`, ``resize=False`` only) coordinates move and the
+    batch's sensor becomes the window.
 
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
         top, left: the window's first row and column, integers or ``(B,)``; the window
             must fit inside the frame.
         size: ``n`` or ``(h, w)``, the window's size.
@@ -173,18 +253,69 @@ def crop(
         >>> crop(frames, 1, 2, 2)[0, 0].tolist()
         [[6, 7], [10, 11]]
     """
-    batch, unbatch = as_batch(check_frames(frames))
-    b, _, _, height, width = batch.shape
+    batch, b, restore = batch_of(inputs)
+    height, width = batch.sensor_size if isinstance(batch, EventBatch) else batch.shape[-2:]
     hw = _size(size, "size")
     _check_fits(hw, height, width)
     check_choice(mode, "mode", INTERPOLATIONS)
     top_t = _check_corner(top, b, "top", height - hw[0])
     left_t = _check_corner(left, b, "left", width - hw[1])
-    return unbatch(_crop(batch, top_t, left_t, hw, bool(resize), mode))
+    return restore(call_kernel(crop, batch, top_t, left_t, hw, bool(resize), mode))
+
+
+register_kernel(crop, Tensor)(crop_frames)
+
+
+@register_kernel(crop, EventBatch)
+def crop_events(
+    batch: EventBatch, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool = False, mode: str = "bilinear"
+) -> EventBatch:
+    """Crop sample b to the window ``top[b], left[b]`` of ``size`` (H, W): coordinates move
+    by ``(-top, -left)`` and the batch's sensor becomes ``size``. Events outside the window
+    are kept (dropped when binned, as the frame crop drops them). ``resize=True``
+    interpolates frames and is refused. Sync-free.
+
+    Args:
+        batch: the event streams.
+        top, left: ``(B,)`` the window's first row and column per sample.
+        size: ``(h, w)`` of the window, the new sensor size.
+        resize: must be ``False`` (resizing interpolates frames).
+        mode: unused on events.
+
+    Shape:
+        - batch: B streams, N events.
+        - top, left: ``(B,)``.
+        - output: the same streams and events on an ``(h, w)`` sensor.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> cropped = crop_events(batch, torch.tensor([0, 1]), torch.tensor([1, 1]), (1, 2))
+        >>> cropped.sensor_size, cropped.x.tolist(), cropped.y.tolist()
+        ((1, 2), [-1, 1, 0], [1, 0, 0])
+    """
+    if resize:
+        raise ValueError("crop(resize=True) interpolates frames; on events crop with resize=False")
+    x = batch.x - _per_event(left.to(torch.int16), batch)
+    y = batch.y - _per_event(top.to(torch.int16), batch)
+    return batch._replace(x=x, y=y, sensor_size=tuple(int(s) for s in size))
 
 
 def center_crop(frames: Tensor, size: int | Sequence[int], *, resize: bool = False, mode: str = "bilinear") -> Tensor:
     """:func:`crop` at the image centre (the top-left corner rounds down, as in torchvision).
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        size: ``n`` or ``(h, w)`` pixels, at most the frame size.
+        resize: resize the window back to ``H × W`` (see :func:`crop`).
+        mode: ``"bilinear"`` or ``"nearest"``, for ``resize=True``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(..., h, w)``, dtype kept; with ``resize=True`` the frames' shape (dtype as in
+          :func:`resize`).
 
     Example:
         >>> center_crop(torch.ones(3, 2, 7, 8), (3, 4)).shape
@@ -194,7 +325,9 @@ def center_crop(frames: Tensor, size: int | Sequence[int], *, resize: bool = Fal
     height, width = batch.shape[-2:]
     hw = _size(size, "size")
     _check_fits(hw, height, width)
-    return crop(frames, (height - hw[0]) // 2, (width - hw[1]) // 2, hw, resize=resize, mode=mode)
+    out = crop(frames, (height - hw[0]) // 2, (width - hw[1]) // 2, hw, resize=resize, mode=mode)
+    assert isinstance(out, Tensor)  # frames in, frames out
+    return out
 
 
 # --------------------------------------------------------------------------- downsample
@@ -206,7 +339,22 @@ def downsampled_size(height: int, width: int, factor: tuple[int, int], remainder
     return rounding(height / factor[0]), rounding(width / factor[1])
 
 
-def _downsample(batch: Tensor, factor: tuple[int, int], remainder: str) -> Tensor:
+def downsample_frames(batch: Tensor, factor: tuple[int, int], remainder: str = "drop") -> Tensor:
+    """Kernel of :func:`downsample` for frames: sum-pooling by ``factor`` (rows, columns).
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        factor: the pooling factor ``(fy, fx)``.
+        remainder: ``"drop"`` the leftover rows/columns or ``"keep"`` them in a partial block.
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: ``(B, T, 2, H', W')`` (:func:`downsampled_size`), the dtype kept.
+
+    Example:
+        >>> downsample_frames(torch.ones(1, 1, 2, 4, 4), (2, 2)).shape
+        torch.Size([1, 1, 2, 2, 2])
+    """
     b, t, p, height, width = batch.shape
     fy, fx = factor
     h, w = downsampled_size(height, width, factor, remainder)
@@ -275,32 +423,270 @@ def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = 
         ``(…, H', W')`` with ``H' = H // fy`` (``"drop"``) or ``ceil(H / fy)`` (``"keep"``);
         dtype and device kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(..., H // fy, W // fx)`` (``"keep"``: rounded up), dtype and device kept.
+
     Example:
         >>> frames = torch.ones(1, 2, 5, 4, dtype=torch.int32)
         >>> downsample(frames, 2)[0, 0].tolist(), downsample(frames, 2, remainder="keep")[0, 0].tolist()
         ([[4, 4], [4, 4]], [[4, 4], [4, 4], [2, 2]])
     """
+    kernel = kernel_for(downsample, frames)
     batch, unbatch = as_batch(check_frames(frames))
-    return unbatch(_downsample(batch, _factor(factor), check_choice(remainder, "remainder", REMAINDERS)))
+    return unbatch(kernel(batch, _factor(factor), check_choice(remainder, "remainder", REMAINDERS)))
+
+
+register_kernel(downsample, Tensor)(downsample_frames)
 
 
 # --------------------------------------------------------------------------- flips
 
 
-def horizontal_flip(frames: Tensor) -> Tensor:
+def horizontal_flip(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Tensor | EventBatch:
     """Mirror every frame left-right (along W). Counts and dtype are kept.
+
+    Args:
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch
+            (``x -> W - 1 - x``, equal to the frame flip after binning).
+        flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - inputs: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        - output: same shape, dtype and device.
 
     Example:
         >>> horizontal_flip(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
     """
-    return check_frames(frames).flip(-1)
+    batch, b, restore = batch_of(inputs)
+    return restore(call_kernel(horizontal_flip, batch, _flags(flip, b)))
 
-def vertical_flip(frames: Tensor) -> Tensor:
+
+def vertical_flip(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Tensor | EventBatch:
     """Mirror every frame top-bottom (along H). Counts and dtype are kept.
+
+    Args:
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch
+            (``y -> H - 1 - y``).
+        flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - inputs: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        - output: same shape, dtype and device.
 
     Example:
         >>> vertical_flip(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
     """
-    return check_frames(frames).flip(-2)
+    batch, b, restore = batch_of(inputs)
+    return restore(call_kernel(vertical_flip, batch, _flags(flip, b)))
+
+
+def _flags(flip: object, batch: int, name: str = "flip") -> Tensor | None:
+    """``None``, a bool, or ``(B,)`` bools as a (B,) bool CPU tensor."""
+    if flip is None:
+        return None
+    try:
+        value = torch.as_tensor(flip)
+    except (TypeError, ValueError, RuntimeError):
+        value = None
+    if value is None or value.dtype != torch.bool or tuple(value.shape) not in ((), (batch,)):
+        raise ValueError(f"{name} must be a bool or a ({batch},) bool tensor, got {describe(flip)}")
+    return value.detach().cpu().expand(batch)
+
+
+@register_kernel(horizontal_flip, Tensor)
+def horizontal_flip_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
+    """Kernel of :func:`horizontal_flip` for frames ``(B, T, 2, H, W)``.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`horizontal_flip` gives for a batch.
+    """
+    return _flip_frames(frames, flip, -1)
+
+
+@register_kernel(vertical_flip, Tensor)
+def vertical_flip_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
+    """Kernel of :func:`vertical_flip` for frames ``(B, T, 2, H, W)``.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`vertical_flip` gives for a batch.
+    """
+    return _flip_frames(frames, flip, -2)
+
+
+def _flip_frames(frames: Tensor, gate: Tensor | None, axis: int) -> Tensor:
+    """Mirror along ``axis`` (-1: W, -2: H) the samples whose ``gate`` is set
+    (all without a gate), in one pass over the batch: ``flip`` when every sample is
+    mirrored, else one gather of whole rows (H) or of columns (W) by a per-sample index
+    built on the host. No host synchronisation."""
+    if gate is not None and not on_host(gate):  # compiling, or a gate on an accelerator
+        flip = gate.to(frames.device, torch.bool).view(-1, 1, 1, 1, 1)
+        return torch.where(flip, frames.flip(axis), frames)
+    flags = None if gate is None else np.asarray(gate.tolist(), dtype=bool).reshape(frames.shape[0])
+    if flags is None or flags.all():
+        return frames.flip(axis)
+    if not flags.any():
+        return frames.clone(memory_format=torch.contiguous_format)
+    b, t, p, h, w = frames.shape
+    if axis == -2:
+        # Rows of W values: out row (b, c, y) = in row (b, c, y or H - 1 - y).
+        ys = np.where(flags[:, None], np.arange(h)[::-1], np.arange(h))  # (B, H)
+        rows = (np.arange(b)[:, None, None] * (t * p * h) + np.arange(t * p)[None, :, None] * h + ys[:, None, :]).reshape(-1)
+        out = frames.reshape(b * t * p * h, w).index_select(0, torch.from_numpy(rows).to(frames.device))
+        return out.view(frames.shape)
+    xs = np.where(flags[:, None], np.arange(w)[::-1], np.arange(w))  # (B, W)
+    index = torch.from_numpy(xs).to(frames.device).view(b, 1, w).expand(b, t * p * h, w)
+    return frames.reshape(b, t * p * h, w).gather(2, index).view(frames.shape)
+
+
+@register_kernel(horizontal_flip, EventBatch)
+def horizontal_flip_events(batch: EventBatch, flip: Tensor | None = None) -> EventBatch:
+    """Kernel of :func:`horizontal_flip` for an EventBatch: ``x -> W - 1 - x``. Sync-free.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples to mirror (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> horizontal_flip_events(batch, torch.tensor([True, False])).x.tolist()  # x -> 2 - x in stream 0
+        [2, 0, 1]
+    """
+    return _flip_events(batch, flip, axis="x")
+
+
+@register_kernel(vertical_flip, EventBatch)
+def vertical_flip_events(batch: EventBatch, flip: Tensor | None = None) -> EventBatch:
+    """Kernel of :func:`vertical_flip` for an EventBatch: ``y -> H - 1 - y``. Sync-free.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples to mirror (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> vertical_flip_events(batch, torch.tensor([True, False])).y.tolist()  # y -> 1 - y in stream 0
+        [0, 1, 1]
+    """
+    return _flip_events(batch, flip, axis="y")
+
+
+def _flip_events(batch: EventBatch, flip: Tensor | None, *, axis: str = "x") -> EventBatch:
+    """Mirror the samples whose ``flip`` (B,) bool is set: ``x -> W - 1 - x`` (``axis="x"``,
+    a horizontal flip) or ``y -> H - 1 - y``. Sync-free; equal to the frame flip after binning.
+    """
+    column = batch.x if axis == "x" else batch.y
+    size = batch.sensor_size[1] if axis == "x" else batch.sensor_size[0]
+    flags = [True] * len(batch) if flip is None else flip.tolist()
+    if not any(flags):
+        return batch
+    if all(flags):
+        mirrored = (size - 1) - column
+    else:
+        assert flip is not None  # not every flag is set, so flip was given
+        mirrored = torch.where(_per_event(flip, batch), (size - 1) - column, column)
+    return batch._replace(**{axis: mirrored.to(torch.int16)})
+
+
+# --------------------------------------------------------------------------- spatial jitter (events only)
+
+
+def spatial_jitter(batch: EventBatch, sigma: Tensor | float, seed: Tensor | int) -> EventBatch:
+    """Move every event by Gaussian noise of ``sigma`` pixels in x and y, rounded to whole pixels.
+
+    An event-only operation (frames are refused by name). Events leaving the sensor are
+    kept and dropped when binned. Sync-free.
+
+    Args:
+        batch: an EventBatch.
+        sigma: standard deviation in pixels (>= 0), a number or ``(B,)``.
+        seed: the per-sample seeds of the noise, an integer or ``(B,)`` int64 in [0, 2**63).
+
+    Shape:
+        - batch: an EventBatch of B streams with N events.
+        - sigma, seed: a number or ``(B,)``.
+        - output: an EventBatch of the same B streams, sensor and grid, N events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[5, 5, 0, 1]])], sensor_size=(10, 10))
+        >>> spatial_jitter(batch, 0.0, 7).x.tolist()
+        [5]
+    """
+    kernel = kernel_for(spatial_jitter, batch)
+    b = len(batch)
+    return kernel(batch, _nonnegative(sigma, b, "sigma"), per_sample(seed, b, "seed", dtype=torch.int64))
+
+
+def _nonnegative(value: object, batch: int, name: str) -> Tensor:
+    values = per_sample(value, batch, name)
+    if not bool((values.isfinite() & (values >= 0)).all()):
+        raise ValueError(f"{name} must be finite and >= 0, got {describe(value)}")
+    return values
+
+
+@register_kernel(spatial_jitter, EventBatch)
+def spatial_jitter_events(batch: EventBatch, sigma: Tensor, seed: Tensor) -> EventBatch:
+    """Add Gaussian noise of standard deviation ``sigma[b]`` pixels to x and y, rounded to
+    whole pixels (events leaving the sensor are dropped when binned). Sync-free.
+
+    Args:
+        batch: the event streams.
+        sigma: ``(B,)`` standard deviations in pixels (>= 0).
+        seed: ``(B,)`` int64 per-sample seeds.
+
+    Shape:
+        - batch: B streams, N events.
+        - sigma, seed: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> jittered = spatial_jitter_events(batch, torch.tensor([0.0, 2.0]), torch.tensor([1, 2]))
+        >>> jittered.x[:2].tolist(), jittered.t.tolist()  # sigma 0 moves nothing; times kept
+        ([0, 2], [100, 15000, 50])
+    """
+    lengths = batch.lengths
+    bounds = batch.offsets.tolist()
+    noise_x = torch.empty(batch.num_events, dtype=torch.float32, device=batch.device)
+    noise_y = torch.empty_like(noise_x)
+    for b, (s, n) in enumerate(zip(seed.tolist(), lengths)):
+        if n:  # sample b's generator: its n x offsets, then its n y offsets
+            g = _generator(s, batch.device)
+            noise_x[bounds[b] : bounds[b + 1]].normal_(generator=g)
+            noise_y[bounds[b] : bounds[b + 1]].normal_(generator=g)
+    scale = _per_event(sigma.to(torch.float32), batch)
+    x = torch.addcmul(batch.x.to(torch.float32), noise_x, scale)
+    y = torch.addcmul(batch.y.to(torch.float32), noise_y, scale)
+    return batch._replace(x=_round_to(x, torch.int16), y=_round_to(y, torch.int16))

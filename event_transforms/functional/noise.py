@@ -9,12 +9,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 import torch
 from torch import Tensor
 
 from ._random import draw_seeds, entry_keys, generator_for, sample_salts, sub_uniform
 from .._validation import (
-    as_batch,
     check_counts,
     check_frames,
     check_generator,
@@ -24,7 +25,14 @@ from .._validation import (
     read_host,
 )
 
-__all__ = ["add_noise", "add_poisson_noise"]
+from ..events.batch import EventBatch
+from ._dispatch import batch_of, call_kernel, register_kernel
+from ._event_ops import _append, _generator, _require_grid
+
+__all__ = [
+    "add_noise", "add_noise_frames", "add_noise_events",
+    "add_poisson_noise", "add_poisson_noise_frames", "add_poisson_noise_events",
+]
 
 _SMALL_INTEGERS = (torch.uint8, torch.int8, torch.int16, torch.int32)
 Scalars = float | Sequence[float] | Tensor
@@ -83,16 +91,26 @@ def _add_events(batch: Tensor, flat_index: Tensor) -> Tensor:
     return flat.index_add_(0, flat_index, ones).view(batch.shape)
 
 
-def add_noise(frames: Tensor, noise: Tensor) -> Tensor:
+def add_noise(inputs: Tensor | EventBatch, noise: Tensor) -> Tensor | EventBatch:
     """Add noise frames (e.g. recorded from a static scene) to event frames.
 
+    On an EventBatch (:func:`add_noise_events`) the noise counts are added as events at
+    the centres of their bins on the batch's grid, so binning gives the frames plus the noise.
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
-        noise: non-negative counts of the same shape, or ``(T, 2, H, W)`` added to every
-            sample of a batch. For integer ``frames`` the noise must be integer-valued.
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch with a
+            frame grid.
+        noise: non-negative counts of the same shape (for an EventBatch: ``(B, T, 2, H, W)``
+            on its grid and sensor), or ``(T, 2, H, W)`` added to every sample of a batch.
+            For integer ``frames`` (and for events) the noise must be integer-valued.
 
     Returns:
         ``frames + noise`` in the frames' dtype, on the frames' device.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - noise: the frames' shape, or ``(T, 2, H, W)`` for a batch.
+        - output: the frames' shape, dtype and device.
 
     Example:
         >>> frames = torch.zeros(2, 2, 3, 4, dtype=torch.int16)
@@ -101,25 +119,103 @@ def add_noise(frames: Tensor, noise: Tensor) -> Tensor:
         >>> out.dtype, int(out.sum())
         (torch.int16, 48)
     """
-    check_frames(frames)
+    batch, b, restore = batch_of(inputs)
+    shape = batch.frame_shape if isinstance(batch, EventBatch) else check_frames(inputs).shape
     check_frames(noise, "noise")
-    if noise.shape != frames.shape and noise.shape != frames.shape[-4:]:
+    if noise.shape != shape and noise.shape != shape[-4:]:
         raise ValueError(
-            f"noise must have the frames' shape {tuple(frames.shape)} or {tuple(frames.shape[-4:])}, "
-            f"got {tuple(noise.shape)}"
+            f"noise must have the frames' shape {tuple(shape)} or {tuple(shape[-4:])}, got {tuple(noise.shape)}"
         )
-    hint = None if frames.is_floating_point() else "integer frames need whole noise counts"
-    check_counts(noise, "noise", whole=hint)
-    return _add_counts(frames, noise.to(frames.device), "noise")
+    whole = isinstance(batch, EventBatch) or not batch.is_floating_point()
+    check_counts(noise, "noise", whole="integer frames need whole noise counts" if whole else None)
+    # the noise frames as a bank: sample i takes frames [i T, i T + T) (all samples [0, T) for one sequence)
+    single = noise.dim() == 4 and len(shape) == 5
+    bank = noise if noise.dim() == 4 else noise.reshape(-1, *noise.shape[-3:])
+    offset = torch.arange(b, dtype=torch.int64) * (0 if single else shape[-4])
+    return restore(call_kernel(add_noise, batch, bank, offset))
+
+
+@register_kernel(add_noise, Tensor)
+def add_noise_frames(batch: Tensor, bank: Tensor, offset: Tensor) -> Tensor:
+    """Kernel of :func:`add_noise` for frames ``(B, T, 2, H, W)``: sample b gets frames
+    ``offset[b] .. offset[b] + T`` of ``bank`` ``(N, 2, H, W)`` added (dense).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        bank: ``(N, 2, H, W)`` noise frames.
+        offset: ``(B,)`` the first bank frame of each sample's window.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`add_noise` gives for a batch.
+    """
+    b, t = batch.shape[:2]
+    index = (offset.to(torch.int64).view(b, 1) + torch.arange(t)).reshape(-1)
+    bank = bank.to(batch.device)
+    noise = bank.index_select(0, index.to(batch.device)).view(b, t, *bank.shape[1:])
+    return _add_counts(batch, noise, "noise")
+
+
+@register_kernel(add_noise, EventBatch)
+def add_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventBatch:
+    """Kernel of :func:`add_noise` for an EventBatch: stream b gets frames ``offset[b] .. offset[b] + T``
+    of ``bank`` ``(N, 2, H, W)`` (sensor-sized whole counts) as events, each at the centre of
+    its bin on the batch's grid (a frame bank has no finer timing), so binning gives the
+    stream's frames plus that window, as :class:`~event_transforms.AddNoise` does on frames.
+    Deterministic; one host read of the window's event count per stream.
+
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        bank: ``(N, 2, H, W)`` whole counts of a static scene, the sensor's size.
+        offset: ``(B,)`` the first bank frame of each stream's window.
+
+    Shape:
+        - batch: B streams, N events.
+        - bank: ``(N, 2, H, W)``; offset: ``(B,)``.
+        - output: B streams, N events plus the window's counts.
+    Example:
+        >>> batch = EventBatch.from_streams([torch.zeros(0, 4)], sensor_size=(1, 2), frame_ms=1.0,
+        ...                                 t_start=0, n_frames=2)
+        >>> bank = torch.zeros(3, 2, 1, 2)
+        >>> bank[2, 1, 0, 1] = 2  # two ON events at x = 1 in the bank's third frame
+        >>> out = add_noise_events(batch, bank, torch.tensor([1]))
+        >>> out.x.tolist(), out.t.tolist(), out.p.tolist()
+        ([1, 1], [1500, 1500], [1, 1])
+    """
+    starts, frame_us, n_frames = _require_grid(batch, "AddNoise")
+    height, width = batch.sensor_size
+    if tuple(bank.shape[-2:]) != (height, width):
+        raise ValueError(
+            f"bank: AddNoise on events needs a bank of the sensor's size (H, W) = ({height}, {width}), "
+            f"got {tuple(bank.shape)}"
+        )
+    device = batch.device
+    per_pixel = 2 * height * width
+    first_t = starts.tolist()
+    added = []
+    for b, first in enumerate(offset.tolist()):
+        window = bank[first : first + n_frames].to(device).reshape(-1)
+        counts = window.to(torch.int64)
+        entries = (counts > 0).nonzero().squeeze(1)  # the output size depends on the bank
+        repeats = counts.index_select(0, entries)
+        index = torch.repeat_interleave(entries, repeats)
+        frame, rest = index // per_pixel, index % per_pixel
+        p, pixel = rest // (height * width), rest % (height * width)
+        t = first_t[b] + frame * frame_us + frame_us // 2
+        added.append(((pixel % width).to(torch.int16), (pixel // width).to(torch.int16),
+                      t.to(batch.t.dtype), p.to(torch.int8)))
+    return _append(batch, added)
+
 
 
 def add_poisson_noise(
-    frames: Tensor,
+    inputs: Tensor | EventBatch,
     rate_hz: Scalars,
     *,
     frame_ms: float = 10.0,
     generator: torch.Generator | None = None,
-) -> Tensor:
+) -> Tensor | EventBatch:
     """Add background activity: independent Poisson counts per pixel, polarity and frame.
 
     Each pixel and polarity fires at ``rate_hz`` (per sample), so a frame of
@@ -127,10 +223,12 @@ def add_poisson_noise(
     For sparse noise (λ < 1, the usual 0.1–10 Hz) the total per sample is drawn from
     Poisson(λ·n) and its events placed uniformly at random among the n cells; this is
     exactly independent Poisson(λ) per cell (Poissonisation) and costs O(events), not
-    O(n). Denser noise draws every cell with ``torch.poisson``.
+    O(n). Denser noise draws every cell with ``torch.poisson``. On an EventBatch
+    (:func:`add_poisson_noise_events`) uniform events are added over the window of the
+    batch's grid (whose bin width replaces ``frame_ms``).
 
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch with a grid.
         rate_hz: events per second per pixel and polarity (>= 0), a number or ``(B,)``.
         frame_ms: frame length in milliseconds (> 0).
         generator: a ``torch.Generator`` on the frames' device, or ``None``.
@@ -138,24 +236,84 @@ def add_poisson_noise(
     Returns:
         Frames plus noise counts, in the frames' dtype.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - rate_hz: a number or ``(B,)``.
+
     Example:
         >>> frames = torch.zeros(36, 2, 70, 75)
         >>> out = add_poisson_noise(frames, 5.0, generator=torch.Generator().manual_seed(0))
         >>> int(out.sum())  # expected 5 Hz * 0.36 s * 2 * 70 * 75 = 18900
         18884
     """
-    batch, unbatch = as_batch(check_frames(frames))
+    batch, b, restore = batch_of(inputs)
     frame_ms = check_positive(frame_ms, "frame_ms")
-    check_generator(generator, frames.device)
-    rate = per_sample(rate_hz, batch.shape[0], "rate_hz")
+    check_generator(generator, batch.device)
+    rate = per_sample(rate_hz, b, "rate_hz")
     if rate.numel() and not bool((rate.isfinite() & (rate >= 0)).all()):
         raise ValueError(f"rate_hz must be finite and >= 0, got {describe(rate_hz)}")
     lam = rate * (frame_ms / 1000.0)
     totals = None
-    if lam.numel() and max(lam.tolist()) < 1.0:  # sparse: totals first (an accelerator generator draws there)
+    if isinstance(batch, Tensor) and lam.numel() and max(lam.tolist()) < 1.0:
+        # sparse: totals first (an accelerator generator draws there)
         device = "cpu" if generator is None else generator.device
         totals = torch.poisson((lam * batch[0].numel()).to(device), generator=generator).long().cpu()
-    return unbatch(_add_poisson_noise(batch, lam, totals=totals, seeds=draw_seeds(batch.shape[0], generator)))
+    seeds = draw_seeds(b, generator)
+    return restore(call_kernel(add_poisson_noise, batch, rate, seeds, frame_ms=frame_ms, count=totals))
+
+
+@register_kernel(add_poisson_noise, Tensor)
+def add_poisson_noise_frames(
+    batch: Tensor, rate_hz: Tensor, seeds: Tensor, *, frame_ms: float = 10.0, count: Tensor | None = None
+) -> Tensor:
+    """Kernel of :func:`add_poisson_noise` for frames ``(B, T, 2, H, W)``: ``rate_hz`` (B,)
+    CPU float64, per-sample ``seeds``, and for sparse noise the totals ``count`` (B,).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        rate_hz: events per second per pixel and polarity (>= 0), a number or ``(B,)``.
+        seeds: ``(B,)`` int64 per-sample seeds of the counter-based streams.
+        frame_ms: frame length in milliseconds (> 0).
+        count: ``(B,)`` event totals drawn by the module, or ``None`` to draw them here.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`add_poisson_noise` gives for a batch.
+    """
+    return _add_poisson_noise(batch, rate_hz * (frame_ms / 1000.0), totals=count, seeds=seeds)
+
+
+@register_kernel(add_poisson_noise, EventBatch)
+def add_poisson_noise_events(
+    batch: EventBatch, rate_hz: Tensor, seeds: Tensor, *, frame_ms: float = 10.0, count: Tensor | None = None
+) -> EventBatch:
+    """Kernel of :func:`add_poisson_noise` for an EventBatch: per pixel and polarity a Poisson
+    process of ``rate_hz[b]`` over the grid's window (the grid's bin width replaces
+    ``frame_ms``; ``count`` does not apply). Added events follow the sample's own events.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        rate_hz: ``(B,)`` events per second per pixel and polarity (>= 0).
+        seeds: ``(B,)`` int64 per-sample seeds.
+        frame_ms: ignored: the grid's bin width applies.
+        count: ignored on events.
+
+    Shape:
+        - batch: B streams, N events.
+        - rate_hz, seeds: ``(B,)``.
+        - output: B streams, N events plus the noise.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> noisy = add_poisson_noise_events(batch, torch.tensor([0.0, 1000.0]), torch.tensor([1, 2]))
+        >>> noisy.lengths[0], noisy.lengths[1] > 1  # 1000 Hz x 20 ms x 12 pixel-polarities: about 240
+        (2, True)
+    """
+    return _poisson_events(batch, rate_hz, seeds)
 
 
 def _poisson_totals(lam: Tensor, shape: torch.Size, generator: torch.Generator | None) -> Tensor | None:
@@ -205,3 +363,28 @@ def _add_poisson_noise(batch: Tensor, lam: Tensor, *, totals: Tensor | None = No
     return _add_counts(batch, noise, "Poisson noise")
 
 
+def _poisson_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> EventBatch:
+    """Add background events: per pixel and polarity a Poisson process of ``rate_hz[b]``
+    over the grid's window, i.e. Poisson(rate · T · frame · 2HW) events of uniform pixel,
+    polarity and time. The counts are drawn on the host from the seeds (NumPy), so sizes
+    are known without a host synchronisation; positions come from the sample's generator.
+    Added events follow the sample's own events (the stream is no longer time-sorted)."""
+    starts, frame_us, n_frames = _require_grid(batch, "AddPoissonNoise")
+    height, width = batch.sensor_size
+    seeds = [int(s) for s in seed.tolist()]
+    rates = rate_hz.tolist()
+    span = n_frames * frame_us
+    counts = [int(np.random.default_rng(s).poisson(r * span * 1e-6 * 2 * height * width)) for s, r in zip(seeds, rates)]
+    first = starts.tolist()
+    device = batch.device
+    noise = []
+    for b, (s, n) in enumerate(zip(seeds, counts)):
+        g = _generator(s ^ 0x5DEECE66D, device)
+        u = torch.rand(n, 4, generator=g, device=device, dtype=torch.float64)
+        x = (u[:, 0] * width).to(torch.int16)
+        y = (u[:, 1] * height).to(torch.int16)
+        t = first[b] + u[:, 2] * span
+        t = t.floor().to(batch.t.dtype)
+        p = (u[:, 3] < 0.5).to(torch.int8)
+        noise.append((x, y, t, p))
+    return _append(batch, noise)

@@ -16,9 +16,10 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, per_sample
+from ._dispatch import kernel_for, register_kernel
 from .affine import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _output_dtype, _warp
 
-__all__ = ["stretch", "contact_axis"]
+__all__ = ["stretch", "stretch_frames", "contact_axis"]
 
 Scalars = float | Tensor
 
@@ -83,6 +84,10 @@ def contact_axis(frames: Tensor) -> Tensor:
         displayed image (row 0 at the top): ``()`` for one sequence, ``(B,)`` for a batch, on
         the frames' device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``()`` or ``(B,)`` float angles in degrees.
+
     Example:
         >>> frames = torch.zeros(1, 2, 9, 9)
         >>> for k in range(-3, 4):
@@ -97,7 +102,7 @@ def contact_axis(frames: Tensor) -> Tensor:
     return unbatch(torch.rad2deg(_axis_radians(covariance)))
 
 
-def _stretch(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Center, mode: str) -> Tensor:
+def stretch_frames(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Center, mode: str) -> Tensor:
     """:func:`stretch` on a (B, T, 2, H, W) batch: (B,) float64 CPU ``factor``; ``axis`` is
     ``"contact"`` or (B,) float64 CPU degrees.
 
@@ -106,6 +111,20 @@ def _stretch(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Center, 
     built on the frames' device in float64 (the axis may come from the events, so it is
     never read back to the host), then :func:`~event_transforms.functional.spatial._warp`
     samples all T·2 frames of a sequence at once, as for rotate and resize.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        factor: stretch factor k > 0 across the axis, a number or one per sample ``(B,)``.
+        axis: ``"contact"`` (each sequence's contact axis), or the axis's angle in degrees,
+            counter-clockwise from the x axis on the displayed image (0: a horizontal
+            strip, stretched vertically); a number or ``(B,)``.
+        center: ``"mass"`` (event centroid of the whole sequence, image centre when empty),
+            ``"image"``, a ``(y, x)`` pair, or a ``(B, 2)`` tensor of pairs.
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`stretch` gives for a batch.
     """
     b, t, p, height, width = batch.shape
     out_dtype = _output_dtype(batch.dtype, mode)
@@ -207,12 +226,14 @@ def stretch(
         >>> out[0, 1].tolist()
         [[0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.5, 0.5, 0.0], [0.0, 1.0, 1.0, 1.0, 0.0], [0.0, 0.5, 0.5, 0.5, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0]]
     """
+    kernel = kernel_for(stretch, frames)
     batch, unbatch = as_batch(check_frames(frames))
     b = batch.shape[0]
     factor_t = _check_factor(factor, b)
     axis_t = _check_axis(axis, b)
     check_choice(mode, "mode", INTERPOLATIONS)
     center = _check_center(center, b)
-    return unbatch(_stretch(batch, factor_t, axis_t, center, mode))
+    return unbatch(kernel(batch, factor_t, axis_t, center, mode))
 
 
+register_kernel(stretch, Tensor)(stretch_frames)

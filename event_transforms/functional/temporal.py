@@ -22,15 +22,25 @@ import torch
 from torch import Tensor
 
 from .._validation import (
-    TES_MODES, as_batch, as_number, check_choice, check_counts, check_frames, check_generator, count_stats, describe, on_host,
+    TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, describe, on_host,
     per_sample, read_host,
 )
+from ..events.batch import EventBatch
+from ..events.binning import _frame_us
+from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
+from ._event_ops import _compact, _generator, _keys, _per_event, _require_grid, warn_dropped
 from ._random import draw_seeds
 from ._hypergeometric import (
     _EXPAND_MAX, Stream, binomial_counts, level_stats, multivariate_hypergeometric, segment_sum,
 )
 
-__all__ = ["frame_shift", "temporal_event_shift", "time_reversal", "crop_time"]
+__all__ = [
+    "frame_shift", "frame_shift_frames", "frame_shift_events",
+    "temporal_event_shift", "temporal_event_shift_frames", "temporal_event_shift_events",
+    "time_reversal", "time_reversal_frames", "time_reversal_events",
+    "crop_time", "crop_time_frames", "crop_time_events",
+    "time_jitter", "time_jitter_events", "time_skew", "time_skew_events",
+]
 
 ShiftArg = int | Sequence[int] | Tensor
 FractionArg = float | Sequence[float] | Tensor
@@ -71,7 +81,7 @@ def _fractions(fraction: FractionArg, batch: int) -> Tensor:
 # --------------------------------------------------------------------------- frame shift
 
 
-def frame_shift(frames: Tensor, shift: ShiftArg) -> Tensor:
+def frame_shift(inputs: Tensor | EventBatch, shift: ShiftArg) -> Tensor | EventBatch:
     """Frame shifting FS-j: move every frame of a sequence ``shift`` bins in time.
 
     Output frame t is input frame t - j; frames shifted past either end are dropped and
@@ -83,8 +93,11 @@ def frame_shift(frames: Tensor, shift: ShiftArg) -> Tensor:
     shares one shift; otherwise one gather of whole frames plus zeroing the few vacated
     frames). A ``shift`` tensor on an accelerator is read on the host once.
 
+    On an EventBatch (:func:`frame_shift_events`) every event moves j bins of the batch's
+    frame grid and events pushed out of the grid's window are dropped.
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
         shift: whole frames j, an int or a ``(B,)`` integer tensor/sequence (one per
             sample). j < 0 moves frames earlier (the paper's FS-1 is ``shift=-1``).
 
@@ -101,16 +114,25 @@ def frame_shift(frames: Tensor, shift: ShiftArg) -> Tensor:
         tensor([[0, 1, 2, 3],
                 [0, 0, 0, 0]])
     """
-    batch, unbatch = as_batch(check_frames(frames))
-    return unbatch(_frame_shift(batch, _shifts(shift, batch.shape[0])))
+    batch, b, restore = batch_of(inputs)
+    return restore(call_kernel(frame_shift, batch, _shifts(shift, b)))
 
 
-def _frame_shift(batch: Tensor, shifts: Tensor) -> Tensor:
-    """``frame_shift`` on a (B, T, 2, H, W) batch with (B,) int64 CPU shifts.
+@register_kernel(frame_shift, Tensor)
+def frame_shift_frames(batch: Tensor, shifts: Tensor) -> Tensor:
+    """Kernel of :func:`frame_shift` on a (B, T, 2, H, W) batch with (B,) int64 CPU shifts.
 
     The shifts are read on the host (no device synchronisation). One shift for the whole
     batch: one concatenation with zero frames. Per-sample shifts: one gather of whole
     frames by a host-built row index, then zeroing the few vacated frames.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        shifts: ``(B,)`` integer shifts in frames (``j``: frame t moves to t + j).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`frame_shift` gives for a batch.
     """
     b, t = batch.shape[:2]
     if batch.numel() == 0:
@@ -143,13 +165,13 @@ def _frame_shift(batch: Tensor, shifts: Tensor) -> Tensor:
 
 
 def temporal_event_shift(
-    frames: Tensor,
+    inputs: Tensor | EventBatch,
     shift: ShiftArg,
     fraction: FractionArg,
     *,
     mode: str = "exact",
     generator: torch.Generator | None = None,
-) -> Tensor:
+) -> Tensor | EventBatch:
     """Temporal event shifting TES-j(ζ): move a fraction of each frame's events j frames.
 
     For every sample, frame t and polarity with N events X_t (per pixel), a subset
@@ -188,11 +210,14 @@ def temporal_event_shift(
     ``ValueError`` with the largest count, never wraps. With a ``torch.Generator`` the
     result is a deterministic function of the input and the generator state: it draws
     one seed per sample, and each sample's events are chosen from a counter-based stream
-    keyed by that seed (:mod:`._streams`), so a sample's result does not depend on the
+    keyed by that seed (:mod:`._random`), so a sample's result does not depend on the
     rest of its batch.
 
+    On an EventBatch (:func:`temporal_event_shift_events`, modes ``"exact"`` and
+    ``"binomial"``) the same law moves events on the batch's frame grid.
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, non-negative.
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, non-negative, or an EventBatch.
         shift: whole frames j, an int or a ``(B,)`` integer tensor (one per sample);
             j < 0 moves events earlier (the paper's TES-2(0.50) is ``shift=-2``).
         fraction: ζ in [0, 1], a float or a ``(B,)`` tensor (one per sample).
@@ -216,16 +241,17 @@ def temporal_event_shift(
         >>> temporal_event_shift(frames, -1, 0.25, mode="expected")[:, 1, 0, 0]
         tensor([0.5000, 1.5000, 0.0000])
     """
-    batch, unbatch = as_batch(check_frames(frames))
+    batch, b, restore = batch_of(inputs)
     check_choice(mode, "mode", TES_MODES)
-    shifts = _shifts(shift, batch.shape[0])
-    fractions = _fractions(fraction, batch.shape[0])
-    check_generator(generator, frames.device)
-    seeds = None if mode == "expected" else draw_seeds(batch.shape[0], generator)
-    return unbatch(_temporal_event_shift(batch, shifts, fractions, mode, seeds))
+    shifts = _shifts(shift, b)
+    fractions = _fractions(fraction, b)
+    check_generator(generator, batch.device)
+    seeds = None if mode == "expected" else draw_seeds(b, generator)
+    return restore(call_kernel(temporal_event_shift, batch, shifts, fractions, mode, seeds))
 
 
-def _temporal_event_shift(
+@register_kernel(temporal_event_shift, Tensor)
+def temporal_event_shift_frames(
     batch: Tensor,
     shifts: Tensor,
     fractions: Tensor,
@@ -233,7 +259,7 @@ def _temporal_event_shift(
     seeds: Tensor | None,
     hint: str = _TES_HINT,
 ) -> Tensor:
-    """``temporal_event_shift`` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters
+    """Kernel of :func:`temporal_event_shift` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters
     and (B,) int64 per-sample ``seeds`` (any device; unused in mode ``"expected"``);
     ``hint`` ends the error raised for fractional counts.
 
@@ -241,6 +267,18 @@ def _temporal_event_shift(
     their values and brings back what the sampler needs (the largest count; in exact mode
     also the largest draw of any frame), then in exact mode the sampler's own (see
     :func:`~._hypergeometric.multivariate_hypergeometric`).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        shifts: ``(B,)`` integer shifts in frames (``j``: frame t moves to t + j).
+        fractions: ``(B,)`` ζ in [0, 1], the share of each frame's and polarity's events moved.
+        mode: ``"exact"``, ``"binomial"`` or ``"expected"``.
+        seeds: ``(B,)`` int64 per-sample seeds of the counter-based streams.
+        hint: the advice in the error message when the counts are not whole.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`temporal_event_shift` gives for a batch.
     """
     index, sample, values = _entries(batch)
     if mode == "expected":
@@ -370,12 +408,24 @@ def _move(out: Tensor, index: Tensor, sample: Tensor, moved: Tensor, shifts: Ten
 # --------------------------------------------------------------------------- reversal and crop
 
 
-def time_reversal(frames: Tensor) -> Tensor:
+def time_reversal(inputs: Tensor | EventBatch, reverse: Tensor | None = None) -> Tensor | EventBatch:
     """Play each sequence backwards: reverse the frames and swap the polarities.
 
     Frame t goes to T - 1 - t, and an ON event becomes an OFF event (a brightness change
     reversed in time has the opposite sign), as tonic's ``RandomTimeReversal`` does with
-    ``flip_polarities=True``. Counts and dtype are kept.
+    ``flip_polarities=True``. Counts and dtype are kept. On an EventBatch
+    (:func:`time_reversal_events`) times are mirrored in the batch's frame grid.
+
+    Args:
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        reverse: ``(B,)`` bool, the samples to reverse (default: all).
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
 
     Example:
         >>> frames = torch.zeros(3, 2, 1, 1, dtype=torch.int8)
@@ -383,7 +433,67 @@ def time_reversal(frames: Tensor) -> Tensor:
         >>> time_reversal(frames)[:, :, 0, 0].tolist()
         [[0, 0], [0, 0], [4, 0]]
     """
-    return check_frames(frames).flip(-4, -3)
+    from .geometry import _flags
+
+    batch, b, restore = batch_of(inputs)
+    return restore(call_kernel(time_reversal, batch, _flags(reverse, b, "reverse")))
+
+
+@register_kernel(time_reversal, Tensor)
+def time_reversal_frames(frames: Tensor, reverse: Tensor | None = None) -> Tensor:
+    """Kernel of :func:`time_reversal` for frames ``(B, T, 2, H, W)``: the flagged samples reversed.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        reverse: ``(B,)`` bool, the samples to reverse (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`time_reversal` gives for a batch.
+    """
+    reversed_ = frames.flip(-4, -3)
+    if reverse is None or all(reverse.tolist()):
+        return reversed_
+    return torch.where(reverse.to(frames.device).view(-1, 1, 1, 1, 1), reversed_, frames)
+
+
+@register_kernel(time_reversal, EventBatch)
+def time_reversal_events(batch: EventBatch, reverse: Tensor | None = None) -> EventBatch:
+    """Kernel of :func:`time_reversal` for an EventBatch: bin i goes to T - 1 - i (integer
+    timestamps: ``t -> 2 t0 + T frame - 1 - t``, so the binned frames are exactly the frame
+    kernel's reversal) and polarities are swapped, for the flagged samples. Sync-free.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        reverse: ``(B,)`` bool, the samples to reverse (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - reverse: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> time_reversal_events(batch, torch.tensor([True, False])).t.tolist()  # t -> 19999 - t
+        [19899, 4999, 50]
+    """
+    from .polarity import flip_polarity_events
+
+    every = torch.ones(len(batch), dtype=torch.bool) if reverse is None else reverse.to(torch.bool)
+    return flip_polarity_events(_reverse_times(batch, every), every)
+
+
+def _reverse_times(batch: EventBatch, reverse: Tensor) -> EventBatch:
+    """Times mirrored in the grid's window for the samples flagged in ``reverse``."""
+    starts, frame_us, n_frames = _require_grid(batch, "TimeReversal")
+    end = starts.to(batch.t.dtype) * 2 + n_frames * frame_us - (0 if batch.t.is_floating_point() else 1)
+    mirrored = _per_event(end, batch) - batch.t
+    flags = reverse.tolist()
+    t = mirrored if all(flags) else torch.where(_per_event(reverse, batch), mirrored, batch.t)
+    return batch._replace(t=t.to(batch.t.dtype))
 
 def _check_length(length: object, frames: int) -> int:
     value = as_number(length, "length", integer=True)
@@ -391,38 +501,403 @@ def _check_length(length: object, frames: int) -> int:
         raise ValueError(f"length must lie in [1, {frames}] (the number of frames T), got {length!r}")
     return value
 
-def crop_time(frames: Tensor, start: Scalars, length: int) -> Tensor:
+def crop_time(inputs: Tensor | EventBatch, start: Scalars, length: int) -> Tensor | EventBatch:
     """Keep frames ``[start, start + length)`` of each sequence (a temporal window).
 
     tonic's ``CropTime`` on frames: the window is counted in frames, not microseconds.
     Labels per frame (force) must be cut with the same window:
     ``labels.gather(1, start.view(-1, 1) + torch.arange(length))``.
 
+    On an EventBatch (:func:`crop_time_events`) times move ``start`` bins earlier and the
+    batch's grid becomes ``length`` bins.
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch with a grid.
         start: first kept frame, an integer or ``(B,)``, with ``start + length <= T``.
         length: number of kept frames, in [1, T].
 
     Returns:
         ``(length, 2, H, W)`` or ``(B, length, 2, H, W)``; dtype and device kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - start: an integer or ``(B,)``.
+        - output: ``(length, 2, H, W)`` or ``(B, length, 2, H, W)``, dtype and device kept.
+
     Example:
         >>> frames = torch.arange(5).view(5, 1, 1, 1).expand(5, 2, 1, 1)
         >>> crop_time(frames, 1, 3)[:, 0, 0, 0].tolist()
         [1, 2, 3]
     """
-    batch, unbatch = as_batch(check_frames(frames))
-    b, t = batch.shape[:2]
+    batch, b, restore = batch_of(inputs)
+    t = batch.frame_shape[1] if isinstance(batch, EventBatch) else batch.shape[1]
     size = _check_length(length, t)
     start_t = per_sample(start, b, "start", dtype=torch.int64)
     if start_t.numel() and bool(((start_t < 0) | (start_t > t - size)).any()):
         raise ValueError(f"start must lie in [0, {t - size}] for a window of {size} of {t} frames, got {describe(start)}")
-    return unbatch(_crop_time(batch, start_t, size))
+    return restore(call_kernel(crop_time, batch, start_t, size))
 
-def _crop_time(batch: Tensor, start: Tensor, length: int) -> Tensor:
-    """Frames ``[start, start + length)`` with a (B,) int64 CPU ``start``."""
+
+@register_kernel(crop_time, Tensor)
+def crop_time_frames(batch: Tensor, start: Tensor, length: int) -> Tensor:
+    """Kernel of :func:`crop_time`: frames ``[start, start + length)`` with a (B,) int64 CPU ``start``.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        start: first kept frame, an integer or ``(B,)``, with ``start + length <= T``.
+        length: number of kept frames, in [1, T].
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`crop_time` gives for a batch.
+    """
     b, t, p, h, w = batch.shape
     index = (start.unsqueeze(1) + torch.arange(length)).to(batch.device, non_blocking=True)  # (B, length)
     if b == 0 or batch.numel() == 0:
         return batch.new_zeros((b, length, p, h, w))
     return batch.gather(1, index.view(b, length, 1, 1, 1).expand(b, length, p, h, w))
+
+
+@register_kernel(crop_time, EventBatch)
+def crop_time_events(batch: EventBatch, start: Tensor, length: int) -> EventBatch:
+    """Keep bins ``[start[b], start[b] + length)`` of the grid: times move ``start[b]`` bins
+    earlier and the grid becomes ``length`` bins long (events outside it are dropped when
+    binned; equal to the frame kernel after binning). Sync-free.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        start: ``(B,)`` first kept bin per sample.
+        length: number of kept bins.
+
+    Shape:
+        - batch: B streams, N events.
+        - start: ``(B,)``.
+        - output: the same streams and events, the grid ``length`` bins long.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> cropped = crop_time_events(batch, torch.tensor([1, 0]), 1)
+        >>> cropped.t.tolist(), cropped.n_frames
+        ([-9900, 5000, 50], 1)
+    """
+    _, frame_us, n_frames = _require_grid(batch, "CropTime")
+    if isinstance(frame_us, int) and not batch.t.is_floating_point():
+        t = batch.t - _per_event(start.to(torch.int64) * frame_us, batch)
+    else:
+        t = (batch.t.to(torch.float64) - _per_event(start.to(torch.float64) * frame_us, batch)).to(batch.t.dtype)
+    return batch._replace(t=t, n_frames=int(length))
+
+
+# --------------------------------------------------------------------------- FS and TES on events
+
+
+@register_kernel(frame_shift, EventBatch)
+def frame_shift_events(batch: EventBatch, shifts: Tensor) -> EventBatch:
+    """Kernel of :func:`frame_shift` for an EventBatch with a frame grid: every event moves
+    ``shifts[b]`` bins (``t += j * frame``); events pushed out of the window are dropped.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        shifts: ``(B,)`` integer bins ``j`` (``t += j * frame``).
+
+    Shape:
+        - batch: B streams, N events.
+        - shifts: ``(B,)``.
+        - output: B streams, at most N events (those pushed out of the window dropped).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> shifted = frame_shift_events(batch, torch.tensor([1, 1]))  # a bin later
+        >>> shifted.t.tolist(), shifted.lengths  # the event in the last bin left the window
+        ([10100, 10050], [1, 1])
+    """
+    return _shift_events(batch, shifts)
+
+
+@register_kernel(temporal_event_shift, EventBatch)
+def temporal_event_shift_events(
+    batch: EventBatch,
+    shifts: Tensor,
+    fractions: Tensor,
+    mode: str,
+    seeds: Tensor | None,
+    hint: str = _TES_HINT,
+) -> EventBatch:
+    """Kernel of :func:`temporal_event_shift` for an EventBatch with a frame grid (modes
+    ``"exact"`` and ``"binomial"``; ``"expected"`` moves fractions of events and is refused).
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        shifts: ``(B,)`` integer bins ``j``.
+        fractions: ``(B,)`` ζ in [0, 1], the share of each bin's and polarity's events moved.
+        mode: ``"exact"`` (exactly round(ζ N)) or ``"binomial"``; ``"expected"`` is refused.
+        seeds: ``(B,)`` int64 per-sample seeds.
+        hint: the advice in the error for ``mode="expected"``.
+
+    Shape:
+        - batch: B streams, N events.
+        - shifts, fractions, seeds: ``(B,)``.
+        - output: B streams, at most N events (those pushed out of the window dropped).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> out = temporal_event_shift_events(batch, torch.tensor([1, 1]), torch.tensor([0.0, 1.0]), "exact",
+        ...                                   torch.tensor([1, 2]))
+        >>> out.t.tolist()  # ζ = 0 moves nothing; ζ = 1 moves every event a bin later
+        [100, 15000, 10050]
+    """
+    if mode == "expected":
+        raise ValueError("TES mode='expected' moves fractions of events, which events cannot hold; "
+                         "use mode='exact' or 'binomial' on an EventBatch")
+    return _shift_events(batch, shifts, fractions, seed=seeds, mode=mode)
+
+
+def _groups(batch: EventBatch) -> tuple[Tensor, int]:
+    """Per event its group ``(sample * T + bin) * 2 + p`` (int32; ``G`` outside the grid's
+    window) and the number of groups G."""
+    starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
+    from ..events.batch import _relative_times
+    from ..events.binning import _bins_of
+
+    sample = batch.sample_index()
+    bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
+    groups = len(batch) * n_frames * 2
+    group = sample.mul(n_frames).add_(bins).mul_(2).add_(batch.p)
+    return group.masked_fill_(~inside, groups), groups
+
+
+def _shift_events(
+    batch: EventBatch,
+    shift: Tensor,
+    fraction: Tensor | None = None,
+    *,
+    seed: Tensor | None = None,
+    mode: str = "exact",
+) -> EventBatch:
+    """Frame shift (``fraction=None``) or TES-j(ζ) on events, on the batch's frame grid.
+
+    In every sample, bin and polarity holding N events (of the grid's window), ``"exact"``
+    moves a uniformly random subset of exactly k = round(ζ N) of them (``torch.round``,
+    half to even, as the frame kernel) by ``shift[b]`` bins (``t += j * frame``), the
+    same law as :func:`~event_transforms.functional.temporal_event_shift` in exact mode;
+    ``"binomial"`` moves each event with probability ζ. Events pushed out of the window
+    are dropped (as in the frame kernels); events outside the window never move.
+
+    Exact selection: each event gets a float32 uniform key u from its sample's generator;
+    the k events with the smallest keys of a group are the ones moved (ties, at 2**-24,
+    are broken by position). A binomial level (u < ζ) picks all but a ~sqrt(N) surplus or
+    deficit per group, fixed by ranking only the events whose keys lie in a narrow band
+    next to ζ (no full sort). Host syncs: one read of the per-group surplus, one band
+    gather (retried wider only if a band held too few events), one read of the kept counts.
+    """
+    group, groups = _groups(batch)
+    frame_us = _frame_us(batch.frame_ms)
+    n_frames = batch.n_frames
+    device = batch.device
+    inside = group < groups
+    if fraction is None:
+        moved = inside
+    else:
+        u, below = _keys(batch, seed, fraction)
+        moved = below & inside
+        if mode == "exact":
+            moved = _exact_fixup(group, groups, u, moved, fraction, n_frames)
+    # a group's events all land in bin + j: whether they leave the window is per group
+    jump = shift.to(torch.int64)
+    group_bin = torch.arange(n_frames).repeat(len(batch)).repeat_interleave(2)
+    leaving = group_bin + jump.repeat_interleave(2 * n_frames)
+    leaving = torch.cat([(leaving < 0) | (leaving >= n_frames), torch.zeros(1, dtype=torch.bool)]).to(device)
+    keep = ~(moved & leaving.index_select(0, group))
+    warn_dropped(batch, outside_window=~keep, window=_window_of(batch), stacklevel=4)
+    if isinstance(frame_us, int) and not batch.t.is_floating_point():
+        t = batch.t + _per_event(jump * frame_us, batch) * moved  # int64 times stay exact
+    else:
+        t = (batch.t.to(torch.float64) + _per_event(jump.to(torch.float64) * frame_us, batch) * moved).to(batch.t.dtype)
+    return _compact(batch, keep, t=t)
+
+
+def _exact_fixup(group: Tensor, groups: int, u: Tensor, moved: Tensor, fraction: Tensor, n_frames: int) -> Tensor:
+    """Turn the binomial choice ``moved`` into exactly round(ζ N) smallest keys per group."""
+    device = group.device
+    ones = torch.ones((), dtype=torch.int64, device=device).expand(group.shape[0])
+    total = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, ones)[:groups]
+    chosen = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, moved.to(torch.int64))[:groups]
+    group_zeta = fraction.to(torch.float64).repeat_interleave(n_frames * 2).to(device)
+    want = torch.round(group_zeta * total.to(torch.float64)).to(torch.int64)
+    surplus = chosen - want
+    if groups == 0 or read_host(surplus.abs().amax().reshape(1))[0] == 0:
+        return moved
+    need = surplus.abs()
+    zeta = group_zeta.to(torch.float32)
+    width = (need + 3 * need.sqrt() + 4) / total.clamp_min(1)
+    empty = torch.full((1,), 2.0, dtype=torch.float32, device=device)
+    while True:
+        # surplus groups un-move the largest keys in [ζ - w, ζ); deficit groups move the
+        # smallest keys in [ζ, ζ + w); other groups (and events outside the window) none
+        low = torch.where(surplus > 0, zeta - width, torch.where(surplus < 0, zeta, 2.0)).to(torch.float32)
+        high = torch.where(surplus > 0, zeta, torch.where(surplus < 0, zeta + width, 2.0)).to(torch.float32)
+        key_low, key_high = torch.cat([low, empty]), torch.cat([high, empty])
+        band = ((u >= key_low.index_select(0, group)) & (u < key_high.index_select(0, group))).nonzero().squeeze(1)
+        band_group = group.index_select(0, band)
+        have = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(
+            0, band_group, torch.ones_like(band_group, dtype=torch.int64))[:groups]
+        short = (have < need) & (width < 2)
+        if not read_host(short.any().reshape(1))[0]:
+            break
+        width = torch.where(short, width * 4, width)
+    # one sort by group, then key (largest first for a surplus): 2 g + key in float64
+    key = u.index_select(0, band).to(torch.float64)
+    key = torch.where(surplus.index_select(0, band_group) > 0, 1.0 - key, key) + 2.0 * band_group
+    order = torch.argsort(key, stable=True)
+    sorted_group = band_group.index_select(0, order)
+    first = torch.cumsum(have, 0) - have
+    rank = torch.arange(order.shape[0], device=device) - first.index_select(0, sorted_group)
+    flip = rank < need.index_select(0, sorted_group)
+    target = band.index_select(0, order)
+    out = moved.clone()
+    out.index_put_((target,), flip ^ out.index_select(0, target))
+    return out
+
+
+# --------------------------------------------------------------------------- time jitter and skew (events only)
+
+
+def time_jitter(batch: EventBatch, std_us: Scalars, seed: ShiftArg) -> EventBatch:
+    """Add Gaussian noise of ``std_us`` microseconds to every timestamp (events only).
+
+    Rounded for integer timestamps; streams are no longer time-sorted. Sync-free.
+
+    Args:
+        batch: an EventBatch.
+        std_us: standard deviation in µs (>= 0), a number or ``(B,)``.
+        seed: per-sample seeds, an integer or ``(B,)`` int64 in [0, 2**63).
+
+    Shape:
+        - batch: an EventBatch of B streams with N events.
+        - output: an EventBatch of the same B streams, sensor and grid, N events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 1000, 1]])], sensor_size=(2, 2))
+        >>> time_jitter(batch, 0.0, 3).t.tolist()
+        [1000]
+    """
+    from .geometry import _nonnegative
+
+    kernel = kernel_for(time_jitter, batch)
+    b = len(batch)
+    return kernel(batch, _nonnegative(std_us, b, "std_us"), per_sample(seed, b, "seed", dtype=torch.int64))
+
+
+@register_kernel(time_jitter, EventBatch)
+def time_jitter_events(batch: EventBatch, std_us: Tensor, seed: Tensor) -> EventBatch:
+    """Add Gaussian noise of ``std_us[b]`` microseconds to the timestamps (rounded for
+    integer timestamps). Streams are no longer time-sorted. Sync-free.
+
+    Args:
+        batch: the event streams.
+        std_us: ``(B,)`` standard deviations in microseconds (>= 0).
+        seed: ``(B,)`` int64 per-sample seeds.
+
+    Shape:
+        - batch: B streams, N events.
+        - std_us, seed: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> jittered = time_jitter_events(batch, torch.tensor([0.0, 30.0]), torch.tensor([1, 2]))
+        >>> jittered.t[:2].tolist(), jittered.x.tolist()  # std 0 moves nothing; pixels kept
+        ([100, 15000], [0, 2, 1])
+    """
+    bounds = batch.offsets.tolist()
+    noise = torch.empty(batch.num_events, dtype=torch.float64, device=batch.device)
+    for b, (s, std) in enumerate(zip(seed.tolist(), std_us.tolist())):
+        if bounds[b + 1] > bounds[b]:  # the sample's generator, scaled by its own std: no gather
+            noise[bounds[b] : bounds[b + 1]].normal_(generator=_generator(s, batch.device)).mul_(std)
+    if batch.t.is_floating_point():
+        return batch._replace(t=batch.t + noise)
+    return batch._replace(t=batch.t + torch.round(noise).to(torch.int64))
+
+
+def time_skew(batch: EventBatch, coefficient: Scalars, offset_us: Scalars = 0.0) -> EventBatch:
+    """Stretch time: ``t -> t0 + coefficient (t - t0) + offset_us`` per sample (events only).
+
+    ``t0`` is the stream's grid start (the first event without a grid). Sync-free.
+
+    Args:
+        batch: an EventBatch.
+        coefficient: factor > 0, a number or ``(B,)``.
+        offset_us: shift in µs, a number or ``(B,)``.
+
+    Shape:
+        - batch: an EventBatch of B streams with N events.
+        - output: an EventBatch of the same B streams, sensor and grid, N events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 100, 1], [0, 0, 300, 0]])], sensor_size=(2, 2))
+        >>> time_skew(batch, 2.0, 10.0).t.tolist()
+        [110, 510]
+    """
+    kernel = kernel_for(time_skew, batch)
+    b = len(batch)
+    factor = per_sample(coefficient, b, "coefficient")
+    if not bool((factor.isfinite() & (factor > 0)).all()):
+        raise ValueError(f"coefficient must be finite and > 0, got {describe(coefficient)}")
+    offset = per_sample(offset_us, b, "offset_us")
+    if not bool(offset.isfinite().all()):
+        raise ValueError(f"offset_us must be finite, got {describe(offset_us)}")
+    return kernel(batch, factor, offset)
+
+
+@register_kernel(time_skew, EventBatch)
+def time_skew_events(batch: EventBatch, coefficient: Tensor, offset_us: Tensor) -> EventBatch:
+    """``t -> t0 + coefficient[b] (t - t0) + offset_us[b]`` about the stream's grid start
+    ``t0`` (the first event's time without a grid), rounded for integer timestamps. Sync-free.
+
+    Args:
+        batch: the event streams.
+        coefficient: ``(B,)`` time stretch factors.
+        offset_us: ``(B,)`` shifts in microseconds.
+
+    Shape:
+        - batch: B streams, N events.
+        - coefficient, offset_us: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> time_skew_events(batch, torch.tensor([2.0, 1.0]), torch.tensor([0.0, 10.0])).t.tolist()  # about t0 = 0
+        [200, 30000, 60]
+    """
+    if batch.t_start is not None:
+        origin = _per_event(batch.t_start.to(torch.float64), batch)
+    else:
+        sample = batch.sample_index().to(torch.int64)
+        big = torch.full((len(batch),), math.inf, dtype=torch.float64, device=batch.device)
+        first = big.scatter_reduce(0, sample, batch.t.to(torch.float64), reduce="amin")
+        origin = first.index_select(0, sample)
+    t = batch.t.to(torch.float64)
+    skewed = origin + _per_event(coefficient.to(torch.float64), batch) * (t - origin) + _per_event(
+        offset_us.to(torch.float64), batch)
+    return batch._replace(t=skewed if batch.t.is_floating_point() else torch.round(skewed).to(torch.int64))
+
+
+def _window_of(batch: EventBatch) -> str:
+    return f"of the batch's grid (n_frames={batch.n_frames} of frame_ms={batch.frame_ms}), shifted out of it"

@@ -21,7 +21,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from ..transforms.base import EventTransform, Params, as_transform
+from ..transforms.base import EventTransform, Param, Params, Spec, as_transform
 
 __all__ = [
     "Stopwatch",
@@ -97,6 +97,10 @@ class TimedTransform(EventTransform):
     ) -> Params:
         with self.stopwatch:
             return self.transform.make_params(shape, generator=generator, metadata=metadata)
+
+    def params_spec(self, shape: torch.Size) -> Spec:
+        # the wrapped transform's tree, as it is (its own gate included)
+        return {**self.transform.params_spec(shape), "apply": Param("bool", optional=True)}
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
         return self.transform.output_shape(shape)

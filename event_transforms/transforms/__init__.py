@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .base import EventTransform, Lambda, Params, as_transform
+from .base import EventTransform, Lambda, Param, Params, as_transform
 from .affine import *  # noqa: F401,F403
 from .affine import __all__ as _affine
 from .stretch import *  # noqa: F401,F403
@@ -25,11 +25,8 @@ from .containers import *  # noqa: F401,F403
 from .containers import __all__ as _containers
 from .events import *  # noqa: F401,F403
 from .events import __all__ as _events
-from .on_events import *  # noqa: F401,F403  (last: registers event kernels of the classes above)
-from .on_events import __all__ as _on_events
 
 __all__ = [
-    "EventTransform", "Params", "Lambda", "as_transform",
+    "EventTransform", "Param", "Params", "Lambda", "as_transform",
     *_affine, *_stretch, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_containers, *_events,
-    *_on_events,
 ]

@@ -29,7 +29,11 @@ from .._validation import describe
 if TYPE_CHECKING:  # pragma: no cover
     from .base import EventTransform
 
-__all__ = ["Param", "Spec", "check_tree", "CHECK_RANGE"]
+__all__ = ["Param", "Params", "Spec", "check_tree", "slice_params", "CHECK_RANGE"]
+
+#: A call's parameters: a dict whose leaves are ``(B, ...)`` tensors and whose inner nodes
+#: are the parameters of a container's children.
+Params = dict[str, Any]
 
 #: Profiler range around the host-side reads of a user-given tree (CPU parameters: no
 #: device work; ``benchmarks._common.count_ops`` leaves them out of a call's launches).
@@ -49,10 +53,13 @@ class Param:
         low, high: closed bounds (``None``: unbounded).
         choices: the only values allowed (integers), if not every value in range is.
         optional: the entry may be absent.
+        neutral: the value that leaves a sample unchanged (an angle of 0, a fraction of 0),
+            if there is one: a gated call (``p < 1``) on an EventBatch runs the kernel once
+            on the whole batch with it for the samples the gate skips.
 
     Example:
-        >>> Param("float", low=0.0, high=1.0)
-        Param(kind='float', shape=(), low=0.0, high=1.0, choices=None, optional=False)
+        >>> Param("float", low=0.0, high=1.0, neutral=0.0)
+        Param(kind='float', shape=(), low=0.0, high=1.0, choices=None, optional=False, neutral=0.0)
     """
 
     kind: str
@@ -61,6 +68,7 @@ class Param:
     high: float | None = None
     choices: tuple[int, ...] | None = None
     optional: bool = False
+    neutral: float | None = None
 
 
 #: A module's description of its params dict: a :class:`Param` per own entry and a
@@ -107,8 +115,6 @@ def check_tree(module: EventTransform, params: object, shape: torch.Size, path: 
         TypeError: not a dict, a leaf that is not a tensor or has the wrong kind.
         ValueError: a missing or unknown key, a wrong shape, a value out of range or not finite.
     """
-    from .base import _CheckedParams  # the dict type that names missing keys
-
     owner = type(module).__name__
     if not isinstance(params, Mapping):
         raise TypeError(f"{owner}: {path} must be a dict returned by make_params, got {type(params).__name__}")
@@ -116,15 +122,8 @@ def check_tree(module: EventTransform, params: object, shape: torch.Size, path: 
     spec = module.params_spec(shape)
     checked = _CheckedParams()
     checked.owner = owner
-    if spec is None:  # a module that does not describe its params: structure only
-        for key, value in params.items():
-            where = f"{path}[{key!r}]"
-            if isinstance(value, Mapping):
-                raise TypeError(f"{owner}: {where} is a dict, but {owner} has no children")
-            if not isinstance(value, Tensor) or value.dim() == 0 or value.shape[0] != batch:
-                raise ValueError(f"{owner}: {where} must be a ({batch}, ...) tensor, got {describe(value)}")
-            checked[key] = value
-        return checked
+    if spec is None:
+        raise TypeError(f"{owner}.params_spec returned None; every module declares its params (a dict of Param)")
     spec = dict(spec)
     if "apply" not in spec:
         spec["apply"] = Param("bool", optional=module.p >= 1)
@@ -145,3 +144,26 @@ def check_tree(module: EventTransform, params: object, shape: torch.Size, path: 
             child, child_shape = entry
             checked[key] = check_tree(child, params[key], child_shape, where)
     return checked
+
+
+class _CheckedParams(dict):
+    """A params dict that names the module and the key when a key is missing."""
+
+    owner = "transform"
+
+    def __missing__(self, key: str) -> Any:
+        raise ValueError(
+            f"params of {self.owner} has no entry {key!r} (it has {sorted(self)}); pass the "
+            "dict that make_params returns"
+        )
+
+
+def slice_params(params: Params, index: Tensor) -> Params:
+    """The parameters of the samples ``index`` (a CPU int64 tensor): every leaf indexed on dim 0."""
+    out = type(params)()
+    if isinstance(params, _CheckedParams) and isinstance(out, _CheckedParams):
+        out.owner = params.owner
+    for key, value in params.items():
+        out[key] = slice_params(dict(value), index) if isinstance(value, Mapping) and not isinstance(value, dict) else (
+            slice_params(value, index) if isinstance(value, dict) else value.index_select(0, index))
+    return out

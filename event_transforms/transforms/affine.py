@@ -20,7 +20,10 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, per_sample_pairs
-from ..functional.affine import Center, _affine, _check_center, _elastic, _image_corners, _perspective
+from .. import functional as F
+from ..events.batch import EventBatch
+from ..functional._dispatch import call_kernel
+from ..functional.affine import Center, _check_center, _image_corners
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [
@@ -54,35 +57,24 @@ class _Affine(_Warp):
         super().__init__(mode=mode, p=p)
         self.center = _check_center(center)
 
-    def _warp(
-        self,
-        frames: Tensor,
-        *,
-        angle: Tensor | None = None,
-        scale: Tensor | None = None,
-        shear: Tensor | None = None,
-        translate: Tensor | None = None,
-    ) -> Tensor:
-        return _affine(frames, angle, scale, self.center, self.mode, shear=shear, translate=translate)
-
     def _common(self) -> str:
         return f"center={self.center!r}, mode={self.mode!r}"
 
 
 class _Rotation(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"angle": Param("float")}
+        return {"angle": Param("float", neutral=0.0)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return self._warp(frames, angle=params["angle"])
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.rotate, inputs, params["angle"], center=self.center, mode=self.mode)
 
 
 class _Zoom(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"scale": Param("float", low=float.fromhex("0x1p-1022"))}
+        return {"scale": Param("float", low=float.fromhex("0x1p-1022"), neutral=1.0)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return self._warp(frames, scale=params["scale"])
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.resize, inputs, params["scale"], center=self.center, mode=self.mode)
 
 
 class Rotate(_Rotation):
@@ -124,6 +116,12 @@ class RandomRotation(_Rotation):
         center, mode: as in :class:`Rotate`.
         p: probability that a sample is rotated.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel).
+
     Example:
         >>> transform = RandomRotation(45.0)
         >>> transform.make_params((3, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["angle"]
@@ -150,6 +148,12 @@ class Resize(_Zoom):
         scale: the paper's β = target size / source size (finite, > 0).
         center, mode: as in :class:`Rotate`.
         p: probability that a sample is resized.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel).
 
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
@@ -180,6 +184,12 @@ class RandomResize(_Zoom):
         choices: zoom factors, all > 0.
         center, mode: as in :class:`Rotate`.
         p: probability that a sample is resized.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel).
 
     Example:
         >>> transform = RandomResize(choices=(15 / 18, 15 / 12))
@@ -225,13 +235,14 @@ class _AffineWarp(_Affine):
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {
-            "angle": Param("float"), "scale": Param("float", low=float.fromhex("0x1p-1022")),
-            "translate": Param("float", shape=(2,)), "shear": Param("float", shape=(2,)),
+            "angle": Param("float", neutral=0.0), "scale": Param("float", low=float.fromhex("0x1p-1022"), neutral=1.0),
+            "translate": Param("float", shape=(2,), neutral=0.0), "shear": Param("float", shape=(2,), neutral=0.0),
         }
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return self._warp(
-            frames, angle=params["angle"], scale=params["scale"], shear=params["shear"], translate=params["translate"]
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(
+            F.affine, inputs, params["angle"], params["scale"], shear=params["shear"], translate=params["translate"],
+            center=self.center, mode=self.mode,
         )
 
 
@@ -247,6 +258,12 @@ class Affine(_AffineWarp):
         mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
             or ``"nearest"`` (dtype kept).
         p: probability that a sample is warped.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel; no shear).
 
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
@@ -305,6 +322,12 @@ class RandomAffine(_AffineWarp):
             ``None`` for none.
         center, mode: as in :class:`Affine`.
         p: probability that a sample is warped.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel; no shear).
 
     Example:
         >>> transform = RandomAffine(10.0, translate=(0.1, 0.1), scale=(0.9, 1.1), shear=5.0)
@@ -384,6 +407,10 @@ class RandomPerspective(_Warp):
             or ``"nearest"`` (dtype kept).
         p: probability that a sample is warped.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+
     Example:
         >>> transform = RandomPerspective(0.3)
         >>> frames = torch.ones(2, 4, 2, 9, 11)
@@ -408,8 +435,8 @@ class RandomPerspective(_Warp):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"corners": Param("float", shape=(4, 2))}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _perspective(frames, params["corners"].detach().to("cpu", torch.float64), self.mode)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.perspective, inputs, params["corners"].detach().to("cpu", torch.float64), self.mode)
 
     def _settings(self) -> str:
         return f"distortion_scale={self.distortion_scale}, mode={self.mode!r}"
@@ -430,6 +457,10 @@ class RandomElastic(_Warp):
         mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
             or ``"nearest"`` (dtype kept).
         p: probability that a sample is warped.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
 
     Example:
         >>> transform = RandomElastic(alpha=20.0, sigma=3.0)
@@ -459,8 +490,9 @@ class RandomElastic(_Warp):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"alpha": Param("float", low=0.0), "noise": Param("float", shape=(2, *shape[-2:]), low=-1.0, high=1.0)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _elastic(frames, params["noise"], params["alpha"].detach().to("cpu", torch.float64), self.sigma, self.mode)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        alpha = params["alpha"].detach().to("cpu", torch.float64)
+        return call_kernel(F.elastic, inputs, params["noise"], alpha, self.sigma, self.mode)
 
     def _settings(self) -> str:
         return f"alpha={self.alpha}, sigma={self.sigma}, mode={self.mode!r}"

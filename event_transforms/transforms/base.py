@@ -7,12 +7,13 @@ A module holds settings. A call has two steps:
    ``(B, ...)`` CPU tensors (so CPU and CUDA calls draw the same numbers). Kernels that
    need randomness of their own (temporal event shifting, event drop, Poisson noise) get
    per-sample seeds from it and draw from counter-based streams keyed by each sample's
-   seed (:mod:`event_transforms.functional._streams`), so a sample's output is a function
+   seed (:mod:`event_transforms.functional._random`), so a sample's output is a function
    of its own input and its own slice of the tree (per-sample purity): ``module(x[i:i+1],
    params=slice_params(tree, [i]))`` equals ``module(x, params=tree)[i]``. Containers return one entry per child, so a call's
    parameters are one tree.
-2. :meth:`EventTransform.apply` hands a batch and its parameters to a private kernel from
-   :mod:`event_transforms.functional` on the frames' device.
+2. :meth:`EventTransform.apply` hands a batch (frames or an :class:`EventBatch`) and its
+   parameters to the operation's kernel for that input type, through the registry of
+   :mod:`event_transforms.functional` (``call_kernel(F.rotate, inputs, ...)``).
 
 ``module(frames, params=tree)`` replays a draw exactly, whatever the global RNG state.
 Subclasses override :meth:`~EventTransform.sample_params` and :meth:`~EventTransform.apply`;
@@ -32,7 +33,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 import torch
@@ -40,63 +41,27 @@ from torch import Tensor, nn
 
 from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape
 from ..events.batch import EventBatch, merge_streams
-from ._params import CHECK_RANGE, Param, Spec, check_tree
+from ..functional._dispatch import NoKernelError
+from ._params import CHECK_RANGE, Param, Params, Spec, _CheckedParams, check_tree, slice_params
 
-__all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY", "register_event_kernel"]
-
-#: A call's parameters: a dict whose leaves are ``(B, ...)`` tensors and whose inner nodes
-#: are the parameters of a container's children.
-Params = dict[str, Any]
+__all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY"]
 
 #: The key under which a dict input holds the frames.
 FRAMES_KEY = "frames"
 
-#: Event kernels of transform classes: ``class -> kernel(module, batch, params) -> batch``
-#: (torchvision v2's kernel registry, keyed by the transform and dispatched on the input
-#: type). Filled by :mod:`event_transforms.transforms.on_events`.
-_EVENT_KERNELS: dict[type, Callable[..., Any]] = {}
-
-
-#: Classes whose event kernel honours the gate ``params["apply"]`` in one pass over the
-#: batch: ``class -> {key: neutral value}`` (the value of each parameter that leaves a
-#: stream unchanged, e.g. angle 0), or ``{}`` for a kernel that reads the gate itself.
-_EVENT_NEUTRAL: dict[type, dict[str, float]] = {}
-
-
-def register_event_kernel(
-    cls: type, *, neutral: dict[str, float] | None = None
-) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Decorator: ``kernel(module, batch, params)`` is ``cls``'s kernel for an :class:`EventBatch`.
-
-    ``neutral`` (the parameter values that leave a stream unchanged) lets a gated call
-    (``p < 1``) run the kernel once on the whole batch with those values for the streams
-    the gate skips, instead of slicing streams out and back in; ``{}`` means the kernel
-    reads ``params["apply"]`` itself.
-    """
-
-    def register(kernel: Callable[..., Any]) -> Callable[..., Any]:
-        _EVENT_KERNELS[cls] = kernel
-        if neutral is not None:
-            _EVENT_NEUTRAL[cls] = dict(neutral)
-        return kernel
-
-    return register
-
-
-def _neutral_params(module: Any) -> dict[str, float] | None:
-    for cls in type(module).__mro__:
-        if cls in _EVENT_NEUTRAL:
-            return _EVENT_NEUTRAL[cls]
-    return None
-
-
-def _gated(params: Params, gate: Tensor, neutral: dict[str, float]) -> Params:
-    """``params`` with each neutral key set to its neutral value where ``gate`` is off."""
-    out = dict(params)
-    for key, value in neutral.items():
-        leaf = params[key]
-        off = ~gate.to(torch.bool).view(-1, *([1] * (leaf.dim() - 1)))
-        out[key] = torch.where(off, torch.as_tensor(value, dtype=leaf.dtype), leaf)
+def _gated(params: Params, gate: Tensor, spec: Spec) -> Params:
+    """``params`` with each entry whose :class:`Param` has a ``neutral`` value set to it where
+    ``gate`` is off (a gated EventBatch call runs its kernel once on the whole batch)."""
+    out = type(params)()
+    if isinstance(params, _CheckedParams):
+        out.owner = params.owner
+    out.update(params)
+    off_samples = ~gate.to(torch.bool)
+    for key, entry in spec.items():
+        if isinstance(entry, Param) and entry.neutral is not None and key in params:
+            leaf = params[key]
+            off = off_samples.view(-1, *([1] * (leaf.dim() - 1)))
+            out[key] = torch.where(off, torch.as_tensor(entry.neutral, dtype=leaf.dtype), leaf)
     return out
 
 
@@ -127,28 +92,6 @@ def _video_of(frames: object) -> Any:
     if module is not None and isinstance(frames, module.Video):
         return module
     return None
-
-
-class _CheckedParams(dict):
-    """A params dict that names the module and the key when a key is missing."""
-
-    owner = "transform"
-
-    def __missing__(self, key: str) -> Any:
-        raise ValueError(
-            f"params of {self.owner} has no entry {key!r} (it has {sorted(self)}); pass the "
-            "dict that make_params returns"
-        )
-
-
-def slice_params(params: Params, index: Tensor) -> Params:
-    """The parameters of the samples ``index`` (a CPU int64 tensor): every leaf indexed on dim 0."""
-    out = type(params)()
-    if isinstance(params, _CheckedParams):
-        out.owner = params.owner
-    for key, value in params.items():
-        out[key] = slice_params(value, index) if isinstance(value, Mapping) else value.index_select(0, index)
-    return out
 
 
 # --------------------------------------------------------------------------- sampling
@@ -200,7 +143,18 @@ def _cpu(tensor: Tensor) -> Tensor:
 GroupFn = Callable[[Tensor, Tensor], Tensor]
 
 
-def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | None]) -> Tensor:
+AnyGroupFn = Callable[[Any, Tensor], Any]
+
+
+@overload
+def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | None]) -> Tensor: ...
+@overload
+def apply_by_group(frames: EventBatch, group: Tensor, functions: Sequence[AnyGroupFn | None]) -> EventBatch: ...
+@overload
+def apply_by_group(
+    frames: Tensor | EventBatch, group: Tensor, functions: Sequence[AnyGroupFn | None]
+) -> Tensor | EventBatch: ...
+def apply_by_group(frames: Tensor | EventBatch, group: Tensor, functions: Sequence[AnyGroupFn | None]) -> Any:
     """Apply ``functions[g]`` to the samples whose ``group`` is ``g``; ``None`` keeps them.
 
     Each function gets the sub-batch and the (CPU) indices of its samples, and is called
@@ -262,7 +216,7 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
     return out
 
 
-def _apply_by_group_events(batch: EventBatch, group: Tensor, functions: Sequence[GroupFn | None]) -> EventBatch:
+def _apply_by_group_events(batch: EventBatch, group: Tensor, functions: Sequence[AnyGroupFn | None]) -> EventBatch:
     """:func:`apply_by_group` for an :class:`EventBatch`: streams gathered by slices of the
     (CPU) offsets, results put back in stream order; no host synchronisation."""
     size = len(batch)
@@ -305,6 +259,10 @@ class EventTransform(nn.Module):
     Args:
         p: probability that a sample is transformed; the others pass unchanged. Drawn
             per sample in :meth:`make_params` (entry ``"apply"``) when ``p < 1``.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        for a subclass with an event kernel; each subclass states its output.
 
     Example:
         >>> import event_transforms as et
@@ -478,16 +436,25 @@ class EventTransform(nn.Module):
         """
         return labels
 
-    def params_spec(self, shape: torch.Size) -> Spec | None:
-        """Override: describe this module's params dict for a batch ``shape``.
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if cls.sample_params is not EventTransform.sample_params and cls.params_spec is EventTransform.params_spec:
+            raise TypeError(
+                f"{cls.__name__} draws parameters (it overrides sample_params), so it must declare them: "
+                "override params_spec to return a dict of Param, one per key sample_params returns"
+            )
 
-        Returns a dict mapping each key :meth:`sample_params` returns to a :class:`Param`
-        (kind, trailing shape, range), and each child's key to ``(child, child_shape)``
-        for containers. The gate ``"apply"`` is added by the base class. ``None`` (the
-        default for a user subclass that draws parameters) checks only that the leaves
-        are ``(B, ...)`` tensors; a module that draws none takes only the gate.
+    def params_spec(self, shape: torch.Size) -> Spec:
+        """Override (required with :meth:`sample_params`): describe this module's params dict.
+
+        Returns a dict mapping each key :meth:`sample_params` returns for a batch ``shape``
+        to a :class:`Param` (kind, trailing shape, range, neutral value), and each child's
+        key to ``(child, child_shape)`` for containers. The gate ``"apply"`` is added by the
+        base class. A module that draws nothing inherits ``{}`` (it takes only the gate); a
+        subclass that overrides :meth:`sample_params` without this is refused when the class
+        is defined. ``module(x, params=tree)`` checks the tree against it and nothing else.
         """
-        return {} if type(self).sample_params is EventTransform.sample_params else None
+        return {}
 
     def make_params(
         self,
@@ -522,31 +489,24 @@ class EventTransform(nn.Module):
         """Override: this transform's own parameters for a checked batch ``shape``."""
         return {}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:  # pragma: no cover - abstract
-        """Override: transform a checked batch ``(B, T, 2, H, W)`` with given parameters."""
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # pragma: no cover - abstract
+        """Override: transform a checked batch ``(B, T, 2, H, W)`` or an EventBatch with given
+        parameters, by calling the operation's kernels through the registry:
+        ``call_kernel(F.rotate, inputs, params["angle"], ...)``
+        (:func:`~event_transforms.functional._dispatch.call_kernel`)."""
         raise NotImplementedError
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
         """The batch shape this transform returns for input ``shape`` (the same by default)."""
         return shape
 
-    def apply_events(self, batch: EventBatch, params: Params) -> EventBatch:
-        """The kernel for an :class:`EventBatch`: the one registered for this class (or a
-        base class) with :func:`register_event_kernel`; override in event-aware classes."""
-        for cls in type(self).__mro__:
-            kernel = _EVENT_KERNELS.get(cls)
-            if kernel is not None:
-                return kernel(self, batch, params)
-        raise TypeError(
-            f"{type(self).__name__} has no kernel for an EventBatch; bin the events first with "
-            "EventsToFrames (it can stand anywhere in a Compose)"
-        )
-
     def _dispatch(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
-        """Dispatch on the input type: :meth:`apply_events` for an EventBatch, else :meth:`apply`."""
-        if isinstance(inputs, EventBatch):
-            return self.apply_events(inputs, params)
-        return self.apply(inputs, params)
+        """:meth:`apply` on frames or an EventBatch; an operation with no kernel for the input's
+        type is refused with this module's name."""
+        try:
+            return self.apply(inputs, params)
+        except NoKernelError as error:
+            raise TypeError(f"{type(self).__name__} {error.detail}") from None
 
     @property
     def takes_events(self) -> bool:
@@ -573,9 +533,10 @@ class EventTransform(nn.Module):
         if all(gate.tolist()):  # a CPU tensor from make_params: read on the host, no sync
             return self._dispatch(frames, params)
         if isinstance(frames, EventBatch):
-            neutral = _neutral_params(self)
-            if neutral is not None:  # one pass over the batch, skipped streams left unchanged
-                return self._dispatch(frames, _gated(params, gate, neutral))
+            spec = self.params_spec(frames.frame_shape) or {}
+            if any(isinstance(e, Param) and e.neutral is not None for e in spec.values()):
+                # one pass over the batch with neutral values for the skipped streams
+                return self._dispatch(frames, _gated(params, gate, spec))
         return apply_by_group(
             frames, gate.long(), [None, lambda sub, index: self._dispatch(sub, slice_params(params, index))]
         )
@@ -599,6 +560,13 @@ class Lambda(EventTransform):
     parameters (its tree entry is empty) and is called on the whole batch
     ``(B, T, 2, H, W)``; it must keep the shape.
 
+    Args:
+        function: ``frames -> frames``, shape kept (a torchvision transform works).
+
+    Shape:
+        ``(B, T, 2, H, W)`` in and out (a single ``(T, 2, H, W)`` sequence is given a batch
+        dimension first, as for every transform).
+
     Example:
         >>> double = Lambda(lambda frames: 2 * frames)
         >>> double(torch.ones(1, 2, 1, 1)).flatten().tolist()
@@ -615,6 +583,9 @@ class Lambda(EventTransform):
         return {}
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
+        if isinstance(frames, EventBatch):
+            raise NoKernelError("", events=True, detail="has no kernel for an EventBatch; bin the events first with "
+                                "EventsToFrames (it can stand anywhere in a Compose)")
         out = self.function(frames)
         if not isinstance(out, Tensor) or out.shape != frames.shape:
             got = tuple(out.shape) if isinstance(out, Tensor) else type(out).__name__
@@ -636,8 +607,20 @@ def as_transform(transform: object, name: str = "transform") -> EventTransform:
     ``torch.from_numpy`` and ``torch.as_tensor`` become a pass-through: a container
     converts numpy frames once, before its members run.
 
+    Args:
+        transform: an event transform, or a callable ``frames -> frames``.
+        name: what to call ``transform`` in the error message.
+
     Raises:
         TypeError: ``transform`` is not callable.
+
+    Example:
+        >>> as_transform(torch.neg)
+        Lambda(neg)
+        >>> as_transform(3, name="transforms[1]")
+        Traceback (most recent call last):
+        ...
+        TypeError: transforms[1] must be an EventTransform or a callable, got int
     """
     if isinstance(transform, EventTransform):
         return transform

@@ -9,7 +9,8 @@ from __future__ import annotations
 from torch import Tensor
 
 from .._validation import as_number
-from ..functional.cleaning import _denoise
+from .. import functional as F
+from ..functional._dispatch import call_kernel
 from .base import EventTransform, Params
 
 __all__ = ["Denoise"]
@@ -26,6 +27,9 @@ class Denoise(EventTransform):
         temporal_radius: temporal half-width (frames, >= 0).
         p: probability that a sample is denoised.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+
     Example:
         >>> import torch
         >>> frames = torch.zeros(3, 2, 5, 5)
@@ -41,7 +45,7 @@ class Denoise(EventTransform):
         self.temporal_radius = as_number(temporal_radius, "temporal_radius", integer=True, low=0)
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _denoise(frames, self.radius, self.temporal_radius)
+        return call_kernel(F.denoise, frames, self.radius, self.temporal_radius)
 
     def _settings(self) -> str:
         return f"radius={self.radius}, temporal_radius={self.temporal_radius}"

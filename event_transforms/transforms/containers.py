@@ -71,6 +71,11 @@ class Compose(EventTransform):
         transforms: event transforms or callables ``frames -> frames``; an
             ``EventsToFrames`` only first.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        when every member takes one; the output is what the members make of it (frames from an
+        event stream when the first member is ``EventsToFrames``).
+
     Example:
         >>> from event_transforms import FrameShift, HorizontalFlip, RandomRotation
         >>> hybrid = Compose([FrameShift(-1), HorizontalFlip()])
@@ -143,7 +148,6 @@ class Compose(EventTransform):
                 )
         return frames
 
-    apply_events = apply  # type: ignore[assignment]  # members dispatch on what they are handed (events, then frames)
 
 
 class OneOf(EventTransform):
@@ -156,6 +160,10 @@ class OneOf(EventTransform):
     Args:
         transforms: event transforms or callables, at least one.
         weights: non-negative relative probabilities, one per transform (default equal).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        when every member takes one; the output is what the members make of it (the batch shape kept).
 
     Example:
         >>> from event_transforms import FrameShift, Resize
@@ -214,7 +222,6 @@ class OneOf(EventTransform):
         ]
         return apply_by_group(frames, params["index"], branches)
 
-    apply_events = apply  # type: ignore[assignment]  # members take events or frames
 
     def _settings(self) -> str:
         return f"weights={[round(w, 4) for w in self.weights.tolist()]}"
@@ -229,6 +236,10 @@ class RandomApply(EventTransform):
     Args:
         transform: an event transform or a callable.
         p: probability per sample, in [0, 1].
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        when every member takes one; the output is what the members make of it (the batch shape kept).
 
     Example:
         >>> from event_transforms import FrameShift
@@ -257,4 +268,3 @@ class RandomApply(EventTransform):
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         return self.transform._run(frames, params["0"])
 
-    apply_events = apply  # type: ignore[assignment]  # the member takes events or frames

@@ -1,4 +1,5 @@
-"""Drop modules: EventDrop (events by fraction, time window or area) and pixel removal.
+"""Drop modules: EventDrop (events by fraction, time window or area), pixel removal, and the
+event-only refractory period and decimation.
 
 They only remove counts, so counts can only fall and the dtype is kept. Pixel masks are
 computed on the frames' device; nothing is read back to the host.
@@ -14,11 +15,14 @@ import torch
 from torch import Tensor
 
 from .._validation import check_pair, check_positive
+from .. import functional as F
+from ..events.batch import EventBatch
+from ..functional._dispatch import call_kernel
 from ..functional.cleaning import _hot_pixels
-from ..functional.drop import _drop_by_area, _drop_by_time, _drop_events, _drop_mask, _pixel_mask, random_pixel_mask
+from ..functional.drop import _pixel_mask, random_pixel_mask
 from .base import EventTransform, Param, Params, apply_by_group, choice, integers, seeds, slice_params, uniform
 
-__all__ = ["RandomEventDrop", "DropPixel", "RandomDropPixel"]
+__all__ = ["RandomEventDrop", "DropPixel", "RandomDropPixel", "RefractoryPeriod", "Decimation"]
 
 
 _DROPS = ("random", "time", "area")
@@ -41,6 +45,10 @@ class RandomEventDrop(EventTransform):
         fraction: ``(min, max)`` range of ρ within [0, 1] (a single number is fixed).
         methods: the methods to choose from, uniformly.
         p: probability that a sample loses events.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (fewer events).
 
     Example:
         >>> drop = RandomEventDrop(fraction=(0.1, 0.5))
@@ -88,28 +96,28 @@ class RandomEventDrop(EventTransform):
         b, t, _, h, w = shape
         return {
             "method": Param("int", choices=tuple(_DROPS.index(m) for m in self.methods)),
-            "fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1),
-            "start": Param("int", low=0, high=t), "length": Param("int", low=0, high=t),
-            "top": Param("int", low=0, high=h), "height": Param("int", low=0, high=h),
-            "left": Param("int", low=0, high=w), "width": Param("int", low=0, high=w),
+            "fraction": Param("float", low=0.0, high=1.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1),
+            "start": Param("int", low=0, high=t), "length": Param("int", low=0, high=t, neutral=0),
+            "top": Param("int", low=0, high=h), "height": Param("int", low=0, high=h, neutral=0),
+            "left": Param("int", low=0, high=w), "width": Param("int", low=0, high=w, neutral=0),
         }
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        def by_random(sub: Tensor, index: Tensor) -> Tensor:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        def by_random(sub: Tensor | EventBatch, index: Tensor) -> Tensor | EventBatch:
             part = slice_params(params, index)
-            return _drop_events(sub, part["fraction"], "binomial", part["seed"], _HINT)
+            return call_kernel(F.drop_random, sub, part["fraction"], "binomial", part["seed"], _HINT)
 
-        def by_time(sub: Tensor, index: Tensor) -> Tensor:
+        def by_time(sub: Tensor | EventBatch, index: Tensor) -> Tensor | EventBatch:
             part = slice_params(params, index)
-            return _drop_by_time(sub, part["start"], part["length"])
+            return call_kernel(F.drop_by_time, sub, part["start"], part["length"])
 
-        def by_area(sub: Tensor, index: Tensor) -> Tensor:
+        def by_area(sub: Tensor | EventBatch, index: Tensor) -> Tensor | EventBatch:
             part = slice_params(params, index)
-            return _drop_by_area(sub, part["top"], part["left"], part["height"], part["width"])
+            return call_kernel(F.drop_by_area, sub, part["top"], part["left"], part["height"], part["width"])
 
         branches = {"random": by_random, "time": by_time, "area": by_area}
         functions = [branches[m] if m in self.methods else None for m in _DROPS]
-        return apply_by_group(frames, params["method"], functions)
+        return apply_by_group(inputs, params["method"], functions)
 
     def _settings(self) -> str:
         return f"fraction={self.fraction}, methods={self.methods}"
@@ -127,6 +135,10 @@ class DropPixel(EventTransform):
         rate_hz: hot-pixel threshold in events per second.
         frame_ms: the duration of one frame, for ``rate_hz``.
         p: probability that a sample is cleaned.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (``pixels=`` only).
 
     Example:
         >>> frames = torch.zeros(10, 2, 2, 3, dtype=torch.int32)
@@ -158,13 +170,22 @@ class DropPixel(EventTransform):
         self.rate_hz = None if rate_hz is None else check_positive(rate_hz, "rate_hz")
         self.frame_ms = check_positive(frame_ms, "frame_ms")
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        b, _, _, height, width = frames.shape
-        if self.pixels is not None:
-            mask = _pixel_mask(self.pixels, b, height, width, frames.device)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        if isinstance(inputs, EventBatch):
+            if self.pixels is None:
+                raise TypeError(
+                    "DropPixel(rate_hz=...) finds hot pixels from binned frames; on an EventBatch give the "
+                    "pixels (DropPixel(pixels=...)) or bin first with EventsToFrames"
+                )
+            b, (height, width) = len(inputs), inputs.sensor_size
         else:
-            mask = _hot_pixels(frames, self.rate_hz * self.frame_ms / 1000.0)
-        return _drop_mask(frames, mask)
+            b, _, _, height, width = inputs.shape
+        if self.pixels is not None:
+            mask = _pixel_mask(self.pixels, b, height, width, inputs.device)
+        else:
+            assert isinstance(inputs, Tensor)  # an EventBatch without pixels was refused above
+            mask = _hot_pixels(inputs, self.rate_hz * self.frame_ms / 1000.0)
+        return call_kernel(F.drop_pixel, inputs, mask)
 
     def _settings(self) -> str:
         if self.pixels is not None:
@@ -184,6 +205,10 @@ class RandomDropPixel(EventTransform):
         fraction: share of pixels dropped, in [0, 1], or a ``(min, max)`` range.
         p: probability that a sample is thinned.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> out = RandomDropPixel(0.5)(torch.ones(2, 3, 2, 20, 20), generator=torch.Generator().manual_seed(0))
         >>> [round(f, 2) for f in (out[:, 0, 0] == 0).float().mean((1, 2)).tolist()]
@@ -199,12 +224,99 @@ class RandomDropPixel(EventTransform):
         return {"fraction": uniform(*self.fraction, b, generator), "seed": seeds(b, generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1)}
+        return {"fraction": Param("float", low=0.0, high=1.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        height, width = frames.shape[-2:]
-        mask = random_pixel_mask(params["seed"], params["fraction"], height, width, frames.device)
-        return _drop_mask(frames, mask)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        # the same counter-based mask over the pixels of the frames or of the sensor
+        height, width = inputs.sensor_size if isinstance(inputs, EventBatch) else inputs.shape[-2:]
+        mask = random_pixel_mask(params["seed"], params["fraction"], height, width, inputs.device)
+        return call_kernel(F.drop_pixel, inputs, mask)
 
     def _settings(self) -> str:
         return f"fraction={self.fraction}"
+
+
+# --------------------------------------------------------------------------- events only
+
+
+class RefractoryPeriod(EventTransform):
+    """Drop events that follow an event of the same pixel within ``period_us`` (per sample).
+
+    Events only (frames raise a named ``TypeError``); see
+    :func:`~event_transforms.functional.refractory_period`. The dead time restarts with
+    every event a pixel saw (kept or not), and either polarity counts; the first event of
+    a pixel is kept. Needs the whole stream (one sort by pixel and time per call); one
+    host read of the kept counts (the output size depends on the data).
+
+    Args:
+        period_us: refractory period in µs, or a ``(min, max)`` range.
+        p: probability that a sample is filtered.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams, fewer events. Frames raise ``TypeError`` (an event-only augmentation).
+
+    Example:
+        >>> import event_transforms as et
+        >>> rows = torch.tensor([[1, 1, 0, 1], [1, 1, 500, 0], [1, 1, 2000, 1], [0, 0, 100, 1]])
+        >>> et.RefractoryPeriod(1000.0)(et.EventBatch.from_streams([rows], sensor_size=(2, 2))).t.tolist()
+        [0, 2000, 100]
+    """
+
+    def __init__(self, period_us: float | Sequence[float] = 1000.0, *, p: float = 1.0) -> None:
+        super().__init__(p=p)
+        low, high = check_pair(period_us, "period_us", low=0.0, single=True)
+        self.period_us = (float(low), float(high))
+
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
+        return {"period_us": uniform(*self.period_us, shape[0], generator)}
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"period_us": Param("float", low=0.0, neutral=0.0)}
+
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.refractory_period, inputs, params["period_us"])
+
+    def _settings(self) -> str:
+        return f"period_us={self.period_us}"
+
+
+class Decimation(EventTransform):
+    """Keep every n-th event of each pixel (tonic's ``Decimation``), n per sample.
+
+    Events only; see :func:`~event_transforms.functional.decimation`. Needs the whole
+    stream (one sort by pixel and time); one host read of the kept counts.
+
+    Args:
+        n: keep one event in n, or a ``(min, max)`` range of whole numbers (inclusive).
+        p: probability that a sample is decimated.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams, fewer events. Frames raise ``TypeError`` (an event-only augmentation).
+
+    Example:
+        >>> import event_transforms as et
+        >>> rows = torch.tensor([[0, 0, t, 1] for t in range(6)])
+        >>> et.Decimation(3)(et.EventBatch.from_streams([rows], sensor_size=(1, 1))).t.tolist()
+        [2, 5]
+    """
+
+    def __init__(self, n: int | Sequence[int] = 2, *, p: float = 1.0) -> None:
+        super().__init__(p=p)
+        low, high = check_pair(n, "n", low=1, single=True)
+        if int(low) != low or int(high) != high:
+            raise ValueError(f"n must hold whole numbers >= 1, got {n!r}")
+        self.n = (int(low), int(high))
+
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
+        return {"n": integers(self.n[1] - self.n[0] + 1, shape[0], generator) + self.n[0]}
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"n": Param("int", low=1, neutral=1)}
+
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.decimation, inputs, params["n"])
+
+    def _settings(self) -> str:
+        return f"n={self.n}"

@@ -119,7 +119,7 @@ class EventsToFrames(EventTransform):
 
     def events_to_frames(self, events: Any) -> Tensor:
         if isinstance(events, EventBatch):
-            return self.apply_events(events, {})
+            return self._bin(events)
         if isinstance(events, Tensor) and events.dim() in (4, 5) and events.shape[-3] == 2:
             raise TypeError(
                 f"EventsToFrames takes an event stream, got what looks like frames of shape {tuple(events.shape)}"
@@ -138,10 +138,12 @@ class EventsToFrames(EventTransform):
             columns=self.columns,
         )
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return frames  # made from the events in forward, before the parameters were drawn
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor:
+        if isinstance(inputs, EventBatch):  # anywhere in a Compose after event transforms
+            return self._bin(inputs)
+        return inputs  # made from the events in forward, before the parameters were drawn
 
-    def apply_events(self, batch: EventBatch, params: Params) -> Tensor:
+    def _bin(self, batch: EventBatch) -> Tensor:
         """Bin an :class:`EventBatch` on its device (:func:`~event_transforms.functional.bin_events`):
         ``(B, T, 2, H', W')``. The batch's frame grid, if it has one, fixes the starts."""
         if tuple(batch.sensor_size) != tuple(self.sensor_size):

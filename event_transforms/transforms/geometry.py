@@ -17,30 +17,40 @@ from typing import Any
 
 from collections.abc import Sequence
 
-import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_number, check_choice, on_host, per_sample_pairs
-from ..functional.geometry import REMAINDERS, _crop, _downsample, _factor, _size, _translate, downsampled_size
-from .base import EventTransform, Param, Params, integers
+from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, per_sample_pairs
+from .. import functional as F
+from ..events.batch import EventBatch
+from ..functional._dispatch import call_kernel
+from ..functional.geometry import REMAINDERS, _factor, _size, downsampled_size
+from .base import EventTransform, Param, Params, integers, seeds, uniform
 
 __all__ = [
     "HorizontalFlip", "VerticalFlip", "RandomHorizontalFlip", "RandomVerticalFlip",
-    "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample",
+    "Translate", "RandomTranslate", "RandomCrop", "CenterCrop", "Downsample", "SpatialJitter",
 ]
 
 
 class _Roll(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"shift": Param("int", shape=(2,))}
+        return {"shift": Param("int", shape=(2,), neutral=0)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _translate(frames, params["shift"])
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.translate, inputs, params["shift"])
 
 
 class Translate(_Roll):
     """Move every frame by a fixed ``(dy, dx)`` of whole pixels, zero fill. Counts and dtype kept.
+
+    Args:
+        shift: ``(dy, dx)`` whole pixels (positive: down, right).
+        p: probability that a sample is moved.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (whole sensor pixels).
 
     Example:
         >>> Translate((0, 1))(torch.ones(1, 2, 1, 3))[0, 0].tolist()
@@ -69,6 +79,10 @@ class RandomTranslate(_Roll):
     Args:
         max_shift: ``m`` for both axes or ``(max_dy, max_dx)``, non-negative integers (pixels).
         p: probability that a sample is moved.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (whole sensor pixels).
 
     Example:
         >>> transform = RandomTranslate((2, 3))
@@ -122,9 +136,11 @@ class _Crop(EventTransform):
         rows, cols = self._room(shape)
         return {"top": Param("int", low=0, high=rows), "left": Param("int", low=0, high=cols)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        self._room(frames.shape)
-        return _crop(frames, params["top"], params["left"], self.size, self.resize, self.mode)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        if isinstance(inputs, EventBatch) and self.resize:
+            raise ValueError(f"{type(self).__name__}(resize=True) interpolates frames; on events crop with resize=False")
+        self._room(inputs.frame_shape if isinstance(inputs, EventBatch) else inputs.shape)
+        return call_kernel(F.crop, inputs, params["top"], params["left"], self.size, self.resize, self.mode)
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
         return shape if self.resize else torch.Size((*shape[:-2], *self.size))
@@ -169,6 +185,11 @@ class CenterCrop(_Crop):
     Args:
         size, resize, mode, p: as in :class:`RandomCrop`.
 
+    Shape:
+        ``(B, T, 2, H, W)`` -> ``(B, T, 2, h, w)``, or unchanged with ``resize=True``.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` whose sensor is the crop
+        (``resize=False``).
+
     Example:
         >>> CenterCrop(3)(torch.arange(25.).reshape(1, 1, 5, 5).expand(1, 2, 5, 5))[0, 0].tolist()
         [[6.0, 7.0, 8.0], [11.0, 12.0, 13.0], [16.0, 17.0, 18.0]]
@@ -208,8 +229,8 @@ class Downsample(EventTransform):
         self.factor = _factor(factor)
         self.remainder = check_choice(remainder, "remainder", REMAINDERS)
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _downsample(frames, self.factor, self.remainder)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.downsample, inputs, self.factor, self.remainder)
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
         return torch.Size((*shape[:-2], *downsampled_size(shape[-2], shape[-1], self.factor, self.remainder)))
@@ -218,36 +239,15 @@ class Downsample(EventTransform):
         return f"factor={self.factor}, remainder={self.remainder!r}"
 
 
-def _flip(frames: Tensor, params: Params, axis: int) -> Tensor:
-    """Mirror along ``axis`` (-1: W, -2: H) the samples whose ``params["apply"]`` is set
-    (all without a gate), in one pass over the batch: ``flip`` when every sample is
-    mirrored, else one gather of whole rows (H) or of columns (W) by a per-sample index
-    built on the host. No host synchronisation."""
-    gate = params.get("apply")
-    if gate is not None and not on_host(gate):  # compiling, or a gate on an accelerator
-        flip = gate.to(frames.device, torch.bool).view(-1, 1, 1, 1, 1)
-        return torch.where(flip, frames.flip(axis), frames)
-    flags = None if gate is None else np.asarray(gate.tolist(), dtype=bool).reshape(frames.shape[0])
-    if flags is None or flags.all():
-        return frames.flip(axis)
-    if not flags.any():
-        return frames.clone(memory_format=torch.contiguous_format)
-    b, t, p, h, w = frames.shape
-    if axis == -2:
-        # Rows of W values: out row (b, c, y) = in row (b, c, y or H - 1 - y).
-        ys = np.where(flags[:, None], np.arange(h)[::-1], np.arange(h))  # (B, H)
-        rows = (np.arange(b)[:, None, None] * (t * p * h) + np.arange(t * p)[None, :, None] * h + ys[:, None, :]).reshape(-1)
-        out = frames.reshape(b * t * p * h, w).index_select(0, torch.from_numpy(rows).to(frames.device))
-        return out.view(frames.shape)
-    xs = np.where(flags[:, None], np.arange(w)[::-1], np.arange(w))  # (B, W)
-    index = torch.from_numpy(xs).to(frames.device).view(b, 1, w).expand(b, t * p * h, w)
-    return frames.reshape(b, t * p * h, w).gather(2, index).view(frames.shape)
-
 class HorizontalFlip(EventTransform):
     """Mirror every frame left-right. Counts and dtype are kept.
 
     Args:
         p: probability that a sample is mirrored.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> HorizontalFlip()(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
@@ -256,14 +256,18 @@ class HorizontalFlip(EventTransform):
 
     _gates_itself = True
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _flip(frames, params, -1)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.horizontal_flip, inputs, params.get("apply"))
 
 class VerticalFlip(EventTransform):
     """Mirror every frame top-bottom. Counts and dtype are kept.
 
     Args:
         p: probability that a sample is mirrored.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> VerticalFlip()(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
@@ -272,11 +276,18 @@ class VerticalFlip(EventTransform):
 
     _gates_itself = True
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _flip(frames, params, -2)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.vertical_flip, inputs, params.get("apply"))
 
 class RandomHorizontalFlip(HorizontalFlip):
     """Mirror each sequence left-right with probability ``p`` (per sample; default 0.5).
+
+    Args:
+        p: probability that a sample is mirrored (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> frames = torch.arange(8.).reshape(2, 1, 2, 1, 2)
@@ -293,6 +304,13 @@ class RandomHorizontalFlip(HorizontalFlip):
 class RandomVerticalFlip(VerticalFlip):
     """Mirror each sequence top-bottom with probability ``p`` (per sample; default 0.5).
 
+    Args:
+        p: probability that a sample is mirrored (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> frames = torch.arange(8.).reshape(2, 1, 2, 2, 1)
         >>> RandomVerticalFlip(p=1.0)(frames)[:, 0, 0, :, 0].tolist()
@@ -304,3 +322,49 @@ class RandomVerticalFlip(VerticalFlip):
 
     def _settings(self) -> str:
         return "" if self.p < 1 else "p=1.0"
+
+
+# --------------------------------------------------------------------------- events only
+
+
+class SpatialJitter(EventTransform):
+    """Move every event by Gaussian noise of ``sigma`` pixels in x and y (rounded to whole pixels).
+
+    Events only (frames raise a named ``TypeError``); see
+    :func:`~event_transforms.functional.spatial_jitter`. ``sigma`` is drawn per sample from
+    ``(min, max)`` (a number is fixed); the noise comes from the sample's own seed
+    (``params["seed"]``), so a sample alone equals the sample in a batch. Events jittered
+    off the sensor are dropped when binned. Sync-free.
+
+    Args:
+        sigma: standard deviation in pixels, or a ``(min, max)`` range.
+        p: probability that a sample is jittered.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (moved). Frames raise ``TypeError`` (an event-only augmentation).
+
+    Example:
+        >>> import event_transforms as et
+        >>> batch = et.EventBatch.from_streams([torch.tensor([[5, 5, 0, 1]] * 4)], sensor_size=(10, 10))
+        >>> out = et.SpatialJitter(1.0)(batch, generator=torch.Generator().manual_seed(0))
+        >>> out.x.tolist(), out.y.tolist()
+        ([5, 5, 2, 6], [5, 4, 3, 5])
+    """
+
+    def __init__(self, sigma: float | Sequence[float] = 1.0, *, p: float = 1.0) -> None:
+        super().__init__(p=p)
+        low, high = check_pair(sigma, "sigma", low=0.0, single=True)
+        self.sigma = (float(low), float(high))
+
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
+        return {"sigma": uniform(*self.sigma, shape[0], generator), "seed": seeds(shape[0], generator)}
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"sigma": Param("float", low=0.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
+
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.spatial_jitter, inputs, params["sigma"], params["seed"])
+
+    def _settings(self) -> str:
+        return f"sigma={self.sigma}"

@@ -36,7 +36,9 @@ from torch import Tensor
 
 from .._validation import as_number, check_positive
 from ..functional.geometry import _size
-from ..functional.mixing import _check_classes, _cutmix, _cutout, _mix_labels, _mixup
+from .. import functional as F
+from ..functional._dispatch import call_kernel
+from ..functional.mixing import _check_classes, _mix_labels
 from .base import EventTransform, Param, Params, _draw_device, integers, seeds
 
 __all__ = ["Cutout", "CutMix", "MixUp"]
@@ -83,6 +85,9 @@ class Cutout(EventTransform):
         size: ``n`` or ``(h, w)`` pixels.
         p: probability that a sample is cut.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+
     Example:
         >>> out = Cutout(3)(torch.ones(2, 4, 2, 9, 11), generator=torch.Generator().manual_seed(0))
         >>> out.shape, (out == 0).any().item()
@@ -103,7 +108,7 @@ class Cutout(EventTransform):
         return _box_spec(shape)
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _cutout(frames, params["top"], params["left"], params["height"], params["width"])
+        return call_kernel(F.cutout, frames, params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
         return f"size={self.size}"
@@ -172,6 +177,11 @@ class CutMix(_Mixing):
         label_key: for dict inputs, the entry holding the labels.
         p: probability that a sample is mixed (unchosen samples and their labels stay).
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept. The labels:
+        float ``(B, ...)`` kept in shape and dtype; integer class indices ``(B,)`` -> float
+        ``(B, num_classes)``.
+
     Example:
         >>> frames = torch.poisson(torch.full((4, 6, 2, 9, 11), 0.3))
         >>> force = torch.rand(4, 6)
@@ -205,7 +215,7 @@ class CutMix(_Mixing):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         partner, _ = self._effective(params)
-        return _cutmix(frames, partner, params["top"], params["left"], params["height"], params["width"])
+        return call_kernel(F.cutmix, frames, partner, params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
         return self._common()
@@ -222,6 +232,11 @@ class MixUp(_Mixing):
     Args:
         alpha: Beta parameter (> 0); small values keep λ near 0 or 1.
         num_classes, label_key, p: as in :class:`CutMix`.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (a weighted sum). The labels: float ``(B, ...)`` kept in shape and dtype; integer class
+        indices ``(B,)`` -> float ``(B, num_classes)``.
 
     Example:
         >>> frames = torch.poisson(torch.full((4, 6, 2, 9, 11), 0.3)).to(torch.int16)
@@ -244,7 +259,7 @@ class MixUp(_Mixing):
 
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         partner, weight = self._effective(params)
-        return _mixup(frames, partner, weight)
+        return call_kernel(F.mixup, frames, partner, weight)
 
     def _settings(self) -> str:
         return self._common()

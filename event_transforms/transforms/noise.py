@@ -14,7 +14,10 @@ import torch
 from torch import Tensor
 
 from .._validation import check_counts, check_frames, check_pair, check_positive, describe
-from ..functional.noise import _add_counts, _add_entries, _add_poisson_noise, _poisson_totals
+from .. import functional as F
+from ..events.batch import EventBatch
+from ..functional._dispatch import call_kernel
+from ..functional.noise import _add_entries, _poisson_totals
 from .base import EventTransform, Param, Params, integers, seeds, uniform
 
 __all__ = ["AddNoise", "AddPoissonNoise"]
@@ -94,7 +97,10 @@ class AddNoise(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"offset": Param("int", low=0, high=max(self.bank.shape[0] - shape[1], 0))}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        if isinstance(inputs, EventBatch):
+            return call_kernel(F.add_noise, inputs, self.bank, params["offset"])
+        frames = inputs
         b, t = frames.shape[:2]
         offset = np.asarray(params["offset"].tolist(), dtype=np.int64).reshape(b)  # CPU: no sync
         if b and (int(offset.max()) + t > self.bank.shape[0] or int(offset.min()) < 0):
@@ -103,10 +109,7 @@ class AddNoise(EventTransform):
                 f"{self.bank.shape[0]} frames and T = {t}, got {describe(params['offset'])}"
             )
         if self._entries is None or b == 0:
-            index = torch.from_numpy((offset[:, None] + np.arange(t)).reshape(-1))
-            bank = self.bank.to(frames.device)
-            noise = bank.index_select(0, index.to(frames.device)).view(b, t, *bank.shape[1:])
-            return _add_counts(frames, noise, "noise")
+            return call_kernel(F.add_noise, frames, self.bank, params["offset"])
         # Sparse bank: entries of frames [offset, offset + T) of the bank, moved to sample b.
         host, start = self._entries
         frame = self.bank[0].numel()
@@ -134,6 +137,11 @@ class AddPoissonNoise(EventTransform):
         frame_ms: frame length in milliseconds (the paper's 10 ms).
         p: probability that a sample gets noise.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (the noise as events over
+        the grid's window).
+
     Example:
         >>> transform = AddPoissonNoise((0.1, 10.0))
         >>> out = transform(torch.zeros(4, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))
@@ -156,14 +164,11 @@ class AddPoissonNoise(EventTransform):
         return params
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"rate_hz": Param("float", low=0.0), "count": Param("int", low=0, optional=True), "seed": Param("int", low=0, high=2**63 - 1)}
+        return {"rate_hz": Param("float", low=0.0, neutral=0.0), "count": Param("int", low=0, optional=True), "seed": Param("int", low=0, high=2**63 - 1)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _add_poisson_noise(
-            frames,
-            params["rate_hz"] * (self.frame_ms / 1000.0),
-            totals=params.get("count"),
-            seeds=params["seed"],
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(
+            F.add_poisson_noise, inputs, params["rate_hz"], params["seed"], frame_ms=self.frame_ms, count=params.get("count")
         )
 
     def _settings(self) -> str:

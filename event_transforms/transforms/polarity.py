@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from torch import Tensor
 
-from ..functional.polarity import _merge_polarities
+from .. import functional as F
+from ..events.batch import EventBatch
+from ..functional._dispatch import call_kernel
 from .base import EventTransform, Params
 
 __all__ = ["FlipPolarity", "RandomFlipPolarity", "MergePolarities"]
@@ -21,18 +23,31 @@ class FlipPolarity(EventTransform):
     Args:
         p: probability that a sample is flipped.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> import torch
         >>> FlipPolarity()(torch.tensor([[[[1]], [[5]]]]))[0, :, 0, 0].tolist()
         [5, 1]
     """
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return frames.flip(2)
+    _gates_itself = True
+
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.flip_polarity, inputs, params.get("apply"))
 
 
 class RandomFlipPolarity(FlipPolarity):
     """Swap the polarities of each sequence with probability ``p`` (per sample; default 0.5).
+
+    Args:
+        p: probability that a sample is flipped (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> import torch
@@ -59,13 +74,16 @@ class MergePolarities(EventTransform):
     Args:
         p: probability that a sample's polarities are merged.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept. Channel 1 comes back zero.
+
     Example:
         >>> import torch
         >>> MergePolarities()(torch.tensor([[[[1, 0]], [[2, 3]]]]))[0, :, 0].tolist()
         [[3, 3], [0, 0]]
     """
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _merge_polarities(frames, True)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.merge_polarities, inputs, True)
 
 

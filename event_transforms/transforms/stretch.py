@@ -17,7 +17,9 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
 from ..functional.affine import Center, _check_center
-from ..functional.stretch import CONTACT, _check_axis, _stretch
+from .. import functional as F
+from ..functional._dispatch import call_kernel
+from ..functional.stretch import CONTACT, _check_axis
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = ["Stretch", "RandomStretch"]
@@ -41,7 +43,7 @@ class _StretchWarp(EventTransform):
     def apply(self, frames: Tensor, params: Params) -> Tensor:
         b = frames.shape[0]
         axis = self.axis if isinstance(self.axis, str) else torch.full((b,), self.axis, dtype=torch.float64)
-        return _stretch(frames, params["factor"], axis, self.center, self.mode)
+        return call_kernel(F.stretch, frames, params["factor"], axis, self.center, self.mode)
 
     def _common(self) -> str:
         return f"axis={self.axis!r}, center={self.center!r}, mode={self.mode!r}"
@@ -64,6 +66,10 @@ class Stretch(_StretchWarp):
         mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
             or ``"nearest"`` (dtype kept).
         p: probability that a sample is stretched.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
 
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
@@ -98,6 +104,10 @@ class RandomStretch(_StretchWarp):
         choices: stretch factors, all > 0.
         axis, center, mode: as in :class:`Stretch`.
         p: probability that a sample is stretched.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
 
     Example:
         >>> transform = RandomStretch((0.9, 1.1))

@@ -18,12 +18,15 @@ import torch
 from torch import Tensor
 
 from .._validation import TES_MODES, as_number, check_choice, check_pair, check_probability
-from ..functional.temporal import _check_length, _crop_time, _frame_shift, _temporal_event_shift
+from .. import functional as F
+from ..events.batch import EventBatch
+from ..functional._dispatch import call_kernel
+from ..functional.temporal import _check_length
 from .base import EventTransform, Param, Params, choice, integers, seeds, uniform
 
 __all__ = [
     "FrameShift", "RandomFrameShift", "TemporalEventShift", "RandomTemporalEventShift",
-    "TimeReversal", "RandomTimeReversal", "CropTime", "RandomCropTime",
+    "TimeReversal", "RandomTimeReversal", "CropTime", "RandomCropTime", "TimeJitter", "TimeSkew",
 ]
 
 
@@ -49,10 +52,10 @@ class _Shift(EventTransform):
     """Frame shifting: ``params["shift"]`` (B,) int64."""
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"shift": Param("int")}
+        return {"shift": Param("int", neutral=0)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return _frame_shift(frames, params["shift"])
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.frame_shift, inputs, params["shift"])
 
 
 class _EventShift(EventTransform):
@@ -61,17 +64,19 @@ class _EventShift(EventTransform):
     mode: str
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        spec = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0)}
+        spec = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0, neutral=0.0)}
         if self.mode != "expected":
             spec["seed"] = Param("int", low=0, high=2**63 - 1)
         return spec
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         hint = (
             f"{type(self).__name__}(mode={self.mode!r}) moves whole events: apply it before interpolating "
             "transforms (bilinear rotate/resize), or use mode='expected'"
         )
-        return _temporal_event_shift(frames, params["shift"], params["fraction"], self.mode, params.get("seed"), hint)
+        return call_kernel(
+            F.temporal_event_shift, inputs, params["shift"], params["fraction"], self.mode, params.get("seed"), hint
+        )
 
     def _draws(self, shift: Tensor, fraction: Tensor, generator: torch.Generator | None) -> Params:
         params: Params = {"shift": shift, "fraction": fraction}
@@ -250,6 +255,10 @@ class TimeReversal(EventTransform):
     Args:
         p: probability that a sample is reversed.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` on the same frame grid.
+
     Example:
         >>> frames = torch.zeros(3, 2, 1, 1)
         >>> frames[0, 1] = 4.0
@@ -257,11 +266,20 @@ class TimeReversal(EventTransform):
         [[0.0, 0.0], [0.0, 0.0], [4.0, 0.0]]
     """
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return frames.flip(1, 2)
+    _gates_itself = True
+
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.time_reversal, inputs, params.get("apply"))
 
 class RandomTimeReversal(TimeReversal):
     """Reverse each sequence in time (and swap polarities) with probability ``p`` (default 0.5).
+
+    Args:
+        p: probability that a sample is reversed (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` on the same frame grid.
 
     Example:
         >>> RandomTimeReversal(p=1.0)(torch.arange(4.).view(2, 2, 1, 1))[:, :, 0, 0].tolist()
@@ -289,9 +307,9 @@ class _CropTime(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"start": Param("int", low=0, high=self._room(shape))}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        self._room(frames.shape)
-        return _crop_time(frames, params["start"], self.length)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        self._room(inputs.frame_shape if isinstance(inputs, EventBatch) else inputs.shape)
+        return call_kernel(F.crop_time, inputs, params["start"], self.length)
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
         return torch.Size((shape[0], self.length, *shape[2:]))
@@ -341,6 +359,10 @@ class RandomCropTime(_CropTime):
     Args:
         length: number of kept frames (at most T).
 
+    Shape:
+        ``(B, T, 2, H, W)`` -> ``(B, length, 2, H, W)``; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` whose grid is ``length`` bins.
+
     Example:
         >>> transform = RandomCropTime(30)
         >>> transform.make_params((3, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["start"].tolist()
@@ -352,3 +374,96 @@ class RandomCropTime(_CropTime):
 
     def _settings(self) -> str:
         return f"length={self.length}"
+
+
+# --------------------------------------------------------------------------- events only
+
+
+def _range(value: float | Sequence[float], name: str, *, low: float = 0.0, high: float = float("inf")) -> tuple[float, float]:
+    pair = check_pair(value, name, low=low, high=high, single=True)
+    return float(pair[0]), float(pair[1])
+
+
+class TimeJitter(EventTransform):
+    """Add Gaussian noise of ``std_us`` microseconds to every timestamp (per-sample std).
+
+    Events only (frames raise a named ``TypeError``); see
+    :func:`~event_transforms.functional.time_jitter`. Streams are no longer time-sorted
+    afterwards (binning does not need them sorted). Sync-free.
+
+    Args:
+        std_us: standard deviation in µs, or a ``(min, max)`` range.
+        p: probability that a sample is jittered.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (retimed; no longer time-sorted). Frames raise ``TypeError`` (an event-only augmentation).
+
+    Example:
+        >>> import event_transforms as et
+        >>> batch = et.EventBatch.from_streams([torch.tensor([[0, 0, 1000, 1]] * 3)], sensor_size=(2, 2))
+        >>> et.TimeJitter(100.0)(batch, generator=torch.Generator().manual_seed(0)).t.tolist()
+        [977, 999, 693]
+    """
+
+    def __init__(self, std_us: float | Sequence[float] = 100.0, *, p: float = 1.0) -> None:
+        super().__init__(p=p)
+        self.std_us = _range(std_us, "std_us")
+
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
+        return {"std_us": uniform(*self.std_us, shape[0], generator), "seed": seeds(shape[0], generator)}
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"std_us": Param("float", low=0.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
+
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.time_jitter, inputs, params["std_us"], params["seed"])
+
+    def _settings(self) -> str:
+        return f"std_us={self.std_us}"
+
+
+class TimeSkew(EventTransform):
+    """Stretch time: ``t -> t0 + coefficient (t - t0) + offset_us`` per sample.
+
+    Events only; see :func:`~event_transforms.functional.time_skew`. ``t0`` is the
+    stream's grid start (the first event without a grid), so absolute timestamps (about
+    1.7e15 µs) are skewed about the recording, not about 0. Sync-free.
+
+    Args:
+        coefficient: factor, or a ``(min, max)`` range (must be positive).
+        offset_us: shift in µs, or a ``(min, max)`` range.
+        p: probability that a sample is skewed.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (retimed). Frames raise ``TypeError`` (an event-only augmentation).
+
+    Example:
+        >>> import event_transforms as et
+        >>> batch = et.EventBatch.from_streams([torch.tensor([[0, 0, 100, 1], [0, 0, 300, 0]])], sensor_size=(2, 2))
+        >>> et.TimeSkew(2.0, offset_us=10.0)(batch).t.tolist()
+        [110, 510]
+    """
+
+    def __init__(
+        self, coefficient: float | Sequence[float] = (0.9, 1.1), offset_us: float | Sequence[float] = 0.0, *, p: float = 1.0
+    ) -> None:
+        super().__init__(p=p)
+        self.coefficient = _range(coefficient, "coefficient", low=1e-12)
+        self.offset_us = _range(offset_us, "offset_us", low=-float("inf"))
+
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
+        return {
+            "coefficient": uniform(*self.coefficient, shape[0], generator),
+            "offset_us": uniform(*self.offset_us, shape[0], generator),
+        }
+
+    def params_spec(self, shape: torch.Size) -> dict[str, Param]:
+        return {"coefficient": Param("float", low=1e-12, neutral=1.0), "offset_us": Param("float", neutral=0.0)}
+
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        return call_kernel(F.time_skew, inputs, params["coefficient"], params["offset_us"])
+
+    def _settings(self) -> str:
+        return f"coefficient={self.coefficient}, offset_us={self.offset_us}"
