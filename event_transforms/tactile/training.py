@@ -21,6 +21,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
+from ..events.batch import EventBatch
 from ..transforms.base import EventTransform, Param, Params, Spec, as_transform
 
 __all__ = [
@@ -105,7 +106,7 @@ class TimedTransform(EventTransform):
     def output_shape(self, shape: torch.Size) -> torch.Size:
         return self.transform.output_shape(shape)
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         with self.stopwatch:
             return self.transform(frames, params=params)
 

@@ -488,11 +488,18 @@ class EventTransform(nn.Module):
         """Override: this transform's own parameters for a checked batch ``shape``."""
         return {}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # pragma: no cover - abstract
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # pragma: no cover - abstract; shadows nn.Module.apply (see docstring)
         """Override: transform a checked batch ``(B, T, 2, H, W)`` or an EventBatch with given
         parameters, by calling the operation's kernels through the registry:
         ``call_kernel(F.rotate, inputs, params["angle"], ...)``
-        (:func:`~event_transforms.functional._dispatch.call_kernel`)."""
+        (:func:`~event_transforms.functional._dispatch.call_kernel`).
+
+        The name shadows ``torch.nn.Module.apply`` (``module.apply(fn)``, which calls
+        ``fn`` on every submodule): kept because every transform and user subclass defines
+        it. So ``nn.Module.apply(fn)`` on a module tree that holds a transform fails (it
+        calls this method with ``fn``); loop over ``tree.modules()`` instead. Type checkers
+        flag each definition against ``nn.Module.apply``: each carries
+        ``# type: ignore[override]``, and a subclass needs the same comment."""
         raise NotImplementedError
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
@@ -525,6 +532,8 @@ class EventTransform(nn.Module):
     def _run(self, frames: Tensor, params: Params) -> Tensor: ...
     @overload
     def _run(self, frames: EventBatch, params: Params) -> EventBatch: ...
+    @overload
+    def _run(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch: ...
     def _run(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``.
 
@@ -585,7 +594,7 @@ class Lambda(EventTransform):
     def params_spec(self, shape: torch.Size) -> Spec:
         return {}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         if isinstance(frames, EventBatch):
             raise NoKernelError("", events=True, detail="has no kernel for an EventBatch; bin the events first with "
                                 "EventsToFrames (it can stand anywhere in a Compose)")
