@@ -31,6 +31,7 @@ container or data set is handed (a plain function, a torchvision transform) is w
 
 from __future__ import annotations
 
+import functools
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, overload
@@ -48,6 +49,21 @@ __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAME
 
 #: The key under which a dict input holds the frames.
 FRAMES_KEY = "frames"
+
+def _also_module_apply(apply: Callable[..., Any]) -> Callable[..., Any]:
+    """``apply`` of a transform that also answers ``torch.nn.Module.apply(fn)``: a call with
+    one callable (not frames, not an EventBatch) and nothing else is torch's ``module.apply``,
+    which calls ``fn`` on every submodule and then on the module."""
+
+    @functools.wraps(apply)
+    def both(self: Any, inputs: Any, *args: Any, **kwargs: Any) -> Any:
+        if not args and not kwargs and callable(inputs) and not isinstance(inputs, (Tensor, EventBatch)):
+            return torch.nn.Module.apply(self, inputs)
+        return apply(self, inputs, *args, **kwargs)
+
+    both._takes_module_apply = True  # type: ignore[attr-defined]
+    return both
+
 
 def _gated(params: Params, gate: Tensor, spec: Spec) -> Params:
     """``params`` with each entry whose :class:`Param` has a ``neutral`` value set to it where
@@ -437,6 +453,8 @@ class EventTransform(nn.Module):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
+        if "apply" in cls.__dict__ and not getattr(cls.__dict__["apply"], "_takes_module_apply", False):
+            cls.apply = _also_module_apply(cls.__dict__["apply"])  # type: ignore[method-assign]
         if cls.sample_params is not EventTransform.sample_params and cls.params_spec is EventTransform.params_spec:
             raise TypeError(
                 f"{cls.__name__} draws parameters (it overrides sample_params), so it must declare them: "
@@ -496,9 +514,10 @@ class EventTransform(nn.Module):
 
         The name shadows ``torch.nn.Module.apply`` (``module.apply(fn)``, which calls
         ``fn`` on every submodule): kept because every transform and user subclass defines
-        it. So ``nn.Module.apply(fn)`` on a module tree that holds a transform fails (it
-        calls this method with ``fn``); loop over ``tree.modules()`` instead. Type checkers
-        flag each definition against ``nn.Module.apply``: each carries
+        it. A call with one callable and nothing else is torch's meaning: every subclass's
+        ``apply`` is wrapped when the class is defined so that ``model.apply(init_fn)`` on a
+        module tree that holds transforms still reaches every submodule. Type checkers flag
+        each definition against ``nn.Module.apply``: each carries
         ``# type: ignore[override]``, and a subclass needs the same comment."""
         raise NotImplementedError
 
@@ -562,6 +581,9 @@ class EventTransform(nn.Module):
     def _settings(self) -> str:
         """Override: the settings shown in ``repr`` (``p`` is added by the base class)."""
         return ""
+
+
+EventTransform.apply = _also_module_apply(EventTransform.apply)  # type: ignore[method-assign]
 
 
 class Lambda(EventTransform):
