@@ -752,8 +752,9 @@ def _compare(args: argparse.Namespace) -> int:
             verdicts.append(summary_verdicts(path.read_text()))
         except ValueError as error:
             raise ValueError(f"{name} ({path}): {error}") from None
-    _print(format_verdict_comparison(*verdicts, names=(str(args.a), str(args.b))))
-    return 1 if compare_verdicts(*verdicts)["reversed"] else 0
+    first, second = verdicts
+    _print(format_verdict_comparison(first, second, names=(str(args.a), str(args.b))))
+    return 1 if compare_verdicts(first, second)["reversed"] else 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -317,7 +317,7 @@ def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
         >>> summary_verdicts(table)
         {('paper', 'stretch', 'vs none'): Verdict(mean=-0.92, significant=True)}
     """
-    rows = None
+    rows: list[list[str]] | None = None
     for line in text.splitlines() + [""]:
         line = line.strip()
         if line.startswith("|") and line.endswith("|"):
