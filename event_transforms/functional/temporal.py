@@ -28,7 +28,8 @@ from .._validation import (
 from ..events.batch import EventBatch
 from ..events.binning import _frame_us
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import _compact, _generator, _keys, _per_event, _require_grid, warn_dropped
+from ._event_ops import TES_KEYS, TIME_JITTER, _compact, _keys, _per_event, _require_grid, warn_dropped
+from ._random import EventStream
 from ._random import draw_seeds
 from ._hypergeometric import (
     _EXPAND_MAX, Stream, binomial_counts, level_stats, multivariate_hypergeometric, segment_sum,
@@ -559,8 +560,9 @@ def _shift_events(
     ``"binomial"`` moves each event with probability ζ. Events pushed out of the window
     are dropped (as in the frame kernels); events outside the window never move.
 
-    Exact selection: each event gets a float32 uniform key u from its sample's generator;
-    the k events with the smallest keys of a group are the ones moved (ties, at 2**-24,
+    Exact selection: each event gets a float32 uniform key u from its sample's
+    counter-based stream (seed and position in the sample); the k events with the
+    smallest keys of a group are the ones moved (ties, at 2**-23,
     are broken by position). A binomial level (u < ζ) picks all but a ~sqrt(N) surplus or
     deficit per group, fixed by ranking only the events whose keys lie in a narrow band
     next to ζ (no full sort). Host syncs: one read of the per-group surplus, one band
@@ -574,7 +576,7 @@ def _shift_events(
     if fraction is None:
         moved = inside
     else:
-        u, below = _keys(batch, seed, fraction)
+        u, below = _keys(batch, seed, fraction, TES_KEYS)
         moved = below & inside
         if mode == "exact":
             moved = _exact_fixup(group, groups, u, moved, fraction, n_frames)
@@ -664,12 +666,10 @@ def time_jitter(batch: EventBatch, std_us: Scalars, seed: ShiftArg) -> EventBatc
 @register_kernel(time_jitter, EventBatch)
 def time_jitter_events(batch: EventBatch, std_us: Tensor, seed: Tensor) -> EventBatch:
     """Add Gaussian noise of ``std_us[b]`` microseconds to the timestamps (rounded for
-    integer timestamps). Streams are no longer time-sorted. Sync-free."""
-    bounds = batch.offsets.tolist()
-    noise = torch.empty(batch.num_events, dtype=torch.float64, device=batch.device)
-    for b, (s, std) in enumerate(zip(seed.tolist(), std_us.tolist())):
-        if bounds[b + 1] > bounds[b]:  # the sample's generator, scaled by its own std: no gather
-            noise[bounds[b] : bounds[b + 1]].normal_(generator=_generator(s, batch.device)).mul_(std)
+    integer timestamps). Streams are no longer time-sorted. The normals come from the
+    sample's counter-based stream (``seed[b]`` and the event's position in its sample).
+    Sync-free; the same ops whatever B."""
+    noise = EventStream.of_batch(batch, seed).normal(TIME_JITTER).mul_(_per_event(std_us.to(torch.float64), batch))
     if batch.t.is_floating_point():
         return batch._replace(t=batch.t + noise)
     return batch._replace(t=batch.t + torch.round(noise).to(torch.int64))
