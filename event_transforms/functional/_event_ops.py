@@ -52,23 +52,33 @@ def _per_event(values: Tensor, batch: EventBatch, dtype: torch.dtype | None = No
 
 def _compact(batch: EventBatch, keep: Tensor, **changes: Any) -> EventBatch:
     """The events where ``keep`` holds (one host read of the kept counts per stream)."""
-    sample = batch.sample_index()
-    kept = torch.zeros(len(batch), dtype=torch.int64, device=batch.device).index_add_(0, sample, keep.to(torch.int64))
-    lengths = read_host(kept)  # the output size depends on the data: the one read
-    offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
-    index = _kept_index(keep, sum(lengths))
+    index, offsets = _kept(batch, keep)
     columns = {k: changes.pop(k, getattr(batch, k)).index_select(0, index) for k in ("x", "y", "t", "p")}
-    return batch._replace(**columns, offsets=offsets, _sample=sample.index_select(0, index), **changes)
+    return batch._replace(**columns, offsets=offsets, _sample=None, **changes)
 
 
-def _kept_index(keep: Tensor, size: int) -> Tensor:
-    """The positions where ``keep`` holds, ``size`` of them (known): a cumulative sum and one
-    scatter, so no ``nonzero`` (which reads its size back on an accelerator)."""
+def _kept(batch: EventBatch, keep: Tensor) -> tuple[Tensor, Tensor]:
+    """The positions where ``keep`` holds and the kept batch's offsets (CPU).
+
+    One cumulative sum of ``keep`` gives both the kept counts (read at the stream ends: the
+    one host read, no per-event scatter) and each kept event's place; one scatter of
+    positions then (no ``nonzero``, which reads its size back on an accelerator). Positions
+    and sums are int32 below 2**31 events (half the bytes); the output's sample index is
+    rebuilt on demand by a run fill, not gathered."""
+    dtype = torch.int32 if keep.shape[0] < 2**31 else torch.int64
+    device = keep.device
+    running = torch.cumsum(keep, 0, dtype=dtype)
+    at_ends = torch.cat([running.new_zeros(1), running]).index_select(0, batch.offsets.to(device))
+    lengths = read_host(at_ends.diff())  # the output size depends on the data: the one read
+    offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
+    size = sum(lengths)
     if size == keep.shape[0]:
-        return torch.arange(size, device=keep.device)
-    target = torch.cumsum(keep, 0).sub_(1).masked_fill_(~keep, size)
-    out = torch.empty(size + 1, dtype=torch.int64, device=keep.device)
-    return out.scatter_(0, target, torch.arange(keep.shape[0], device=keep.device))[:size]
+        return torch.arange(size, dtype=torch.int64, device=device), offsets
+    target = running.sub_(1).masked_fill_(~keep, size).to(torch.int64)
+    del running
+    out = torch.empty(size + 1, dtype=dtype, device=device)
+    out.scatter_(0, target, torch.arange(keep.shape[0], dtype=dtype, device=device))
+    return out[:size], offsets
 
 
 def _require_grid(batch: EventBatch, owner: str, *, frames: bool = True) -> tuple[Tensor, float | int, int]:
@@ -151,8 +161,8 @@ def warn_dropped(
         if mask is None:
             rows.append(torch.zeros(len(batch), dtype=torch.int64, device=batch.device))
         else:
-            rows.append(torch.zeros(len(batch), dtype=torch.int64, device=batch.device).index_add_(
-                0, sample, mask.to(torch.int64)))
+            rows.append(torch.zeros(len(batch), dtype=torch.int32, device=batch.device).index_add_(
+                0, sample, mask.to(torch.int32)).to(torch.int64))
     sensor_counts, window_counts = (r.tolist() for r in torch.stack(rows).cpu())  # the one read
     if sum(sensor_counts):
         tally = _Tally(len(batch))

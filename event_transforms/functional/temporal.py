@@ -28,7 +28,7 @@ from .._validation import (
 from ..events.batch import EventBatch
 from ..events.binning import _frame_us
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import TES_KEYS, TIME_JITTER, _compact, _keys, _per_event, _require_grid, warn_dropped
+from ._event_ops import TES_KEYS, TIME_JITTER, _compact, _kept, _keys, _per_event, _require_grid, warn_dropped
 from ._random import EventStream
 from ._random import draw_seeds
 from ._hypergeometric import (
@@ -539,7 +539,8 @@ def _groups(batch: EventBatch) -> tuple[Tensor, int]:
     sample = batch.sample_index()
     bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
     groups = len(batch) * n_frames * 2
-    group = sample.mul(n_frames).add_(bins).mul_(2).add_(batch.p)
+    index = torch.int32 if groups < 2**31 - 1 else torch.int64
+    group = sample.to(index).mul(n_frames).add_(bins).mul_(2).add_(batch.p)  # a new tensor: the cached index is kept
     return group.masked_fill_(~inside, groups), groups
 
 
@@ -577,29 +578,40 @@ def _shift_events(
         moved = inside
     else:
         u, below = _keys(batch, seed, fraction, TES_KEYS)
-        moved = below & inside
+        moved = below.logical_and_(inside)
+        del below, inside
         if mode == "exact":
             moved = _exact_fixup(group, groups, u, moved, fraction, n_frames)
+        del u
     # a group's events all land in bin + j: whether they leave the window is per group
     jump = shift.to(torch.int64)
     group_bin = torch.arange(n_frames).repeat(len(batch)).repeat_interleave(2)
     leaving = group_bin + jump.repeat_interleave(2 * n_frames)
     leaving = torch.cat([(leaving < 0) | (leaving >= n_frames), torch.zeros(1, dtype=torch.bool)]).to(device)
-    keep = ~(moved & leaving.index_select(0, group))
+    keep = leaving.index_select(0, group).logical_and_(moved).logical_not_()
+    del group
     warn_dropped(batch, outside_window=~keep, window=_window_of(batch), stacklevel=4)
+    # compact first, then move the kept events' times (the temporaries are the output's size)
+    index, offsets = _kept(batch, keep)
+    del keep
+    out = batch._replace(**{k: getattr(batch, k).index_select(0, index) for k in ("x", "y", "t", "p")},
+                         offsets=offsets, _sample=None)
+    moved = moved.index_select(0, index)
+    del index
     if isinstance(frame_us, int) and not batch.t.is_floating_point():
-        t = batch.t + _per_event(jump * frame_us, batch) * moved  # int64 times stay exact
+        t = out.t.add_(_per_event(jump * frame_us, out).mul_(moved))  # int64 times stay exact
     else:
-        t = (batch.t.to(torch.float64) + _per_event(jump.to(torch.float64) * frame_us, batch) * moved).to(batch.t.dtype)
-    return _compact(batch, keep, t=t)
+        t = (out.t.to(torch.float64) + _per_event(jump.to(torch.float64) * frame_us, out).mul_(moved)).to(out.t.dtype)
+    return out._replace(t=t)
 
 
 def _exact_fixup(group: Tensor, groups: int, u: Tensor, moved: Tensor, fraction: Tensor, n_frames: int) -> Tensor:
     """Turn the binomial choice ``moved`` into exactly round(ζ N) smallest keys per group."""
     device = group.device
-    ones = torch.ones((), dtype=torch.int64, device=device).expand(group.shape[0])
-    total = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, ones)[:groups]
-    chosen = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, moved.to(torch.int64))[:groups]
+    ones = torch.ones((), dtype=torch.int32, device=device).expand(group.shape[0])
+    total = torch.zeros(groups + 1, dtype=torch.int32, device=device).index_add_(0, group, ones)[:groups].to(torch.int64)
+    chosen = torch.zeros(groups + 1, dtype=torch.int32, device=device).index_add_(
+        0, group, moved.to(torch.int32))[:groups].to(torch.int64)
     group_zeta = fraction.to(torch.float64).repeat_interleave(n_frames * 2).to(device)
     want = torch.round(group_zeta * total.to(torch.float64)).to(torch.int64)
     surplus = chosen - want
