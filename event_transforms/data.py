@@ -49,6 +49,9 @@ class AugmentedDataset(Dataset):
         fixed: deterministic copies (True) or fresh ones per access (False).
         seed: seed of the fixed copies.
 
+    Shape:
+        Each item's frames ``(T, 2, H, W)``; a copy's frames have the shape the transform gives.
+
     Example:
         >>> def add_one(frames):
         ...     return frames + 1
@@ -69,6 +72,10 @@ class AugmentedDataset(Dataset):
     ) -> None:
         if isinstance(copies, bool) or not isinstance(copies, (int, np.integer)) or copies < 0:
             raise ValueError(f"copies must be a non-negative integer, got {copies!r}")
+        if not (hasattr(base, "__len__") and hasattr(base, "__getitem__")) or isinstance(base, (str, bytes)):
+            raise TypeError(
+                f"base must be a map-style data set (with __len__ and __getitem__), got {type(base).__name__} {base!r}"[:200]
+            )
         self.base = base
         self.transform = as_transform(transform)
         self.copies = int(copies)

@@ -55,7 +55,9 @@ def center_of_mass(frames: Tensor) -> Tensor:
     """Event centroid of each sequence, both polarities and all frames, as (y, x).
 
     Computed in float64 whatever the input dtype; an empty sequence falls back to the
-    image centre ((H - 1) / 2, (W - 1) / 2).
+    image centre ((H - 1) / 2, (W - 1) / 2). NaN and ±Inf pixels carry no mass (the NaN
+    policy of the warps: a non-finite pixel stays local, it reaches only the output pixels
+    whose interpolation reads it, and never moves the centre of a whole sample).
 
     Args:
         frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
@@ -63,6 +65,10 @@ def center_of_mass(frames: Tensor) -> Tensor:
     Returns:
         float64 tensor ``(2,)`` for one sequence or ``(B, 2)`` for a batch, on the
         frames' device, in pixel coordinates (row, column).
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(2,)`` or ``(B, 2)`` float ``(y, x)`` on the frames' device.
 
     Example:
         >>> frames = torch.zeros(3, 2, 5, 7)
@@ -106,20 +112,29 @@ def _mass_moments(batch: Tensor, *, host: bool = True) -> Tensor:
     About ten device ops and no host synchronisation; with ``host=False`` the constants are
     made on the device (no host-to-device copy, as CUDA-graph capture requires).
     """
-    b, t, p, height, width = batch.shape
-    # Sum the T·2 frames of each sequence with one batched matrix product (much faster
-    # than a strided reduction); float32 is exact for whole counts below 2**24 per pixel,
-    # float64 is used for float64 and 32/64-bit integer input.
-    exact = batch.dtype in (torch.float64, torch.int32, torch.int64)
-    acc = torch.float64 if exact else torch.float32
-    ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
-    weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc)).view(b, height, width)
+    height, width = batch.shape[-2:]
+    weight = _mass_weight(batch)
     margins = torch.cat([weight.sum(dim=2, dtype=torch.float64), weight.sum(dim=1, dtype=torch.float64)], dim=1)
     if not host or torch.compiler.is_compiling():
         prior, weights = _moment_weights_tensors(height, width, batch.device)
     else:
         prior, weights = (torch.from_numpy(a).to(batch.device) for a in _moment_weights(height, width))
     return torch.addmm(prior, margins, weights)
+
+
+def _mass_weight(batch: Tensor) -> Tensor:
+    """(B, H, W) event mass per pixel: the T·2 frames of each sequence summed (float32, or
+    float64 for float64 and 32/64-bit integer input). NaN and ±Inf pixels carry no mass."""
+    b, t, p, height, width = batch.shape
+    # One batched matrix product (much faster than a strided reduction); float32 is exact
+    # for whole counts below 2**24 per pixel.
+    exact = batch.dtype in (torch.float64, torch.int32, torch.int64)
+    acc = torch.float64 if exact else torch.float32
+    ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
+    flat = batch.reshape(b, t * p, height * width).to(acc)
+    if batch.is_floating_point():  # one NaN pixel must not move the centre of a whole sample
+        flat = torch.nan_to_num(flat, nan=0.0, posinf=0.0, neginf=0.0)
+    return torch.matmul(ones, flat).view(b, height, width)
 
 
 def _moment_weights_tensors(height: int, width: int, device: torch.device) -> tuple[Tensor, Tensor]:
@@ -158,7 +173,7 @@ def _check_center(center: object, batch: int | None = None) -> Center:
         raise ValueError(f"center must be {expected}, got {describe(center)}")
     if not bool(value.isfinite().all()):
         raise ValueError(f"center must be finite, got {describe(center)}")
-    return center
+    return center  # type: ignore[return-value]  # a checked (y, x) sequence or tensor
 
 
 def _work_dtype(dtype: torch.dtype, mode: str) -> torch.dtype:
@@ -393,6 +408,12 @@ def resize(
     Returns:
         The resized frames, same shape and device; dtype as in :func:`rotate`.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - scale: a number or ``(B,)``.
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
         >>> frames[0, 0, 2, 3] = 1.0  # one pixel right of the centre
@@ -434,6 +455,12 @@ def affine(
     Returns:
         The warped frames, same shape and device; dtype as in :func:`rotate`.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - angle, scale: a number or ``(B,)``; translate, shear: a pair or ``(B, 2)``.
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
         >>> frames[0, 1, 2, 2] = 3
@@ -454,13 +481,37 @@ def affine(
 
 @register_kernel(rotate, Tensor)
 def rotate_frames(frames: Tensor, angle: Tensor, *, center: Center = "mass", mode: str = "bilinear") -> Tensor:
-    """Kernel of :func:`rotate` for frames ``(B, T, 2, H, W)``, ``angle`` (B,) float64 CPU degrees."""
+    """Kernel of :func:`rotate` for frames ``(B, T, 2, H, W)``, ``angle`` (B,) float64 CPU degrees.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        angle: degrees, a number or one per sample ``(B,)``.
+        center: ``"mass"`` (event centroid of the whole sequence, image centre when
+            empty), ``"image"``, a ``(y, x)`` pair, or a ``(B, 2)`` tensor of pairs.
+        mode: ``"bilinear"`` (counts are interpolated, totals change slightly) or
+            ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`rotate` gives for a batch.
+    """
     return _affine(frames, angle, None, center, mode)
 
 
 @register_kernel(resize, Tensor)
 def resize_frames(frames: Tensor, scale: Tensor, *, center: Center = "mass", mode: str = "bilinear") -> Tensor:
-    """Kernel of :func:`resize` for frames ``(B, T, 2, H, W)``, ``scale`` (B,) float64 CPU."""
+    """Kernel of :func:`resize` for frames ``(B, T, 2, H, W)``, ``scale`` (B,) float64 CPU.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        scale: zoom factor > 0, a number or one per sample ``(B,)``.
+        center: ``"mass"``, ``"image"``, ``(y, x)`` or a ``(B, 2)`` tensor (see :func:`rotate`).
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`resize` gives for a batch.
+    """
     return _affine(frames, None, scale, center, mode)
 
 
@@ -475,7 +526,21 @@ def affine_frames(
     center: Center = "mass",
     mode: str = "bilinear",
 ) -> Tensor:
-    """Kernel of :func:`affine` for frames ``(B, T, 2, H, W)`` and per-sample CPU parameters."""
+    """Kernel of :func:`affine` for frames ``(B, T, 2, H, W)`` and per-sample CPU parameters.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        angle: degrees, counter-clockwise on the displayed image; a number or ``(B,)``.
+        scale: zoom factor > 0, a number or ``(B,)``.
+        shear: ``(x, y)`` shear angles in degrees (each in (-90, 90)), or ``(B, 2)``.
+        translate: ``(dy, dx)`` in pixels (down, right), or a ``(B, 2)`` tensor.
+        center: ``"mass"``, ``"image"``, ``(y, x)`` or a ``(B, 2)`` tensor (see :func:`rotate`).
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`affine` gives for a batch.
+    """
     return _affine(frames, angle, scale, center, mode, shear=shear, translate=translate)
 
 
@@ -484,7 +549,23 @@ def affine_frames(
 
 def event_centroid(batch: EventBatch) -> Tensor:
     """(B, 2) float64 ``(y, x)`` mean event position per stream on the batch's device; an
-    empty stream gets the image centre ``((H - 1) / 2, (W - 1) / 2)``. Sync-free."""
+    empty stream gets the image centre ``((H - 1) / 2, (W - 1) / 2)``. Sync-free.
+
+    Args:
+        batch: the event streams.
+
+    Shape:
+        - batch: B streams, N events.
+        - output: ``(B, 2)`` float64 ``(y, x)`` on the batch's device.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> event_centroid(batch).tolist()
+        [[0.5, 1.0], [1.0, 1.0]]
+    """
     height, width = batch.sensor_size
     lengths = torch.tensor(batch.lengths, dtype=torch.int64)
     device = batch.device
@@ -510,7 +591,7 @@ def _affine_events(
     *,
     angle: Tensor | None = None,
     scale: Tensor | None = None,
-    center: str | Sequence[float] = "mass",
+    center: str | Sequence[float] | Tensor = "mass",
 ) -> EventBatch:
     """Rotate by ``angle`` (degrees, counter-clockwise as in :func:`~event_transforms.functional.rotate`)
     and scale by ``scale`` about the centre, per sample; each event moves to the nearest pixel.
@@ -565,8 +646,20 @@ def _affine_events(
 @register_kernel(rotate, EventBatch)
 def rotate_events(batch: EventBatch, angle: Tensor, *, center: Center = "mass", mode: str = "bilinear") -> EventBatch:
     """Kernel of :func:`rotate` for an EventBatch: each event to the nearest pixel (``mode`` does
-    not apply). Example:
+    not apply).
 
+    Args:
+        batch: the event streams.
+        angle: ``(B,)`` degrees, counter-clockwise.
+        center: ``"mass"`` (each stream's event centroid), ``"image"`` or ``(y, x)``.
+        mode: kept for the dispatcher's signature; events move to the nearest pixel.
+
+    Shape:
+        - batch: B streams, N events.
+        - angle: ``(B,)``.
+        - output: the same streams and events, each at its nearest pixel.
+
+    Example:
         >>> from event_transforms import EventBatch
         >>> batch = EventBatch.from_streams([torch.tensor([[4, 2, 0, 1]])], sensor_size=(5, 5))
         >>> out = rotate_events(batch, torch.tensor([90.0]), center="image")
@@ -578,7 +671,26 @@ def rotate_events(batch: EventBatch, angle: Tensor, *, center: Center = "mass", 
 
 @register_kernel(resize, EventBatch)
 def resize_events(batch: EventBatch, scale: Tensor, *, center: Center = "mass", mode: str = "bilinear") -> EventBatch:
-    """Kernel of :func:`resize` for an EventBatch: each event to the nearest pixel."""
+    """Kernel of :func:`resize` for an EventBatch: each event to the nearest pixel.
+
+    Args:
+        batch: the event streams.
+        scale: ``(B,)`` zoom factors > 0.
+        center: ``"mass"`` (each stream's event centroid), ``"image"`` or ``(y, x)``.
+        mode: kept for the dispatcher's signature; events move to the nearest pixel.
+
+    Shape:
+        - batch: B streams, N events.
+        - scale: ``(B,)``.
+        - output: the same streams and events, each at its nearest pixel.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[3, 2, 0, 1]])], sensor_size=(5, 5))
+        >>> zoomed = resize_events(batch, torch.tensor([2.0]), center="image")
+        >>> zoomed.x.tolist(), zoomed.y.tolist()  # (x, y) = (3, 2) -> 2 + 2 (3 - 2), 2
+        ([4], [2])
+    """
     return _affine_events(batch, scale=scale, center=_event_center(center))
 
 
@@ -594,7 +706,29 @@ def affine_events(
     mode: str = "bilinear",
 ) -> EventBatch:
     """Kernel of :func:`affine` for an EventBatch: rotation and scale as :func:`rotate_events`,
-    then ``translate`` rounded to whole pixels; a non-zero ``shear`` is refused."""
+    then ``translate`` rounded to whole pixels; a non-zero ``shear`` is refused.
+
+    Args:
+        batch: the event streams.
+        angle: ``(B,)`` degrees, counter-clockwise.
+        scale: ``(B,)`` zoom factors > 0.
+        shear: must be ``None`` or zero: shear is not supported on events.
+        translate: ``(B, 2)`` ``(dy, dx)`` pixels, or ``None``.
+        center: ``"mass"`` (each stream's event centroid), ``"image"`` or ``(y, x)``.
+        mode: kept for the dispatcher's signature; events move to the nearest pixel.
+
+    Shape:
+        - batch: B streams, N events.
+        - angle, scale: ``(B,)``; translate: ``(B, 2)``.
+        - output: the same streams and events, each at its nearest pixel.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[2, 1, 0, 1]])], sensor_size=(3, 3))
+        >>> turned = affine_events(batch, torch.tensor([90.0]), torch.tensor([1.0]), center="image")
+        >>> turned.y.tolist(), turned.x.tolist()  # (y, x) = (1, 2) -> (0, 1) about (1, 1)
+        ([0], [1])
+    """
     if shear is not None and any(v != 0 for v in shear.flatten().tolist()):  # CPU params: no sync
         raise ValueError(f"affine: shear is not supported on events, got {describe(shear)}")
     out = _affine_events(batch, angle=angle, scale=scale, center=_event_center(center))
@@ -692,7 +826,19 @@ def _base_grid(height: int, width: int, device: torch.device, dtype: torch.dtype
 
 
 def perspective_frames(batch: Tensor, corners: Tensor, mode: str) -> Tensor:
-    """:func:`perspective` on a (B, T, 2, H, W) batch with checked (B, 4, 2) float64 CPU corners."""
+    """:func:`perspective` on a (B, T, 2, H, W) batch with checked (B, 4, 2) float64 CPU corners.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        corners: where the centres of the top-left, top-right, bottom-right and bottom-left
+            pixels go, as ``(y, x)`` pixel positions: ``(4, 2)`` for every sample or
+            ``(B, 4, 2)``; they must make a convex quadrilateral in that order.
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`perspective` gives for a batch.
+    """
     b, _, _, height, width = batch.shape
     out_dtype = _output_dtype(batch.dtype, mode)
     if batch.numel() == 0:
@@ -725,6 +871,12 @@ def perspective(frames: Tensor, corners: Sequence[Sequence[float]] | Tensor, *, 
     Returns:
         The warped frames, same shape and device; dtype as in :func:`rotate`.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - corners: ``(4, 2)`` or ``(B, 4, 2)``.
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
         >>> frames[0, 1, 0, 0] = 3  # the top-left corner
@@ -750,7 +902,20 @@ def _gaussian_kernel(sigma: float, device: torch.device, dtype: torch.dtype) -> 
 def elastic_frames(batch: Tensor, noise: Tensor, alpha: Tensor, sigma: float, mode: str) -> Tensor:
     """:func:`elastic` on a (B, T, 2, H, W) batch with checked (B, 2, H, W) ``noise`` and (B,)
     float64 CPU ``alpha`` (pixels): two 1-D Gaussian passes (zero outside the frame) smooth the
-    noise, and the field, in normalised units, moves the identity grid."""
+    noise, and the field, in normalised units, moves the identity grid.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        noise: raw displacements in [-1, 1], ``(2, H, W)`` or ``(B, 2, H, W)``, channel 0
+            along y (down), channel 1 along x (right); e.g. ``2 * torch.rand(B, 2, H, W) - 1``.
+        alpha: strength in pixels (>= 0), a number or ``(B,)``.
+        sigma: smoothness of the field in pixels (> 0).
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`elastic` gives for a batch.
+    """
     b, _, _, height, width = batch.shape
     out_dtype = _output_dtype(batch.dtype, mode)
     if batch.numel() == 0:
@@ -796,6 +961,12 @@ def elastic(
 
     Returns:
         The warped frames, same shape and device; dtype as in :func:`rotate`.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - noise: ``(2, H, W)`` or ``(B, 2, H, W)``; alpha: a number or ``(B,)``.
 
     Example:
         >>> frames = torch.zeros(1, 2, 9, 9)

@@ -51,7 +51,16 @@ _NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
 
 
 def translate_frames(batch: Tensor, shift: Tensor) -> Tensor:
-    """:func:`translate` on a batch with a (B, 2) int64 CPU ``shift`` of (dy, dx)."""
+    """:func:`translate` on a batch with a (B, 2) int64 CPU ``shift`` of (dy, dx).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        shift: ``(dy, dx)`` integer pixels (down, right), or a ``(B, 2)`` integer tensor.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`translate` gives for a batch.
+    """
     b, t, p, height, width = batch.shape
     if batch.numel() == 0:
         return batch.clone()
@@ -95,6 +104,11 @@ def translate(inputs: Tensor | EventBatch, shift: Pairs) -> Tensor | EventBatch:
     Returns:
         The moved frames, same shape, dtype and device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - shift: a pair or ``(B, 2)``.
+
     Example:
         >>> frames = torch.arange(1, 7).reshape(1, 1, 2, 3).expand(1, 2, 2, 3)
         >>> translate(frames, (1, -1))[0, 0].tolist()
@@ -109,7 +123,26 @@ register_kernel(translate, Tensor)(translate_frames)
 
 @register_kernel(translate, EventBatch)
 def translate_events(batch: EventBatch, shift: Tensor) -> EventBatch:
-    """Move sample b's events by ``shift[b] = (dy, dx)`` whole pixels (int). Sync-free."""
+    """Move sample b's events by ``shift[b] = (dy, dx)`` whole pixels (int). Sync-free.
+
+    Args:
+        batch: the event streams.
+        shift: ``(B, 2)`` integer ``(dy, dx)`` per sample (down, right).
+
+    Shape:
+        - batch: B streams, N events.
+        - shift: ``(B, 2)``.
+        - output: the same streams and events (events may leave the sensor).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> moved = translate_events(batch, torch.tensor([[1, 0], [0, -1]]))
+        >>> moved.y.tolist(), moved.x.tolist()
+        ([2, 1, 1], [0, 2, 0])
+    """
     shift = shift.to(torch.int16)
     x = batch.x + _per_event(shift[:, 1].contiguous(), batch)
     y = batch.y + _per_event(shift[:, 0].contiguous(), batch)
@@ -131,11 +164,26 @@ def _size(value: object, name: str) -> tuple[int, int]:
         pair = (number, number)
     if min(pair) < 1:
         raise ValueError(f"{name} must be positive, got {describe(value)}")
-    return pair  # type: ignore[return-value]
+    return pair
 
 
 def crop_frames(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool = False, mode: str = "bilinear") -> Tensor:
-    """Crop ``size`` at per-sample (B,) int64 CPU ``top``/``left``; optionally resize back to H×W."""
+    """Crop ``size`` at per-sample (B,) int64 CPU ``top``/``left``; optionally resize back to H×W.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        top: the window's first row and column, integers or ``(B,)``; the window
+            must fit inside the frame.
+        left: the window's first row and column, integers or ``(B,)``; the window
+            must fit inside the frame.
+        size: ``n`` or ``(h, w)``, the window's size.
+        resize: resize the window back to H×W.
+        mode: ``"bilinear"`` or ``"nearest"``, for ``resize=True``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`crop` gives for a batch.
+    """
     b, t, p, height, width = batch.shape
     h, w = size
     device = batch.device
@@ -226,7 +274,29 @@ def crop_events(
     """Crop sample b to the window ``top[b], left[b]`` of ``size`` (H, W): coordinates move
     by ``(-top, -left)`` and the batch's sensor becomes ``size``. Events outside the window
     are kept (dropped when binned, as the frame crop drops them). ``resize=True``
-    interpolates frames and is refused. Sync-free."""
+    interpolates frames and is refused. Sync-free.
+
+    Args:
+        batch: the event streams.
+        top, left: ``(B,)`` the window's first row and column per sample.
+        size: ``(h, w)`` of the window, the new sensor size.
+        resize: must be ``False`` (resizing interpolates frames).
+        mode: unused on events.
+
+    Shape:
+        - batch: B streams, N events.
+        - top, left: ``(B,)``.
+        - output: the same streams and events on an ``(h, w)`` sensor.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> cropped = crop_events(batch, torch.tensor([0, 1]), torch.tensor([1, 1]), (1, 2))
+        >>> cropped.sensor_size, cropped.x.tolist(), cropped.y.tolist()
+        ((1, 2), [-1, 1, 0], [1, 0, 0])
+    """
     if resize:
         raise ValueError("crop(resize=True) interpolates frames; on events crop with resize=False")
     x = batch.x - _per_event(left.to(torch.int16), batch)
@@ -237,6 +307,17 @@ def crop_events(
 def center_crop(frames: Tensor, size: int | Sequence[int], *, resize: bool = False, mode: str = "bilinear") -> Tensor:
     """:func:`crop` at the image centre (the top-left corner rounds down, as in torchvision).
 
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        size: ``n`` or ``(h, w)`` pixels, at most the frame size.
+        resize: resize the window back to ``H × W`` (see :func:`crop`).
+        mode: ``"bilinear"`` or ``"nearest"``, for ``resize=True``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(..., h, w)``, dtype kept; with ``resize=True`` the frames' shape (dtype as in
+          :func:`resize`).
+
     Example:
         >>> center_crop(torch.ones(3, 2, 7, 8), (3, 4)).shape
         torch.Size([3, 2, 3, 4])
@@ -245,7 +326,9 @@ def center_crop(frames: Tensor, size: int | Sequence[int], *, resize: bool = Fal
     height, width = batch.shape[-2:]
     hw = _size(size, "size")
     _check_fits(hw, height, width)
-    return crop(frames, (height - hw[0]) // 2, (width - hw[1]) // 2, hw, resize=resize, mode=mode)
+    out = crop(frames, (height - hw[0]) // 2, (width - hw[1]) // 2, hw, resize=resize, mode=mode)
+    assert isinstance(out, Tensor)  # frames in, frames out
+    return out
 
 
 # --------------------------------------------------------------------------- downsample
@@ -258,6 +341,21 @@ def downsampled_size(height: int, width: int, factor: tuple[int, int], remainder
 
 
 def downsample_frames(batch: Tensor, factor: tuple[int, int], remainder: str = "drop") -> Tensor:
+    """Kernel of :func:`downsample` for frames: sum-pooling by ``factor`` (rows, columns).
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        factor: the pooling factor ``(fy, fx)``.
+        remainder: ``"drop"`` the leftover rows/columns or ``"keep"`` them in a partial block.
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: ``(B, T, 2, H', W')`` (:func:`downsampled_size`), the dtype kept.
+
+    Example:
+        >>> downsample_frames(torch.ones(1, 1, 2, 4, 4), (2, 2)).shape
+        torch.Size([1, 1, 2, 2, 2])
+    """
     b, t, p, height, width = batch.shape
     fy, fx = factor
     h, w = downsampled_size(height, width, factor, remainder)
@@ -274,7 +372,8 @@ def _sum_in(values: Tensor, dim: int | tuple[int, ...], owner: str, *, keepdim: 
     """Sum counts over ``dim`` in a wide dtype and return them in ``values``' dtype.
 
     8/16-bit integer sums that would not fit raise (one host synchronisation, those dtypes
-    only) instead of wrapping.
+    only) instead of wrapping; float16/bfloat16 sums past the dtype's largest finite value
+    raise the same way instead of becoming ``inf``.
     """
     dtype = values.dtype
     if dtype.is_floating_point:
@@ -289,6 +388,14 @@ def _sum_in(values: Tensor, dim: int | tuple[int, ...], owner: str, *, keepdim: 
             raise ValueError(
                 f"{owner}: a sum ({int(high)}) does not fit frames of dtype {dtype} "
                 f"(max {info.max}); convert the frames to a wider dtype first"
+            )
+    if dtype in (torch.float16, torch.bfloat16) and total.numel():
+        largest = torch.finfo(dtype).max
+        high = total.abs().max()
+        if bool(high > largest):
+            raise ValueError(
+                f"{owner}: a sum ({float(high):g}) does not fit frames of dtype {dtype} "
+                f"(largest finite value {largest:g}); convert the frames to a wider dtype first"
             )
     return total.to(dtype)
 
@@ -305,7 +412,8 @@ def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = 
     floor rounding) discards the last ``H mod fy`` rows and ``W mod fx`` columns and their
     events; ``"keep"`` sums them into a last, partial block (ceil rounding), so every event
     is kept. The sums are taken in int64/float32/float64 and returned in the input dtype;
-    8/16-bit integer frames whose block sums would overflow raise instead of wrapping.
+    8/16-bit integer frames whose block sums would overflow raise instead of wrapping, and
+    float16/bfloat16 frames whose sums pass the dtype's range raise instead of giving ``inf``.
 
     Args:
         frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
@@ -315,6 +423,10 @@ def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = 
     Returns:
         ``(…, H', W')`` with ``H' = H // fy`` (``"drop"``) or ``ceil(H / fy)`` (``"keep"``);
         dtype and device kept.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(..., H // fy, W // fx)`` (``"keep"``: rounded up), dtype and device kept.
 
     Example:
         >>> frames = torch.ones(1, 2, 5, 4, dtype=torch.int32)
@@ -340,6 +452,10 @@ def horizontal_flip(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> 
             (``x -> W - 1 - x``, equal to the frame flip after binning).
         flip: ``(B,)`` bool, the samples to mirror (default: all).
 
+    Shape:
+        - inputs: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        - output: same shape, dtype and device.
+
     Example:
         >>> horizontal_flip(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
@@ -355,6 +471,10 @@ def vertical_flip(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Te
         inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch
             (``y -> H - 1 - y``).
         flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - inputs: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        - output: same shape, dtype and device.
 
     Example:
         >>> vertical_flip(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
@@ -379,13 +499,31 @@ def _flags(flip: object, batch: int, name: str = "flip") -> Tensor | None:
 
 @register_kernel(horizontal_flip, Tensor)
 def horizontal_flip_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
-    """Kernel of :func:`horizontal_flip` for frames ``(B, T, 2, H, W)``."""
+    """Kernel of :func:`horizontal_flip` for frames ``(B, T, 2, H, W)``.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`horizontal_flip` gives for a batch.
+    """
     return _flip_frames(frames, flip, -1)
 
 
 @register_kernel(vertical_flip, Tensor)
 def vertical_flip_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
-    """Kernel of :func:`vertical_flip` for frames ``(B, T, 2, H, W)``."""
+    """Kernel of :func:`vertical_flip` for frames ``(B, T, 2, H, W)``.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`vertical_flip` gives for a batch.
+    """
     return _flip_frames(frames, flip, -2)
 
 
@@ -416,13 +554,49 @@ def _flip_frames(frames: Tensor, gate: Tensor | None, axis: int) -> Tensor:
 
 @register_kernel(horizontal_flip, EventBatch)
 def horizontal_flip_events(batch: EventBatch, flip: Tensor | None = None) -> EventBatch:
-    """Kernel of :func:`horizontal_flip` for an EventBatch: ``x -> W - 1 - x``. Sync-free."""
+    """Kernel of :func:`horizontal_flip` for an EventBatch: ``x -> W - 1 - x``. Sync-free.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples to mirror (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> horizontal_flip_events(batch, torch.tensor([True, False])).x.tolist()  # x -> 2 - x in stream 0
+        [2, 0, 1]
+    """
     return _flip_events(batch, flip, axis="x")
 
 
 @register_kernel(vertical_flip, EventBatch)
 def vertical_flip_events(batch: EventBatch, flip: Tensor | None = None) -> EventBatch:
-    """Kernel of :func:`vertical_flip` for an EventBatch: ``y -> H - 1 - y``. Sync-free."""
+    """Kernel of :func:`vertical_flip` for an EventBatch: ``y -> H - 1 - y``. Sync-free.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples to mirror (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> vertical_flip_events(batch, torch.tensor([True, False])).y.tolist()  # y -> 1 - y in stream 0
+        [0, 1, 1]
+    """
     return _flip_events(batch, flip, axis="y")
 
 
@@ -438,6 +612,7 @@ def _flip_events(batch: EventBatch, flip: Tensor | None, *, axis: str = "x") -> 
     if all(flags):
         mirrored = (size - 1) - column
     else:
+        assert flip is not None  # not every flag is set, so flip was given
         mirrored = torch.where(_per_event(flip, batch), (size - 1) - column, column)
     return batch._replace(**{axis: mirrored.to(torch.int16)})
 
@@ -455,6 +630,11 @@ def spatial_jitter(batch: EventBatch, sigma: Tensor | float, seed: Tensor | int)
         batch: an EventBatch.
         sigma: standard deviation in pixels (>= 0), a number or ``(B,)``.
         seed: the per-sample seeds of the noise, an integer or ``(B,)`` int64 in [0, 2**63).
+
+    Shape:
+        - batch: an EventBatch of B streams with N events.
+        - sigma, seed: a number or ``(B,)``.
+        - output: an EventBatch of the same B streams, sensor and grid, N events.
 
     Example:
         >>> from event_transforms import EventBatch
@@ -479,7 +659,27 @@ def spatial_jitter_events(batch: EventBatch, sigma: Tensor, seed: Tensor) -> Eve
     """Add Gaussian noise of standard deviation ``sigma[b]`` pixels to x and y, rounded to
     whole pixels (events leaving the sensor are dropped when binned). The normals come from
     the sample's counter-based stream (``seed[b]`` and the event's position in its sample).
-    Sync-free; the same ops whatever B."""
+    Sync-free; the same ops whatever B.
+
+    Args:
+        batch: the event streams.
+        sigma: ``(B,)`` standard deviations in pixels (>= 0).
+        seed: ``(B,)`` int64 per-sample seeds.
+
+    Shape:
+        - batch: B streams, N events.
+        - sigma, seed: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> jittered = spatial_jitter_events(batch, torch.tensor([0.0, 2.0]), torch.tensor([1, 2]))
+        >>> jittered.x[:2].tolist(), jittered.t.tolist()  # sigma 0 moves nothing; times kept
+        ([0, 2], [100, 15000, 50])
+    """
     stream = EventStream.of_batch(batch, seed)
     noise_x = stream.normal(JITTER_X).to(torch.float32)
     noise_y = stream.normal(JITTER_Y).to(torch.float32)

@@ -22,7 +22,9 @@ __all__ = ["cutout", "cutout_frames", "cutmix", "cutmix_frames", "mixup", "mixup
 Scalars = float | Sequence[float] | Tensor
 
 
-def _box_mask(top: Tensor, left: Tensor, height: Tensor, width: Tensor, size: Sequence[int], device) -> Tensor:
+def _box_mask(
+    top: Tensor, left: Tensor, height: Tensor, width: Tensor, size: Sequence[int], device: torch.device
+) -> Tensor:
     """(B, 1, 1, H, W) bool: True inside each sample's box."""
     h, w = size
     rows = torch.arange(h, device=device)
@@ -62,6 +64,11 @@ def cutout(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, width: 
         top, left: the box's first row and column, integers >= 0 or ``(B,)``.
         height, width: its size in pixels.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - top, left, height, width: integers or ``(B,)``.
+
     Example:
         >>> cutout(torch.ones(1, 2, 3, 4, dtype=torch.int16), 1, 1, 2, 2)[0, 0].tolist()
         [[1, 1, 1, 1], [1, 0, 0, 1], [1, 0, 0, 1]]
@@ -73,6 +80,21 @@ def cutout(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, width: 
 
 @register_kernel(cutout, Tensor)
 def cutout_frames(batch: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
+    """Kernel of :func:`cutout` for frames: empty the box ``top, left, height, width`` of each sample.
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        top, left, height, width: ``(B,)`` integer boxes.
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
+    Example:
+        >>> box = torch.tensor([1])
+        >>> int(cutout_frames(torch.ones(1, 1, 2, 3, 3), box, box, box, box).sum())
+        16
+    """
     mask = _box_mask(top, left, height, width, batch.shape[-2:], batch.device)
     return batch.masked_fill(mask, 0)
 
@@ -90,6 +112,11 @@ def cutmix(frames: Tensor, partner: Scalars, top: Scalars, left: Scalars, height
         partner: ``(B,)`` sample indices in ``[0, B)``.
         top, left, height, width: the box per sample, as in :func:`cutout`.
 
+    Shape:
+        - frames: ``(B, T, 2, H, W)`` (or ``(T, 2, H, W)``).
+        - partner: ``(B,)``; top, left, height, width: integers or ``(B,)``.
+        - output: the frames' shape, dtype and device.
+
     Example:
         >>> frames = torch.stack([torch.zeros(1, 2, 2, 3), torch.ones(1, 2, 2, 3)])
         >>> cutmix(frames, [1, 0], 0, 1, 2, 1)[0, 0, 0].tolist()
@@ -103,6 +130,23 @@ def cutmix(frames: Tensor, partner: Scalars, top: Scalars, left: Scalars, height
 
 @register_kernel(cutmix, Tensor)
 def cutmix_frames(batch: Tensor, partner: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
+    """Kernel of :func:`cutmix` for frames: the box of sample b comes from sample ``partner[b]``.
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        partner: ``(B,)`` indices of each sample's partner.
+        top, left, height, width: ``(B,)`` integer boxes.
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
+    Example:
+        >>> frames = torch.stack([torch.zeros(1, 2, 2, 2), torch.ones(1, 2, 2, 2)])
+        >>> one = torch.tensor([1, 1])
+        >>> cutmix_frames(frames, torch.tensor([1, 0]), one * 0, one * 0, one, one)[:, 0, 0].tolist()
+        [[[1.0, 0.0], [0.0, 0.0]], [[0.0, 1.0], [1.0, 1.0]]]
+    """
     mask = _box_mask(top, left, height, width, batch.shape[-2:], batch.device)
     return torch.where(mask, batch.index_select(0, partner.to(batch.device, non_blocking=True)), batch)
 
@@ -117,6 +161,12 @@ def mixup(frames: Tensor, partner: Scalars, weight: Scalars) -> Tensor:
 
     Returns:
         Blended frames: the input dtype for float input, float32 for integer input.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)`` (or ``(T, 2, H, W)``).
+        - partner: ``(B,)``; weight: a number or ``(B,)``.
+        - output: the frames' shape and device; float input keeps its dtype, integer input gives
+          float32.
 
     Example:
         >>> frames = torch.stack([torch.zeros(1, 2, 1, 1), torch.ones(1, 2, 1, 1)]).to(torch.int32)
@@ -139,6 +189,22 @@ def _check_weight(weight: object, batch: int) -> Tensor:
 
 @register_kernel(mixup, Tensor)
 def mixup_frames(batch: Tensor, partner: Tensor, weight: Tensor) -> Tensor:
+    """Kernel of :func:`mixup` for frames: ``weight[b] * x[b] + (1 - weight[b]) * x[partner[b]]``.
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        partner: ``(B,)`` indices of each sample's partner.
+        weight: ``(B,)`` mixing weights in [0, 1].
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: same shape; float dtypes kept, integer counts become float32.
+
+    Example:
+        >>> frames = torch.stack([torch.zeros(1, 2, 1, 1), torch.ones(1, 2, 1, 1)])
+        >>> mixup_frames(frames, torch.tensor([1, 0]), torch.tensor([0.25, 0.25])).flatten().tolist()
+        [0.75, 0.75, 0.25, 0.25]
+    """
     out_dtype = batch.dtype if batch.dtype.is_floating_point else torch.float32
     work = torch.float64 if batch.dtype == torch.float64 else torch.float32
     w = weight.to(batch.device, work, non_blocking=True).view(-1, 1, 1, 1, 1)
@@ -161,6 +227,11 @@ def mix_labels(labels: Tensor, partner: Scalars, weight: Scalars, *, num_classes
         partner: ``(B,)`` sample indices, as given to the frames' kernel.
         weight: the sample's own share, a number or ``(B,)``.
         num_classes: number of classes, for integer labels.
+
+    Shape:
+        - labels: ``(B, ...)`` float, or ``(B,)`` integer.
+        - partner: ``(B,)``; weight: a number or ``(B,)``.
+        - output: float labels' shape and dtype; ``(B, num_classes)`` float32 for integer labels.
 
     Example:
         >>> mix_labels(torch.tensor([0, 2]), [1, 0], [0.75, 1.0], num_classes=3).tolist()
@@ -196,7 +267,7 @@ def _check_classes(labels: Tensor, num_classes: int | None) -> int | None:
 
 def _mix_labels(labels: Tensor, partner: Tensor, weight: Tensor, num_classes: int | None) -> Tensor:
     if not labels.is_floating_point():
-        labels = torch.nn.functional.one_hot(labels.long(), num_classes).to(torch.float32)
+        labels = torch.nn.functional.one_hot(labels.long(), -1 if num_classes is None else num_classes).to(torch.float32)
     work = torch.float64 if labels.dtype == torch.float64 else torch.float32
     w = weight.to(labels.device, work, non_blocking=True).view(-1, *([1] * (labels.dim() - 1)))
     own = labels.to(work)

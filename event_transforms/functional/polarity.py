@@ -29,6 +29,10 @@ def flip_polarity(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Te
             (``p -> 1 - p``).
         flip: ``(B,)`` bool, the samples to flip (default: all).
 
+    Shape:
+        - inputs: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        - output: same shape, dtype and device.
+
     Example:
         >>> flip_polarity(torch.tensor([[[[1]], [[5]]]]))[0, :, 0, 0].tolist()
         [5, 1]
@@ -39,7 +43,16 @@ def flip_polarity(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Te
 
 @register_kernel(flip_polarity, Tensor)
 def flip_polarity_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
-    """Kernel of :func:`flip_polarity` for frames ``(B, T, 2, H, W)``: the flagged samples flipped."""
+    """Kernel of :func:`flip_polarity` for frames ``(B, T, 2, H, W)``: the flagged samples flipped.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        flip: ``(B,)`` bool, the samples to flip (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`flip_polarity` gives for a batch.
+    """
     swapped = frames.flip(-3)
     if flip is None or all(flip.tolist()):
         return swapped
@@ -48,12 +61,34 @@ def flip_polarity_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
 
 @register_kernel(flip_polarity, EventBatch)
 def flip_polarity_events(batch: EventBatch, flip: Tensor | None = None) -> EventBatch:
-    """Kernel of :func:`flip_polarity` for an EventBatch: ON and OFF swapped in the flagged samples. Sync-free."""
+    """Kernel of :func:`flip_polarity` for an EventBatch: ON and OFF swapped in the flagged samples. Sync-free.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples whose polarities swap (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> flip_polarity_events(batch, torch.tensor([True, False])).p.tolist()
+        [0, 1, 0]
+    """
     flags = [True] * len(batch) if flip is None else flip.tolist()
     if not any(flags):
         return batch
     swapped = 1 - batch.p
-    p = swapped if all(flags) else torch.where(_per_event(flip, batch), swapped, batch.p)
+    if all(flags):
+        p = swapped
+    else:
+        assert flip is not None  # not every flag is set, so flip was given
+        p = torch.where(_per_event(flip, batch), swapped, batch.p)
     return batch._replace(p=p.to(torch.int8))
 
 
@@ -68,8 +103,18 @@ def merge_polarities(frames: Tensor, *, keepdim: bool = True) -> Tensor:
     end of a pipeline, since the transforms here need two channels.
 
     The sum is taken in a wide dtype and returned in the input dtype; 8/16-bit integer
-    frames whose sum would overflow raise instead of wrapping (one host synchronisation,
+    frames whose sum would overflow raise instead of wrapping, float16/bfloat16 frames whose
+    sum passes the dtype's range raise instead of giving ``inf`` (one host synchronisation,
     those dtypes only).
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        keepdim: keep two channels (channel 1 zero) or return one.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: the same shape with ``keepdim=True``; ``(..., T, 1, H, W)`` otherwise. Dtype and
+          device kept.
 
     Example:
         >>> frames = torch.tensor([[[[1, 0]], [[2, 3]]]])
@@ -85,7 +130,16 @@ def merge_polarities(frames: Tensor, *, keepdim: bool = True) -> Tensor:
 
 @register_kernel(merge_polarities, Tensor)
 def merge_polarities_frames(batch: Tensor, keepdim: bool = True) -> Tensor:
-    """Kernel of :func:`merge_polarities` for frames ``(B, T, 2, H, W)``."""
+    """Kernel of :func:`merge_polarities` for frames ``(B, T, 2, H, W)``.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        keepdim: keep two channels (channel 1 zero) or return one.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`merge_polarities` gives for a batch.
+    """
     merged = _sum_in(batch, 2, "merge_polarities", keepdim=True)
     if not keepdim:
         return merged

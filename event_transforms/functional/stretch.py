@@ -17,7 +17,7 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, per_sample
 from ._dispatch import kernel_for, register_kernel
-from .affine import Center, _center_of_mass, _check_center, _mass_moments, _output_dtype, _warp
+from .affine import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _output_dtype, _warp
 
 __all__ = ["stretch", "stretch_frames", "contact_axis"]
 
@@ -42,14 +42,10 @@ CONTACT = "contact"
 def _second_moments(batch: Tensor) -> tuple[Tensor, Tensor]:
     """(B, 2) float64 (y, x) event centroids (image centre when empty) and (B, 3) central
     second moments ``[c_yy, c_xx, c_xy]`` (zero when empty), whole sequence, both polarities."""
-    b, t, p, height, width = batch.shape
+    height, width = batch.shape[-2:]
     moments = _mass_moments(batch)  # [M, M y, M x] plus a vanishing prior at the centre
     centre = moments[:, 1:] / moments[:, :1]
-    exact = batch.dtype in (torch.float64, torch.int32, torch.int64)
-    acc = torch.float64 if exact else torch.float32
-    ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
-    weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc)).view(b, height, width)
-    weight = weight.to(torch.float64)
+    weight = _mass_weight(batch).to(torch.float64)
     ys = torch.arange(height, dtype=torch.float64, device=batch.device) - centre[:, :1]  # (B, H)
     xs = torch.arange(width, dtype=torch.float64, device=batch.device) - centre[:, 1:]  # (B, W)
     rows = weight.sum(2)  # (B, H)
@@ -88,6 +84,10 @@ def contact_axis(frames: Tensor) -> Tensor:
         displayed image (row 0 at the top): ``()`` for one sequence, ``(B,)`` for a batch, on
         the frames' device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``()`` or ``(B,)`` float angles in degrees.
+
     Example:
         >>> frames = torch.zeros(1, 2, 9, 9)
         >>> for k in range(-3, 4):
@@ -111,6 +111,20 @@ def stretch_frames(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Ce
     built on the frames' device in float64 (the axis may come from the events, so it is
     never read back to the host), then :func:`~event_transforms.functional.spatial._warp`
     samples all T·2 frames of a sequence at once, as for rotate and resize.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        factor: stretch factor k > 0 across the axis, a number or one per sample ``(B,)``.
+        axis: ``"contact"`` (each sequence's contact axis), or the axis's angle in degrees,
+            counter-clockwise from the x axis on the displayed image (0: a horizontal
+            strip, stretched vertically); a number or ``(B,)``.
+        center: ``"mass"`` (event centroid of the whole sequence, image centre when empty),
+            ``"image"``, a ``(y, x)`` pair, or a ``(B, 2)`` tensor of pairs.
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`stretch` gives for a batch.
     """
     b, t, p, height, width = batch.shape
     out_dtype = _output_dtype(batch.dtype, mode)

@@ -44,7 +44,9 @@ def _refuse_coupled(member: EventTransform, where: str, container: str) -> None:
         )
 
 
-def _members(transforms: object, name: str, *, events_first: bool = False) -> nn.ModuleList:
+def _members(transforms: object, name: str, *, events_first: bool = False) -> Any:
+    """The members as an ``nn.ModuleList`` of :class:`EventTransform` (typed ``Any``: a
+    ``ModuleList`` yields ``nn.Module`` to type checkers)."""
     if isinstance(transforms, (nn.Module, str, bytes)) or not isinstance(transforms, Sequence):
         raise TypeError(
             f"{name} must be a sequence of transforms or callables, got {type(transforms).__name__}"
@@ -69,6 +71,11 @@ class Compose(EventTransform):
         transforms: event transforms or callables ``frames -> frames``; an
             ``EventsToFrames`` only first.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        when every member takes one; the output is what the members make of it (frames from an
+        event stream when the first member is ``EventsToFrames``).
+
     Example:
         >>> from event_transforms import FrameShift, HorizontalFlip, RandomRotation
         >>> hybrid = Compose([FrameShift(-1), HorizontalFlip()])
@@ -82,19 +89,19 @@ class Compose(EventTransform):
 
     def __init__(self, transforms: Sequence[EventTransform | Callable[[Tensor], Tensor]]) -> None:
         super().__init__()
-        self.transforms = _members(transforms, "transforms", events_first=True)
+        self.transforms: Sequence[EventTransform] = _members(transforms, "transforms", events_first=True)
         keys = {t.label_key for t in self.transforms if t.couples_samples and t.label_key is not None}
         if len(keys) > 1:
             raise ValueError(f"transforms: coupled members must agree on label_key, got {sorted(keys)}")
         self._label_key = keys.pop() if keys else None
 
     @property
-    def couples_samples(self) -> bool:  # type: ignore[override]
+    def couples_samples(self) -> bool:
         """Whether a member mixes samples: then the labels are mixed by the members, in order."""
         return any(t.couples_samples for t in self.transforms)
 
     @property
-    def label_key(self) -> str | None:  # type: ignore[override]
+    def label_key(self) -> str | None:
         """The coupled members' ``label_key`` (for dict inputs)."""
         return self._label_key
 
@@ -154,6 +161,10 @@ class OneOf(EventTransform):
         transforms: event transforms or callables, at least one.
         weights: non-negative relative probabilities, one per transform (default equal).
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        when every member takes one; the output is what the members make of it (the batch shape kept).
+
     Example:
         >>> from event_transforms import FrameShift, Resize
         >>> independent = OneOf([Resize(1.25), FrameShift(-1)])
@@ -162,13 +173,15 @@ class OneOf(EventTransform):
         ([1, 1, 0, 1, 1, 1], [-1, -1, -1, -1, -1, -1])
     """
 
+    weights: Tensor  # a buffer
+
     def __init__(
         self,
         transforms: Sequence[EventTransform | Callable[[Tensor], Tensor]],
         weights: Sequence[float] | None = None,
     ) -> None:
         super().__init__()
-        self.transforms = _members(transforms, "transforms")
+        self.transforms: Sequence[EventTransform] = _members(transforms, "transforms")
         for i, member in enumerate(self.transforms):
             _refuse_coupled(member, f"transforms[{i}]", "OneOf")
         n = len(self.transforms)
@@ -223,6 +236,10 @@ class RandomApply(EventTransform):
     Args:
         transform: an event transform or a callable.
         p: probability per sample, in [0, 1].
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        when every member takes one; the output is what the members make of it (the batch shape kept).
 
     Example:
         >>> from event_transforms import FrameShift

@@ -7,6 +7,8 @@ computed on the frames' device; nothing is read back to the host.
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import torch
@@ -44,6 +46,10 @@ class RandomEventDrop(EventTransform):
         methods: the methods to choose from, uniformly.
         p: probability that a sample loses events.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (fewer events).
+
     Example:
         >>> drop = RandomEventDrop(fraction=(0.1, 0.5))
         >>> frames = torch.ones(3, 36, 2, 70, 75)
@@ -67,7 +73,7 @@ class RandomEventDrop(EventTransform):
             raise ValueError(f"methods must be a non-empty subset of {_DROPS}, got {methods!r}")
         self.methods = tuple(methods)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b, t, _, h, w = shape
         codes = torch.tensor([_DROPS.index(m) for m in self.methods])
         method = choice(codes, b, generator)
@@ -130,6 +136,10 @@ class DropPixel(EventTransform):
         frame_ms: the duration of one frame, for ``rate_hz``.
         p: probability that a sample is cleaned.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (``pixels=`` only).
+
     Example:
         >>> frames = torch.zeros(10, 2, 2, 3, dtype=torch.int32)
         >>> frames[:, 1, 0, 2] = 1  # 100 Hz
@@ -173,6 +183,7 @@ class DropPixel(EventTransform):
         if self.pixels is not None:
             mask = _pixel_mask(self.pixels, b, height, width, inputs.device)
         else:
+            assert isinstance(inputs, Tensor)  # an EventBatch without pixels was refused above
             mask = _hot_pixels(inputs, self.rate_hz * self.frame_ms / 1000.0)
         return call_kernel(F.drop_pixel, inputs, mask)
 
@@ -194,6 +205,10 @@ class RandomDropPixel(EventTransform):
         fraction: share of pixels dropped, in [0, 1], or a ``(min, max)`` range.
         p: probability that a sample is thinned.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> out = RandomDropPixel(0.5)(torch.ones(2, 3, 2, 20, 20), generator=torch.Generator().manual_seed(0))
         >>> [round(f, 2) for f in (out[:, 0, 0] == 0).float().mean((1, 2)).tolist()]
@@ -204,7 +219,7 @@ class RandomDropPixel(EventTransform):
         super().__init__(p=p)
         self.fraction = check_pair(fraction, "fraction", single=True, low=0.0, high=1.0)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         return {"fraction": uniform(*self.fraction, b, generator), "seed": seeds(b, generator)}
 
@@ -237,6 +252,10 @@ class RefractoryPeriod(EventTransform):
         period_us: refractory period in µs, or a ``(min, max)`` range.
         p: probability that a sample is filtered.
 
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams, fewer events. Frames raise ``TypeError`` (an event-only augmentation).
+
     Example:
         >>> import event_transforms as et
         >>> rows = torch.tensor([[1, 1, 0, 1], [1, 1, 500, 0], [1, 1, 2000, 1], [0, 0, 100, 1]])
@@ -249,7 +268,7 @@ class RefractoryPeriod(EventTransform):
         low, high = check_pair(period_us, "period_us", low=0.0, single=True)
         self.period_us = (float(low), float(high))
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"period_us": uniform(*self.period_us, shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
@@ -272,6 +291,10 @@ class Decimation(EventTransform):
         n: keep one event in n, or a ``(min, max)`` range of whole numbers (inclusive).
         p: probability that a sample is decimated.
 
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams, fewer events. Frames raise ``TypeError`` (an event-only augmentation).
+
     Example:
         >>> import event_transforms as et
         >>> rows = torch.tensor([[0, 0, t, 1] for t in range(6)])
@@ -286,7 +309,7 @@ class Decimation(EventTransform):
             raise ValueError(f"n must hold whole numbers >= 1, got {n!r}")
         self.n = (int(low), int(high))
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"n": integers(self.n[1] - self.n[0] + 1, shape[0], generator) + self.n[0]}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:

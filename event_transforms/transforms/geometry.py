@@ -13,6 +13,8 @@ no ``p`` (wrap a size-keeping variant in :class:`~event_transforms.RandomApply` 
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import torch
@@ -42,6 +44,14 @@ class _Roll(EventTransform):
 class Translate(_Roll):
     """Move every frame by a fixed ``(dy, dx)`` of whole pixels, zero fill. Counts and dtype kept.
 
+    Args:
+        shift: ``(dy, dx)`` whole pixels (positive: down, right).
+        p: probability that a sample is moved.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (whole sensor pixels).
+
     Example:
         >>> Translate((0, 1))(torch.ones(1, 2, 1, 3))[0, 0].tolist()
         [[0.0, 1.0, 1.0]]
@@ -51,7 +61,7 @@ class Translate(_Roll):
         super().__init__(p=p)
         self.shift = tuple(per_sample_pairs(shift, 1, "shift", dtype=torch.int64)[0].tolist())
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"shift": torch.tensor(self.shift, dtype=torch.int64).expand(shape[0], 2).clone()}
 
     def _settings(self) -> str:
@@ -70,6 +80,10 @@ class RandomTranslate(_Roll):
         max_shift: ``m`` for both axes or ``(max_dy, max_dx)``, non-negative integers (pixels).
         p: probability that a sample is moved.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (whole sensor pixels).
+
     Example:
         >>> transform = RandomTranslate((2, 3))
         >>> transform.make_params((3, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["shift"].tolist()
@@ -86,7 +100,7 @@ class RandomTranslate(_Roll):
             raise ValueError(f"max_shift must be non-negative, got {max_shift!r}")
         self.max_shift = pair
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         my, mx = self.max_shift
         dy = integers(2 * my + 1, b, generator) - my
@@ -160,7 +174,7 @@ class RandomCrop(_Crop):
     def __init__(self, size: int | Sequence[int], *, resize: bool = False, mode: str = "bilinear", p: float = 1.0) -> None:
         super().__init__(size, resize=resize, mode=mode, p=p)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         rows, cols = self._room(shape)
         return {"top": integers(rows + 1, shape[0], generator), "left": integers(cols + 1, shape[0], generator)}
 
@@ -171,6 +185,11 @@ class CenterCrop(_Crop):
     Args:
         size, resize, mode, p: as in :class:`RandomCrop`.
 
+    Shape:
+        ``(B, T, 2, H, W)`` -> ``(B, T, 2, h, w)``, or unchanged with ``resize=True``.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` whose sensor is the crop
+        (``resize=False``).
+
     Example:
         >>> CenterCrop(3)(torch.arange(25.).reshape(1, 1, 5, 5).expand(1, 2, 5, 5))[0, 0].tolist()
         [[6.0, 7.0, 8.0], [11.0, 12.0, 13.0], [16.0, 17.0, 18.0]]
@@ -179,7 +198,7 @@ class CenterCrop(_Crop):
     def __init__(self, size: int | Sequence[int], *, resize: bool = False, mode: str = "bilinear", p: float = 1.0) -> None:
         super().__init__(size, resize=resize, mode=mode, p=p)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         rows, cols = self._room(shape)
         b = shape[0]
         return {"top": torch.full((b,), rows // 2, dtype=torch.int64), "left": torch.full((b,), cols // 2, dtype=torch.int64)}
@@ -226,6 +245,10 @@ class HorizontalFlip(EventTransform):
     Args:
         p: probability that a sample is mirrored.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> HorizontalFlip()(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
@@ -242,6 +265,10 @@ class VerticalFlip(EventTransform):
     Args:
         p: probability that a sample is mirrored.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> VerticalFlip()(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
@@ -254,6 +281,13 @@ class VerticalFlip(EventTransform):
 
 class RandomHorizontalFlip(HorizontalFlip):
     """Mirror each sequence left-right with probability ``p`` (per sample; default 0.5).
+
+    Args:
+        p: probability that a sample is mirrored (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> frames = torch.arange(8.).reshape(2, 1, 2, 1, 2)
@@ -269,6 +303,13 @@ class RandomHorizontalFlip(HorizontalFlip):
 
 class RandomVerticalFlip(VerticalFlip):
     """Mirror each sequence top-bottom with probability ``p`` (per sample; default 0.5).
+
+    Args:
+        p: probability that a sample is mirrored (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> frames = torch.arange(8.).reshape(2, 1, 2, 2, 1)
@@ -299,6 +340,10 @@ class SpatialJitter(EventTransform):
         sigma: standard deviation in pixels, or a ``(min, max)`` range.
         p: probability that a sample is jittered.
 
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (moved). Frames raise ``TypeError`` (an event-only augmentation).
+
     Example:
         >>> import event_transforms as et
         >>> batch = et.EventBatch.from_streams([torch.tensor([[5, 5, 0, 1]] * 4)], sensor_size=(10, 10))
@@ -312,7 +357,7 @@ class SpatialJitter(EventTransform):
         low, high = check_pair(sigma, "sigma", low=0.0, single=True)
         self.sigma = (float(low), float(high))
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"sigma": uniform(*self.sigma, shape[0], generator), "seed": seeds(shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:

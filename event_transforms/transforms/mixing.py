@@ -26,6 +26,8 @@ because it simulates a physical effect of a tactile scene.
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import numpy as np
@@ -42,7 +44,9 @@ from .base import EventTransform, Param, Params, _draw_device, integers, seeds
 __all__ = ["Cutout", "CutMix", "MixUp"]
 
 
-def _centred_box(size_h: Tensor, size_w: Tensor, shape: Sequence[int], generator) -> dict[str, Tensor]:
+def _centred_box(
+    size_h: Tensor, size_w: Tensor, shape: Sequence[int], generator: torch.Generator | None
+) -> dict[str, Tensor]:
     """Boxes of (B,) sizes at uniform centres, clipped to the frame: top, left, height, width."""
     b, height, width = shape[0], shape[-2], shape[-1]
     cy = integers(max(height, 1), b, generator)
@@ -81,6 +85,9 @@ class Cutout(EventTransform):
         size: ``n`` or ``(h, w)`` pixels.
         p: probability that a sample is cut.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+
     Example:
         >>> out = Cutout(3)(torch.ones(2, 4, 2, 9, 11), generator=torch.Generator().manual_seed(0))
         >>> out.shape, (out == 0).any().item()
@@ -91,7 +98,7 @@ class Cutout(EventTransform):
         super().__init__(p=p)
         self.size = _size(size, "size")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         h = torch.full((b,), self.size[0], dtype=torch.int64)
         w = torch.full((b,), self.size[1], dtype=torch.int64)
@@ -170,6 +177,11 @@ class CutMix(_Mixing):
         label_key: for dict inputs, the entry holding the labels.
         p: probability that a sample is mixed (unchosen samples and their labels stay).
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept. The labels:
+        float ``(B, ...)`` kept in shape and dtype; integer class indices ``(B,)`` -> float
+        ``(B, num_classes)``.
+
     Example:
         >>> frames = torch.poisson(torch.full((4, 6, 2, 9, 11), 0.3))
         >>> force = torch.rand(4, 6)
@@ -186,7 +198,7 @@ class CutMix(_Mixing):
     ) -> None:
         super().__init__(alpha, num_classes=num_classes, label_key=label_key, p=p)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b, height, width = shape[0], shape[-2], shape[-1]
         partner = self._partners(b, generator)
         side = torch.sqrt(1 - _beta(self.alpha, b, generator))
@@ -221,6 +233,11 @@ class MixUp(_Mixing):
         alpha: Beta parameter (> 0); small values keep λ near 0 or 1.
         num_classes, label_key, p: as in :class:`CutMix`.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (a weighted sum). The labels: float ``(B, ...)`` kept in shape and dtype; integer class
+        indices ``(B,)`` -> float ``(B, num_classes)``.
+
     Example:
         >>> frames = torch.poisson(torch.full((4, 6, 2, 9, 11), 0.3)).to(torch.int16)
         >>> mixed, force = MixUp(0.4)(frames, torch.rand(4, 6), generator=torch.Generator().manual_seed(0))
@@ -233,7 +250,7 @@ class MixUp(_Mixing):
     ) -> None:
         super().__init__(alpha, num_classes=num_classes, label_key=label_key, p=p)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         return {"partner": self._partners(b, generator), "weight": _beta(self.alpha, b, generator)}
 

@@ -8,6 +8,8 @@ events by β². See :func:`event_transforms.functional.stretch`.
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import torch
@@ -65,6 +67,10 @@ class Stretch(_StretchWarp):
             or ``"nearest"`` (dtype kept).
         p: probability that a sample is stretched.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
         >>> frames[0, 1, 1:4, 2] = 1.0  # a vertical strip
@@ -78,7 +84,7 @@ class Stretch(_StretchWarp):
         super().__init__(axis=axis, center=center, mode=mode, p=p)
         self.factor = check_positive(factor, "factor")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"factor": torch.full((shape[0],), self.factor, dtype=torch.float64)}
 
     def _settings(self) -> str:
@@ -98,6 +104,10 @@ class RandomStretch(_StretchWarp):
         choices: stretch factors, all > 0.
         axis, center, mode: as in :class:`Stretch`.
         p: probability that a sample is stretched.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
 
     Example:
         >>> transform = RandomStretch((0.9, 1.1))
@@ -127,7 +137,7 @@ class RandomStretch(_StretchWarp):
                 raise TypeError(f"choices must be a non-empty sequence of factors > 0, got {choices!r}")
             self.choices = tuple(check_positive(c, "choices") for c in choices)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         if self.choices is not None:
             return {"factor": choice(torch.tensor(self.choices, dtype=torch.float64), shape[0], generator)}
         assert self.factor is not None
