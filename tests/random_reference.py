@@ -50,10 +50,16 @@ def uniform32(seed: int, within: int, purpose: int) -> float:
     return (((sub_hash(seed, within, purpose) >> 9) & 0x7FFFFF) + 0.5) * 2.0**-23
 
 
+def normal_pair(seed: int, within: int, purpose: int) -> tuple[float, float]:
+    """``EventStream.normal_pair`` (Box-Muller on the 23-bit uniforms of purposes 2 p + 1 and
+    2 p + 2), in float64: the library computes it in float32, so compare to ~1e-6."""
+    radius = math.sqrt(-2.0 * math.log(uniform32(seed, within, 2 * purpose + 1)))
+    angle = 2 * math.pi * uniform32(seed, within, 2 * purpose + 2)
+    return radius * math.cos(angle), radius * math.sin(angle)
+
+
 def normal(seed: int, within: int, purpose: int) -> float:
-    """``EventStream.normal`` (Box-Muller on purposes 2 p + 1 and 2 p + 2)."""
-    radius = math.sqrt(-2.0 * math.log(uniform(seed, within, 2 * purpose + 1)))
-    return radius * math.cos(2 * math.pi * uniform(seed, within, 2 * purpose + 2))
+    return normal_pair(seed, within, purpose)[0]
 
 
 def stream_uniform(seed: int, counter: int, purpose: int) -> float:

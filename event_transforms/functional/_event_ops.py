@@ -99,7 +99,7 @@ def _round_to(values: Tensor, dtype: torch.dtype) -> Tensor:
 #: Purposes of the event kernels' draws (:class:`~._random.EventStream`): each kernel names its own.
 DROP_KEYS, TES_KEYS = 1, 2
 POISSON_COUNT, POISSON_X, POISSON_Y, POISSON_T, POISSON_P = 3, 4, 5, 6, 7
-TIME_JITTER, JITTER_X, JITTER_Y = 10, 11, 12  # normals (each owns two uniform purposes)
+TIME_JITTER, JITTER = 10, 11  # normals (each owns two uniform purposes; jitter takes the pair for x and y)
 
 
 def _keys(batch: EventBatch, seed: Tensor, fraction: Tensor, purpose: int) -> tuple[Tensor, Tensor]:

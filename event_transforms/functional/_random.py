@@ -22,7 +22,7 @@ import torch
 from torch import Tensor
 
 __all__ = [
-    "sample_salts", "uniform", "uniform53", "entry_keys", "sub_uniform", "sub_uniform32", "sub_normal", "draw_seeds", "generator_for",
+    "sample_salts", "uniform", "uniform53", "entry_keys", "sub_uniform", "sub_uniform32", "sub_normal_pair", "draw_seeds", "generator_for",
     "EventStream", "poisson_counts",
 ]
 
@@ -121,12 +121,14 @@ def sub_uniform32(keys: Tensor, within: Tensor, purpose: int) -> Tensor:
     return x.to(torch.float32).add_(0.5).mul_(2.0**-23)
 
 
-def sub_normal(keys: Tensor, within: Tensor, purpose: int) -> Tensor:
-    """float64 standard normals of sub-item ``within`` (Box-Muller on the 32-bit uniforms of
-    purposes ``2 purpose + 1`` and ``2 purpose + 2``: every use of a purpose owns two)."""
-    radius = sub_uniform(keys, within, 2 * purpose + 1).log_().mul_(-2.0).sqrt_()
-    angle = sub_uniform(keys, within, 2 * purpose + 2).mul_(2 * math.pi).cos_()
-    return radius.mul_(angle)
+def sub_normal_pair(keys: Tensor, within: Tensor, purpose: int) -> tuple[Tensor, Tensor]:
+    """Two independent float32 standard normals of sub-item ``within``: Box-Muller (``r cos θ``,
+    ``r sin θ``) on the 23-bit uniforms of purposes ``2 purpose + 1`` (radius) and
+    ``2 purpose + 2`` (angle): every use of a purpose owns two. float32, as ``torch.normal_``
+    draws for float32 (tails to about 5.8 sigma)."""
+    radius = sub_uniform32(keys, within, 2 * purpose + 1).log_().mul_(-2.0).sqrt_()
+    angle = sub_uniform32(keys, within, 2 * purpose + 2).mul_(2 * math.pi)
+    return radius * angle.cos(), radius.mul_(angle.sin_())
 
 
 class EventStream:
@@ -177,9 +179,13 @@ class EventStream:
         """(N,) float32 uniforms in (0, 1), 23 random bits (see :func:`sub_uniform32`)."""
         return sub_uniform32(self.event_keys, self.within, purpose)
 
+    def normal_pair(self, purpose: int) -> tuple[Tensor, Tensor]:
+        """Two (N,) float32 standard normals per event for ``purpose`` (:func:`sub_normal_pair`)."""
+        return sub_normal_pair(self.event_keys, self.within, purpose)
+
     def normal(self, purpose: int) -> Tensor:
-        """(N,) float64 standard normals, one per event for ``purpose`` (see :func:`sub_normal`)."""
-        return sub_normal(self.event_keys, self.within, purpose)
+        """(N,) float32 standard normals, one per event for ``purpose`` (the first of the pair)."""
+        return self.normal_pair(purpose)[0]
 
 
 #: :func:`poisson_counts` searches 64**_POISSON_LEVELS counts above each sample's window start.

@@ -27,7 +27,7 @@ from .._validation import (
 )
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import JITTER_X, JITTER_Y, _per_event, _round_to
+from ._event_ops import JITTER, _per_event, _round_to
 from ._random import EventStream
 from .affine import _output_dtype, _work_dtype
 
@@ -680,9 +680,7 @@ def spatial_jitter_events(batch: EventBatch, sigma: Tensor, seed: Tensor) -> Eve
         >>> jittered.x[:2].tolist(), jittered.t.tolist()  # sigma 0 moves nothing; times kept
         ([0, 2], [100, 15000, 50])
     """
-    stream = EventStream.of_batch(batch, seed)
-    noise_x = stream.normal(JITTER_X).to(torch.float32)
-    noise_y = stream.normal(JITTER_Y).to(torch.float32)
+    noise_x, noise_y = EventStream.of_batch(batch, seed).normal_pair(JITTER)  # float32
     scale = _per_event(sigma.to(torch.float32), batch)
     x = torch.addcmul(batch.x.to(torch.float32), noise_x, scale)
     y = torch.addcmul(batch.y.to(torch.float32), noise_y, scale)

@@ -838,7 +838,8 @@ def time_jitter_events(batch: EventBatch, std_us: Tensor, seed: Tensor) -> Event
         >>> jittered.t[:2].tolist(), jittered.x.tolist()  # std 0 moves nothing; pixels kept
         ([100, 15000], [0, 2, 1])
     """
-    noise = EventStream.of_batch(batch, seed).normal(TIME_JITTER).mul_(_per_event(std_us.to(torch.float64), batch))
+    noise = EventStream.of_batch(batch, seed).normal(TIME_JITTER).to(torch.float64).mul_(
+        _per_event(std_us.to(torch.float64), batch))
     if batch.t.is_floating_point():
         return batch._replace(t=batch.t + noise)
     return batch._replace(t=batch.t + torch.round(noise).to(torch.int64))
