@@ -44,7 +44,7 @@ class Denoise(EventTransform):
         self.radius = as_number(radius, "radius", integer=True, low=0)
         self.temporal_radius = as_number(temporal_radius, "temporal_radius", integer=True, low=0)
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.denoise, frames, self.radius, self.temporal_radius)
 
     def _settings(self) -> str:

@@ -107,7 +107,7 @@ class Cutout(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return _box_spec(shape)
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.cutout, frames, params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
@@ -213,7 +213,7 @@ class CutMix(_Mixing):
             "partner": Param("int", low=0, high=b - 1), "weight": Param("float", low=0.0, high=1.0), **_box_spec(shape)
         }
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         partner, _ = self._effective(params)
         return call_kernel(F.cutmix, frames, partner, params["top"], params["left"], params["height"], params["width"])
 
@@ -257,7 +257,7 @@ class MixUp(_Mixing):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"partner": Param("int", low=0, high=shape[0] - 1), "weight": Param("float", low=0.0, high=1.0)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         partner, weight = self._effective(params)
         return call_kernel(F.mixup, frames, partner, weight)
 
