@@ -13,6 +13,9 @@ import event_transforms as et
 from event_transforms import functional as F
 from event_transforms.transforms.base import slice_params
 
+from event_transforms.functional._event_ops import DROP_KEYS
+
+from . import random_reference as reference
 from .event_data import SENSOR, frames_of, make_batch, make_streams, rows
 from .checkers import H, W, check_not_modified, check_sane, sparse_frames
 
@@ -183,9 +186,10 @@ class TestOnEvents:
         batch = make_batch(3)
         fraction, seed = torch.tensor([0.2, 0.5, 0.9]), torch.tensor([5, 6, 7])
         out = F.drop_random_events(batch, fraction, "binomial", seed)
-        for b in range(3):
-            u = torch.empty(batch.lengths[b]).uniform_(generator=torch.Generator().manual_seed(int(seed[b])))
-            expected = [e for e, ui in zip(rows(batch, b), u.tolist()) if not ui < fraction[b].item()]
+        for b in range(3):  # event i of sample b: the Python-integer hash of (seed b, i, DROP_KEYS)
+            u = [reference.uniform32(int(seed[b]), i, DROP_KEYS) for i in range(batch.lengths[b])]
+            zeta = torch.tensor(fraction[b].item(), dtype=torch.float32).item()
+            expected = [e for e, ui in zip(rows(batch, b), u) if not ui < zeta]
             assert rows(out, b) == expected
 
     def test_pixel_drop_reference_and_frames(self):

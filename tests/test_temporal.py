@@ -27,6 +27,9 @@ from event_transforms.transforms import (
     TemporalEventShift,
 )
 
+from event_transforms.functional._event_ops import TIME_JITTER
+
+from . import random_reference as reference
 from .event_data import SENSOR, T, frames_of, make_batch, make_streams, rows
 from .checkers import H, W, check_not_modified, check_pickle, check_sane, count_shapes, random_counts, sparse_frames
 from .test_hypergeometric import chi_square_p_value
@@ -655,9 +658,11 @@ class TestOnEvents:
         std = torch.tensor([50.0, 200.0])
         out = F.time_jitter_events(batch, std, seed)
         for b in range(2):
-            noise = torch.empty(batch.lengths[b], dtype=torch.float64).normal_(generator=torch.Generator().manual_seed(int(seed[b])))
-            noise = torch.round(noise * std[b].item()).long().tolist()
-            assert [e[2] for e in rows(out, b)] == [t + v for (_, _, t, _), v in zip(rows(batch, b), noise)]
+            # event i: the Python-integer hashes of (seed b, i, purpose), Box-Muller (float32 in the
+            # kernel, float64 here), rounded to whole µs
+            noise = [reference.normal(int(seed[b]), i, TIME_JITTER) * std[b].item() for i in range(batch.lengths[b])]
+            for (_, _, t, _), (_, _, got, _), v in zip(rows(batch, b), rows(out, b), noise):
+                assert abs(got - (t + v)) <= 0.5 + 1e-3
 
     def test_time_skew_reference(self):
         batch = F.EventBatch.from_streams([torch.tensor([[0, 0, 100, 1], [0, 0, 300, 0]])] * 2, sensor_size=SENSOR)

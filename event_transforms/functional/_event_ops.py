@@ -5,13 +5,13 @@ Each event kernel takes a batch and per-sample parameters (``(B,)`` CPU tensors,
 the same device; nothing is modified in place. Coordinates stay int16, timestamps keep
 their dtype, polarity stays int8.
 
-**Per-sample randomness.** Kernels that draw (TES, event drop, jitter, Poisson noise) use
-one generator per sample, seeded with that sample's 63-bit seed from the params (Philox
-on CUDA, a counter-based stream; Mersenne Twister on the CPU), and draw that sample's
-numbers in event order, one slice per sample (B small draws per call). So a stream's output
-depends only on its own events and its own seed: ``kernel(batch[i:i+1], params[i:i+1])``
-equals ``kernel(batch, params)[i]``. CPU and CUDA draws differ (different engines); each is
-reproducible.
+**Per-sample randomness.** Kernels that draw (TES, event drop, jitter, Poisson noise)
+use the counter-based streams of :mod:`._random` (:class:`~._random.EventStream`): each
+number is a hash of the sample's 63-bit seed from the params, the event's position within
+its sample and the draw's purpose. So a stream's output depends only on its own events and
+its own seed (``kernel(batch[i:i+1], params[i:i+1])`` equals ``kernel(batch, params)[i]``),
+the numbers are the same on every device (int32 arithmetic, no engine), and a call costs
+the same ops whatever B (no loop over samples).
 
 **Where events and frames differ.** A rotated, resized or jittered event lands in one
 pixel (rounded to the nearest), so counts are conserved; a bilinear warp of frames
@@ -37,6 +37,7 @@ import torch
 from torch import Tensor
 
 from .._validation import read_host
+from ._random import EventStream
 from ..events.batch import EventBatch
 from ..events.binning import _frame_us
 
@@ -49,31 +50,35 @@ def _per_event(values: Tensor, batch: EventBatch, dtype: torch.dtype | None = No
     return values.index_select(0, batch.sample_index())
 
 
-def _generator(seed: int, device: torch.device) -> torch.Generator:
-    generator = torch.Generator(device=device)
-    generator.manual_seed(int(seed) & (2**63 - 1))
-    return generator
-
-
 def _compact(batch: EventBatch, keep: Tensor, **changes: Any) -> EventBatch:
     """The events where ``keep`` holds (one host read of the kept counts per stream)."""
-    sample = batch.sample_index()
-    kept = torch.zeros(len(batch), dtype=torch.int64, device=batch.device).index_add_(0, sample, keep.to(torch.int64))
-    lengths = read_host(kept)  # the output size depends on the data: the one read
-    offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
-    index = _kept_index(keep, sum(lengths))
+    index, offsets = _kept(batch, keep)
     columns = {k: changes.pop(k, getattr(batch, k)).index_select(0, index) for k in ("x", "y", "t", "p")}
-    return batch._replace(**columns, offsets=offsets, _sample=sample.index_select(0, index), **changes)
+    return batch._replace(**columns, offsets=offsets, _sample=None, **changes)
 
 
-def _kept_index(keep: Tensor, size: int) -> Tensor:
-    """The positions where ``keep`` holds, ``size`` of them (known): a cumulative sum and one
-    scatter, so no ``nonzero`` (which reads its size back on an accelerator)."""
+def _kept(batch: EventBatch, keep: Tensor) -> tuple[Tensor, Tensor]:
+    """The positions where ``keep`` holds and the kept batch's offsets (CPU).
+
+    One cumulative sum of ``keep`` gives both the kept counts (read at the stream ends: the
+    one host read, no per-event scatter) and each kept event's place; one scatter of
+    positions then (no ``nonzero``, which reads its size back on an accelerator). Positions
+    and sums are int32 below 2**31 events (half the bytes); the output's sample index is
+    rebuilt on demand by a run fill, not gathered."""
+    dtype = torch.int32 if keep.shape[0] < 2**31 else torch.int64
+    device = keep.device
+    running = torch.cumsum(keep, 0, dtype=dtype)
+    at_ends = torch.cat([running.new_zeros(1), running]).index_select(0, batch.offsets.to(device))
+    lengths = read_host(at_ends.diff())  # the output size depends on the data: the one read
+    offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
+    size = sum(lengths)
     if size == keep.shape[0]:
-        return torch.arange(size, device=keep.device)
-    target = torch.cumsum(keep, 0).sub_(1).masked_fill_(~keep, size)
-    out = torch.empty(size + 1, dtype=torch.int64, device=keep.device)
-    return out.scatter_(0, target, torch.arange(keep.shape[0], device=keep.device))[:size]
+        return torch.arange(size, dtype=torch.int64, device=device), offsets
+    target = running.sub_(1).masked_fill_(~keep, size).to(torch.int64)
+    del running
+    out = torch.empty(size + 1, dtype=dtype, device=device)
+    out.scatter_(0, target, torch.arange(keep.shape[0], dtype=dtype, device=device))
+    return out[:size], offsets
 
 
 def _require_grid(batch: EventBatch, owner: str, *, frames: bool = True) -> tuple[Tensor, float | int, int]:
@@ -91,32 +96,44 @@ def _round_to(values: Tensor, dtype: torch.dtype) -> Tensor:
     return values.round_().clamp_(-(2**15 - 1), 2**15 - 1).to(dtype)
 
 
-def _keys(batch: EventBatch, seed: Tensor, fraction: Tensor) -> tuple[Tensor, Tensor]:
-    """Per event a float32 uniform key from its sample's generator, and ``key < ζ_b``
-    (compared slice by slice against the sample's ζ: no per-event gather)."""
-    bounds = batch.offsets.tolist()
-    u = torch.empty(batch.num_events, dtype=torch.float32, device=batch.device)
-    below = torch.empty(batch.num_events, dtype=torch.bool, device=batch.device)
-    for b, (s, zeta) in enumerate(zip(seed.tolist(), fraction.tolist())):
-        lo, hi = bounds[b], bounds[b + 1]
-        if hi > lo:
-            piece = u[lo:hi].uniform_(generator=_generator(s, batch.device))
-            torch.lt(piece, zeta, out=below[lo:hi])
-    return u, below
+#: Purposes of the event kernels' draws (:class:`~._random.EventStream`): each kernel names its own.
+DROP_KEYS, TES_KEYS = 1, 2
+POISSON_COUNT, POISSON_X, POISSON_Y, POISSON_T, POISSON_P = 3, 4, 5, 6, 7
+TIME_JITTER, JITTER = 10, 11  # normals (each owns two uniform purposes; jitter takes the pair for x and y)
 
 
-def _append(batch: EventBatch, added: Sequence[tuple[Tensor, Tensor, Tensor, Tensor]]) -> EventBatch:
-    """``batch`` with ``added[b]`` (x, y, t, p columns) after stream b's own events."""
-    bounds = batch.offsets.tolist()
+def _keys(batch: EventBatch, seed: Tensor, fraction: Tensor, purpose: int) -> tuple[Tensor, Tensor]:
+    """Per event a float32 uniform key from its sample's counter-based stream (named by the
+    sample's seed and the event's position in the sample), and ``key < ζ_b``."""
+    u = EventStream.of_batch(batch, seed).uniform32(purpose)
+    return u, u < _per_event(fraction.to(torch.float32), batch)
+
+
+def _append(batch: EventBatch, columns: Sequence[Tensor], counts: Tensor) -> EventBatch:
+    """``batch`` with the added events (``columns`` x, y, t, p, sorted by sample, ``counts``
+    (B,) of them per sample, a CPU tensor) after stream b's own events.
+
+    Two scatters per column, whatever B: an event of the batch moves by the events added
+    before its sample, an added one lands after its sample's own events (the shifts are
+    filled run by run, no per-event gather)."""
+    counts = counts.to(torch.int64).cpu()
+    added = sum(counts.tolist())  # CPU: no device read
+    added_before = counts.cumsum(0) - counts
+    offsets = batch.offsets + torch.cat([added_before, torch.tensor([added])])
+    device = batch.device
+    total = batch.num_events + added
+    lengths = batch.offsets.diff()
+    own = torch.arange(batch.num_events, device=device).add_(
+        torch.repeat_interleave(added_before.to(device), lengths.to(device), output_size=batch.num_events))
+    extra = torch.arange(added, device=device).add_(
+        torch.repeat_interleave(batch.offsets[1:].to(device), counts.to(device), output_size=added))
     cols = []
-    for k, name in enumerate(("x", "y", "t", "p")):
+    for name, column_added in zip(("x", "y", "t", "p"), columns):
         column = getattr(batch, name)
-        pieces = []
-        for b in range(len(batch)):
-            pieces += [column[bounds[b] : bounds[b + 1]], added[b][k]]
-        cols.append(torch.cat(pieces) if pieces else column)
-    lengths = [bounds[b + 1] - bounds[b] + int(added[b][0].shape[0]) for b in range(len(batch))]
-    offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
+        out = torch.empty(total, dtype=column.dtype, device=device)
+        out.index_copy_(0, own, column)
+        out.index_copy_(0, extra, column_added.to(column.dtype))
+        cols.append(out)
     return batch._replace(x=cols[0], y=cols[1], t=cols[2], p=cols[3], offsets=offsets, _sample=None)
 
 
@@ -144,8 +161,8 @@ def warn_dropped(
         if mask is None:
             rows.append(torch.zeros(len(batch), dtype=torch.int64, device=batch.device))
         else:
-            rows.append(torch.zeros(len(batch), dtype=torch.int64, device=batch.device).index_add_(
-                0, sample, mask.to(torch.int64)))
+            rows.append(torch.zeros(len(batch), dtype=torch.int32, device=batch.device).index_add_(
+                0, sample, mask.to(torch.int32)).to(torch.int64))
     sensor_counts, window_counts = (r.tolist() for r in torch.stack(rows).cpu())  # the one read
     if sum(sensor_counts):
         tally = _Tally(len(batch))

@@ -218,17 +218,18 @@ def multivariate_hypergeometric(
     hypergeometric draw of that size from the counts Y'); if S' < size, add a uniform
     (size - S')-subset of the others (from the counts pool - Y'). The result is invariant
     under permutations of the events and always has exactly ``size`` events, so it is a
-    uniform size-subset: exact. The correction is of order sqrt(total q (1 - q)), so each
-    level shrinks the problem from ~N to ~sqrt(N) events (10**7 -> ~1600 -> ~40).
+    uniform size-subset: exact. The correction is of order sqrt(total q (1 - q)) events
+    (10**7 -> ~1600), and it is finished at once by drawing distinct positions, whatever
+    its width: always two levels, so the ops do not depend on the data or the batch size.
 
     Randomness: counter-based, from ``stream`` (entries and rows named within their
     sample; ``level`` names the recursion level), so a sample's rows give the same result
     alone as in any batch. Cost: per level one binomial draw and a few passes over the
-    pool (length n); the finish works on (rows, <= _SMALL) positions. Memory O(n),
+    pool (length n); the finishes work on (rows, widest draw) positions. Memory O(n),
     independent of the counts. Host synchronisations: one per level
     (:func:`level_stats`, none at the top level when ``stats`` is given), one per
-    binomial draw unless ``expansion`` gives its numbers (the top level's), and about one
-    per round of the finish.
+    binomial draw unless ``expansion`` gives its numbers (the top level's), and one per
+    round of the finish after the first ``_UNCHECKED_ROUNDS`` (rarely any).
 
     Args:
         pool: int64 (n,), non-negative counts.
@@ -253,6 +254,10 @@ def multivariate_hypergeometric(
         widest, small = (int(v) for v in read_host(torch.stack(level_stats(size, total))))
         stats = (widest, small)
     draw, width = stats
+    if level > 0:
+        # the correction of a binomial level (about sqrt(N) events): finished at once, every
+        # row, whatever its width, so the number of levels (and ops) never depends on the data
+        return _small_subsets(pool, segment, size, total, stream, draw, level)
     if draw <= _SMALL:
         return _small_subsets(pool, segment, size, total, stream, draw, level)
     finish = torch.minimum(size, total - size) <= _SMALL
@@ -306,7 +311,7 @@ def _small_subsets(
         offset = total.cumsum(0) - total
         for start in range(0, rows, chunk):
             part = slice(start, start + chunk)
-            names = (stream.row_salt[part].unsqueeze(1), stream.row_counter[part].unsqueeze(1) * _SMALL)
+            names = (stream.row_salt[part].unsqueeze(1), stream.row_counter[part].unsqueeze(1) * _ROW_STRIDE)
             positions = offset[part].unsqueeze(1) + _distinct_positions(
                 draw[part].unsqueeze(1), total[part].unsqueeze(1), names, width, level
             )
@@ -319,7 +324,10 @@ def _small_subsets(
 
 #: Rounds of :func:`_distinct_positions` run before the first check for empty slots (a
 #: round with no empty slot changes nothing, so extra rounds cost time, never exactness).
-_UNCHECKED_ROUNDS = 2
+_UNCHECKED_ROUNDS = 4
+
+#: Slot k of row r draws the uniform named by counter ``r * _ROW_STRIDE + k`` (rows of any width).
+_ROW_STRIDE = 2**32
 
 
 def _distinct_positions(want: Tensor, have: Tensor, names: tuple[Tensor, Tensor], width: int, level: int) -> Tensor:

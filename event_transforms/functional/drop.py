@@ -23,9 +23,9 @@ import math
 from .._validation import DROP_MODES, check_choice, check_generator, count_stats, describe, per_sample
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import _compact, _keys, _per_event, _require_grid
+from ._event_ops import DROP_KEYS, _compact, _keys, _per_event, _require_grid
 from ._hypergeometric import _EXPAND_MAX, Stream, binomial_counts
-from ._random import draw_seeds
+from ._random import draw_seeds, sample_salts, uniform
 
 __all__ = [
     "drop_random", "drop_random_frames", "drop_random_events", "drop_events",
@@ -140,8 +140,9 @@ def drop_random_events(
     batch: EventBatch, fraction: Tensor, mode: str = "binomial", seeds: Tensor | None = None, hint: str = _DROP_HINT
 ) -> EventBatch:
     """Kernel of :func:`drop_random` for an EventBatch: each event of sample b dropped with
-    probability ``fraction[b]`` (its own uniform, from the sample's generator). One host
-    read of the kept counts.
+    probability ``fraction[b]`` (its own uniform, from the sample's counter-based stream:
+    a hash of ``seeds[b]`` and the event's position in its sample). One host read of the
+    kept counts.
 
     Args:
         batch: the event streams.
@@ -167,7 +168,7 @@ def drop_random_events(
         raise ValueError(f"drop_random on events drops whole events: mode must be 'binomial', got {mode!r}")
     if seeds is None:
         raise ValueError("drop_random on events needs seeds (one int64 seed per sample)")
-    _, dropped = _keys(batch, seeds, fraction)  # u < fraction, compared per sample slice
+    _, dropped = _keys(batch, seeds, fraction, DROP_KEYS)  # u < fraction
     return _compact(batch, ~dropped)
 
 def _window_mask(start: Tensor, length: Tensor, size: int, device: torch.device) -> Tensor:
@@ -340,7 +341,7 @@ def drop_by_area_events(batch: EventBatch, top: Tensor, left: Tensor, height: Te
 
 # --------------------------------------------------------------------------- pixels
 
-_MASK32 = 0xFFFFFFFF
+_PIXEL_MASK = 1  # the purpose of the pixel draw
 
 
 def _pixel_mask(pixels: object, batch: int, height: int, width: int, device: torch.device) -> Tensor:
@@ -447,18 +448,11 @@ def drop_pixel_events(batch: EventBatch, mask: Tensor) -> EventBatch:
     return _compact(batch, ~(dropped & inside))
 
 
-def _hash32(x: Tensor) -> Tensor:
-    """A 32-bit integer mix (in int64, no overflow), the same on every device."""
-    x = x & _MASK32
-    x = (((x >> 16) ^ x) * 0x45D9F3B) & _MASK32
-    x = (((x >> 16) ^ x) * 0x45D9F3B) & _MASK32
-    return (x >> 16) ^ x
-
 def random_pixel_mask(seed: Tensor, fraction: Tensor, height: int, width: int, device: torch.device) -> Tensor:
     """(B, H, W) bool: each pixel dropped with probability ``fraction[b]``, from ``seed[b]`` alone.
 
-    A counter-based draw: a pixel's uniform number is a hash of the sample's 63-bit seed
-    and the pixel's index, so a sample's mask depends on its own seed only (a batch gives
+    A counter-based draw (:mod:`._random`): a pixel's uniform number is a hash of the
+    sample's 63-bit seed and the pixel's index, so a sample's mask depends on its own seed only (a batch gives
     what its samples give alone) and is the same on the CPU and on CUDA.
 
     Args:
@@ -479,11 +473,8 @@ def random_pixel_mask(seed: Tensor, fraction: Tensor, height: int, width: int, d
         >>> torch.equal(mask[:1], alone)  # a sample's mask depends on its own seed only
         True
     """
-    pixel = torch.arange(height * width, dtype=torch.int64, device=device)
-    seed = seed.to(device, non_blocking=True).unsqueeze(1)
-    low, high = seed & _MASK32, (seed >> 32) & _MASK32
-    x = _hash32(_hash32(pixel ^ low) + high)
-    u = (x.to(torch.float64) + 0.5) / 2.0**32  # (B, H*W) in (0, 1)
+    pixel = torch.arange(height * width, dtype=torch.int32, device=device)
+    u = uniform(sample_salts(seed, device).unsqueeze(1), pixel, _PIXEL_MASK)  # (B, H*W) in (0, 1)
     return (u < fraction.to(device, torch.float64, non_blocking=True).unsqueeze(1)).view(-1, height, width)
 
 

@@ -27,7 +27,8 @@ from .._validation import (
 )
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import _generator, _per_event, _round_to
+from ._event_ops import JITTER, _per_event, _round_to
+from ._random import EventStream
 from .affine import _output_dtype, _work_dtype
 
 __all__ = [
@@ -656,7 +657,9 @@ def _nonnegative(value: object, batch: int, name: str) -> Tensor:
 @register_kernel(spatial_jitter, EventBatch)
 def spatial_jitter_events(batch: EventBatch, sigma: Tensor, seed: Tensor) -> EventBatch:
     """Add Gaussian noise of standard deviation ``sigma[b]`` pixels to x and y, rounded to
-    whole pixels (events leaving the sensor are dropped when binned). Sync-free.
+    whole pixels (events leaving the sensor are dropped when binned). The normals come from
+    the sample's counter-based stream (``seed[b]`` and the event's position in its sample).
+    Sync-free; the same ops whatever B.
 
     Args:
         batch: the event streams.
@@ -677,15 +680,7 @@ def spatial_jitter_events(batch: EventBatch, sigma: Tensor, seed: Tensor) -> Eve
         >>> jittered.x[:2].tolist(), jittered.t.tolist()  # sigma 0 moves nothing; times kept
         ([0, 2], [100, 15000, 50])
     """
-    lengths = batch.lengths
-    bounds = batch.offsets.tolist()
-    noise_x = torch.empty(batch.num_events, dtype=torch.float32, device=batch.device)
-    noise_y = torch.empty_like(noise_x)
-    for b, (s, n) in enumerate(zip(seed.tolist(), lengths)):
-        if n:  # sample b's generator: its n x offsets, then its n y offsets
-            g = _generator(s, batch.device)
-            noise_x[bounds[b] : bounds[b + 1]].normal_(generator=g)
-            noise_y[bounds[b] : bounds[b + 1]].normal_(generator=g)
+    noise_x, noise_y = EventStream.of_batch(batch, seed).normal_pair(JITTER)  # float32
     scale = _per_event(sigma.to(torch.float32), batch)
     x = torch.addcmul(batch.x.to(torch.float32), noise_x, scale)
     y = torch.addcmul(batch.y.to(torch.float32), noise_y, scale)

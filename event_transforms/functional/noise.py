@@ -9,12 +9,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import numpy as np
-
 import torch
 from torch import Tensor
 
-from ._random import draw_seeds, entry_keys, generator_for, sample_salts, sub_uniform
+from ._random import EventStream, draw_seeds, entry_keys, generator_for, poisson_counts, sample_salts, sub_uniform
 from .._validation import (
     check_counts,
     check_frames,
@@ -27,7 +25,7 @@ from .._validation import (
 
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, register_kernel
-from ._event_ops import _append, _generator, _require_grid
+from ._event_ops import POISSON_COUNT, POISSON_P, POISSON_T, POISSON_X, POISSON_Y, _append, _require_grid
 
 __all__ = [
     "add_noise", "add_noise_frames", "add_noise_events",
@@ -162,7 +160,8 @@ def add_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventBa
     of ``bank`` ``(N, 2, H, W)`` (sensor-sized whole counts) as events, each at the centre of
     its bin on the batch's grid (a frame bank has no finer timing), so binning gives the
     stream's frames plus that window, as :class:`~event_transforms.AddNoise` does on frames.
-    Deterministic; one host read of the window's event count per stream.
+    Deterministic; one ``nonzero`` over the streams' windows and one host read of the
+    per-stream counts, the same ops whatever B.
 
 
     Args:
@@ -191,21 +190,25 @@ def add_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventBa
             f"got {tuple(bank.shape)}"
         )
     device = batch.device
-    per_pixel = 2 * height * width
-    first_t = starts.tolist()
-    added = []
-    for b, first in enumerate(offset.tolist()):
-        window = bank[first : first + n_frames].to(device).reshape(-1)
-        counts = window.to(torch.int64)
-        entries = (counts > 0).nonzero().squeeze(1)  # the output size depends on the bank
-        repeats = counts.index_select(0, entries)
-        index = torch.repeat_interleave(entries, repeats)
-        frame, rest = index // per_pixel, index % per_pixel
-        p, pixel = rest // (height * width), rest % (height * width)
-        t = first_t[b] + frame * frame_us + frame_us // 2
-        added.append(((pixel % width).to(torch.int16), (pixel // width).to(torch.int16),
-                      t.to(batch.t.dtype), p.to(torch.int8)))
-    return _append(batch, added)
+    b, plane = len(batch), height * width
+    if b == 0:
+        return batch
+    # every stream's window of the bank at once: one nonzero, one read of the per-stream counts
+    rows = (offset.to(torch.int64).view(b, 1) + torch.arange(n_frames)).reshape(-1).to(device)
+    counts = bank.to(device).index_select(0, rows).reshape(-1).to(torch.int64)
+    entries = counts.nonzero().squeeze(1)  # the output size depends on the bank
+    repeats = counts.index_select(0, entries)
+    per_stream = n_frames * 2 * plane
+    added = torch.zeros(b, dtype=torch.int64, device=device).index_add_(
+        0, entries.div(per_stream, rounding_mode="floor"), repeats)
+    added = torch.tensor(read_host(added), dtype=torch.int64)
+    index = torch.repeat_interleave(entries, repeats, output_size=sum(added.tolist()))
+    sample, rest = index.div(per_stream, rounding_mode="floor"), index.remainder(per_stream)
+    frame, rest = rest.div(2 * plane, rounding_mode="floor"), rest.remainder(2 * plane)
+    p, pixel = rest.div(plane, rounding_mode="floor"), rest.remainder(plane)
+    t = starts.to(device).index_select(0, sample) + frame * frame_us + frame_us // 2
+    columns = (pixel.remainder(width), pixel.div(width, rounding_mode="floor"), t, p)
+    return _append(batch, columns, added)
 
 
 
@@ -366,25 +369,21 @@ def _add_poisson_noise(batch: Tensor, lam: Tensor, *, totals: Tensor | None = No
 def _poisson_events(batch: EventBatch, rate_hz: Tensor, seed: Tensor) -> EventBatch:
     """Add background events: per pixel and polarity a Poisson process of ``rate_hz[b]``
     over the grid's window, i.e. Poisson(rate · T · frame · 2HW) events of uniform pixel,
-    polarity and time. The counts are drawn on the host from the seeds (NumPy), so sizes
-    are known without a host synchronisation; positions come from the sample's generator.
-    Added events follow the sample's own events (the stream is no longer time-sorted)."""
+    polarity and time. The counts are drawn on the host from the seeds
+    (:func:`~._random.poisson_counts`: CPU parameters, so the sizes need no device read);
+    the positions come from the sample's counter-based stream (the added event's position
+    among the sample's added events). Added events follow the sample's own events (the
+    stream is no longer time-sorted). Sync-free; the same ops whatever B."""
     starts, frame_us, n_frames = _require_grid(batch, "AddPoissonNoise")
     height, width = batch.sensor_size
-    seeds = [int(s) for s in seed.tolist()]
-    rates = rate_hz.tolist()
     span = n_frames * frame_us
-    counts = [int(np.random.default_rng(s).poisson(r * span * 1e-6 * 2 * height * width)) for s, r in zip(seeds, rates)]
-    first = starts.tolist()
+    counts = poisson_counts(seed.cpu(), rate_hz.to(torch.float64).cpu() * (span * 1e-6 * 2 * height * width), POISSON_COUNT)
     device = batch.device
-    noise = []
-    for b, (s, n) in enumerate(zip(seeds, counts)):
-        g = _generator(s ^ 0x5DEECE66D, device)
-        u = torch.rand(n, 4, generator=g, device=device, dtype=torch.float64)
-        x = (u[:, 0] * width).to(torch.int16)
-        y = (u[:, 1] * height).to(torch.int16)
-        t = first[b] + u[:, 2] * span
-        t = t.floor().to(batch.t.dtype)
-        p = (u[:, 3] < 0.5).to(torch.int8)
-        noise.append((x, y, t, p))
-    return _append(batch, noise)
+    total = sum(counts.tolist())
+    sample = torch.repeat_interleave(torch.arange(len(batch), device=device), counts.to(device), output_size=total)
+    stream = EventStream(seed, counts, device)
+    x = (stream.uniform(POISSON_X) * width).to(torch.int16)
+    y = (stream.uniform(POISSON_Y) * height).to(torch.int16)
+    t = (starts.to(device=device, dtype=torch.float64).index_select(0, sample) + stream.uniform(POISSON_T) * span).floor_()
+    p = (stream.uniform(POISSON_P) < 0.5).to(torch.int8)
+    return _append(batch, (x, y, t.to(batch.t.dtype), p), counts)

@@ -28,7 +28,8 @@ from .._validation import (
 from ..events.batch import EventBatch
 from ..events.binning import _frame_us
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import _compact, _generator, _keys, _per_event, _require_grid, warn_dropped
+from ._event_ops import TES_KEYS, TIME_JITTER, _compact, _kept, _keys, _per_event, _require_grid, warn_dropped
+from ._random import EventStream
 from ._random import draw_seeds
 from ._hypergeometric import (
     _EXPAND_MAX, Stream, binomial_counts, level_stats, multivariate_hypergeometric, segment_sum,
@@ -673,7 +674,8 @@ def _groups(batch: EventBatch) -> tuple[Tensor, int]:
     sample = batch.sample_index()
     bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
     groups = len(batch) * n_frames * 2
-    group = sample.mul(n_frames).add_(bins).mul_(2).add_(batch.p)
+    index = torch.int32 if groups < 2**31 - 1 else torch.int64
+    group = sample.to(index).mul(n_frames).add_(bins).mul_(2).add_(batch.p)  # a new tensor: the cached index is kept
     return group.masked_fill_(~inside, groups), groups
 
 
@@ -694,8 +696,9 @@ def _shift_events(
     ``"binomial"`` moves each event with probability ζ. Events pushed out of the window
     are dropped (as in the frame kernels); events outside the window never move.
 
-    Exact selection: each event gets a float32 uniform key u from its sample's generator;
-    the k events with the smallest keys of a group are the ones moved (ties, at 2**-24,
+    Exact selection: each event gets a float32 uniform key u from its sample's
+    counter-based stream (seed and position in the sample); the k events with the
+    smallest keys of a group are the ones moved (ties, at 2**-23,
     are broken by position). A binomial level (u < ζ) picks all but a ~sqrt(N) surplus or
     deficit per group, fixed by ranking only the events whose keys lie in a narrow band
     next to ζ (no full sort). Host syncs: one read of the per-group surplus, one band
@@ -711,30 +714,41 @@ def _shift_events(
     else:
         if seed is None:
             raise ValueError(f"temporal_event_shift on events with mode={mode!r} needs seed (one int64 per sample)")
-        u, below = _keys(batch, seed, fraction)
-        moved = below & inside
+        u, below = _keys(batch, seed, fraction, TES_KEYS)
+        moved = below.logical_and_(inside)
+        del below, inside
         if mode == "exact":
             moved = _exact_fixup(group, groups, u, moved, fraction, n_frames)
+        del u
     # a group's events all land in bin + j: whether they leave the window is per group
     jump = shift.to(torch.int64)
     group_bin = torch.arange(n_frames).repeat(len(batch)).repeat_interleave(2)
     leaving = group_bin + jump.repeat_interleave(2 * n_frames)
     leaving = torch.cat([(leaving < 0) | (leaving >= n_frames), torch.zeros(1, dtype=torch.bool)]).to(device)
-    keep = ~(moved & leaving.index_select(0, group))
+    keep = leaving.index_select(0, group).logical_and_(moved).logical_not_()
+    del group
     warn_dropped(batch, outside_window=~keep, window=_window_of(batch), stacklevel=4)
+    # compact first, then move the kept events' times (the temporaries are the output's size)
+    index, offsets = _kept(batch, keep)
+    del keep
+    out = batch._replace(**{k: getattr(batch, k).index_select(0, index) for k in ("x", "y", "t", "p")},
+                         offsets=offsets, _sample=None)
+    moved = moved.index_select(0, index)
+    del index
     if isinstance(frame_us, int) and not batch.t.is_floating_point():
-        t = batch.t + _per_event(jump * frame_us, batch) * moved  # int64 times stay exact
+        t = out.t.add_(_per_event(jump * frame_us, out).mul_(moved))  # int64 times stay exact
     else:
-        t = (batch.t.to(torch.float64) + _per_event(jump.to(torch.float64) * frame_us, batch) * moved).to(batch.t.dtype)
-    return _compact(batch, keep, t=t)
+        t = (out.t.to(torch.float64) + _per_event(jump.to(torch.float64) * frame_us, out).mul_(moved)).to(out.t.dtype)
+    return out._replace(t=t)
 
 
 def _exact_fixup(group: Tensor, groups: int, u: Tensor, moved: Tensor, fraction: Tensor, n_frames: int) -> Tensor:
     """Turn the binomial choice ``moved`` into exactly round(ζ N) smallest keys per group."""
     device = group.device
-    ones = torch.ones((), dtype=torch.int64, device=device).expand(group.shape[0])
-    total = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, ones)[:groups]
-    chosen = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(0, group, moved.to(torch.int64))[:groups]
+    ones = torch.ones((), dtype=torch.int32, device=device).expand(group.shape[0])
+    total = torch.zeros(groups + 1, dtype=torch.int32, device=device).index_add_(0, group, ones)[:groups].to(torch.int64)
+    chosen = torch.zeros(groups + 1, dtype=torch.int32, device=device).index_add_(
+        0, group, moved.to(torch.int32))[:groups].to(torch.int64)
     group_zeta = fraction.to(torch.float64).repeat_interleave(n_frames * 2).to(device)
     want = torch.round(group_zeta * total.to(torch.float64)).to(torch.int64)
     surplus = chosen - want
@@ -805,7 +819,9 @@ def time_jitter(batch: EventBatch, std_us: Scalars, seed: ShiftArg) -> EventBatc
 @register_kernel(time_jitter, EventBatch)
 def time_jitter_events(batch: EventBatch, std_us: Tensor, seed: Tensor) -> EventBatch:
     """Add Gaussian noise of ``std_us[b]`` microseconds to the timestamps (rounded for
-    integer timestamps). Streams are no longer time-sorted. Sync-free.
+    integer timestamps). Streams are no longer time-sorted. The normals come from the
+    sample's counter-based stream (``seed[b]`` and the event's position in its sample).
+    Sync-free; the same ops whatever B.
 
     Args:
         batch: the event streams.
@@ -826,11 +842,8 @@ def time_jitter_events(batch: EventBatch, std_us: Tensor, seed: Tensor) -> Event
         >>> jittered.t[:2].tolist(), jittered.x.tolist()  # std 0 moves nothing; pixels kept
         ([100, 15000], [0, 2, 1])
     """
-    bounds = batch.offsets.tolist()
-    noise = torch.empty(batch.num_events, dtype=torch.float64, device=batch.device)
-    for b, (s, std) in enumerate(zip(seed.tolist(), std_us.tolist())):
-        if bounds[b + 1] > bounds[b]:  # the sample's generator, scaled by its own std: no gather
-            noise[bounds[b] : bounds[b + 1]].normal_(generator=_generator(s, batch.device)).mul_(std)
+    noise = EventStream.of_batch(batch, seed).normal(TIME_JITTER).to(torch.float64).mul_(
+        _per_event(std_us.to(torch.float64), batch))
     if batch.t.is_floating_point():
         return batch._replace(t=batch.t + noise)
     return batch._replace(t=batch.t + torch.round(noise).to(torch.int64))

@@ -212,7 +212,7 @@ class RandomDropPixel(EventTransform):
     Example:
         >>> out = RandomDropPixel(0.5)(torch.ones(2, 3, 2, 20, 20), generator=torch.Generator().manual_seed(0))
         >>> [round(f, 2) for f in (out[:, 0, 0] == 0).float().mean((1, 2)).tolist()]
-        [0.48, 0.55]
+        [0.49, 0.52]
     """
 
     def __init__(self, fraction: float | Sequence[float], *, p: float = 1.0) -> None:

@@ -349,7 +349,7 @@ class SpatialJitter(EventTransform):
         >>> batch = et.EventBatch.from_streams([torch.tensor([[5, 5, 0, 1]] * 4)], sensor_size=(10, 10))
         >>> out = et.SpatialJitter(1.0)(batch, generator=torch.Generator().manual_seed(0))
         >>> out.x.tolist(), out.y.tolist()
-        ([5, 5, 2, 6], [5, 4, 3, 5])
+        ([5, 6, 6, 4], [3, 4, 5, 5])
     """
 
     def __init__(self, sigma: float | Sequence[float] = 1.0, *, p: float = 1.0) -> None:
