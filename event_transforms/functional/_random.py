@@ -17,9 +17,13 @@ which costs about 1.5x ``torch.rand`` per number on one CPU thread (int64 lanes 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import torch
 from torch import Tensor
+
+if TYPE_CHECKING:  # the batch imports functional; a runtime import here would be a cycle
+    from ..events.batch import EventBatch
 
 __all__ = [
     "sample_salts", "uniform", "uniform53", "entry_keys", "sub_uniform", "sub_uniform32", "sub_normal_pair", "draw_seeds", "generator_for",
@@ -167,7 +171,7 @@ class EventStream:
             torch.repeat_interleave(first, on_device, output_size=total))
 
     @classmethod
-    def of_batch(cls, batch, seeds: Tensor) -> EventStream:
+    def of_batch(cls, batch: EventBatch, seeds: Tensor) -> EventStream:
         """The streams of an :class:`~event_transforms.EventBatch`'s events."""
         return cls(seeds, batch.offsets.diff(), batch.device)
 

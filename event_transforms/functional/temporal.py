@@ -28,7 +28,7 @@ from .._validation import (
 from ..events.batch import EventBatch
 from ..events.binning import _frame_us
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import TES_KEYS, TIME_JITTER, _compact, _kept, _keys, _per_event, _require_grid, warn_dropped
+from ._event_ops import TES_KEYS, TIME_JITTER, _kept, _keys, _per_event, _require_grid, warn_dropped
 from ._random import EventStream
 from ._random import draw_seeds
 from ._hypergeometric import (
