@@ -721,7 +721,7 @@ def perspective(
     (the inverse of the frames' sampling map) to the nearest pixel, so counts are kept
     (frames sampled by ``nearest`` repeat or skip pixels where the warp stretches or
     squeezes; ``mode`` does not apply); events warped off the sensor are dropped, with the
-    :class:`~event_transforms.EventsOutsideSensorWarning` binning gives.
+    :class:`~event_transforms.events.EventsOutsideSensorWarning` binning gives.
 
     Args:
         frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
@@ -807,7 +807,7 @@ def elastic(
     q with ``q + field(q) = p`` (the frame map inverted, by a few fixed-point steps
     ``q <- p - field(q)`` on the bilinearly interpolated field), to the nearest pixel.
     Counts are kept (``mode`` does not apply); events warped off the sensor are dropped,
-    with the :class:`~event_transforms.EventsOutsideSensorWarning` binning gives.
+    with the :class:`~event_transforms.events.EventsOutsideSensorWarning` binning gives.
 
     Args:
         frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
@@ -862,7 +862,7 @@ register_kernel(elastic, Tensor)(elastic_frames)
 def _keep_on_sensor(batch: EventBatch, x: Tensor, y: Tensor, valid: Tensor | None = None) -> EventBatch:
     """``batch`` with float coordinates ``x, y`` rounded to the nearest pixel; the events that
     land off the sensor (or are not ``valid``) dropped with the binning's
-    :class:`~event_transforms.EventsOutsideSensorWarning`. Host reads: the warning's counts
+    :class:`~event_transforms.events.EventsOutsideSensorWarning`. Host reads: the warning's counts
     and the kept counts."""
     height, width = batch.sensor_size
     moved = batch._replace(x=_round_to(x, torch.int16), y=_round_to(y, torch.int16))
