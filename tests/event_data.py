@@ -49,9 +49,11 @@ def check_hard_cases(make, *, coupled: bool = False) -> None:
     """The hard cases every event kernel meets, through its module ``make()``: an empty batch
     (B = 0), one event beside an empty stream, a grid of one frame (T = 1), and a stream with
     no events between two others, which (for a transform that does not couple samples) gives
-    each stream alone what it gives it in the batch."""
+    each stream alone what it gives it in the batch; and the aten ops and host syncs of a call
+    (counted on the CPU) are the same at B = 4 and B = 32: no loop over the samples."""
     import warnings
 
+    from benchmarks._common import count_ops
     from event_transforms.transforms.base import slice_params
 
     from event_transforms.events.binning import EventsOutsideSensorWarning
@@ -85,3 +87,12 @@ def check_hard_cases(make, *, coupled: bool = False) -> None:
             for i in range(3):
                 alone = transform(holed[i : i + 1], params=slice_params(params, torch.tensor([i])))
                 assert same_events(alone, whole[i])
+    counts = []
+    for size in (4, 32):
+        batch = make_batch(size, seed=3)
+        params = transform.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(0))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", EventsOutsideSensorWarning)
+            counted = count_ops(lambda: transform(batch, params=params))
+        counts.append((counted.ops, counted.syncs))
+    assert counts[0] == counts[1], f"ops and syncs at B = 4 and 32: {counts}"
