@@ -20,7 +20,9 @@ class Denoise(EventTransform):
     """Remove events with no other event within ``radius`` pixels and ``temporal_radius`` frames.
 
     See :func:`~event_transforms.functional.denoise`. Counts kept are unchanged; the
-    dtype is kept.
+    dtype is kept. On an EventBatch (which needs a frame grid) the same rule is applied
+    event by event, with the neighbourhood counted in the grid's bins, so binned the result
+    equals the frame result.
 
     Args:
         radius: spatial half-width of the neighbourhood (pixels, >= 0).

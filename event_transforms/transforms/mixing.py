@@ -83,7 +83,8 @@ class Cutout(EventTransform):
 
     DeVries & Taylor's Cutout as Neuromorphic Data Augmentation uses it: a box of
     ``size`` centred at a uniformly drawn pixel, clipped at the border (so near the border
-    it is smaller). Counts elsewhere and the dtype are kept. The clipped box is in
+    it is smaller). Counts elsewhere and the dtype are kept. On an EventBatch the events in
+    the box are removed. The clipped box is in
     ``params`` (``top, left, height, width``).
 
     Args:

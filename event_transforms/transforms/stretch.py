@@ -55,7 +55,8 @@ class Stretch(_StretchWarp):
     pressed by a parallel gripper widens as √D (Hertz line contact) while the pad fixes its
     length, so a D₁ → D₂ change is a stretch across the strip by (D₂/D₁)^½, not the
     paper's isotropic zoom by D₂/D₁ (see :func:`event_transforms.functional.stretch`, which
-    it calls, for the maths and the measured fidelity).
+    it calls, for the maths and the measured fidelity). On an EventBatch each event moves to
+    the nearest pixel (counts kept; ``mode`` does not apply).
 
     Args:
         factor: stretch factor k > 0 across the axis.
