@@ -93,6 +93,6 @@ def check_hard_cases(make, *, coupled: bool = False) -> None:
         params = transform.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(0))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", EventsOutsideSensorWarning)
-            counted = count_ops(lambda: transform(batch, params=params))
+            counted = count_ops(lambda batch=batch, params=params: transform(batch, params=params))
         counts.append((counted.ops, counted.syncs))
     assert counts[0] == counts[1], f"ops and syncs at B = 4 and 32: {counts}"

@@ -720,7 +720,7 @@ class TestElasticOnEvents:
         moves them as the frames' nearest warp moves pixels; events pushed off are dropped
         with the warning."""
         height, width = SENSOR
-        events = torch.tensor([[x, y, 100 * (x + y), (x + y) % 2] for x in range(0, 8) for y in range(4, 7)])
+        events = torch.tensor([[x, y, 100 * (x + y), (x + y) % 2] for x in range(8) for y in range(4, 7)])
         batch = EventBatch.from_streams([events], sensor_size=SENSOR, frame_ms=1.0, t_start=0, n_frames=T)
         noise = torch.zeros(1, 2, height, width)
         noise[0, 1] = 1.0  # the frames sample from the right: content moves left

@@ -108,7 +108,7 @@ def reference_denoise_events(batch, b: int, radius: int, temporal_radius: int) -
         if own is None:
             kept.append(event)
             continue
-        k, p, y, x = own
+        k, _, y, x = own
         if any(other is not None and other != own and abs(other[0] - k) <= temporal_radius
                and abs(other[2] - y) <= radius and abs(other[3] - x) <= radius for other in entries):
             kept.append(event)

@@ -954,8 +954,11 @@ def _bilinear(field: Tensor, bases: tuple[Tensor, ...], y: Tensor, x: Tensor, he
     y1, x1 = (y0 + 1).clamp_max(height - 1), (x0 + 1).clamp_max(width - 1)
     out = []
     for base in bases:
-        at = lambda yy, xx: field.index_select(0, base + yy * width + xx)  # noqa: E731
-        top = torch.lerp(at(y0, x0), at(y0, x1), wx)
-        bottom = torch.lerp(at(y1, x0), at(y1, x1), wx)
+        top = torch.lerp(_at(field, base, y0, x0, width), _at(field, base, y0, x1, width), wx)
+        bottom = torch.lerp(_at(field, base, y1, x0, width), _at(field, base, y1, x1, width), wx)
         out.append(torch.lerp(top, bottom, wy))
     return out
+
+
+def _at(field: Tensor, base: Tensor, y: Tensor, x: Tensor, width: int) -> Tensor:
+    return field.index_select(0, base + y * width + x)

@@ -28,7 +28,7 @@ from torch import Tensor
 from .._validation import as_batch, as_number, check_frames, describe, per_sample
 from ..events.batch import EventBatch
 from ._dispatch import kernel_for, register_kernel
-from ._event_ops import _compact, _per_event
+from ._event_ops import _compact
 from ._random import draw_seeds, sample_salts, uniform
 
 __all__ = [
