@@ -830,12 +830,8 @@ def elastic(
         [[4, 2]]
     """
     kernel = kernel_for(elastic, frames)
-    if isinstance(frames, EventBatch):
-        batch, unbatch = frames, (lambda out: out)
-        b, (height, width) = len(frames), frames.sensor_size
-    else:
-        batch, unbatch = as_batch(check_frames(frames))
-        b, _, _, height, width = batch.shape
+    batch, b, unbatch = batch_of(frames)
+    height, width = batch.sensor_size if isinstance(batch, EventBatch) else batch.shape[-2:]
     if not isinstance(noise, Tensor):
         raise TypeError(f"noise must be a tensor (2, H, W) or (B, 2, H, W), got {type(noise).__name__}")
     if tuple(noise.shape) == (2, height, width):

@@ -138,13 +138,14 @@ def denoise_events(batch: EventBatch, radius: int, temporal_radius: int) -> Even
         >>> denoise_events(batch, 1, 1).x.tolist()  # the event at (0, 0) has no neighbour
         [3, 4]
     """
-    _, _, n_frames = _require_grid(batch, "denoise")
+    _require_grid(batch, "denoise")
     if batch.num_events == 0:
         return batch
     b = len(batch)
     height, width = batch.sensor_size
     grid = _grid(batch.sensor_size, None, None, 1, batch.frame_ms, torch.float32)
-    index, inside = _bin_index(batch, batch.t_start, n_frames, grid)
+    starts, _, n_frames = _require_grid(batch, "denoise")
+    index, inside = _bin_index(batch, starts, n_frames, grid)
     block = n_frames * grid.frame_size
     entry = index.to(torch.int64).add_(batch.sample_index().to(torch.int64) * block)
     occupied = torch.zeros(b * block, dtype=torch.float32, device=batch.device)

@@ -17,7 +17,7 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, per_sample
 from ..events.batch import EventBatch
-from ._dispatch import kernel_for, register_kernel
+from ._dispatch import batch_of, kernel_for, register_kernel
 from ._event_ops import _round_to
 from .affine import Center, _center_of_mass, _check_center, _mass_moments, _output_dtype, _warp
 
@@ -221,11 +221,7 @@ def stretch(
         [[0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.5, 0.5, 0.0], [0.0, 1.0, 1.0, 1.0, 0.0], [0.0, 0.5, 0.5, 0.5, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0]]
     """
     kernel = kernel_for(stretch, frames)
-    if isinstance(frames, EventBatch):
-        batch, unbatch, b = frames, (lambda out: out), len(frames)
-    else:
-        batch, unbatch = as_batch(check_frames(frames))
-        b = batch.shape[0]
+    batch, b, unbatch = batch_of(frames)
     factor_t = _check_factor(factor, b)
     axis_t = _check_axis(axis, b)
     check_choice(mode, "mode", INTERPOLATIONS)
