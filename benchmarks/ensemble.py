@@ -131,7 +131,7 @@ def run(
             for name, table in (("wall", wall), ("cpu", cpu)):
                 row[f"loop_{name}_s"] = statistics.median(table["loop"])
                 row[f"ensemble_{name}_s"] = statistics.median(table["ensemble"])
-                row[f"{name}_ratio"] = statistics.median(e / l for e, l in zip(table["ensemble"], table["loop"]))
+                row[f"{name}_ratio"] = statistics.median(e / loop for e, loop in zip(table["ensemble"], table["loop"]))
             rows.append(row)
             print(f"  pool {pool}, M={count}: wall ratio {row['wall_ratio']:.2f}, "
                   f"CPU-time ratio {row['cpu_ratio']:.2f}", flush=True)

@@ -6,8 +6,8 @@ score (a) the deployment's 24 validation grasps (the reference: real deployment 
 model was not fitted on), (b) the training grasps untransformed, and (c) the training
 grasps after each augmentation, against their own unchanged labels. A faithful
 augmentation scores near (a). Size methods on the size scenes, split by training bolt;
-time shifts on ``paper-lag`` (after the stretch too, since that scene also has the size
-gap). See :mod:`event_transforms.tactile.fidelity`.
+time shifts on ``paper-offset`` (a clock offset) and ``paper-membrane`` (a colder membrane's
+lag), after the stretch too, since those scenes also have the size gap. See :mod:`event_transforms.tactile.fidelity`.
 
 Run: ``python benchmarks/fidelity.py`` (``--quick``: the paper's 6 + 6 evaluation split).
 """
@@ -16,8 +16,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from typing import Any
-
-import torch
 
 if __package__:
     from ._common import apply_threads, base_parser, command, environment_lines, markdown_table, publish
@@ -62,14 +60,15 @@ def run(quick: bool = False, root: str | None = None) -> dict[str, dict[str, dic
             f"{size:g} mm": fidelity(data["test"], data["val"], _subset(data["train"], size), methods)
             for size in scene.train.diameters_mm
         }
-    scene = get_scene("paper-lag")
-    data = _split("paper-lag", root, quick)
-    stretch = SIZE_METHODS["stretch"](scene.target_size)
-    methods: dict[str, Any] = {"none": None, "stretch": stretch}
-    for m in ("fs-1", "tes-2:0.5"):
-        methods[m] = TIME_METHODS[m]()
-        methods[f"{m} + stretch"] = et.Compose([TIME_METHODS[m](), SIZE_METHODS["stretch"](scene.target_size)])
-    results["paper-lag"] = {"12 + 18 mm": fidelity(data["test"], data["val"], data["train"], methods)}
+    for name in ("paper-offset", "paper-membrane"):
+        scene = get_scene(name)
+        data = _split(name, root, quick)
+        stretch = SIZE_METHODS["stretch"](scene.target_size)
+        methods: dict[str, Any] = {"none": None, "stretch": stretch}
+        for m in scene.matched_methods:
+            methods[m] = TIME_METHODS[m]()
+            methods[f"{m} + stretch"] = et.Compose([TIME_METHODS[m](), SIZE_METHODS["stretch"](scene.target_size)])
+        results[name] = {"12 + 18 mm": fidelity(data["test"], data["val"], data["train"], methods)}
     return results
 
 

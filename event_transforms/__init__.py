@@ -42,11 +42,13 @@ _SUBMODULES = ("functional", "events", "transforms", "scenes", "inference", "dat
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
-    from . import data, functional, inference, scenes, tactile, transforms, viz
-    from .data import AugmentedDataset
-    from .functional import EventBatch, collate_events
-    from .inference import infer_scene
-    from .scenes import ResizeToTarget, Scene, StretchToTarget
+    # the `as` aliases mark these as re-exports (__all__ is computed, so linters cannot see it)
+    from . import data as data, functional as functional, inference as inference, scenes as scenes
+    from . import tactile as tactile, transforms as transforms, viz as viz
+    from .data import AugmentedDataset as AugmentedDataset
+    from .functional import EventBatch as EventBatch, collate_events as collate_events
+    from .inference import infer_scene as infer_scene
+    from .scenes import ResizeToTarget as ResizeToTarget, Scene as Scene, StretchToTarget as StretchToTarget
     from .transforms import *  # noqa: F403
 
 

@@ -243,7 +243,7 @@ def as_number(
         if not isinstance(value, Integral):
             if not (math.isfinite(value) and float(value).is_integer()):
                 raise TypeError(f"{name} must be an integer, got {value!r}")
-        number: Any = int(value)
+        number: Any = int(value)  # type: ignore[call-overload]  # a whole Real number
     else:
         number = float(value)
         if math.isnan(number) or (finite and math.isinf(number)):

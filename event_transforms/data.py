@@ -69,6 +69,10 @@ class AugmentedDataset(Dataset):
     ) -> None:
         if isinstance(copies, bool) or not isinstance(copies, (int, np.integer)) or copies < 0:
             raise ValueError(f"copies must be a non-negative integer, got {copies!r}")
+        if not (hasattr(base, "__len__") and hasattr(base, "__getitem__")) or isinstance(base, (str, bytes)):
+            raise TypeError(
+                f"base must be a map-style data set (with __len__ and __getitem__), got {type(base).__name__} {base!r}"[:200]
+            )
         self.base = base
         self.transform = as_transform(transform)
         self.copies = int(copies)

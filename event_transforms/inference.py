@@ -29,6 +29,25 @@ where ``|z| > z_gap`` (3: one false gap in about 370 per factor when nothing dif
 the difference is large enough to matter (``min_effect``). The uncertainty of every estimate
 is in :attr:`~event_transforms.Scene.evidence`.
 
+**Hot pixels.** A deployment camera with more hot pixels (pixels firing in every quiet
+frame) is a noise gap too: the hot-pixel count per sequence is compared in the same way
+(``|z| > z_gap`` and at least 1.5× as many and one more per sequence), and either trace
+declares the noise gap.
+
+**Detection limits.** A difference smaller than ``z_gap`` standard errors cannot be told
+from chance; the standard error shrinks as 1/√N with N recordings per side. Where no gap is
+declared, each factor's verdict (``scene.evidence["verdicts"]``) says either "no gap"
+(a difference as large as the smallest that matters, ``min_effect``, would have been seen)
+or "not resolvable from N unlabeled recordings: a difference below L would not be seen",
+with L = ``z_gap`` × the standard error. Measured on the package's simulator with 48
+training and 24 deployment recordings (``benchmarks/detection_rate.py``, RESULTS.md
+"infer_scene detection rate"): under the benchmark's 60 ms start jitter the onset's
+standard error is 5–6 ms per side, so a timing gap under about 17 ms (under two 10 ms
+frames) is not resolvable — one-frame clock offsets and membrane lags go undetected —
+while a 20 ms delay is found in most blocks; orientation, background-rate and hot-pixel
+gaps of the sizes in RESULTS.md are found reliably, and no gap was declared where none
+existed.
+
 **Size is not identifiable from unlabeled frames.** The strip's half-width grows as √(F·D)
 (Hertz line contact): without force labels, a bolt of another size hides in the force
 distribution (with forces over 1–24 N, a 12 + 18 mm mixture and a 15 mm set differ mostly in
@@ -60,6 +79,10 @@ FACTOR_TESTS: dict[str, tuple[str, float]] = {
     "timing": ("onset_ms", 3.0),
     "noise": ("log_background", math.log(1.5)),
 }
+#: Units of each factor's statistic, for the verdict sentences.
+_UNITS = {"orientation": "°", "timing": " ms", "noise": " (log background rate)"}
+#: A hot-pixel gap: at least this ratio of hot pixels per sequence, and one more.
+_HOT_RATIO = 1.5
 
 _QUIET_FRAMES = 4
 _ONSET_FRACTION = 0.2
@@ -78,6 +101,12 @@ def _as_frames(value: object, name: str) -> Tensor:
         raise ValueError(f"{name} must hold at least 2 sequences (N, T, 2, H, W), got {tuple(frames.shape)}")
     if frames.shape[1] < _QUIET_FRAMES + 2:
         raise ValueError(f"{name} needs at least {_QUIET_FRAMES + 2} frames per sequence, got {frames.shape[1]}")
+    if frames.is_floating_point() and not bool(torch.isfinite(frames).all()):
+        bad = (~torch.isfinite(frames)).flatten(1).any(1).nonzero().flatten().tolist()
+        raise ValueError(
+            f"{name} holds NaN or Inf counts (sequences {bad[:10]}{'...' if len(bad) > 10 else ''}); the statistics "
+            "would compare nothing and report no gap"
+        )
     return frames
 
 
@@ -228,6 +257,23 @@ def _compare(train: Tensor, deploy: Tensor, min_effect: float, z_gap: float) -> 
     }
 
 
+def _verdicts(evidence: dict[str, Any], z_gap: float, n_deploy: int) -> dict[str, str]:
+    """Per frame-based factor: "gap", "no gap", or "not resolvable from N unlabeled recordings"."""
+    out = {}
+    for factor, (_, min_effect) in FACTOR_TESTS.items():
+        test = evidence[factor]
+        limit = z_gap * test["se"]
+        test["resolvable_limit"] = limit
+        if test["gap"]:
+            out[factor] = "gap"
+        elif limit > min_effect and abs(test["difference"]) < limit:
+            out[factor] = (f"not resolvable from {n_deploy} unlabeled recordings: a difference below "
+                           f"{limit:.3g}{_UNITS[factor]} would not be seen (measured {test['difference']:+.3g})")
+        else:
+            out[factor] = "no gap"
+    return out
+
+
 def _sizes(value: object, name: str) -> tuple[float, ...] | None:
     if value is None:
         return None
@@ -275,7 +321,10 @@ def infer_scene(
         fraction of the events when the difference is under half a frame); the deployment's
         quietest frames as a noise bank; a stretch to the deployment size. ``scene.evidence``
         holds, per factor, the training and deployment summaries (mean, std, standard
-        error, n, min, max), their difference, its standard error, z and the verdict.
+        error, n, min, max), their difference, its standard error, z, the verdict and the
+        ``resolvable_limit`` (``z_gap`` standard errors); ``evidence["verdicts"]`` says per
+        factor "gap", "no gap" or "not resolvable from N unlabeled recordings: ..." (see
+        the module docstring's detection limits).
 
     Example:
         >>> g = torch.Generator().manual_seed(0)
@@ -305,7 +354,11 @@ def infer_scene(
     for factor, (statistic, min_effect) in FACTOR_TESTS.items():
         evidence[factor] = _compare(a[statistic], b[statistic], min_effect, z_gap)
         evidence[factor]["statistic"] = statistic
-    evidence["noise"]["hot_pixels"] = _compare(a["hot_pixels"], b["hot_pixels"], 0.0, z_gap)
+    hot = _compare(a["hot_pixels"], b["hot_pixels"], 1.0, z_gap)
+    hot["gap"] = bool(hot["gap"] and hot["deploy"]["mean"] >= _HOT_RATIO * hot["train"]["mean"])
+    evidence["noise"]["hot_pixels"] = hot
+    evidence["noise"]["background_gap"] = evidence["noise"]["gap"]
+    evidence["noise"]["gap"] = bool(evidence["noise"]["gap"] or hot["gap"])
     evidence["noise"]["background"] = {"train": _summary(a["background"]), "deploy": _summary(b["background"])}
     width = _compare(a["width_px"], b["width_px"], 0.0, z_gap)
     width["ratio"] = width["deploy"]["mean"] / max(width["train"]["mean"], 1e-12)
@@ -317,6 +370,7 @@ def infer_scene(
     size_gap = sizes_a is not None and sizes_b is not None and not set(sizes_b) <= set(sizes_a)
     evidence["size"] = {"width_px": width, "train_sizes": sizes_a, "deploy_sizes": sizes_b, "gap": size_gap}
     evidence["orientation"]["angle_deg"] = {"train": _summary(a["angle_deg"]), "deploy": _summary(b["angle_deg"])}
+    evidence["verdicts"] = _verdicts(evidence, z_gap, deploy_frames.shape[0])
 
     kwargs: dict[str, Any] = {}
     if evidence["timing"]["gap"]:

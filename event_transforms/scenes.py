@@ -36,10 +36,13 @@ from __future__ import annotations
 
 __all__ = ["Scene", "ResizeToTarget", "StretchToTarget", "metadata_values", "SIZE_TRANSFORMS"]
 
+import math
+
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -114,7 +117,7 @@ class _ToTarget:
         return _target_factors(metadata, self.key, shape[0], self.target_size, self.exponent, type(self).__name__)
 
     def _settings(self) -> str:
-        return f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, {self._common()}"
+        return f"target_size={self.target_size}, key={self.key!r}, exponent={self.exponent}, {self._common()}"  # type: ignore[attr-defined]
 
 
 class ResizeToTarget(_ToTarget, _Zoom):
@@ -155,7 +158,9 @@ class ResizeToTarget(_ToTarget, _Zoom):
         super().__init__(center=center, mode=mode, p=p)
         self._set_target(target_size, key, exponent)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(
+        self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None
+    ) -> Params:
         return {"scale": self._factors(shape, metadata)}
 
 
@@ -211,7 +216,9 @@ class StretchToTarget(_ToTarget, _StretchWarp):
         super().__init__(axis=axis, center=center, mode=mode, p=p)
         self._set_target(target_size, key, exponent)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(
+        self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None
+    ) -> Params:
         return {"factor": self._factors(shape, metadata)}
 
 
@@ -299,6 +306,17 @@ class Scene:
                 f"noise must be static-scene frames (N, 2, H, W), a rate in Hz or a (min, max) "
                 f"range, got {type(self.noise).__name__}"
             )
+        # Every setting is checked here, under its own name (not first at policy()).
+        if self.lag_shifts is not None:
+            _check_shifts(self.lag_shifts)
+        if self.lag_fraction is not None:
+            _check_range(self.lag_fraction, "lag_fraction", low=0.0, high=1.0)
+        if self.orientation_deg is not None:
+            _check_range(self.orientation_deg, "orientation_deg", symmetric=True)
+        if self.noise is not None and not isinstance(self.noise, Tensor):
+            _check_range(self.noise, "noise", low=0.0)
+        elif isinstance(self.noise, Tensor) and (self.noise.dim() != 4 or self.noise.shape[1] != 2):
+            raise ValueError(f"noise frames must be (N, 2, H, W), got shape {tuple(self.noise.shape)}")
 
     @property
     def effects(self) -> tuple[str, ...]:
@@ -389,6 +407,35 @@ class Scene:
                 raise ValueError("weights apply to the independent combination only")
             container = Compose(members)
         return container
+
+
+def _check_shifts(shifts: object) -> None:
+    """``lag_shifts``: whole frames, as a sequence of integers."""
+    if isinstance(shifts, (str, bytes)) or not isinstance(shifts, (Sequence, range)):
+        raise TypeError(f"lag_shifts must be a sequence of whole frames (integers), got {shifts!r}")
+    for shift in shifts:
+        if isinstance(shift, bool) or not isinstance(shift, (int, np.integer)):
+            raise ValueError(f"lag_shifts must hold whole frames (integers), got {list(shifts)!r}")
+
+
+def _check_range(value: object, name: str, *, low: float | None = None, high: float | None = None,
+                 symmetric: bool = False) -> None:
+    """A finite number (``±d`` when ``symmetric``) or a ``(min, max)`` pair, within ``[low, high]``."""
+    numbers: list[Any] = list(value) if isinstance(value, (tuple, list)) else [value]
+    if len(numbers) not in (1, 2) or isinstance(value, (tuple, list)) and len(numbers) != 2 or any(
+        isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) for v in numbers
+    ):
+        raise TypeError(f"{name} must be a number or a (min, max) pair, got {value!r}")
+    floats = [float(v) for v in numbers]
+    if not all(math.isfinite(v) for v in floats):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if len(floats) == 2 and floats[0] > floats[1]:
+        raise ValueError(f"{name} must be (min, max) with min <= max, got {value!r}")
+    if symmetric and len(floats) == 1:
+        floats = [-abs(floats[0]), abs(floats[0])]
+    if (low is not None and min(floats) < low) or (high is not None and max(floats) > high):
+        bounds = f"[{low if low is not None else '-inf'}, {high if high is not None else 'inf'}]"
+        raise ValueError(f"{name} must lie in {bounds}, got {value!r}")
 
 
 def _spread(value: object, low: float | None = None) -> float:

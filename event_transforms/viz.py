@@ -2,11 +2,13 @@
 
 The grids (:func:`make_event_grid`, :func:`compare_transform`) are built on torchvision's
 ``make_grid`` and ``save_image`` (Pillow writes the PNG); no plotting library is needed.
+torchvision is not a dependency of the base install: it comes with the ``viz`` extra
+(``pip install 'event-transforms[viz]'``), and a grid without it raises an
+:class:`ImportError` that says so.
 The labelled figures (:func:`plot_transform`: rows named before/after, a polarity legend,
 frame times, the frames where the transform acts; :func:`plot_scene`: training above
 deployment, the scene's gaps in the title, event-rate curves and histograms of the
-contact width, angle and onset beside the frames) need matplotlib, the ``plot`` extra
-(``pip install event-transforms[plot]``), imported on first use.
+contact width, angle and onset beside the frames) need matplotlib, also in the ``viz`` extra (and in ``app``), imported on first use.
 """
 
 from __future__ import annotations
@@ -139,9 +141,7 @@ def make_event_grid(
     images = rgb.flatten(0, -4)
     if images.shape[0] == 0:
         raise ValueError(f"frames must hold at least one frame, got shape {tuple(frames.shape)}")
-    from torchvision.utils import make_grid  # imported on first use: torchvision is slow to import
-
-    return make_grid(images, nrow=max(1, int(nrow)), padding=padding, pad_value=pad_value)
+    return _torchvision_utils().make_grid(images, nrow=max(1, int(nrow)), padding=padding, pad_value=pad_value)
 
 
 def save_event_grid(frames: Tensor, path: str | os.PathLike[str], **kwargs: Any) -> Path:
@@ -160,9 +160,7 @@ def _write(image: Tensor, path: str | os.PathLike[str]) -> Path:
     """Save a uint8 (3, H, W) image losslessly (PNG by the file's suffix)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    from torchvision.utils import save_image
-
-    save_image(image.to(torch.float32) / 255, path)  # save_image rounds back to the same bytes
+    _torchvision_utils().save_image(image.to(torch.float32) / 255, path)  # save_image rounds back to the same bytes
     return path
 
 
@@ -221,6 +219,19 @@ def compare_transform(
 # --------------------------------------------------------------------------- labelled figures
 
 
+def _torchvision_utils() -> Any:
+    """``torchvision.utils``, imported on first use (it is slow to import, and an extra)."""
+    try:
+        import torchvision.utils  # type: ignore[import-untyped]
+    except ImportError as error:
+        raise ImportError(
+            "event_transforms.viz draws its grids with torchvision, which is not installed: "
+            "pip install 'event-transforms[viz]'",
+            name="torchvision",
+        ) from error
+    return torchvision.utils
+
+
 def _pyplot() -> Any:
     try:
         import matplotlib
@@ -229,7 +240,8 @@ def _pyplot() -> Any:
         import matplotlib.pyplot as plt
     except ImportError:  # pragma: no cover - depends on the environment
         raise ImportError(
-            "the labelled figures need matplotlib: pip install 'event-transforms[plot]'"
+            "the labelled figures need matplotlib: pip install 'event-transforms[viz]' (or [app])",
+            name="matplotlib",
         ) from None
     return plt
 
@@ -268,8 +280,8 @@ def _legend(ax: Any) -> None:
 
     ax.legend(
         handles=[
-            Patch(color=[c / 255 for c in ON_COLOR], label="ON (channel 1)"),
-            Patch(color=[c / 255 for c in OFF_COLOR], label="OFF (channel 0)"),
+            Patch(color=tuple(c / 255 for c in ON_COLOR), label="ON (channel 1)"),  # type: ignore[arg-type]
+            Patch(color=tuple(c / 255 for c in OFF_COLOR), label="OFF (channel 0)"),  # type: ignore[arg-type]
         ],
         loc="upper right",
         fontsize=7,
@@ -315,9 +327,7 @@ def plot_transform(
         rgb = rgb.repeat_interleave(upscale, -2).repeat_interleave(upscale, -1)
     k, (h, w) = len(frames), rgb.shape[-2:]
     padding = 2
-    from torchvision.utils import make_grid
-
-    image = make_grid(rgb.flatten(0, 1), nrow=k, padding=padding, pad_value=128)
+    image = _torchvision_utils().make_grid(rgb.flatten(0, 1), nrow=k, padding=padding, pad_value=128)
     fig, ax = plt.subplots(figsize=(1.2 * k + 1.2, 3.0))
     ax.imshow(image.permute(1, 2, 0).numpy())
     ax.set_xticks([padding + (w + padding) * c + w / 2 for c in range(k)])
@@ -370,7 +380,13 @@ def plot_scene(
     plt = _pyplot()
     check_frames(train, "train")
     check_frames(deploy, "deploy")
-    rows = max(1, min(int(rows), train.shape[0], deploy.shape[0]))
+    if isinstance(rows, bool) or not isinstance(rows, int) or rows < 1:
+        raise ValueError(f"rows must be a positive integer, got {rows!r}")
+    if train.dim() != 5 or deploy.dim() != 5 or rows > min(train.shape[0], deploy.shape[0]):
+        raise ValueError(
+            f"rows={rows} asks for more grasps than the sessions hold (train {tuple(train.shape)}, deploy "
+            f"{tuple(deploy.shape)}): pass (N, T, 2, H, W) with N >= rows"
+        )
     shown = torch.cat([train[:rows], deploy[:rows]]).detach().cpu().double()[:, ::every]
     k, (h, w) = shown.shape[1], shown.shape[-2:]
     padding = 2
@@ -418,9 +434,16 @@ def plot_scene(
     return _saved(fig, path, plt, dpi=100)
 
 
-def _saved(fig: Any, path: str | Path | None, plt: Any, *, dpi: int) -> Any:
-    """Write ``fig`` to ``path`` (folders made) and close it; the figure either way."""
+def _saved(fig: Any, path: str | os.PathLike[str] | None, plt: Any, *, dpi: int) -> Any:
+    """Write ``fig`` to ``path`` (folders made) and close it; the figure either way.
+
+    ``path`` is the file written, exactly: an existing folder or a name without a suffix
+    (which matplotlib would complete to ``<path>.png`` beside it) is refused.
+    """
     if path is not None:
+        if Path(path).is_dir() or not Path(path).suffix:
+            plt.close(fig)
+            raise ValueError(f"path must name an image file (e.g. figure.png), got {str(path)!r}")
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=dpi)
         plt.close(fig)

@@ -122,7 +122,11 @@ class TestBattery:
         with pytest.raises(ValueError, match=r"got \(2, 11\)"):
             module(torch.zeros(2, W))
         with pytest.raises(TypeError, match="frames"):
-            module(np.zeros((6, 2, H, W)))
+            module([[0.0, 1.0]])
+        # numpy frames (tonic's ToFrame, DiskCachedDataset) are converted once, not refused
+        frames = np.random.default_rng(0).poisson(1.0, (6, 2, H, W)).astype(np.float32)
+        expected = module(torch.from_numpy(frames.copy()), generator=torch.Generator().manual_seed(0))
+        assert torch.equal(module(frames, generator=torch.Generator().manual_seed(0)), expected)
 
     @pytest.mark.parametrize("bad, message", [(-1.0, "non-negative"), (float("nan"), "finite")])
     def test_negative_and_nan_counts(self, name, bad, message):
@@ -447,3 +451,77 @@ def test_unsigned_wide_dtypes_are_refused_by_name():
     for dtype in (torch.uint16, torch.uint32, torch.uint64):
         with pytest.raises(TypeError, match=f"got {dtype}"):
             et.FrameShift(1)(torch.zeros(2, 2, 3, 3, dtype=dtype))
+
+
+class TestRawAndSilentCases:
+    """The bad-input battery's raw and silent cases (issue 27), each with its named outcome."""
+
+    def test_value_reading_transform_on_meta_frames(self):
+        frames = torch.zeros(2, 3, 2, 8, 8, device="meta")
+        with pytest.raises(ValueError, match="RandomTemporalEventShift reads the values .* device 'meta'"):
+            et.RandomTemporalEventShift([-1, 1])(frames)
+        with pytest.raises(ValueError, match="Compose reads the values"):
+            et.Compose([et.RandomRotation(10), et.RandomTemporalEventShift([-1, 1])])(frames)
+        assert et.RandomRotation(10)(frames).device.type == "meta"  # shape-only transforms still run there
+
+    def test_params_tree_on_meta(self):
+        module = et.Compose([et.RandomRotation(10), et.RandomTemporalEventShift([-1, 1])])
+        params = module.make_params((2, 3, 2, 8, 8), generator=torch.Generator().manual_seed(0))
+        params["1"] = {k: v.to("meta") for k, v in params["1"].items()}
+        with pytest.raises(ValueError, match=r"params\['1'\]\['\w+'\] is on the meta device"):
+            module(torch.zeros(2, 3, 2, 8, 8), params=params)
+
+    @pytest.mark.parametrize("generator", [5, "seed", np.random.default_rng(0)])
+    def test_make_params_generator_of_the_wrong_type(self, generator):
+        with pytest.raises(TypeError, match="make_params: generator must be a torch.Generator or None, got"):
+            et.RandomRotation(10).make_params((2, 3, 2, 8, 8), generator=generator)
+
+    def test_meta_generator_is_refused_by_torch_itself(self):
+        # torch's own constructor raises before any library code runs: documented, not ours to change
+        with pytest.raises(RuntimeError, match="META"):
+            torch.Generator(device="meta")
+
+    @pytest.mark.parametrize("module", [et.Downsample(2), et.MergePolarities()], ids=["Downsample", "MergePolarities"])
+    @pytest.mark.parametrize("dtype", [torch.float16, torch.bfloat16])
+    def test_half_precision_overflow_is_refused_by_name(self, module, dtype):
+        frames = torch.full((1, 2, 2, 4, 4), torch.finfo(dtype).max * 0.75, dtype=dtype)
+        with pytest.raises(ValueError, match=rf"does not fit frames of dtype {dtype}"):
+            module(frames)
+        small = torch.ones(1, 2, 2, 4, 4, dtype=dtype)
+        assert torch.isfinite(module(small)).all()
+
+    @pytest.mark.parametrize("name, module", [
+        ("RandomRotation", lambda: et.RandomRotation(20)),
+        ("RandomResize", lambda: et.RandomResize((0.8, 1.2))),
+        ("RandomAffine", lambda: et.RandomAffine(20)),
+        ("RandomStretch", lambda: et.RandomStretch((0.8, 1.25))),
+        ("RandomPerspective", lambda: et.RandomPerspective(0.3)),
+        ("RandomElastic", lambda: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0)),
+    ])
+    def test_nan_pixel_stays_local(self, name, module):
+        # NaN policy of the interpolating kernels: a NaN pixel reaches only the output pixels
+        # whose interpolation reads it; it never moves a sample's centre of mass
+        frames = torch.rand(2, 3, 2, 16, 16)
+        frames[0, 1, 0, 8, 8] = float("nan")
+        out = module()(frames, generator=torch.Generator().manual_seed(0))
+        nan = out.isnan()
+        assert nan[0, 1, 0].sum() <= 16, f"{name}: {int(nan[0, 1, 0].sum())} NaN pixels from one"
+        assert nan.sum() == nan[0, 1, 0].sum()  # no other frame, polarity or sample touched
+        clean = frames.clone()
+        clean[0, 1, 0, 8, 8] = 0.0
+        expected = module()(clean, generator=torch.Generator().manual_seed(0))
+        assert torch.equal(out[1], expected[1])  # the other sample is as without the NaN
+
+    def test_center_of_mass_ignores_non_finite_pixels(self):
+        from event_transforms.functional.affine import center_of_mass
+
+        frames = torch.zeros(3, 2, 5, 7)
+        frames[0, 1, 1, 2] = 1.0
+        with_nan = frames.clone()
+        with_nan[2, 0, 4, 6] = float("nan")
+        with_nan[1, 0, 0, 0] = float("inf")
+        assert torch.equal(center_of_mass(with_nan), center_of_mass(frames))
+
+    def test_augmented_dataset_base_checked_at_construction(self):
+        with pytest.raises(TypeError, match="base must be a map-style data set .* got int 5"):
+            et.AugmentedDataset(5, et.HorizontalFlip())

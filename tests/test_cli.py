@@ -24,6 +24,7 @@ from event_transforms.tactile.protocol import (
     parse_method,
     run_protocol,
 )
+from event_transforms.tactile.runs import folder_name
 from event_transforms.tactile.scenes import SCENES, get_scene
 from event_transforms.tactile.stats import holm, paired_t
 from event_transforms.tactile.training import Stopwatch
@@ -184,7 +185,8 @@ class TestScenesAndMethods:
         assert methods_for("paper") == PAPER_METHODS + ("stretch", *policies)
         assert methods_for("timing") == ("none", "fs2", "tes2:0.5", *policies)
         assert methods_for("control") == QUICK_METHODS["control"]
-        assert methods_for("paper-lag") == ("none", "fs-1", "tes-2:0.5", "stretch", *policies)
+        assert methods_for("paper-offset") == ("none", "fs-1", "tes-2:0.5", "stretch", *policies)
+        assert methods_for("paper-membrane") == ("none", "fs1", "tes1:0.5", "stretch", *policies)
         assert methods_for("control")[0] == "none"
         full = methods_for("control", full=True)
         assert "resize" not in full and "rot45" in full and "noise" in full  # no size gap: no resize
@@ -323,8 +325,8 @@ class TestRunProtocol:
         largest = max((m for m in deltas if m != "none"), key=lambda m: abs(deltas[m]["delta_vs_none"]["mean"]))
         assert check["method"] == largest and check["delta"] == deltas[largest]["delta_vs_none"]["mean"]
         double = ProtocolConfig(**{**TINY.__dict__, "steps": 2 * TINY.steps})
-        runs = {m: json.loads((out / "runs" / double.key() / f"timing_{m}.json").read_text())[m]
-                for m in ("none", largest)}
+        folder = out / "runs" / folder_name(double, self.seeds)
+        runs = {m: json.loads((folder / f"timing_{m}.json").read_text())["result"][m] for m in ("none", largest)}
         assert all(r["steps"] == 2 * TINY.steps for rs in runs.values() for r in rs)
         expected = paired_t([r["test_mse"] for r in runs["none"]], [r["test_mse"] for r in runs[largest]])
         assert check["delta_2n"] == pytest.approx(expected.mean)
@@ -539,6 +541,15 @@ class TestCommandLineErrors:
         line = self._error(["reproduce", "--scenes", "control", "--methods", "bogus", "--out", str(tmp_path)], capsys)
         assert "'bogus'" in line and "rot<deg>" in line and "tes<j>:<fraction>" in line
 
+    def test_show_scene_more_rows_than_grasps_is_refused(self, tmp_path, capsys):
+        # it used to say "50 training rows" and draw 2
+        line = self._error(["show-scene", "control", "--rows", "50", "--count", "2", "--out", str(tmp_path / "o")], capsys)
+        assert "--rows 50" in line and "--count 2" in line and not (tmp_path / "o").exists()
+
+    def test_show_out_without_a_suffix_is_refused_before_simulating(self, tmp_path, capsys):
+        line = self._error(["show", "none", "--root", str(tmp_path / "cache"), "--out", str(tmp_path / "picture")], capsys)
+        assert "must name a .png file or an existing folder" in line and not (tmp_path / "cache").exists()
+
     def test_show_unknown_method_before_any_simulation(self, tmp_path, capsys):
         line = self._error(["show", "bogus", "--root", str(tmp_path / "cache"), "--out", str(tmp_path / "x.png")],
                            capsys)
@@ -592,13 +603,38 @@ class TestCommandLineRealData:
         assert out.exists() and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert str(out) in capsys.readouterr().out
 
+    def test_show_into_an_existing_folder_writes_inside_it(self, cache, tmp_path, capsys):
+        # it used to write <folder>.png beside the folder and say it wrote the folder
+        folder = tmp_path / "figures"
+        folder.mkdir()
+        assert cli.main(["show", "fs-1", "--root", str(cache), "--out", str(folder), "--index", "30"]) == 0
+        written = folder / "fs-1.png"
+        assert written.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and not (tmp_path / "figures.png").exists()
+        assert f"wrote {written}" in capsys.readouterr().out
+
     def test_show_without_matplotlib_is_one_line(self, cache, tmp_path, capsys, monkeypatch):
         for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
             monkeypatch.delitem(sys.modules, name)
         monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib raises ImportError
         assert cli.main(["show", "none", "--root", str(cache), "--out", str(tmp_path / "x.png")]) == 2
         err = capsys.readouterr().err
-        assert "show: error:" in err and "event-transforms[plot]" in err and len(err.strip().splitlines()) == 1
+        assert "show: error: matplotlib is not installed" in err and "event-transforms[app]" in err
+        assert len(err.strip().splitlines()) == 1
+
+    def test_missing_tqdm_names_the_app_extra(self, tmp_path, capsys, monkeypatch):
+        monkeypatch.setitem(sys.modules, "tqdm", None)  # import tqdm raises ImportError
+        assert cli.main(["reproduce", "--out", str(tmp_path / "out"), "--root", str(tmp_path / "cache")]) == 2
+        err = capsys.readouterr().err
+        assert "reproduce: error: tqdm is not installed" in err and "event-transforms[app]" in err
+        assert not (tmp_path / "cache").exists()  # refused before simulating anything
+
+    def test_fit_ensemble_without_tqdm_names_the_extra(self, monkeypatch):
+        from event_transforms.tactile.ensemble import EnsembleForceRegressor, fit_ensemble
+
+        monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+        with pytest.raises(ImportError, match=r"event-transforms\[app\]") as info:
+            fit_ensemble(EnsembleForceRegressor(1, hidden_channels=(2,)), [], [], steps=1, batch_size=1, seeds=[0])
+        assert info.value.name == "tqdm"
 
     def test_show_bad_index(self, cache, tmp_path):
         with pytest.raises(SystemExit, match="index"):
@@ -608,3 +644,14 @@ class TestCommandLineRealData:
         assert cli.main(["show-scene", "timing", "--count", "3", "--out", str(tmp_path)]) == 0
         path = tmp_path / "scene_timing.png"
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "deployment" in capsys.readouterr().out
+
+
+def test_a_seed_does_not_depend_on_the_seeds_beside_it():
+    """Issue 24: seed 0 trained alone equals seed 0 trained beside seed 1, bit for bit."""
+    data = fake_data("paper")
+    config = ProtocolConfig(**{**TINY.__dict__, "steps": 12, "eval_every": 4})
+    alone = protocol.run_unit("paper", ["none", "rot45"], [0], config, data)
+    shared = protocol.run_unit("paper", ["none", "rot45"], [0, 1], config, data)
+    for method in ("none", "rot45"):
+        assert alone[method][0]["test_mse"] == shared[method][0]["test_mse"]
+        assert alone[method][0]["holdout_history"] == shared[method][0]["holdout_history"]

@@ -122,7 +122,7 @@ class TestTactileGrasps:
     def test_recording_resimulates_the_item(self, root):
         test = TactileGrasps("val", root=root)
         recording = test.recording(2)
-        frames = recording.frames(crop=recording.contact_crop(), pool=2)
+        frames = recording.frames(crop=recording.sensor_crop(), pool=2)
         assert torch.equal(frames, test[2][0])
         assert np.array_equal(recording.force, test[2][1].numpy())
 

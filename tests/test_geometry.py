@@ -90,8 +90,8 @@ class TestCrop:
         params = module.make_params(frames.shape, generator=_g(3))
         out = module(frames, params=params)
         for n in range(4):
-            t, l = int(params["top"][n]), int(params["left"][n])
-            assert torch.equal(out[n], frames[n, :, :, t : t + 5, l : l + 4])
+            top, left = int(params["top"][n]), int(params["left"][n])
+            assert torch.equal(out[n], frames[n, :, :, top : top + 5, left : left + 4])
         assert module.output_shape(frames.shape) == out.shape
 
     def test_named_errors(self):

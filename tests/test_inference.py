@@ -53,6 +53,29 @@ class TestEstimators:
         sized = infer_scene(train, _strips(24, 3, seed=5), train_sizes=(12.0, 18.0), deploy_sizes=15.0)
         assert sized.gaps == ("size",) and isinstance(sized.transforms()[0], et.StretchToTarget)
 
+    def test_hot_pixels_declare_a_noise_gap(self):
+        """Pixels firing in every frame (hot pixels) at an unchanged background rate: a noise
+        gap from the hot-pixel evidence alone."""
+        train = _strips(24, 3, seed=1)
+        deploy = _strips(24, 3, seed=2)
+        deploy[:, :, 1, 0, :6] += 1.0  # six hot pixels in every deployment sequence
+        scene = infer_scene(train, deploy)
+        assert scene.evidence["noise"]["background_gap"] is False
+        assert scene.evidence["noise"]["hot_pixels"]["gap"] and scene.gaps == ("noise",)
+        assert scene.evidence["verdicts"]["noise"] == "gap"
+
+    def test_below_the_limit_says_not_resolvable(self):
+        """A timing difference below 3 standard errors with few recordings: the verdict names
+        the limit and the number of recordings instead of claiming no gap."""
+        g = torch.Generator().manual_seed(0)
+        train = torch.cat([_strips(1, int(torch.randint(1, 6, (), generator=g)), seed=k) for k in range(4)])
+        deploy = torch.cat([_strips(1, int(torch.randint(1, 6, (), generator=g)), seed=10 + k) for k in range(4)])
+        scene = infer_scene(train, deploy)
+        assert "timing" not in scene.gaps
+        verdict = scene.evidence["verdicts"]["timing"]
+        limit = scene.evidence["timing"]["resolvable_limit"]
+        assert limit > 3.0 and verdict.startswith("not resolvable from 4 unlabeled recordings"), verdict
+
     def test_policy_runs_on_a_batch(self):
         train = _strips(12, 3, seed=1)
         scene = infer_scene(train, _strips(12, 7, noise=0.3, angle=35.0, seed=2), train_sizes=12.0, deploy_sizes=15.0)
@@ -60,6 +83,15 @@ class TestEstimators:
         out = scene.policy()(train[:4], metadata={"diameter_mm": torch.full((4,), 12.0)}, generator=torch.Generator().manual_seed(0))
         assert out.shape == train[:4].shape
         assert scene.evidence["timing"]["difference"] > 0 and scene.evidence["timing"]["se"] > 0
+
+    @pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+    @pytest.mark.parametrize("side", ["train", "deploy"])
+    def test_non_finite_frames_are_refused(self, bad, side):
+        # they used to give "no gaps": every statistic NaN, every comparison false
+        frames = {"train": _strips(6, 3, seed=1), "deploy": _strips(6, 3, seed=2)}
+        frames[side][2, 4, 0, 5, 5] = bad
+        with pytest.raises(ValueError, match=rf"{side} holds NaN or Inf counts \(sequences \[2\]\)"):
+            infer_scene(frames["train"], frames["deploy"])
 
     def test_empty_and_integer_frames(self):
         empty = torch.zeros(3, 8, 2, 10, 12, dtype=torch.int16)
@@ -116,16 +148,28 @@ def inferred():
 
 class TestSimulatedScenes:
     def test_gap_set_equals_the_declared_one(self, inferred):
+        """Every declared gap is found, except the one-frame timing gaps of the paper's lag
+        scenes: under the base 60 ms start jitter they are below the detection limit, and the
+        verdict says so instead of "no gap"."""
+        one_frame = {"paper-offset", "paper-membrane", "paper-lag"}
         for name, (scene, _, _) in inferred.items():
-            assert set(scene.gaps) == set(get_scene(name).gaps), name
+            expected = set(get_scene(name).gaps) - ({"timing"} if name in one_frame else set())
+            assert set(scene.gaps) == expected, name
+            if name in one_frame:
+                verdict = scene.evidence["verdicts"]["timing"]
+                assert verdict.startswith("not resolvable from 24 unlabeled recordings"), (name, verdict)
+                assert scene.evidence["timing"]["resolvable_limit"] > 10.0
+        assert inferred["control"][0].evidence["verdicts"]["orientation"] == "no gap"
 
     def test_timing_within_6_ms(self, inferred):
         """The onset difference matches the sessions' mean delay difference within 6 ms."""
         for name, (scene, _, _) in inferred.items():
+            if name == "paper-membrane":  # a lag, not a delay: no single expected difference
+                continue
             truth = get_scene(name)
             mean = lambda s: sum(s.config.delay_ms) / 2  # noqa: E731
             assert scene.evidence["timing"]["difference"] == pytest.approx(mean(truth.deploy) - mean(truth.train), abs=6.0), name
-        assert inferred["timing"][0].lag_shifts == (2,) and inferred["paper-lag"][0].lag_shifts == (-1,)
+        assert inferred["timing"][0].lag_shifts == (2,)
 
     def test_orientation_within_3_degrees(self, inferred):
         """Per-grasp contact angles within 3° of the drawn angle (median error ≤ 1.5°), and the
@@ -169,7 +213,7 @@ class TestSimulatedScenes:
         assert scene.evidence["size"]["width_px"]["ratio"] == pytest.approx(expected, abs=0.1)
 
     def test_size_from_the_sizes_given(self, inferred):
-        for name in ("paper", "size-extrapolation", "paper-lag"):
+        for name in ("paper", "size-extrapolation", "paper-offset", "paper-membrane"):
             scene = inferred[name][0]
             assert scene.target_size == get_scene(name).target_size and scene.size_transform == "stretch"
         # without sizes, no size gap: the frames cannot show it (width ratio within 10 % of 1)

@@ -7,7 +7,6 @@ from __future__ import annotations
 import pickle
 import warnings
 
-import numpy as np
 import pytest
 import torch
 from hypothesis import given, settings
@@ -190,7 +189,7 @@ class TestMixingBattery:
         with pytest.raises(ValueError, match=r"got \(6, 3, 17, 11\)"):
             module(torch.zeros(6, 3, H, W))
         with pytest.raises(TypeError, match="frames"):
-            module(np.zeros((6, 2, H, W)))
+            module([[0.0, 1.0]])  # numpy frames are converted (tests/test_ingestion.py), other types refused
         with pytest.raises(ValueError, match="alpha"):
             et.MixUp(0.0)
         with pytest.raises(ValueError, match="partner"):

@@ -18,7 +18,7 @@ def _batch():
     return frames, {"diameter_mm": torch.tensor([12.0, 18.0, 12.0, 18.0])}
 
 
-@pytest.mark.parametrize("scene", ["paper", "timing", "paper-lag"])
+@pytest.mark.parametrize("scene", ["paper", "timing", "paper-offset"])
 @pytest.mark.parametrize("name", POLICY_METHODS)
 def test_every_policy_method_builds_and_runs(scene, name):
     if name == "stretch" and get_scene(scene).target_size is None:
@@ -38,12 +38,15 @@ def test_every_policy_method_builds_and_runs(scene, name):
 def test_policy_contents():
     bank = torch.zeros(6, 2, 70, 75)
     prior = prior_scene("paper", bank)
-    assert prior.effects == ("lag", "size", "orientation", "noise")
+    assert prior.effects == ("lag", "size", "orientation", "position", "noise")
     assert tuple(prior.lag_shifts) == (-3, -2, -1, 1, 2, 3) and prior.orientation_deg == 45.0
-    assert prior_scene("timing", bank).effects == ("lag", "orientation", "noise")  # no size gap
+    assert prior_scene("timing", bank).effects == ("lag", "orientation", "position", "noise")  # no size gap
     everything = parse_method("everything", scene="paper").build()
+    prior_policy = parse_method("prior", scene="paper").build()
     assert isinstance(everything, et.Compose) and len(everything.transforms) == 5
-    assert isinstance(parse_method("prior", scene="paper").build(), et.OneOf)
+    assert isinstance(prior_policy, et.OneOf)
+    # one thing differs, the combination: the same effects with the same settings
+    assert [repr(t) for t in prior_policy.transforms] == [repr(t) for t in everything.transforms]
     assert isinstance(parse_method("stretch", scene="size-extrapolation").build(), et.StretchToTarget)
     assert policy_rows("control") == () and policy_rows("noise") == ("inferred", "prior", "everything")
 

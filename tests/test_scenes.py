@@ -258,3 +258,28 @@ def test_contact_shift_declares_a_translation():
     assert Scene(contact_shift_px=0).effects == ()
     with pytest.raises(ValueError, match="contact_shift_px"):
         Scene(contact_shift_px=-1)
+
+
+class TestSceneSettingsAtConstruction:
+    """Each setting is checked when the Scene is built, under its own name (issue 27)."""
+
+    @pytest.mark.parametrize("kwargs, error, match", [
+        ({"lag_shifts": [0.5]}, ValueError, r"lag_shifts must hold whole frames \(integers\), got \[0.5\]"),
+        ({"lag_shifts": [True]}, ValueError, "lag_shifts"),
+        ({"lag_shifts": 3}, TypeError, "lag_shifts must be a sequence"),
+        ({"noise": float("nan")}, ValueError, "noise must be finite"),
+        ({"noise": -1.0}, ValueError, r"noise must lie in \[0.0, inf\]"),
+        ({"noise": (5.0, 1.0)}, ValueError, "noise must be .min, max. with min <= max"),
+        ({"noise": torch.zeros(3, 4, 4)}, ValueError, r"noise frames must be \(N, 2, H, W\)"),
+        ({"lag_shifts": [1], "lag_fraction": 1.5}, ValueError, r"lag_fraction must lie in \[0.0, 1.0\]"),
+        ({"lag_shifts": [1], "lag_fraction": float("nan")}, ValueError, "lag_fraction must be finite"),
+        ({"orientation_deg": float("inf")}, ValueError, "orientation_deg must be finite"),
+        ({"orientation_deg": (1.0, 2.0, 3.0)}, TypeError, "orientation_deg must be a number or a"),
+    ])
+    def test_bad_settings(self, kwargs, error, match):
+        with pytest.raises(error, match=match):
+            Scene(**kwargs)
+
+    def test_good_settings_still_build(self):
+        scene = Scene(lag_shifts=range(-2, 1), lag_fraction=(0.2, 0.8), orientation_deg=10, noise=(0.0, 5.0))
+        assert scene.effects == ("lag", "orientation", "noise")

@@ -382,3 +382,31 @@ class TestLagEffects:
             SimulatorConfig(release_lag_ratio=0.0)
         with pytest.raises(ValueError, match="label_lowpass_ms"):
             SimulatorConfig(label_lowpass_ms=-1.0)
+
+
+class TestSizeModels:
+    """Issue 24: documented variants of how the strip changes with the bolt diameter."""
+
+    def test_defaults_leave_the_output_unchanged(self):
+        from event_transforms.tactile.simulation import SIZE_MODELS
+
+        config = SimulatorConfig(shot_noise=False, hot_pixels=False)
+        a = simulate_grasp(12.0, seed=3, config=config)
+        b = simulate_grasp(12.0, seed=3, config=config.replace(**SIZE_MODELS["hertz"]))
+        assert np.array_equal(a.events, b.events)
+
+    def test_growing_strip_is_longer_and_darker_for_a_bigger_bolt(self):
+        config = SimulatorConfig(shot_noise=False, hot_pixels=False, orientation=False, center_jitter_px=0.0,
+                                 strip_length_exponent=0.5, contrast_exponent=0.5)
+        plain = config.replace(strip_length_exponent=0.0, contrast_exponent=0.0)
+        for diameter in (12.0, 18.0):
+            grown, fixed = (simulate_grasp(diameter, seed=1, config=c) for c in (config, plain))
+            extent = lambda r: np.ptp(r.events["x"])  # noqa: E731 - the strip is horizontal
+            if diameter == 18.0:  # the reference diameter: unchanged
+                assert np.array_equal(grown.events, fixed.events)
+            else:
+                assert extent(grown) < extent(fixed) and len(grown.events) < len(fixed.events)
+
+    def test_bad_exponent(self):
+        with pytest.raises(ValueError, match="strip_length_exponent"):
+            SimulatorConfig(strip_length_exponent=float("nan"))

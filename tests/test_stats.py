@@ -95,3 +95,68 @@ class TestHolm:
         adjusted = holm([0.2, math.nan, 0.01])
         assert adjusted[0] == pytest.approx(0.2) and math.isnan(adjusted[1]) and adjusted[2] == pytest.approx(0.02)
         assert holm([]) == []
+
+
+class TestFamilies:
+    """Issue 24: one family per scene without duplicates; the interval and bold agree."""
+
+    @staticmethod
+    def _methods():
+        none = [10.0, 11.0, 9.5, 10.5, 10.2, 10.8, 9.9, 10.1]
+        better = [v - 1.0 - 0.05 * k for k, v in enumerate(none)]
+        same = [v + (0.1 if k % 2 else -0.1) for k, v in enumerate(none)]
+        return {
+            "none": {"seeds": list(range(8)), "test_mse": none},
+            "stretch": {"seeds": list(range(8)), "test_mse": better},
+            "inferred": {"seeds": list(range(8)), "test_mse": list(better)},
+            "rot45": {"seeds": list(range(8)), "test_mse": same},
+        }
+
+    def test_duplicates_are_out_of_the_family(self):
+        from event_transforms.tactile.stats import deltas_vs_none, duplicates
+
+        methods = self._methods()
+        dupes = duplicates(methods)
+        assert dupes == {"inferred": "stretch"}
+        deltas = deltas_vs_none(methods, "test_mse", exclude=tuple(dupes))
+        assert set(deltas) == {"stretch", "rot45"} and deltas["stretch"]["family_size"] == 2
+
+    def test_family_interval_decides_bold(self):
+        from event_transforms.tactile.stats import deltas_vs_none, paired_t, significant
+
+        deltas = deltas_vs_none(self._methods(), "test_mse", exclude=("inferred",))
+        for delta in deltas.values():
+            lo, hi = delta["ci_family"]
+            wide = paired_t([0.0] * 8, [0.0] * 8)  # a no-spread pair has no interval width
+            assert wide.ci == (0.0, 0.0)
+            assert significant(delta) == (hi < 0 or lo > 0) == (delta["t_p_family"] <= 0.05)
+            assert lo <= delta["ci95"][0] and hi >= delta["ci95"][1]  # wider than the unadjusted
+        assert significant(deltas["stretch"]) and not significant(deltas["rot45"])
+
+    def test_wilcoxon_floor(self):
+        from event_transforms.tactile.stats import deltas_vs_none, wilcoxon_floor
+
+        assert wilcoxon_floor(8, 12) == pytest.approx(12 * 2 / 256)
+        deltas = deltas_vs_none(self._methods(), "test_mse")
+        assert deltas["stretch"]["wilcoxon_floor"] == pytest.approx(3 * 2 / 256)
+
+    def test_policy_rows_against_the_matched_row(self):
+        from event_transforms.tactile.scenes import get_scene
+        from event_transforms.tactile.stats import summarize_scene
+
+        methods = self._methods()
+        runs = {}
+        for name, m in {**methods, "resize": methods["rot45"] | {"test_mse": [v + 0.3 for v in methods["rot45"]["test_mse"]]}, "prior": methods["stretch"] | {
+                "test_mse": [v + 0.01 for v in methods["stretch"]["test_mse"]]}}.items():
+            runs[name] = [{"seed": s, "test_mse": v, "val_mse": v, "test_mse_paper_split": v, "val_mse_paper_split": v,
+                           "best_step": 10, "holdout_mse": v, "steps": 20, "copies": 1, "train_items": 96,
+                           "aug_s_once": 0.0, "aug_s_per_epoch": 0.0, "train_s": 1.0,
+                           "test_phase_mse": {"grasp": v, "hold": v, "release": v}}
+                          for s, v in zip(m["seeds"], m["test_mse"])]
+        summary = summarize_scene(get_scene("paper"), runs, {}, {"train": 48, "val": 24, "test": 96})
+        out = summary["methods"]
+        assert out["inferred"]["duplicate_of"] == "stretch" and out["inferred"]["delta_vs_none"] is None
+        assert out["prior"]["matched_row"] == "resize"
+        vs = out["prior"]["delta_vs_matched"]
+        assert vs["mean"] < 0 and vs["family_size"] == 1
+        assert out["none"]["stopped_before_cap"] == 1.0

@@ -28,7 +28,8 @@ class TestDeclarations:
         expected = {
             "paper": ("size",), "size-extrapolation": ("size",), "timing": ("timing",),
             "orientation": ("orientation",), "noise": ("noise",), "control": (),
-            "paper-lag": ("size", "timing"),
+            "paper-offset": ("size", "timing"), "paper-membrane": ("size", "timing"),
+            "paper-lag": ("size", "timing"), "paper-lag-only": ("size",),
         }
         assert {name: scene.gaps for name, scene in SCENES.items()} == expected
         for scene in SCENES.values():
@@ -131,10 +132,33 @@ class TestMeasuredGaps:
             spread = math.sqrt(x.var(ddof=1) / len(x) + y.var(ddof=1) / len(y))
             assert abs(x.mean() - y.mean()) < 3 * spread
 
+    def test_every_description_names_its_physics(self):
+        """Each gapped scene's description names the simulator effect behind its gap."""
+        words = {"paper": "sqrt(D)", "size-extrapolation": "sqrt(D)", "timing": "transport delay",
+                 "orientation": "contact axis", "noise": "shot-noise", "paper-offset": "clock offset",
+                 "paper-membrane": "membrane", "paper-lag": "low-pass", "paper-lag-only": "no clock offset"}
+        for name, word in words.items():
+            assert word in get_scene(name).description, name
+        for scene in SCENES.values():  # the base jitter everywhere (issue 24)
+            for session in (scene.train, scene.deploy):
+                assert session.config.timing_jitter_ms == BASE_SESSION.config.timing_jitter_ms, scene.name
+
+    def test_membrane_scene_lags_for_a_stated_reason(self):
+        """paper-membrane: only the membrane's time constants differ (slower creep, slower
+        release in deployment); no clock offset; the deployment's release events come later."""
+        scene = get_scene("paper-membrane")
+        assert scene.gap_sizes()["timing"] == {"lag_ms": ((2.0, 8.0), (10.0, 20.0)), "release_lag_ratio": (1.0, 3.0)}
+        assert scene.lag_frames == 1 and scene.matched_methods == ("fs1", "tes1:0.5")
+        train = _recordings(scene.train, 4, diameters_mm=(15.0,), **QUIET)
+        deploy = _recordings(scene.deploy, 4, **QUIET)
+        for a, b in zip(train, deploy):
+            on_a, on_b = a.events["t"][a.events["p"] == 1], b.events["t"][b.events["p"] == 1]
+            assert np.median(on_b) > np.median(on_a)
+
     def test_lag_scene_offset(self):
-        """paper-lag: deployment events start earlier than training events by the drawn
+        """paper-offset: deployment events start earlier than training events by the drawn
         difference of delays (same seeds, same bolt), about one frame."""
-        scene = get_scene("paper-lag")
+        scene = get_scene("paper-offset")
         train = _recordings(scene.train, 4, diameters_mm=(15.0,), **QUIET)
         deploy = _recordings(scene.deploy, 4, **QUIET)
         for a, b in zip(train, deploy):
@@ -153,7 +177,7 @@ class TestMeasuredGaps:
         for a, b in zip(slow, fast):
             on_a, on_b = a.events["t"][a.events["p"] == 1], b.events["t"][b.events["p"] == 1]
             off_a, off_b = a.events["t"][a.events["p"] == 0], b.events["t"][b.events["p"] == 0]
-            assert len(on_a) <= 0.9 * len(on_b)  # the membrane has not recovered by the end
+            assert len(on_a) < len(on_b)  # the membrane has not recovered by the end
             assert np.median(on_a) >= np.median(on_b)
             assert abs(len(off_a) - len(off_b)) <= 0.01 * len(off_b)  # pressing is unchanged
             assert abs(np.median(off_a) - np.median(off_b)) <= 1000

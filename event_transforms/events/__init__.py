@@ -17,6 +17,9 @@ EventBatch instead of returning it untouched (v2 passes through every type it do
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import Any
+
 from .batch import EventBatch, bin_events, collate_events
 from .binning import CHUNK_EVENTS, MAX_BYTES, EventsOutsideSensorWarning, EventsOutsideWindowWarning, events_to_frames
 from .streaming import iter_frames
@@ -32,7 +35,7 @@ def _refuse_flatten(batch: EventBatch) -> tuple[list, None]:
     )
 
 
-def _unflatten(children: list, context: None) -> EventBatch:  # pragma: no cover - never flattened
+def _unflatten(children: Iterable[Any], context: Any) -> EventBatch:  # pragma: no cover - never flattened
     raise TypeError("an EventBatch cannot be rebuilt from a pytree")
 
 

@@ -40,13 +40,17 @@ from torch import Tensor
 from .._validation import read_host
 from .binning import (
     _T_STARTS,
+    _accumulate,
+    _accumulator,
+    _to_spare,
+    _event_index,
     _columns,
     _explicit_starts,
     _floor_to_grid,
     _frame_us,
     _grid,
     _integer,
-    _polarity_channel,
+    _check_polarity,
     _sensor,
     _time_bins,
     _as_dtype,
@@ -159,6 +163,9 @@ class EventBatch:
         t_start: str | float | Sequence[float] | Tensor = "floor",
         n_frames: int | None = None,
         device: torch.device | str | None = None,
+        time_unit: str | None = None,
+        columns: str | Sequence[str] | None = None,
+        validate: bool = True,
     ) -> EventBatch:
         """Concatenate event streams (every form :func:`events_to_frames` accepts) into one batch.
 
@@ -174,6 +181,15 @@ class EventBatch:
                 per stream), as in ``events_to_frames``; used only with ``frame_ms``.
             n_frames: the grid's number of bins (``None``: enough for the last event).
             device: where the columns go (default: the CPU, or the tensors' device).
+            time_unit: the streams' timestamp unit, as in ``events_to_frames`` (the
+                batch holds microseconds).
+            columns: the order of ``(N, k)`` streams' columns, e.g. ``"txyp"``.
+            validate: check every column once (one ``aminmax`` pass each): coordinates
+                fit int16, polarity is bool, {0, 1} or {-1, 1}, uint64 timestamps fit
+                int64. ``False`` skips these checks for data the caller already trusts
+                (the same batch for valid data, about half the time for a list of
+                structured arrays); the parsing itself (field names, NaN in float
+                columns) still refuses malformed input.
 
         Raises:
             ValueError: malformed streams, coordinates beyond int16, mixed timestamp kinds.
@@ -185,34 +201,40 @@ class EventBatch:
         if isinstance(streams, (str, bytes, Mapping)) or not isinstance(streams, Sequence):
             raise TypeError(f"streams must be a sequence of event streams, got {type(streams).__name__}")
         height, width = _sensor(sensor_size, tonic_sensor_size)
-        parts: list[list[Tensor]] = [[], [], [], []]
+        # each stream once: a structured array of narrow integer fields is kept as it is
+        # (filled straight into the batch), anything else goes through the column parser
+        parsed: list[Any] = []
         for i, stream in enumerate(streams):
-            (x, y, t, p), batched = _columns(stream)
+            if time_unit is None and columns is None and _narrow_struct(stream):
+                parsed.append(stream)
+                continue
+            (x, y, t, p), batched = _columns(stream, time_unit=time_unit, columns=columns)
             if batched:
                 raise ValueError(f"streams[{i}] is a batch of shape {tuple(x.shape)}; pass one stream per entry")
-            x, y, t, p = x[0], y[0], t[0], p[0]
-            channel = _polarity_channel(p, None).to(torch.int8)
-            coords = []
-            for name, column in (("x", x), ("y", y)):
-                column = torch.floor(column).to(torch.int64) if column.is_floating_point() else column
-                if column.numel() and (int(column.min()) < -_COORD_MAX or int(column.max()) > _COORD_MAX):
-                    raise ValueError(f"streams[{i}] {name} must fit int16 pixel coordinates, got {int(column.abs().max())}")
-                coords.append(column.to(torch.int16))
-            for k, column in enumerate((*coords, t, channel)):
-                parts[k].append(column)
+            parsed.append((x[0], y[0], t[0], p[0]))
+        lengths = [len(s) if isinstance(s, np.ndarray) else s[0].shape[0] for s in parsed]
         # float timestamps only if a non-empty stream has them (an empty float tensor has none)
-        time_dtype = torch.float64 if any(c.is_floating_point() and c.numel() for c in parts[2]) else torch.int64
-        parts[2] = [c.to(time_dtype) for c in parts[2]]
-        lengths = [c.shape[0] for c in parts[0]]
-        devices = {c.device for c in parts[0]}
+        time_dtype = torch.float64 if any(
+            isinstance(s, tuple) and s[2].is_floating_point() and s[2].numel() for s in parsed
+        ) else torch.int64
+        devices = {s[0].device for s in parsed if isinstance(s, tuple)}
         target = torch.device(device) if device is not None else (devices.pop() if len(devices) == 1 else torch.device("cpu"))
-        empty = (torch.int16, torch.int16, torch.int64, torch.int8)
-        columns = [
-            (torch.cat([c.to(target) for c in part]) if part else torch.zeros(0, dtype=empty[k], device=target))
-            for k, part in enumerate(parts)
-        ]
+        total = sum(lengths)
+        # structured arrays are filled through numpy views: on the CPU, then moved
+        home = torch.device("cpu") if any(isinstance(s, np.ndarray) for s in parsed) else target
+        x_all, y_all = (torch.empty(total, dtype=torch.int16, device=home) for _ in range(2))
+        t_all, p_all = torch.empty(total, dtype=time_dtype, device=home), torch.empty(total, dtype=torch.int8, device=home)
+        start = 0
+        for i, (stream, n) in enumerate(zip(parsed, lengths)):
+            out = (x_all[start : start + n], y_all[start : start + n], t_all[start : start + n], p_all[start : start + n])
+            if isinstance(stream, np.ndarray):
+                _fill_from_struct(out, stream, i, validate)
+            else:
+                _fill_from_columns(out, stream, i, validate)
+            start += n
+        x, y, t, p = (c.to(target) for c in (x_all, y_all, t_all, p_all))
         offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
-        batch = cls(*columns, offsets, (height, width))
+        batch = cls(x, y, t, p, offsets, (height, width))
         if frame_ms is not None:
             batch = batch.with_grid(frame_ms, t_start=t_start, n_frames=n_frames)
         return batch
@@ -268,7 +290,7 @@ class EventBatch:
         )
 
     def _replace(self, **changes: Any) -> EventBatch:
-        fields = {
+        fields: dict[str, Any] = {
             "x": self.x, "y": self.y, "t": self.t, "p": self.p, "offsets": self.offsets,
             "sensor_size": self.sensor_size, "frame_ms": self.frame_ms, "t_start": self.t_start,
             "n_frames": self.n_frames,
@@ -358,6 +380,57 @@ class EventBatch:
         return rows, torch.tensor(lengths, dtype=torch.int64)
 
 
+def _narrow_struct(stream: Any) -> bool:
+    """Whether ``stream`` is a 1-D structured array whose x and y fit int16 by dtype or
+    are uint16, whose t is an integer and whose p is bool or one byte, under the plain
+    names ``x``, ``y``, ``t``, ``p``: its fields are copied straight into the batch."""
+    if not isinstance(stream, np.ndarray) or stream.dtype.names is None or stream.ndim != 1:
+        return False
+    fields = stream.dtype.fields or {}
+    if not all(name in fields for name in _FIELDS):
+        return False
+    kinds = {name: fields[name][0] for name in _FIELDS}
+    coords = all(kinds[c].kind in "iu" and kinds[c].itemsize <= 2 for c in ("x", "y"))
+    return coords and kinds["t"].kind in "iu" and (kinds["p"].kind == "b" or (kinds["p"].kind in "iu" and kinds["p"].itemsize == 1))
+
+
+def _fill_from_struct(out: tuple[Tensor, ...], stream: np.ndarray, i: int, validate: bool) -> None:
+    """Copy a :func:`_narrow_struct` stream's fields into the batch's column slices (one
+    casting pass each), then check what the cast may have hidden (one pass each)."""
+    x, y, t, p = out
+    for name, column in (("x", x), ("y", y)):
+        field = stream[name]
+        if validate and field.dtype.kind == "u" and field.dtype.itemsize == 2 and field.size and int(field.max()) > _COORD_MAX:
+            raise ValueError(f"streams[{i}] {name} must fit int16 pixel coordinates, got {int(field.max())}")
+        column.numpy()[...] = field
+    t_field = stream["t"]
+    t.numpy()[...] = t_field
+    if validate and t_field.dtype.kind == "u" and t_field.dtype.itemsize == 8 and t.numel() and bool(t.min() < 0):
+        raise ValueError(f"streams[{i}] t holds {int(t_field.max())}, past 2**63 - 1, which int64 cannot hold")
+    p.numpy()[...] = stream["p"]
+    if stream["p"].dtype.kind != "b":
+        if validate:
+            _check_polarity(p if stream["p"].dtype.kind == "i" else torch.from_numpy(stream["p"].astype(np.int16)), None)
+        p.clamp_(min=0)  # OFF as -1 becomes 0
+
+
+def _fill_from_columns(out: tuple[Tensor, ...], columns: tuple[Tensor, ...], i: int, validate: bool) -> None:
+    """Copy parsed int64/float64 columns into the batch's column slices: coordinates
+    floored and checked against int16, polarity checked and mapped to {0, 1}."""
+    x, y, t, p = out
+    for name, column, target in (("x", columns[0], x), ("y", columns[1], y)):
+        column = torch.floor(column) if column.is_floating_point() else column
+        if validate and column.numel():
+            low, high = (int(v) for v in torch.aminmax(column))
+            if low < -_COORD_MAX or high > _COORD_MAX:
+                raise ValueError(f"streams[{i}] {name} must fit int16 pixel coordinates, got {max(-low, high)}")
+        target.copy_(column)
+    t.copy_(columns[2])
+    if validate:
+        _check_polarity(columns[3], None)
+    p.copy_(columns[3] > 0)
+
+
 def _gather_spans(column: Tensor, spans: list[tuple[int, int]]) -> Tensor:
     """The concatenation of ``column[lo:hi]`` for each span (one ``cat``; sizes known on the host)."""
     if len(spans) == 1:
@@ -402,11 +475,15 @@ def collate_events(
     frame_ms: float | None = None,
     t_start: str | float = "floor",
     n_frames: int | None = None,
+    time_unit: str | None = None,
+    columns: str | Sequence[str] | None = None,
+    validate: bool = True,
 ) -> Any:
     """A ``DataLoader`` ``collate_fn`` body: a list of streams (or of ``(stream, label, ...)``
     tuples) to an :class:`EventBatch` (and the labels collated by torch's default).
 
-    Bind the sensor and grid with :func:`functools.partial`:
+    ``validate=False`` skips the column checks for trusted data (see
+    :meth:`EventBatch.from_streams`). Bind the sensor and grid with :func:`functools.partial`:
     ``DataLoader(dataset, batch_size=32, collate_fn=partial(collate_events, sensor_size=(180, 240), frame_ms=10.0))``.
 
     Example:
@@ -416,8 +493,8 @@ def collate_events(
         >>> batch.lengths, labels.tolist()
         ([2, 1], [1.0, 2.0])
     """
-    options = dict(sensor_size=sensor_size, tonic_sensor_size=tonic_sensor_size, frame_ms=frame_ms,
-                   t_start=t_start, n_frames=n_frames)
+    options: dict[str, Any] = dict(sensor_size=sensor_size, tonic_sensor_size=tonic_sensor_size, frame_ms=frame_ms,
+                   t_start=t_start, n_frames=n_frames, time_unit=time_unit, columns=columns, validate=validate)
     if streams and isinstance(streams[0], tuple):
         from torch.utils.data import default_collate
 
@@ -467,14 +544,16 @@ def bin_events(
     stream with the same ``t_start``, ``frame_ms``, ``n_frames``, ``crop`` and ``pool``
     (and the same bin arithmetic: int64 for integer timestamps). If the batch carries a
     frame grid, its starts are used (``t_start`` is ignored, ``frame_ms`` must match or be
-    ``None``, ``n_frames`` defaults to the grid's). Events outside the sensor, the crop or
-    the time window are dropped silently (a transform may have moved them there).
+    ``None``, ``n_frames`` defaults to the grid's). Events outside the crop are left out by
+    request; events outside the sensor or the time window (a transform may have moved them
+    there) are dropped with an :class:`EventsOutsideSensorWarning` or
+    :class:`EventsOutsideWindowWarning` that gives their count, as :func:`events_to_frames` does.
 
     One scatter for the whole batch: int32 linear indices (int64 past 2**31 slots), an
     event outside the window, sensor or crop counted in one spare slot, one ``index_add_``
-    of ones straight into the output dtype (when every count fits it exactly; else int64
-    and a checked cast). No ``bincount`` (on accelerators it reads its maximum back). No
-    host synchronisation, except ``n_frames=None`` without a grid (the last bin is read
+    of ones straight into the output dtype (when every count fits it exactly; else int32
+    and a checked cast), by the kernel of ``events_to_frames``. No ``bincount`` (on accelerators it reads its maximum back). No
+    host synchronisation, except the one read of the dropped counts for the warnings, ``n_frames=None`` without a grid (the last bin is read
     back) and ``t_start="floor"``/``"first"`` without a grid (the first events).
 
     Example:
@@ -521,6 +600,7 @@ def _warn_lost(batch: EventBatch, starts: Tensor, n_frames: int, frame_us: float
     """The warnings of :func:`events_to_frames` for the events binning drops (outside the
     sensor or the window): one host read of the counts."""
     from ..functional._event_ops import warn_dropped
+    from .binning import _bins_of
 
     if batch.num_events == 0:
         return
@@ -530,48 +610,6 @@ def _warn_lost(batch: EventBatch, starts: Tensor, n_frames: int, frame_us: float
     _, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
     warn_dropped(batch, outside_sensor=outside_sensor, outside_window=~inside & ~outside_sensor,
                  window=f"n_frames={n_frames} of frame_ms={frame_ms!r}", stacklevel=4)
-
-
-def _bins_of(rel: Tensor, frame_us: float | int, n_frames: int) -> tuple[Tensor, Tensor]:
-    """``floor(rel / frame_us)`` as int32 and whether ``0 <= rel < n_frames * frame_us``.
-
-    Integer times over a window with ``n_frames * frame_us < 2**23`` (8.4 s):
-    float32 true division is correctly rounded, and for whole ``rel`` and ``frame`` the
-    quotient of an ``rel`` just below a multiple ``k * frame`` is at least ``1 / frame``
-    below ``k``, more than float32's spacing at ``k`` when ``k * frame < 2**23``; so the
-    floor is exact (4x cheaper than int64 floor division on the CPU). Otherwise float64.
-    """
-    span = n_frames * frame_us
-    if isinstance(frame_us, int) and not rel.is_floating_point() and span < 2**23:
-        quotient = rel.to(torch.float32) / frame_us
-    else:
-        quotient = rel.to(torch.float64) / frame_us
-    inside = (quotient >= 0) & (quotient < n_frames)
-    return quotient.to(torch.int32), inside  # truncation = floor where inside
-
-
-def _pixel_table(grid: Any, device: torch.device) -> Tensor:
-    """((H + 2) * (W + 2),) int32: the output pixel ``row * W' + col`` of each sensor pixel
-    after crop and pool, with a border of -1 (coordinates clamped to [-1, H] and [-1, W]
-    land there): one gather replaces the sensor and crop tests and two divisions per event."""
-    key = (grid.height, grid.width, grid.top, grid.left, grid.crop_h, grid.crop_w, grid.pool, str(device))
-    table = _TABLES.get(key)
-    if table is None:
-        rows = torch.arange(-1, grid.height + 1) - grid.top
-        cols = torch.arange(-1, grid.width + 1) - grid.left
-        keep = ((rows >= 0) & (rows < grid.crop_h)).unsqueeze(1) & ((cols >= 0) & (cols < grid.crop_w)).unsqueeze(0)
-        pooled = torch.div(rows, grid.pool, rounding_mode="floor").unsqueeze(1) * grid.out_w + torch.div(
-            cols, grid.pool, rounding_mode="floor").unsqueeze(0)
-        table = torch.where(keep, pooled, -1).to(torch.int32).reshape(-1).to(device)
-        if len(_TABLES) > 32:
-            _TABLES.clear()
-        _TABLES[key] = table
-    return table
-
-
-_TABLES: dict[tuple, Tensor] = {}
-#: Largest whole number each float dtype counts to exactly.
-_EXACT_FLOAT = {torch.float16: 2**11, torch.bfloat16: 2**8, torch.float32: 2**24, torch.float64: 2**53}
 
 
 def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
@@ -584,24 +622,11 @@ def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
     return batch.t - start_of.index_select(0, batch.sample_index())
 
 
-def _bin_index(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any) -> tuple[Tensor, Tensor]:
-    """Per event its index inside its own sample's ``(T, 2, H', W')`` block (int32; 0 for an
-    event outside the window, sensor or crop) and whether it counts."""
-    device = batch.device
-    bins, inside = _bins_of(_relative_times(batch, starts), grid.frame_us, n_frames)
-    height, width = grid.height, grid.width
-    x = batch.x.clamp(-1, width).to(torch.int32)
-    y = batch.y.clamp(-1, height).to(torch.int32)
-    pixel = _pixel_table(grid, device).index_select(0, y.mul_(width + 2).add_(x).add_(width + 3))
-    inside &= pixel >= 0
-    index = bins.mul_(2).add_(batch.p).mul_(grid.out_h * grid.out_w).add_(pixel)
-    return index.masked_fill_(~inside, 0), inside
-
-
 def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, total: int) -> Tensor:
-    """(total,) counts in ``grid.dtype``: each event adds its weight (1 inside, 0 outside) with
-    ``index_add_`` straight into the output dtype when every count fits it exactly (float32
-    holds whole numbers to 2**24), else into int32/int64 followed by a checked cast.
+    """(total,) counts in ``grid.dtype``, by the one binning kernel of :mod:`.binning`: int32
+    indices from the pixel table and the float32 bin quotient, every event not counted sent
+    to one spare slot, and an ``index_add_`` of ones straight into the output dtype when no
+    count can pass what it holds exactly (float32: 2**24), else into int32 and a checked cast.
 
     On the CPU one sample at a time: its block (``T * 2 * H' * W'`` values) is zeroed, then
     its events are added while the block is still in cache, 2-3x faster than one scatter
@@ -612,21 +637,23 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
     n = batch.num_events
     if n == 0 or total == 0:
         return torch.zeros(total, dtype=dtype, device=device)
-    exact = _EXACT_FLOAT[dtype] if dtype.is_floating_point else torch.iinfo(dtype).max
-    wide = dtype if n <= exact else (torch.int32 if n < 2**31 else torch.int64)
-    index, inside = _bin_index(batch, starts, n_frames, grid)
-    weight = inside.to(wide)
+    index, pixel, in_time = _event_index(
+        batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid, total >= 2**31 - 1
+    )
+    counted = in_time.logical_and_(pixel >= 0)
     block = n_frames * grid.frame_size
     if device.type == "cpu":
-        counts = torch.empty(total, dtype=wide)
+        counts = torch.empty(total + 1, dtype=_accumulator(dtype, n))
+        counts[total] = 0
         bounds = batch.offsets.tolist()
         for b in range(len(batch)):
-            out = counts[b * block : (b + 1) * block].zero_()
-            if bounds[b + 1] > bounds[b]:
-                out.index_add_(0, index[bounds[b] : bounds[b + 1]], weight[bounds[b] : bounds[b + 1]])
+            counts[b * block : (b + 1) * block].zero_()
+            lo, hi = bounds[b], bounds[b + 1]
+            if hi > lo:
+                segment = index[lo:hi].add_(b * block - total).mul_(counted[lo:hi]).add_(total)
+                _accumulate(counts, segment)
     else:
-        if total >= 2**31 - 1:
-            index = index.to(torch.int64)
         index = index.add_(batch.sample_index().to(index.dtype).mul(block))
-        counts = torch.zeros(total, dtype=wide, device=device).index_add_(0, index, weight)
-    return counts if wide == dtype else _as_dtype(counts, dtype)
+        counts = torch.zeros(total + 1, dtype=_accumulator(dtype, n), device=device)
+        _accumulate(counts, _to_spare(index, counted, total))
+    return _as_dtype(counts[:total], dtype)

@@ -6,7 +6,14 @@ dtype, uint64 included), a ``(B, N, 4)`` batch of padded streams with ``lengths`
 ``tonic.io.read_aedat4`` returns ``[('t', '<u8'), ('x', '<u2'), ('y', '<u2'),
 (('p', 'on'), '?')]``, whose polarity field is named ``on`` and titled ``p``. Columns are
 found by name: ``x``, ``y``, ``t`` (or ``timestamp``), ``p`` (or ``on``, ``polarity``).
-Timestamps are in microseconds; polarity is bool, {0, 1} or {-1, 1}, with ON (``True``,
+A pandas or polars DataFrame is read by column name too, and an ``(N, k)`` array in another
+order is named with ``columns="txyp"`` (``"_"`` skips a column). Timestamps are in
+microseconds unless ``time_unit=`` says ``"ns"``, ``"ms"`` or ``"s"``; ``timedelta64`` and
+``datetime64`` columns (polars ``Duration``) carry their own unit. Two silent traps are
+refused by name: float timestamps with fractions spanning less than 1e6, which look like
+seconds read as microseconds (every event would land in one bin; pass ``time_unit``), and
+float timestamps too large for their dtype to hold microseconds (float32 past 2**24 µs).
+Polarity is bool, {0, 1} or {-1, 1}, with ON (``True``,
 ``1``) in channel 1 and OFF (``False``, ``0``, ``-1``) in channel 0, tonic's convention.
 
 Where the bins start (``t_start``):
@@ -46,7 +53,7 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from numbers import Integral, Real
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -67,8 +74,8 @@ _T_STARTS = ("floor", "first")
 _MAX_INFERRED_FRAMES = 100_000
 
 
-#: Default bound of the memory :func:`events_to_frames` may allocate (its int64 buffer
-#: plus the output), in bytes: 4 GiB. A longer recording is refused by name, quickly.
+#: Default bound of the memory :func:`events_to_frames` may allocate (the output, plus an
+#: int32 counting buffer when the dtype may not hold a count exactly), in bytes: 4 GiB. A longer recording is refused by name, quickly.
 MAX_BYTES = 2**32
 
 
@@ -82,6 +89,41 @@ class EventsOutsideWindowWarning(UserWarning):
 
 
 # --------------------------------------------------------------------------- columns
+
+#: Microseconds per unit of ``time_unit``.
+_TIME_UNITS: dict[str, float | int] = {"ns": 1e-3, "us": 1, "ms": 1_000, "s": 1_000_000}
+#: Float timestamps with a fractional part spanning less than this (in the unit read, 1 s of
+#: microseconds) look like seconds: refused unless ``time_unit`` is given.
+_SECONDS_SPAN = 1e6
+#: Values read to decide whether float timestamps have fractional parts.
+_FRACTION_PROBE = 1 << 16
+
+
+def _time_unit(time_unit: object) -> str | None:
+    if time_unit is None:
+        return None
+    if not isinstance(time_unit, str) or time_unit not in _TIME_UNITS:
+        raise ValueError(f"time_unit must be one of {', '.join(map(repr, _TIME_UNITS))} or None, got {time_unit!r}")
+    return time_unit
+
+
+def _time_typed(array: np.ndarray, name: str, time_unit: str | None) -> tuple[np.ndarray, str]:
+    """A ``timedelta64``/``datetime64`` column as int64 counts of its own unit (checked)."""
+    unit, count = np.datetime_data(array.dtype)
+    if unit not in _TIME_UNITS or count != 1:
+        raise ValueError(
+            f"events[{name!r}] has dtype {array.dtype}; timestamps in ns, us, ms or s are accepted "
+            f"(cast it, e.g. .astype('{array.dtype.kind == 'm' and 'timedelta64' or 'datetime64'}[us]'))"
+        )
+    if time_unit is not None and time_unit != unit:
+        raise ValueError(
+            f"time_unit={time_unit!r} contradicts events[{name!r}], whose dtype {array.dtype} carries its unit; "
+            "leave time_unit out for time-typed columns"
+        )
+    values = array.view(np.int64)
+    if values.size and bool((values == np.iinfo(np.int64).min).any()):
+        raise ValueError(f"events[{name!r}] holds NaT (a missing time)")
+    return values, unit
 
 
 def _column(values: Any, name: str) -> Tensor:
@@ -113,6 +155,8 @@ def _column(values: Any, name: str) -> Tensor:
             array = array.astype(np.int64)
         elif kind == "f":
             array = array.astype(np.float64)
+        elif kind in "mM" and name == "t":
+            array = array.view(np.int64).astype(np.int64)  # a copy; the unit was read (and checked) by _source
         else:
             raise TypeError(f"events[{name!r}] must hold numbers, got numpy dtype {array.dtype}")
         column = torch.from_numpy(np.ascontiguousarray(array))
@@ -121,15 +165,114 @@ def _column(values: Any, name: str) -> Tensor:
     return column
 
 
+def _check_float_times(t: Any, unit: str | None) -> None:
+    """Refuse float timestamps that lost precision or look like seconds read as microseconds.
+
+    ``t`` is the whole timestamp column (a view); integer columns are never checked.
+    """
+    if isinstance(t, Tensor):
+        if not t.is_floating_point() or not t.numel():
+            return
+        low, high = float(t.min()), float(t.max())
+        eps = torch.finfo(t.dtype).eps
+        probe = t.reshape(-1)[:_FRACTION_PROBE]
+        fractional = bool((probe != probe.floor()).any())
+        dtype_name = str(t.dtype)
+    else:
+        array = np.asarray(t)
+        if array.dtype.kind != "f" or not array.size:
+            return
+        low, high = float(array.min()), float(array.max())
+        eps = float(np.finfo(array.dtype).eps)
+        head = array.reshape(-1)[:_FRACTION_PROBE]
+        fractional = bool((head != np.floor(head)).any())
+        dtype_name = str(array.dtype)
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return  # _column names the NaN/Inf
+    scale = _TIME_UNITS[unit or "us"]
+    magnitude = max(abs(low), abs(high))
+    spacing_us = 2.0 ** math.floor(math.log2(magnitude)) * eps * scale if magnitude else 0.0
+    if spacing_us > 1:
+        raise ValueError(
+            f"events['t'] is {dtype_name} with values up to {magnitude:.7g} {unit or 'us'}, where {dtype_name} "
+            f"steps {spacing_us:g} us: the timestamps have already lost microseconds. Read them as int64 or "
+            "float64 (or subtract the first timestamp before casting)"
+        )
+    if unit is None and fractional and high - low < _SECONDS_SPAN:
+        raise ValueError(
+            f"events['t'] holds float timestamps with fractions spanning {high - low:.6g}, which looks like "
+            "seconds (timestamps are read as microseconds, so every event would fall in one bin); pass "
+            "time_unit='s' (or 'ms', 'ns'), or time_unit='us' if they are microseconds"
+        )
+
+
+def _to_microseconds(t: Tensor, unit: str) -> Tensor:
+    """An int64/float64 timestamp column in ``unit`` as microseconds (ns are floored to whole µs)."""
+    if unit == "us":
+        return t
+    if unit == "ns":
+        return t / 1000 if t.is_floating_point() else torch.div(t, 1000, rounding_mode="floor")
+    factor = int(_TIME_UNITS[unit])
+    if t.is_floating_point():
+        return t * factor
+    if t.numel() and int(t.abs().max()) > _INT64_MAX // factor:
+        raise ValueError(f"events['t'] in {unit} holds {int(t.abs().max())}, past what int64 microseconds hold")
+    return t * factor
+
+
 def _field(names: Iterable[str], column: str) -> str | None:
     """The name under which ``column`` is stored, or None."""
     names = set(names)
     return next((alias for alias in _ALIASES[column] if alias in names), None)
 
 
+def _order_names(columns: object) -> list[str]:
+    """``columns`` ("txyp", or a sequence of one-letter names) checked: x, y, t, p once each, '_' to skip."""
+    names = list(columns) if isinstance(columns, (str, Sequence)) else None
+    if (
+        names is None or not all(isinstance(n, str) for n in names)
+        or sorted(n for n in names if n != "_") != ["p", "t", "x", "y"]
+    ):
+        raise ValueError(
+            "columns must name each column of the events with each of x, y, t, p once and '_' for a "
+            f"column to skip (e.g. 'txyp'), got {columns!r}"
+        )
+    return names
+
+
+def _order(columns: object, width: int) -> list[int]:
+    """Indices of x, y, t, p among the ``width`` columns of an (N, k) array (``columns="txyp"``)."""
+    if columns is None:
+        if width != 4:
+            raise ValueError(
+                f"events: expected (N, 4) or (B, N, 4) rows of (x, y, t, p), got {width} columns; "
+                "pass columns= (e.g. columns='txyp', '_' for a column to skip) to name them"
+            )
+        return [0, 1, 2, 3]
+    names = _order_names(columns)
+    if len(names) != width:
+        raise ValueError(f"columns={columns!r} names {len(names)} columns, but the events have {width}")
+    return [names.index(c) for c in _FIELDS]
+
+
+def _frame_columns(events: Any) -> dict[str, Any] | None:
+    """A pandas or polars DataFrame as a dict of numpy columns (only x, y, t, p); None for others."""
+    library = type(events).__module__.split(".")[0]
+    if library not in ("pandas", "polars") or not hasattr(events, "columns"):
+        return None
+    names = [str(c) for c in events.columns]
+    found = {c: _field(names, c) for c in _FIELDS}
+    return {f: events[f].to_numpy() for f in found.values() if f is not None} | {
+        f: None for f in names if f not in found.values()  # kept (empty) so that errors list every column
+    }
+
+
 @dataclass
 class _Source:
-    """Events of B streams of length N, read ``(start, stop)`` along N as columns (B, n)."""
+    """Events of B streams of length N, read ``(start, stop)`` along N as columns (B, n).
+
+    Timestamps are read in microseconds whatever ``time_unit`` the input came in.
+    """
 
     batch: int
     length: int
@@ -138,9 +281,45 @@ class _Source:
     device: torch.device
 
 
-def _source(events: Any) -> _Source:
-    """Wrap any accepted form of ``events`` without converting it as a whole."""
+def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequence[str] | None = None) -> _Source:
+    """Wrap any accepted form of ``events`` without converting it as a whole.
+
+    ``time_unit`` (None: microseconds, checked for float timestamps that look like seconds)
+    and ``columns`` (the order of an (N, k) array's columns) as in :func:`events_to_frames`.
+    """
+    time_unit = _time_unit(time_unit)
+    source, t_whole = _raw_source(events, columns)
+    unit = time_unit
+    if isinstance(t_whole, np.ndarray) and t_whole.dtype.kind in "mM":
+        _, unit = _time_typed(t_whole, "t", time_unit)
+    else:
+        _check_float_times(t_whole, time_unit)
+    if unit is None or unit == "us":
+        return source
+    raw = source.read
+
+    def read(i: int, j: int, names: Sequence[str]) -> dict[str, Tensor]:
+        out = raw(i, j, names)
+        if "t" in out:
+            out["t"] = _to_microseconds(out["t"], unit)
+        return out
+
+    return _Source(source.batch, source.length, source.batched, read, source.device)
+
+
+def _raw_source(events: Any, columns: str | Sequence[str] | None) -> tuple[_Source, Any]:
+    """The source in the input's own time unit, and its whole timestamp column (a view)."""
     cpu = torch.device("cpu")
+    frame = _frame_columns(events)
+    if frame is not None:
+        events = frame
+    if columns is not None and not isinstance(events, (np.ndarray, Tensor)) or (
+        isinstance(events, np.ndarray) and events.dtype.names is not None and columns is not None
+    ):
+        raise ValueError(
+            "columns= names the columns of an (N, k) array or tensor; mappings, data frames and structured "
+            f"arrays are read by name, got {type(events).__name__} with columns={columns!r}"
+        )
     if isinstance(events, np.ndarray) and events.dtype.names is not None:
         fields = events.dtype.fields or {}
         found = {c: _field(fields, c) for c in _FIELDS}
@@ -156,7 +335,7 @@ def _source(events: Any) -> _Source:
         def read_struct(i: int, j: int, names: Sequence[str]) -> dict[str, Tensor]:
             return {c: _column(events[found[c]][i:j], c).unsqueeze(0) for c in names}
 
-        return _Source(1, len(events), False, read_struct, cpu)
+        return _Source(1, len(events), False, read_struct, cpu), events[found["t"]]
     if isinstance(events, Mapping):
         found = {c: _field(events.keys(), c) for c in _FIELDS}
         missing = [c for c, f in found.items() if f is None]
@@ -165,30 +344,31 @@ def _source(events: Any) -> _Source:
                 f"events mapping needs keys x, y, t (or timestamp) and p (or on, polarity), "
                 f"got {sorted(map(str, events))} (missing {', '.join(missing)})"
             )
-        columns = {c: events[found[c]] for c in _FIELDS}
-        columns = {c: v if isinstance(v, (Tensor, np.ndarray)) else np.asarray(v) for c, v in columns.items()}
-        for c, v in columns.items():
+        data = {c: events[found[c]] for c in _FIELDS}
+        data = {c: v if isinstance(v, (Tensor, np.ndarray)) else np.asarray(v) for c, v in data.items()}
+        for c, v in data.items():
             if v.ndim != 1:
                 raise ValueError(f"events[{c!r}] must be 1-D, got shape {tuple(v.shape)}")
-        lengths = {int(v.shape[0]) for v in columns.values()}
+        lengths = {int(v.shape[0]) for v in data.values()}
         if len(lengths) != 1:
             raise ValueError(f"events x, y, t, p must have equal lengths, got {sorted(lengths)}")
-        tensors = [v for v in columns.values() if isinstance(v, Tensor)]
+        tensors = [v for v in data.values() if isinstance(v, Tensor)]
         device = tensors[0].device if tensors else cpu
 
         def read_mapping(i: int, j: int, names: Sequence[str]) -> dict[str, Tensor]:
-            return {c: _column(columns[c][i:j], c).to(device).unsqueeze(0) for c in names}
+            return {c: _column(data[c][i:j], c).to(device).unsqueeze(0) for c in names}
 
-        return _Source(1, lengths.pop(), False, read_mapping, device)
+        return _Source(1, lengths.pop(), False, read_mapping, device), data["t"]
     if not isinstance(events, (np.ndarray, Tensor)):
         raise TypeError(
             "events must be a (N, 4) or (B, N, 4) array or tensor, a mapping of x, y, t, p "
-            f"columns or a numpy structured array, got {type(events).__name__}"
+            f"columns, a pandas/polars DataFrame or a numpy structured array, got {type(events).__name__}"
         )
-    if events.ndim not in (2, 3) or events.shape[-1] != 4:
+    if events.ndim not in (2, 3):
         raise ValueError(
             f"events: expected (N, 4) or (B, N, 4) rows of (x, y, t, p), got {tuple(events.shape)}"
         )
+    order = _order(columns, int(events.shape[-1]))
     if isinstance(events, Tensor) and events.is_complex() or (
         isinstance(events, np.ndarray) and events.dtype.kind not in "biuf"
     ):
@@ -197,21 +377,23 @@ def _source(events: Any) -> _Source:
     rows = events if batched else events[None]
 
     def read_rows(i: int, j: int, names: Sequence[str]) -> dict[str, Tensor]:
-        return {c: _column(rows[:, i:j, _FIELDS.index(c)], c) for c in names}
+        return {c: _column(rows[:, i:j, order[_FIELDS.index(c)]], c) for c in names}
 
     device = events.device if isinstance(events, Tensor) else cpu
-    return _Source(int(rows.shape[0]), int(rows.shape[1]), batched, read_rows, device)
+    return _Source(int(rows.shape[0]), int(rows.shape[1]), batched, read_rows, device), rows[..., order[2]]
 
 
-def _columns(events: Any) -> tuple[list[Tensor], bool]:
-    """All of x, y, t, p as (B, N) columns at once, and whether the input was a batch.
+def _columns(
+    events: Any, *, time_unit: str | None = None, columns: str | Sequence[str] | None = None
+) -> tuple[list[Tensor], bool]:
+    """All of x, y, t, p as (B, N) columns at once (t in microseconds), and whether the input was a batch.
 
     For kernels that need a whole stream in memory (voxel grids, time surfaces); the
     columns are int64 (bool and integer input) or float64, as :func:`_column` makes them.
     """
-    source = _source(events)
-    columns = source.read(0, source.length, _FIELDS)
-    return [columns[c] for c in _FIELDS], source.batched
+    source = _source(events, time_unit=time_unit, columns=columns)
+    read = source.read(0, source.length, _FIELDS)
+    return [read[c] for c in _FIELDS], source.batched
 
 
 def _pair(value: object, name: str) -> tuple[Any, Any]:
@@ -354,6 +536,15 @@ def _floor_to_grid(values: Tensor, frame_us: float | int) -> Tensor:
     return torch.floor(values.to(torch.float64) / frame_us) * frame_us
 
 
+def _bin_of(t: Any, start: Any, frame_us: float | int) -> int:
+    """:func:`_time_bins` of one time, in Python arithmetic (the same float64 operations)."""
+    if isinstance(t, float) or isinstance(start, float):
+        return math.floor((float(t) - float(start)) / frame_us)
+    if isinstance(frame_us, int):
+        return (t - start) // frame_us
+    return math.floor(float(t - start) / frame_us)
+
+
 def _time_bins(t: Tensor, starts: Tensor, frame_us: float | int) -> Tensor:
     """Bin index ``floor((t - start) / frame)`` per event, exact in int64 where possible."""
     starts = starts.to(t.device).unsqueeze(1)
@@ -405,8 +596,9 @@ class _Tally:
     """Per-stream counts and ranges gathered while binning, for the errors and the warning."""
 
     def __init__(self, batch: int) -> None:
-        self.events = torch.zeros(batch, dtype=torch.int64)
-        self.in_window = torch.zeros(batch, dtype=torch.int64)
+        # host counters (numpy: a small torch op costs more than the kernel's passes on a short stream)
+        self.events = np.zeros(batch, dtype=np.int64)
+        self.in_window = np.zeros(batch, dtype=np.int64)
         self.t_min: list[Any] = [None] * batch
         self.t_max: list[Any] = [None] * batch
         self.outside = 0
@@ -419,7 +611,7 @@ class _Tally:
         if t.numel() == 0:
             return
         if valid is None:
-            low, high = t.amin(dim=1).tolist(), t.amax(dim=1).tolist()
+            low, high = (v.tolist() for v in torch.aminmax(t, dim=1))
             present = [True] * t.shape[0]
         else:
             big = math.inf if t.is_floating_point() else _INT64_MAX
@@ -437,89 +629,253 @@ def _merge(bounds: list[Any], low: Any, high: Any) -> None:
     bounds[1] = high if bounds[1] is None else max(bounds[1], high)
 
 
-def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally | None = None) -> Tensor:
-    """Channel per event: 1 for ON (p > 0), 0 for OFF (p in {0, -1}); refuses anything else.
+def _check_polarity(p: Tensor, valid: Tensor | None, tally: _Tally | None = None) -> None:
+    """Refuse polarities other than bool, {0, 1} or {-1, 1} (and a mix of 0 and -1 for OFF).
 
     ``tally`` remembers the OFF values seen in earlier chunks of the same call.
     """
     tally = _Tally(0) if tally is None else tally
     checked = p if valid is None else p[valid]
-    if checked.numel():
-        low, high = (v.item() for v in torch.aminmax(checked))
-        whole = not checked.is_floating_point() or bool((checked == checked.round()).all())
-        if low < -1 or high > 1 or not whole:
-            bad = (checked != 0) & (checked != 1) & (checked != -1)
-            raise ValueError(
-                f"events polarity p must be bool, {{0, 1}} or {{-1, 1}}, got {checked[bad].flatten()[0].item()!r}"
-            )
-        if low == -1:
-            tally.polarities.add(-1)
-        if low == 0 or (low == -1 and 0 not in tally.polarities and bool((checked == 0).any())):
-            tally.polarities.add(0)
-        if tally.polarities == {-1, 0}:
-            raise ValueError(
-                "events polarity p mixes the {0, 1} and {-1, 1} conventions (it holds both -1 and 0); "
-                "OFF must be either 0 or -1"
-            )
+    if not checked.numel():
+        return
+    low, high = (v.item() for v in torch.aminmax(checked))
+    whole = not checked.is_floating_point() or bool((checked == checked.round()).all())
+    if low < -1 or high > 1 or not whole:
+        bad = (checked != 0) & (checked != 1) & (checked != -1)
+        raise ValueError(
+            f"events polarity p must be bool, {{0, 1}} or {{-1, 1}}, got {checked[bad].flatten()[0].item()!r}"
+        )
+    if low == -1:
+        tally.polarities.add(-1)
+    if low == 0 or (low == -1 and 0 not in tally.polarities and bool((checked == 0).any())):
+        tally.polarities.add(0)
+    if tally.polarities == {-1, 0}:
+        raise ValueError(
+            "events polarity p mixes the {0, 1} and {-1, 1} conventions (it holds both -1 and 0); "
+            "OFF must be either 0 or -1"
+        )
+
+
+def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally | None = None) -> Tensor:
+    """Channel per event: 1 for ON (p > 0), 0 for OFF (p in {0, -1}); refuses anything else."""
+    _check_polarity(p, valid, tally)
     return (p > 0).to(torch.int64)
 
 
-def _flat_index(
-    columns: dict[str, Tensor], valid: Tensor | None, bins: Tensor, n_frames: int | None, grid: _Grid,
-    tally: _Tally, *, within_frame: bool = False,
-) -> tuple[Tensor, Tensor | None]:
-    """For a (B, n) chunk: the kept events' flat index into (B, T, 2, H', W') (and their bins).
+# The one binning kernel. Every binning path (events_to_frames, iter_frames, bin_events and
+# so EventsToFrames) turns columns into flat int32 indices with the same three steps and
+# adds ones straight into the output dtype:
+#
+# * time: ``(t - t_start) / frame`` in float32 (exact for a window under 2**23 µs and whole
+#   microsecond bins) or float64 (exact under 2**52 µs), int64 floor division past that;
+# * pixel: one gather from an int32 table over the sensor plus a one-pixel border, crop
+#   and pool folded in (-1 outside the crop, -2 outside the sensor);
+# * count: ``index_add_`` of an expanded one into the output (no int64 buffer, no
+#   bincount); only a count that may not fit the output dtype goes through int32 and a
+#   checked cast, the one place that reads a maximum.
 
-    With ``within_frame`` the index leaves out the sample and frame (it is the index
-    within one frame, ``2 * H' * W'`` values) and the kept events' bins come with it;
-    ``n_frames=None`` (only then) keeps every bin from 0 on.
+#: Largest whole number each float dtype counts to exactly.
+_EXACT_FLOAT = {torch.float16: 2**11, torch.bfloat16: 2**8, torch.float32: 2**24, torch.float64: 2**53}
+#: Pixel table entries: an output pixel ``row * W' + col``, or one of these.
+_OUTSIDE_CROP, _OUTSIDE_SENSOR = -1, -2
+_TABLES: dict[tuple, Tensor] = {}
+
+
+def _exact_count(dtype: torch.dtype) -> int:
+    """Largest count ``dtype`` holds exactly."""
+    return _EXACT_FLOAT[dtype] if dtype.is_floating_point else torch.iinfo(dtype).max
+
+
+def _accumulator(dtype: torch.dtype, n_events: int) -> torch.dtype:
+    """The dtype to count ``n_events`` in: the output's own when no pixel can pass what it
+    holds exactly, else int32 (int64 past 2**31 events) and a checked cast at the end."""
+    if n_events <= _exact_count(dtype):
+        return dtype
+    return torch.int32 if n_events < 2**31 else torch.int64
+
+
+def _pixel_table(grid: _Grid, device: torch.device) -> Tensor:
+    """((H + 2) * (W + 2),) int32: the output pixel ``row * W' + col`` of each sensor pixel
+    after crop and pool, -1 outside the crop, and a border of -2 (coordinates clamped to
+    [-1, H] and [-1, W] land there): one gather replaces the sensor and crop tests and two
+    divisions per event."""
+    key = (grid.height, grid.width, grid.top, grid.left, grid.crop_h, grid.crop_w, grid.pool, str(device))
+    table = _TABLES.get(key)
+    if table is None:
+        rows = torch.arange(-1, grid.height + 1)
+        cols = torch.arange(-1, grid.width + 1)
+        on_sensor = ((rows >= 0) & (rows < grid.height)).unsqueeze(1) & ((cols >= 0) & (cols < grid.width)).unsqueeze(0)
+        rows, cols = rows - grid.top, cols - grid.left
+        keep = ((rows >= 0) & (rows < grid.crop_h)).unsqueeze(1) & ((cols >= 0) & (cols < grid.crop_w)).unsqueeze(0)
+        pooled = torch.div(rows, grid.pool, rounding_mode="floor").unsqueeze(1) * grid.out_w + torch.div(
+            cols, grid.pool, rounding_mode="floor").unsqueeze(0)
+        table = torch.where(keep, pooled, _OUTSIDE_CROP)
+        table = torch.where(on_sensor, table, _OUTSIDE_SENSOR).to(torch.int32).reshape(-1).to(device)
+        if len(_TABLES) > 32:
+            _TABLES.clear()
+        _TABLES[key] = table
+    return table
+
+
+def _relative(t: Tensor, starts: Tensor) -> Tensor:
+    """``t - start`` (starts broadcast against ``t``): int64 when both are whole, else float64."""
+    starts = starts.to(t.device)
+    if t.is_floating_point() or starts.is_floating_point():
+        return t.to(torch.float64) - starts.to(torch.float64)
+    return t - starts
+
+
+def _bins_of(rel: Tensor, frame_us: float | int, n_frames: int) -> tuple[Tensor, Tensor]:
+    """``floor(rel / frame_us)`` and whether ``0 <= rel < n_frames * frame_us``.
+
+    Integer times over a window with ``n_frames * frame_us < 2**23`` (8.4 s): float32 true
+    division is correctly rounded, and for whole ``rel`` and ``frame`` the quotient of an
+    ``rel`` just below a multiple ``k * frame`` is at least ``1 / frame`` below ``k``, more
+    than float32's spacing at ``k`` when ``k * frame < 2**23``; so the floor is exact (4x
+    cheaper than int64 floor division on the CPU). The same holds in float64 under
+    ``2**52``; past that, int64 floor division. Float times: ``floor`` of the float64
+    quotient, as :func:`_time_bins`. The bins are int32 (int64 on the last path) and
+    meaningful only where inside (truncation = floor there).
     """
-    x, y, p = columns["x"], columns["y"], columns["p"]
-    channel = _polarity_channel(p, valid, tally)
-    col = torch.floor(x).to(torch.int64) if x.is_floating_point() else x
-    row = torch.floor(y).to(torch.int64) if y.is_floating_point() else y
-    inside = (col >= 0) & (col < grid.width) & (row >= 0) & (row < grid.height)
-    outside = ~inside if valid is None else (~inside & valid)
+    quotient = _quotient(rel, frame_us, n_frames)
+    inside = (quotient >= 0) & (quotient < n_frames)
+    return (quotient if quotient.dtype == torch.int64 else quotient.to(torch.int32)), inside
+
+
+def _quotient(rel: Tensor, frame_us: float | int, n_frames: int) -> Tensor:
+    """``rel / frame_us`` in float32 or float64 where that floors exactly (see
+    :func:`_bins_of`), else the int64 floor quotient."""
+    span = n_frames * frame_us
+    if not rel.is_floating_point() and isinstance(frame_us, int) and span >= 2**52:
+        return torch.div(rel, frame_us, rounding_mode="floor")
+    if isinstance(frame_us, int) and not rel.is_floating_point() and span < 2**23:
+        return rel.to(torch.float32).div_(frame_us)
+    return rel.to(torch.float64).div_(frame_us)
+
+
+def _within(values: Tensor, size: int) -> bool:
+    """Whether every value lies in ``[0, size)`` (one read-only pass)."""
+    low, high = (v.item() for v in torch.aminmax(values))
+    return low >= 0 and high < size
+
+
+def _pixels(col: Tensor, row: Tensor, grid: _Grid, *, look: bool = False) -> Tensor:
+    """The pixel table entry of each event (integer coordinates, any shape): int32, the
+    output pixel ``row * W' + col``, or -1 off the crop, -2 off the sensor. Coordinates
+    are clamped to the table's border; with ``look`` (a per-stream call, which reads values
+    anyway) only where one lies past it, on the CPU: a read-only ``aminmax`` is cheaper than
+    the clamp's copy of int64 columns. Without it no value is read (the batch kernel stays
+    free of host reads)."""
+    width = grid.width
+    flat = _clamped(row, grid.height, look).to(torch.int32).mul_(width + 2)
+    col = _clamped(col, width, look)
+    flat.add_(col if col.dtype in (torch.int8, torch.int16, torch.int32) else col.to(torch.int32)).add_(width + 3)
+    return _pixel_table(grid, col.device).index_select(0, flat.reshape(-1)).view(flat.shape)
+
+
+def _clamped(values: Tensor, size: int, look: bool) -> Tensor:
+    """``values`` clamped to [-1, size]; unchanged (``look``, on the CPU) when they already lie there."""
+    if look and values.device.type == "cpu" and values.numel():
+        low, high = (v.item() for v in torch.aminmax(values))
+        if low >= -1 and high <= size:
+            return values
+    return values.clamp(-1, size)
+
+
+def _tally_outside(tally: _Tally, pixel: Tensor, col: Tensor, row: Tensor, valid: Tensor | None) -> None:
+    """Count the (valid) events off the sensor and widen the coordinate ranges the warning names."""
+    outside = pixel == _OUTSIDE_SENSOR
+    if valid is not None:
+        outside &= valid
     n_outside = int(outside.sum())
     if n_outside:
         tally.outside += n_outside
         seen = slice(None) if valid is None else valid
-        _merge(tally.x_range, int(col[seen].min()), int(col[seen].max()))
-        _merge(tally.y_range, int(row[seen].min()), int(row[seen].max()))
-    in_time = bins >= 0
-    if n_frames is not None:
-        in_time &= bins < n_frames
-    if valid is not None:
-        in_time &= valid
-    tally.in_window += in_time.sum(dim=1).cpu()
-    if (grid.crop_h, grid.crop_w) == (grid.height, grid.width):
-        keep = inside & in_time
+        _merge(tally.x_range, *(int(v) for v in torch.aminmax(col[seen])))
+        _merge(tally.y_range, *(int(v) for v in torch.aminmax(row[seen])))
+
+
+def _event_index(
+    col: Tensor, row: Tensor, on: Tensor, rel: Tensor, n_frames: int, grid: _Grid, wide: bool, *, look: bool = False
+) -> tuple[Tensor, Tensor, Tensor]:
+    """Per event (any shape, integer coordinates): its index inside one stream's
+    ``(T, 2, H', W')`` block (int32, int64 if ``wide``; meaningless where not counted), its
+    pixel table entry (negative off the crop or sensor) and whether its time is in the window.
+    """
+    bins, in_time = _bins_of(rel, grid.frame_us, n_frames)
+    pixel = _pixels(col, row, grid, look=look)
+    index = bins.to(torch.int64) if wide else bins.to(torch.int32)
+    index = index.mul_(2).add_(on).mul_(grid.out_h * grid.out_w).add_(pixel)
+    return index, pixel, in_time
+
+
+def _count_chunk(
+    counts: Tensor, columns: dict[str, Tensor], valid: Tensor | None, starts: Tensor, n_frames: int, grid: _Grid,
+    tally: _Tally, *, in_window: bool = False,
+) -> None:
+    """Add a (B, n) chunk of columns to ``counts`` (``B * n_frames`` frames, then one spare
+    slot where the events not counted go); record the chunk's events in the window and
+    off the sensor in ``tally``. ``in_window``: every event's time is known to lie in the
+    window (pass 1 read the time ranges).
+
+    The common case, a whole stream on the sensor and in the window with no crop or pool,
+    skips the window test, the table and the spare slot: one read-only ``aminmax`` per
+    coordinate shows it.
+    """
+    x, y, p = columns["x"], columns["y"], columns["p"]
+    _check_polarity(p, valid, tally)
+    col = torch.floor(x) if x.is_floating_point() else x
+    row = torch.floor(y) if y.is_floating_point() else y
+    rel = _relative(columns["t"], starts.unsqueeze(1))
+    spare = counts.numel() - 1
+    index_dtype = torch.int64 if spare >= 2**31 else torch.int32
+    whole_sensor = (grid.crop_h, grid.crop_w, grid.pool) == (grid.height, grid.width, 1)
+    if (
+        valid is None and in_window and whole_sensor and x.numel()
+        and _within(col, grid.width) and _within(row, grid.height)
+    ):
+        index = _quotient(rel, grid.frame_us, n_frames).to(index_dtype).mul_(2).add_(p > 0)
+        index.mul_(grid.height).add_(row.to(index_dtype)).mul_(grid.width).add_(col.to(index_dtype))
+        counted = None
     else:
-        keep = (col >= grid.left) & (col < grid.left + grid.crop_w) & (row >= grid.top) & (row < grid.top + grid.crop_h)
-        keep &= in_time
-    if grid.top or grid.left:
-        row, col = row - grid.top, col - grid.left
-    if grid.pool > 1:
-        row, col = row // grid.pool, col // grid.pool
-    pixel = (channel * grid.out_h + row) * grid.out_w + col
-    if within_frame:
-        return pixel[keep], bins[keep]
+        index, pixel, in_time = _event_index(
+            col, row, p > 0, rel, n_frames, grid, index_dtype == torch.int64, look=True)
+        counted = in_time & (pixel >= 0)
+        if valid is not None:
+            counted &= valid
+        if bool(counted.all()):
+            counted = None
+        else:
+            _tally_outside(tally, pixel, col, row, valid)
+            if valid is not None:
+                in_time &= valid
+            tally.in_window += in_time.sum(dim=1).cpu().numpy()
     if x.shape[0] > 1:
-        bins = bins + torch.arange(x.shape[0], device=x.device).unsqueeze(1) * n_frames
-    return (bins * grid.frame_size + pixel)[keep], None
+        index += torch.arange(x.shape[0], device=x.device, dtype=index.dtype).unsqueeze(1) * (n_frames * grid.frame_size)
+    if counted is None:  # every event counts
+        tally.in_window += x.shape[1]
+    else:
+        _to_spare(index, counted, spare)
+    _accumulate(counts, index.reshape(-1))
+
+
+def _to_spare(index: Tensor, counted: Tensor, spare: int) -> Tensor:
+    """``index`` where ``counted``, else ``spare``, in place: ``spare + (index - spare) * counted``
+    (three vectorised passes; ``torch.where`` and ``masked_fill_`` are 10-20x slower on the CPU)."""
+    return index.sub_(spare).mul_(counted).add_(spare)
 
 
 def _accumulate(counts: Tensor, index: Tensor) -> None:
-    """``counts[index] += 1`` for every entry, with one bincount over the touched range."""
-    if index.numel() == 0:
-        return
-    low, high = int(index.min()), int(index.max())
-    counts[low : high + 1] += torch.bincount(index - low, minlength=high - low + 1)
+    """``counts[index] += 1`` for every entry: one ``index_add_`` of an expanded one."""
+    if index.numel():
+        counts.index_add_(0, index, torch.ones((), dtype=counts.dtype, device=counts.device).expand(index.numel()))
 
 
 def _as_dtype(counts: Tensor, dtype: torch.dtype) -> Tensor:
-    """The int64 counts in ``dtype``; refused by name unless ``dtype`` holds every count exactly."""
+    """The counts in ``dtype``; refused by name unless ``dtype`` holds every count exactly."""
     # floats hold every whole number up to 2 / eps exactly (bfloat16: 256, float16: 2048)
+    if counts.dtype == dtype:
+        return counts
     exact = 2 / torch.finfo(dtype).eps if dtype.is_floating_point else torch.iinfo(dtype).max
     if counts.numel():
         largest = int(counts.max())
@@ -532,22 +888,33 @@ def _as_dtype(counts: Tensor, dtype: torch.dtype) -> Tensor:
     return counts.to(dtype)
 
 
-def _check_bytes(batch: int, n_frames: int, grid: _Grid, max_bytes: int | None, where: str) -> None:
+def _check_bytes(
+    batch: int, n_frames: int, grid: _Grid, max_bytes: int | None, where: str, n_events: int
+) -> None:
     """Refuse, before allocating, a binning that needs more than ``max_bytes``."""
     if max_bytes is None:
         return
     values = batch * n_frames * grid.frame_size
-    needed = values * (8 + (torch.finfo(grid.dtype).bits if grid.dtype.is_floating_point else torch.iinfo(grid.dtype).bits) // 8)
+    counting = _accumulator(grid.dtype, n_events)
+    needed = values * grid.dtype.itemsize + (values * counting.itemsize if counting != grid.dtype else 0)
     if needed > max_bytes:
         raise ValueError(
             f"events_to_frames: {where} {n_frames:,} frames of {grid.frame_size:,} values"
-            f"{f' for {batch} streams' if batch > 1 else ''}, {needed / 1e9:,.1f} GB ({needed:,} bytes) with the "
-            f"int64 buffer, more than max_bytes={max_bytes:,}. Timestamps must be in microseconds; to bin a long "
+            f"{f' for {batch} streams' if batch > 1 else ''}, {needed / 1e9:,.1f} GB ({needed:,} bytes)"
+            f"{f' with the {counting} counting buffer' if counting != grid.dtype else ''} for the output, more than "
+            f"max_bytes={max_bytes:,}. Timestamps must be in microseconds; to bin a long "
             "recording, stream it with iter_frames, pass n_frames for a window, or raise max_bytes"
         )
 
 
-def _warn_outside(tally: _Tally, total: int, grid: _Grid, stacklevel: int) -> None:
+class _SensorSize(NamedTuple):
+    """The two fields of a grid that the sensor warning reads."""
+
+    height: int
+    width: int
+
+
+def _warn_outside(tally: _Tally, total: int, grid: _Grid | _SensorSize, stacklevel: int) -> None:
     if not tally.outside:
         return
     (x_low, x_high), (y_low, y_high) = tally.x_range, tally.y_range
@@ -590,6 +957,8 @@ def events_to_frames(
     mask: Tensor | None = None,
     chunk_size: int = CHUNK_EVENTS,
     max_bytes: int | None = MAX_BYTES,
+    time_unit: str | None = None,
+    columns: str | Sequence[str] | None = None,
 ) -> Tensor:
     r"""Count events into fixed time bins, one channel per polarity.
 
@@ -605,7 +974,8 @@ def events_to_frames(
 
     Args:
         events: ``(N, 4)`` rows of ``(x, y, t, p)`` (array or tensor, any integer or float
-            dtype), a ``(B, N, 4)`` batch of padded streams, a mapping of columns, or a
+            dtype; other orders with ``columns``), a ``(B, N, 4)`` batch of padded streams,
+            a mapping of columns (an h5py group too), a pandas or polars DataFrame, or a
             numpy structured array (tonic's dtypes, titled fields included). ``p`` is
             bool, {0, 1} or {-1, 1}; anything else raises.
         sensor_size: ``(H, W)`` of the sensor, height first; ``None`` means the paper's
@@ -628,14 +998,25 @@ def events_to_frames(
         mask: for a batch, a (B, N) bool tensor marking valid events (instead of lengths).
         chunk_size: events read at a time; the extra memory is a few times this many
             64-bit values plus the output.
-        max_bytes: most bytes the binning may allocate (an int64 buffer and the output,
-            ``B·T·2·H'·W'·(8 + itemsize)``); more raises ``ValueError`` with the byte count
-            before anything is allocated (a 300 s recording in 10 ms bins on a 240×180
-            sensor needs 31 GB). ``None``: no bound. Stream long recordings with
+        max_bytes: most bytes the binning may allocate (the output,
+            ``B·T·2·H'·W'·itemsize``, plus as much again in int32 when more events than
+            ``dtype`` counts exactly could meet in one pixel, e.g. float16 past 2,048
+            events); more raises ``ValueError`` with the byte count before anything is
+            allocated (a 300 s recording in 10 ms bins on a 240×180 sensor needs 10 GB in
+            float32). ``None``: no bound. Stream long recordings with
             :func:`iter_frames`.
+        time_unit: unit of plain-number timestamps: ``"us"``, ``"ms"``, ``"s"`` or ``"ns"``
+            (ns are floored to whole microseconds). ``None`` (default) reads microseconds
+            and refuses float timestamps with fractions spanning under 1e6 (they look
+            like seconds: pass ``time_unit`` to say what they are). ``timedelta64`` and
+            ``datetime64`` columns (pandas, polars ``Duration``/``Datetime``) carry their
+            own unit. Float timestamps too coarse to hold microseconds (float32 past
+            2**24 µs, about 16.8 s) are refused whatever the unit.
+        columns: for ``(N, k)`` or ``(B, N, k)`` rows, what each column holds, e.g.
+            ``"txyp"``, with ``"_"`` for a column to skip; ``None`` means ``"xytp"``.
 
     Shape:
-        - events: ``(N, 4)``, ``(B, N, 4)`` or N-long columns.
+        - events: ``(N, 4)`` (or ``(N, k)`` with ``columns``), ``(B, N, 4)`` or N-long columns.
         - output: ``(T, 2, H', W')``, or ``(B, T, 2, H', W')`` for batched input, with
           ``H' = height // pool``, ``W' = width // pool``.
 
@@ -669,14 +1050,14 @@ def events_to_frames(
                 [0., 0.],
                 [0., 1.]])
     """
-    source = _source(events)
+    source = _source(events, time_unit=time_unit, columns=columns)
     grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
     chunk = max(1, _integer(chunk_size, "chunk_size") // max(source.batch, 1))
     if max_bytes is not None:
         max_bytes = _integer(max_bytes, "max_bytes")
     if n_frames is not None:
         n_frames = _integer(n_frames, "n_frames")
-        _check_bytes(source.batch, n_frames, grid, max_bytes, "n_frames asks for")
+        _check_bytes(source.batch, n_frames, grid, max_bytes, "n_frames asks for", source.batch * source.length)
     if not source.batched and (lengths is not None or mask is not None):
         raise ValueError("lengths and mask apply to a (B, N, 4) batch of events only")
     valid_all = _valid_mask(source.batch, source.length, lengths, mask, source.device)
@@ -691,45 +1072,57 @@ def events_to_frames(
     else:
         starts = _explicit_starts(t_start, batch)
 
+    # A stream that fits one chunk is read once, for both passes.
+    whole = source.read(0, length, _FIELDS) if length <= chunk else None
+
+    def read(i: int, names: Sequence[str]) -> dict[str, Tensor]:
+        return whole if whole is not None else source.read(i, i + chunk, names)  # noqa: F821 (deleted after both passes)
+
     # Pass 1 (only when needed): every stream's time range, for t_start and n_frames.
     ranges = _Tally(batch)
-    if isinstance(t_start, str) or n_frames is None:
+    pass_one = isinstance(t_start, str) or n_frames is None
+    if pass_one:
         for i in range(0, length, chunk):
-            ranges.add_times(source.read(i, i + chunk, ("t",))["t"], valid_of(i, i + chunk))
+            ranges.add_times(read(i, ("t",))["t"], valid_of(i, i + chunk))
     if isinstance(t_start, str):
         firsts = [0 if v is None else v for v in ranges.t_min]
         starts = torch.tensor(firsts, dtype=torch.float64 if any(isinstance(v, float) for v in firsts) else torch.int64)
         if t_start == "floor":
             starts = _floor_to_grid(starts, grid.frame_us)
+    start_values = starts.tolist()
     if n_frames is None:
         n_frames = 0
-        for b, last in enumerate(ranges.t_max):
-            if last is not None and last >= starts[b].item():
-                last_t = torch.tensor([[last]], dtype=torch.float64 if isinstance(last, float) else torch.int64)
-                last_bin = int(_time_bins(last_t, starts[b : b + 1], grid.frame_us))
-                n_frames = max(n_frames, last_bin + 1)
+        for last, start in zip(ranges.t_max, start_values):
+            if last is not None and last >= start:
+                n_frames = max(n_frames, _bin_of(last, start, grid.frame_us) + 1)
         if n_frames > _MAX_INFERRED_FRAMES:
             raise ValueError(
                 f"the events span {n_frames:,} bins of frame_ms={frame_ms!r} (t = {min(v for v in ranges.t_min if v is not None)} "
                 f"to {max(v for v in ranges.t_max if v is not None)}); timestamps must be in microseconds. "
                 "Pass n_frames to bin a window of that length"
             )
-        _check_bytes(batch, n_frames, grid, max_bytes, "the events span")
+        _check_bytes(batch, n_frames, grid, max_bytes, "the events span", batch * length)
 
-    # Pass 2: bin chunk by chunk into one int64 buffer.
+    # Every event's time in the window (pass 1 shows it): the kernel skips the window test.
+    in_window = pass_one and all(
+        low is None or (low >= start and _bin_of(high, start, grid.frame_us) < n_frames)
+        for low, high, start in zip(ranges.t_min, ranges.t_max, start_values)
+    )
+
+    # Pass 2: count chunk by chunk straight into the output (and one spare slot).
     tally = _Tally(batch)
-    counts = torch.zeros(batch * n_frames * grid.frame_size, dtype=torch.int64, device=source.device)
+    total = batch * n_frames * grid.frame_size
+    counts = torch.zeros(total + 1, dtype=_accumulator(grid.dtype, batch * length), device=source.device)
 
     def bin_chunk(i: int) -> None:  # a function, so that a chunk's temporaries die before the next
-        columns = source.read(i, i + chunk, _FIELDS)
+        columns = read(i, _FIELDS)
         valid = valid_of(i, i + chunk)
-        tally.events += (torch.full((batch,), columns["t"].shape[1]) if valid is None else valid.sum(dim=1).cpu())
-        bins = _time_bins(columns["t"], starts, grid.frame_us)
-        index, _ = _flat_index(columns, valid, bins, n_frames, grid, tally)
-        _accumulate(counts, index)
+        tally.events += columns["t"].shape[1] if valid is None else valid.sum(dim=1).cpu().numpy()
+        _count_chunk(counts, columns, valid, starts, n_frames, grid, tally, in_window=in_window)
 
     for i in range(0, length, chunk):
         bin_chunk(i)
+    del whole
 
     for b in range(batch):
         if tally.events[b] and not tally.in_window[b]:
@@ -757,7 +1150,7 @@ def events_to_frames(
             ),
             stacklevel=2,
         )
-    frames = _as_dtype(counts, grid.dtype).view(batch, n_frames, 2, grid.out_h, grid.out_w)
+    frames = _as_dtype(counts[:total], grid.dtype).view(batch, n_frames, 2, grid.out_h, grid.out_w)
     return frames if source.batched else frames.squeeze(0)
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 __all__ = ["iter_frames"]
 
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -19,8 +19,9 @@ import torch
 from torch import Tensor
 
 from .binning import (
-    _FIELDS, _T_STARTS, _as_dtype, _empty_window_error, _explicit_starts, _flat_index, _floor_to_grid, _Grid, _grid,
-    _integer, _Source, _source, _Tally, _time_bins, _warn_outside,
+    _FIELDS, _T_STARTS, _accumulate, _as_dtype, _check_polarity, _empty_window_error, _exact_count, _explicit_starts,
+    _floor_to_grid, _Grid, _grid, _integer, _order_names, _pixels, _Source, _source, _Tally, _tally_outside, _time_bins,
+    _time_unit, _to_spare, _warn_outside,
 )
 
 
@@ -36,6 +37,8 @@ def iter_frames(
     pool: int = 1,
     dtype: torch.dtype = torch.float32,
     frames_per_step: int = 32,
+    time_unit: str | None = None,
+    columns: str | Sequence[str] | None = None,
 ) -> Iterator[Tensor]:
     r"""Bin a stream of event chunks and yield one frame ``(2, H', W')`` per bin, in order.
 
@@ -63,6 +66,10 @@ def iter_frames(
         pool: side of the square blocks summed into one output pixel.
         dtype: dtype of the yielded counts.
         frames_per_step: bins counted at once within a chunk (bounds the buffer).
+        time_unit: unit of the chunks' timestamps, as in :func:`events_to_frames`
+            (``"us"``, ``"ms"``, ``"s"``, ``"ns"``; ``None``: microseconds, float
+            timestamps that look like seconds refused).
+        columns: the order of ``(N, k)`` chunks' columns, e.g. ``"txyp"``.
 
     Yields:
         ``(2, H', W')`` counts, one per bin from ``t_start`` on.
@@ -90,52 +97,73 @@ def iter_frames(
         starts: Tensor | None = None
     else:
         starts = _explicit_starts(t_start, 1)
-    return _iter_frames(chunks, grid, t_start, starts, frame_ms, n_frames, step)
+    time_unit = _time_unit(time_unit)  # checked now, not at the first chunk
+    if columns is not None:
+        _order_names(columns)
+
+    def source_of(events: Any) -> _Source:
+        return _source(events, time_unit=time_unit, columns=columns)
+
+    return _iter_frames(chunks, grid, t_start, starts, frame_ms, n_frames, step, source_of)
+
 
 def _iter_frames(
     chunks: Iterable[Any], grid: _Grid, t_start: object, starts: Tensor | None, frame_ms: object,
-    n_frames: int | None, step: int,
+    n_frames: int | None, step: int, source_of: Callable[[Any], _Source],
 ) -> Iterator[Tensor]:
     size = grid.frame_size
     shape = (2, grid.out_h, grid.out_w)
+    exact = _exact_count(grid.dtype)
     tally = _Tally(1)
     warned = False
-    pending = 0  # the bin being filled
-    frame = None  # its counts, created on the device of the first chunk
+    pending = 0  # the next bin to yield
+    base = 0  # the bin of the window's first frame: counts holds bins base .. base + step - 1
+    in_window = 0  # events counted in the window (the cast is checked only past what dtype holds exactly)
+    counts: Tensor | None = None  # the window's frames in int32 and one spare slot
     last_t: Any = None
+    end = 0  # one past the last bin that holds an event
 
-    def emit(counts: Tensor) -> Tensor:
-        return _as_dtype(counts, grid.dtype).view(shape)
+    def emit(k: int) -> Tensor:
+        assert counts is not None
+        if not base <= k < base + step:
+            return torch.zeros(shape, dtype=grid.dtype, device=counts.device)
+        frame = counts[(k - base) * size : (k - base + 1) * size]
+        if frame.dtype == grid.dtype:
+            return frame.clone().view(shape)
+        return (frame.to(grid.dtype) if in_window <= exact else _as_dtype(frame, grid.dtype)).view(shape)
 
     for number, events in enumerate(chunks):
-        source = _source(events)
+        source = source_of(events)
         if source.batched:
             raise ValueError(f"chunks[{number}] must be one stream, got a batch of shape {tuple(events.shape)}")
         chunk = _stream_chunk(source, number, last_t, starts, t_start, n_frames, grid, tally)
         if chunk is None:
             continue
-        starts, last_t, pixel, kept_bins, past_window = chunk
+        starts, last_t, bins, within, kept, (lo, hi), past_window = chunk
         del chunk
         if tally.outside and not warned:
             _warn_outside(tally, int(tally.events.item()), grid, stacklevel=3)
             warned = True
-        if frame is None:
-            frame = torch.zeros(size, dtype=torch.int64, device=source.device)
-        # the kept events' bins are sorted: count them ``step`` distinct bins at a time
-        distinct, inverse = torch.unique_consecutive(kept_bins, return_inverse=True)
-        bin_list = distinct.tolist()
-        for g in range(0, len(bin_list), step):
-            group = bin_list[g : g + step]
-            lo = int(torch.searchsorted(inverse, g))
-            hi = int(torch.searchsorted(inverse, g + len(group)))
-            local = torch.bincount((inverse[lo:hi] - g) * size + pixel[lo:hi], minlength=len(group) * size)
-            for k, b in enumerate(group):
-                while pending < b:
-                    yield emit(frame)
-                    frame = torch.zeros_like(frame)
-                    pending += 1
-                frame += local[k * size : (k + 1) * size]
-        del pixel, kept_bins, distinct, inverse  # before the next chunk is read
+        if counts is None:
+            counts = torch.zeros(step * size + 1, dtype=torch.int32, device=source.device)
+        # the events in the window, lo .. hi, are sorted by bin: count them a window of bins at a time
+        while lo < hi:
+            first = int(bins[lo])
+            while pending < first:
+                yield emit(pending)
+                pending += 1
+            if first >= base + step:  # every frame of the window is out: the window moves on
+                base, in_window = first, 0
+                counts.zero_()
+            stop = min(hi, int(torch.searchsorted(bins, base + step)))
+            if in_window + stop - lo >= 2**31 and counts.dtype == torch.int32:
+                counts = counts.to(torch.int64)
+            index = (bins[lo:stop] - base).mul_(size).add_(within[lo:stop])
+            _accumulate(counts, _to_spare(index, kept[lo:stop], counts.numel() - 1))
+            in_window += stop - lo
+            end = int(bins[stop - 1]) + 1
+            lo = stop
+        del bins, within, kept  # before the next chunk is read
         if past_window:
             break  # every later event is past the window: the remaining bins are complete
     if tally.events.item() and not tally.in_window.item():
@@ -143,21 +171,21 @@ def _iter_frames(
             "the stream", starts.item(), t_start, frame_ms, n_frames, grid, tally.t_min[0], tally.t_max[0],
             int(tally.events.item()),
         )
-    if frame is None:
+    if counts is None:
         if n_frames is None:
             return
-        frame = torch.zeros(size, dtype=torch.int64)
-    end = pending + 1 if n_frames is None else n_frames
-    while pending < end:
-        yield emit(frame)
-        frame = torch.zeros_like(frame)
-        pending += 1
+        counts = torch.zeros(step * size + 1, dtype=torch.int32)
+    for k in range(pending, end if n_frames is None else n_frames):
+        yield emit(k)
+
 
 def _stream_chunk(
     source: _Source, number: int, last_t: Any, starts: Tensor | None, t_start: object, n_frames: int | None,
     grid: _Grid, tally: _Tally,
-) -> tuple[Tensor, Any, Tensor, Tensor, bool] | None:
-    """Bin one chunk of a stream: (starts, its last t, the kept events' pixels and bins, past the window?)."""
+) -> tuple[Tensor, Any, Tensor, Tensor, Tensor, tuple[int, int], bool] | None:
+    """One chunk of a stream, checked: (starts, its last t, every event's bin (int64, sorted),
+    index within a frame and whether it is on the crop, the span of events in the window, and
+    whether the chunk reaches past the window)."""
     if source.length == 0:
         return None
     columns = source.read(0, source.length, _FIELDS)
@@ -174,6 +202,16 @@ def _stream_chunk(
             starts = _floor_to_grid(starts, grid.frame_us)
     tally.add_times(t, None)
     tally.events += t.shape[1]
-    bins = _time_bins(t, starts, grid.frame_us)
-    pixel, kept_bins = _flat_index(columns, None, bins, n_frames, grid, tally, within_frame=True)
-    return starts, chunk_last, pixel, kept_bins, n_frames is not None and int(bins[0, -1]) >= n_frames
+    x, y, p = columns["x"][0], columns["y"][0], columns["p"][0]
+    _check_polarity(p, None, tally)
+    col = torch.floor(x) if x.is_floating_point() else x
+    row = torch.floor(y) if y.is_floating_point() else y
+    pixel = _pixels(col, row, grid, look=True)
+    _tally_outside(tally, pixel, col, row, None)
+    bins = _time_bins(t, starts, grid.frame_us)[0]
+    stop = bins[-1].item() + 1 if n_frames is None else n_frames
+    lo, hi = torch.searchsorted(bins, torch.tensor([0, stop], dtype=bins.dtype, device=bins.device)).tolist()
+    tally.in_window += hi - lo
+    within = (p > 0).to(torch.int32).mul_(grid.out_h * grid.out_w).add_(pixel)
+    past_window = n_frames is not None and int(bins[-1]) >= n_frames
+    return starts, chunk_last, bins, within, pixel >= 0, (lo, hi), past_window

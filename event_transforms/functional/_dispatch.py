@@ -87,6 +87,7 @@ def kernel_for(dispatcher: Callable[..., Any], inputs: object) -> Callable[..., 
                 detail = "has no kernel for an EventBatch; bin the events first with EventsToFrames " \
                     "(it can stand anywhere in a Compose)"
                 raise NoKernelError(f"{name} {detail}", events=True, detail=detail)
+            assert isinstance(inputs, Tensor)
             detail = "works on events only: pass an EventBatch (EventBatch.from_streams or collate_events), " \
                 f"got frames of shape {tuple(inputs.shape)}"
             raise NoKernelError(f"{name} {detail}", events=False, detail=detail)

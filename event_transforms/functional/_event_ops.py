@@ -85,7 +85,7 @@ def _require_grid(batch: EventBatch, owner: str, *, frames: bool = True) -> tupl
             f"{owner} on events needs the batch's frame grid ({need}): build the batch with "
             f"EventBatch.from_streams(..., frame_ms=..., n_frames=...) or call batch.with_grid(...)"
         )
-    return batch.t_start, _frame_us(batch.frame_ms), batch.n_frames
+    return batch.t_start, _frame_us(batch.frame_ms), batch.n_frames  # type: ignore[return-value]  # n_frames may be None when frames=False
 
 
 def _round_to(values: Tensor, dtype: torch.dtype) -> Tensor:
@@ -136,7 +136,7 @@ def warn_dropped(
     sensor warning); nothing when no event is dropped. ``window`` describes the grid."""
     import warnings
 
-    from ..events.binning import EventsOutsideWindowWarning, _Tally, _warn_outside
+    from ..events.binning import EventsOutsideWindowWarning, _SensorSize, _Tally, _warn_outside
 
     if batch.num_events == 0 or (outside_sensor is None and outside_window is None):
         return
@@ -155,14 +155,7 @@ def warn_dropped(
         x, y = batch.x, batch.y
         tally.x_range = [int(x.min()), int(x.max())]
         tally.y_range = [int(y.min()), int(y.max())]
-        height, width = batch.sensor_size
-
-        class _Sensor:  # the two fields the sensor warning reads
-            pass
-
-        grid = _Sensor()
-        grid.height, grid.width = height, width
-        _warn_outside(tally, batch.num_events, grid, stacklevel=stacklevel + 1)
+        _warn_outside(tally, batch.num_events, _SensorSize(*batch.sensor_size), stacklevel=stacklevel + 1)
     if sum(window_counts):
         streams = ", ".join(f"{d:,} of {n:,}" for d, n in zip(window_counts, batch.lengths))
         warnings.warn(

@@ -55,7 +55,9 @@ def center_of_mass(frames: Tensor) -> Tensor:
     """Event centroid of each sequence, both polarities and all frames, as (y, x).
 
     Computed in float64 whatever the input dtype; an empty sequence falls back to the
-    image centre ((H - 1) / 2, (W - 1) / 2).
+    image centre ((H - 1) / 2, (W - 1) / 2). NaN and ±Inf pixels carry no mass (the NaN
+    policy of the warps: a non-finite pixel stays local, it reaches only the output pixels
+    whose interpolation reads it, and never moves the centre of a whole sample).
 
     Args:
         frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
@@ -106,20 +108,29 @@ def _mass_moments(batch: Tensor, *, host: bool = True) -> Tensor:
     About ten device ops and no host synchronisation; with ``host=False`` the constants are
     made on the device (no host-to-device copy, as CUDA-graph capture requires).
     """
-    b, t, p, height, width = batch.shape
-    # Sum the T·2 frames of each sequence with one batched matrix product (much faster
-    # than a strided reduction); float32 is exact for whole counts below 2**24 per pixel,
-    # float64 is used for float64 and 32/64-bit integer input.
-    exact = batch.dtype in (torch.float64, torch.int32, torch.int64)
-    acc = torch.float64 if exact else torch.float32
-    ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
-    weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc)).view(b, height, width)
+    height, width = batch.shape[-2:]
+    weight = _mass_weight(batch)
     margins = torch.cat([weight.sum(dim=2, dtype=torch.float64), weight.sum(dim=1, dtype=torch.float64)], dim=1)
     if not host or torch.compiler.is_compiling():
         prior, weights = _moment_weights_tensors(height, width, batch.device)
     else:
         prior, weights = (torch.from_numpy(a).to(batch.device) for a in _moment_weights(height, width))
     return torch.addmm(prior, margins, weights)
+
+
+def _mass_weight(batch: Tensor) -> Tensor:
+    """(B, H, W) event mass per pixel: the T·2 frames of each sequence summed (float32, or
+    float64 for float64 and 32/64-bit integer input). NaN and ±Inf pixels carry no mass."""
+    b, t, p, height, width = batch.shape
+    # One batched matrix product (much faster than a strided reduction); float32 is exact
+    # for whole counts below 2**24 per pixel.
+    exact = batch.dtype in (torch.float64, torch.int32, torch.int64)
+    acc = torch.float64 if exact else torch.float32
+    ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
+    flat = batch.reshape(b, t * p, height * width).to(acc)
+    if batch.is_floating_point():  # one NaN pixel must not move the centre of a whole sample
+        flat = torch.nan_to_num(flat, nan=0.0, posinf=0.0, neginf=0.0)
+    return torch.matmul(ones, flat).view(b, height, width)
 
 
 def _moment_weights_tensors(height: int, width: int, device: torch.device) -> tuple[Tensor, Tensor]:
@@ -158,7 +169,7 @@ def _check_center(center: object, batch: int | None = None) -> Center:
         raise ValueError(f"center must be {expected}, got {describe(center)}")
     if not bool(value.isfinite().all()):
         raise ValueError(f"center must be finite, got {describe(center)}")
-    return center
+    return center  # type: ignore[return-value]  # a checked (y, x) sequence or tensor
 
 
 def _work_dtype(dtype: torch.dtype, mode: str) -> torch.dtype:
@@ -510,7 +521,7 @@ def _affine_events(
     *,
     angle: Tensor | None = None,
     scale: Tensor | None = None,
-    center: str | Sequence[float] = "mass",
+    center: str | Sequence[float] | Tensor = "mass",
 ) -> EventBatch:
     """Rotate by ``angle`` (degrees, counter-clockwise as in :func:`~event_transforms.functional.rotate`)
     and scale by ``scale`` about the centre, per sample; each event moves to the nearest pixel.

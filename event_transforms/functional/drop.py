@@ -173,7 +173,8 @@ def drop_by_time_frames(batch: Tensor, start: Tensor, length: Tensor) -> Tensor:
 def drop_by_time_events(batch: EventBatch, start: Tensor, length: Tensor) -> EventBatch:
     """Kernel of :func:`drop_by_time` for an EventBatch: sample b's events in bins
     ``[start[b], start[b] + length[b])`` of the grid dropped. One host read of the kept counts."""
-    from ..events.batch import _bins_of, _relative_times
+    from ..events.batch import _relative_times
+    from ..events.binning import _bins_of
 
     starts, frame_us, n_frames = _require_grid(batch, "RandomEventDrop (time)")
     bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)

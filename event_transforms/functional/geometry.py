@@ -130,7 +130,7 @@ def _size(value: object, name: str) -> tuple[int, int]:
         pair = (number, number)
     if min(pair) < 1:
         raise ValueError(f"{name} must be positive, got {describe(value)}")
-    return pair  # type: ignore[return-value]
+    return pair
 
 
 def crop_frames(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool = False, mode: str = "bilinear") -> Tensor:
@@ -244,7 +244,9 @@ def center_crop(frames: Tensor, size: int | Sequence[int], *, resize: bool = Fal
     height, width = batch.shape[-2:]
     hw = _size(size, "size")
     _check_fits(hw, height, width)
-    return crop(frames, (height - hw[0]) // 2, (width - hw[1]) // 2, hw, resize=resize, mode=mode)
+    out = crop(frames, (height - hw[0]) // 2, (width - hw[1]) // 2, hw, resize=resize, mode=mode)
+    assert isinstance(out, Tensor)  # frames in, frames out
+    return out
 
 
 # --------------------------------------------------------------------------- downsample
@@ -273,7 +275,8 @@ def _sum_in(values: Tensor, dim: int | tuple[int, ...], owner: str, *, keepdim: 
     """Sum counts over ``dim`` in a wide dtype and return them in ``values``' dtype.
 
     8/16-bit integer sums that would not fit raise (one host synchronisation, those dtypes
-    only) instead of wrapping.
+    only) instead of wrapping; float16/bfloat16 sums past the dtype's largest finite value
+    raise the same way instead of becoming ``inf``.
     """
     dtype = values.dtype
     if dtype.is_floating_point:
@@ -288,6 +291,14 @@ def _sum_in(values: Tensor, dim: int | tuple[int, ...], owner: str, *, keepdim: 
             raise ValueError(
                 f"{owner}: a sum ({int(high)}) does not fit frames of dtype {dtype} "
                 f"(max {info.max}); convert the frames to a wider dtype first"
+            )
+    if dtype in (torch.float16, torch.bfloat16) and total.numel():
+        largest = torch.finfo(dtype).max
+        high = total.abs().max()
+        if bool(high > largest):
+            raise ValueError(
+                f"{owner}: a sum ({float(high):g}) does not fit frames of dtype {dtype} "
+                f"(largest finite value {largest:g}); convert the frames to a wider dtype first"
             )
     return total.to(dtype)
 
@@ -304,7 +315,8 @@ def downsample(frames: Tensor | EventBatch, factor: int | Sequence[int], *, rema
     floor rounding) discards the last ``H mod fy`` rows and ``W mod fx`` columns and their
     events; ``"keep"`` sums them into a last, partial block (ceil rounding), so every event
     is kept. The sums are taken in int64/float32/float64 and returned in the input dtype;
-    8/16-bit integer frames whose block sums would overflow raise instead of wrapping.
+    8/16-bit integer frames whose block sums would overflow raise instead of wrapping, and
+    float16/bfloat16 frames whose sums pass the dtype's range raise instead of giving ``inf``.
 
     On an EventBatch (:func:`downsample_events`) each event moves to its block,
     ``(y // fy, x // fx)``, and the sensor becomes ``(H', W')``: binned, the result equals
@@ -476,6 +488,7 @@ def _flip_events(batch: EventBatch, flip: Tensor | None, *, axis: str = "x") -> 
     if all(flags):
         mirrored = (size - 1) - column
     else:
+        assert flip is not None  # not every flag is set, so flip was given
         mirrored = torch.where(_per_event(flip, batch), (size - 1) - column, column)
     return batch._replace(**{axis: mirrored.to(torch.int16)})
 

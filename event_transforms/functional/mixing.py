@@ -39,7 +39,9 @@ __all__ = [
 Scalars = float | Sequence[float] | Tensor
 
 
-def _box_mask(top: Tensor, left: Tensor, height: Tensor, width: Tensor, size: Sequence[int], device) -> Tensor:
+def _box_mask(
+    top: Tensor, left: Tensor, height: Tensor, width: Tensor, size: Sequence[int], device: torch.device
+) -> Tensor:
     """(B, 1, 1, H, W) bool: True inside each sample's box."""
     h, w = size
     rows = torch.arange(h, device=device)
@@ -360,7 +362,7 @@ def _check_classes(labels: Tensor, num_classes: int | None) -> int | None:
 
 def _mix_labels(labels: Tensor, partner: Tensor, weight: Tensor, num_classes: int | None) -> Tensor:
     if not labels.is_floating_point():
-        labels = torch.nn.functional.one_hot(labels.long(), num_classes).to(torch.float32)
+        labels = torch.nn.functional.one_hot(labels.long(), -1 if num_classes is None else num_classes).to(torch.float32)
     work = torch.float64 if labels.dtype == torch.float64 else torch.float32
     w = weight.to(labels.device, work, non_blocking=True).view(-1, *([1] * (labels.dim() - 1)))
     own = labels.to(work)

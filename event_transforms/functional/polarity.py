@@ -54,7 +54,11 @@ def flip_polarity_events(batch: EventBatch, flip: Tensor | None = None) -> Event
     if not any(flags):
         return batch
     swapped = 1 - batch.p
-    p = swapped if all(flags) else torch.where(_per_event(flip, batch), swapped, batch.p)
+    if all(flags):
+        p = swapped
+    else:
+        assert flip is not None  # not every flag is set, so flip was given
+        p = torch.where(_per_event(flip, batch), swapped, batch.p)
     return batch._replace(p=p.to(torch.int8))
 
 
@@ -69,7 +73,8 @@ def merge_polarities(frames: Tensor | EventBatch, *, keepdim: bool = True) -> Te
     end of a pipeline, since the transforms here need two channels.
 
     The sum is taken in a wide dtype and returned in the input dtype; 8/16-bit integer
-    frames whose sum would overflow raise instead of wrapping (one host synchronisation,
+    frames whose sum would overflow raise instead of wrapping, float16/bfloat16 frames whose
+    sum passes the dtype's range raise instead of giving ``inf`` (one host synchronisation,
     those dtypes only).
 
     On an EventBatch (:func:`merge_polarities_events`) every event becomes OFF (``p = 0``),

@@ -26,7 +26,7 @@ __all__ = ["to_voxel_grid", "to_time_surface"]
 VOXEL_POLARITIES = ("signed", "split")
 
 
-def _parse(events: Any, sensor_size: tuple[int, int], lengths: Any, mask: Any):
+def _parse(events: Any, sensor_size: tuple[int, int], lengths: Any, mask: Any) -> tuple[Any, ...]:
     """Columns (B, N), batched flag, (H, W), validity (B, N) and in-sensor pixel indices."""
     (x, y, t, p), batched = _columns(events)
     batch, length = x.shape

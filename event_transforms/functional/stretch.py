@@ -19,7 +19,7 @@ from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, 
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, kernel_for, register_kernel
 from ._event_ops import _round_to
-from .affine import Center, _center_of_mass, _check_center, _mass_moments, _output_dtype, _warp
+from .affine import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _output_dtype, _warp
 
 __all__ = ["stretch", "stretch_frames", "stretch_events", "contact_axis"]
 
@@ -44,14 +44,10 @@ CONTACT = "contact"
 def _second_moments(batch: Tensor) -> tuple[Tensor, Tensor]:
     """(B, 2) float64 (y, x) event centroids (image centre when empty) and (B, 3) central
     second moments ``[c_yy, c_xx, c_xy]`` (zero when empty), whole sequence, both polarities."""
-    b, t, p, height, width = batch.shape
+    height, width = batch.shape[-2:]
     moments = _mass_moments(batch)  # [M, M y, M x] plus a vanishing prior at the centre
     centre = moments[:, 1:] / moments[:, :1]
-    exact = batch.dtype in (torch.float64, torch.int32, torch.int64)
-    acc = torch.float64 if exact else torch.float32
-    ones = torch.ones(1, t * p, dtype=acc, device=batch.device)
-    weight = torch.matmul(ones, batch.reshape(b, t * p, height * width).to(acc)).view(b, height, width)
-    weight = weight.to(torch.float64)
+    weight = _mass_weight(batch).to(torch.float64)
     ys = torch.arange(height, dtype=torch.float64, device=batch.device) - centre[:, :1]  # (B, H)
     xs = torch.arange(width, dtype=torch.float64, device=batch.device) - centre[:, 1:]  # (B, W)
     rows = weight.sum(2)  # (B, H)

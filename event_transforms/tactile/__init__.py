@@ -19,6 +19,10 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
 - :mod:`~event_transforms.tactile.report`: the benchmark's tables and findings;
 - :mod:`~event_transforms.tactile.distributed`: local ranks, ``torchrun``, worker errors;
 - :mod:`~event_transforms.tactile.protocol`: every public name of the protocol in one place;
+- :mod:`~event_transforms.tactile.recordings`: your own recordings (a folder layout,
+  :class:`~event_transforms.tactile.recordings.RecordingSet`, the simulator's export);
+- :mod:`~event_transforms.tactile.deployment`: train a model on recordings, stream force estimates;
+- :mod:`~event_transforms.tactile.runs`: the protocol's run store (resume keys);
 - :mod:`~event_transforms.tactile.cli`: the ``event-transforms`` command.
 
 Results obtained on the simulated scenes are results on synthetic data, never the paper's.
@@ -31,7 +35,7 @@ from typing import Any
 
 _SUBMODULES = (
     "simulation", "scenes", "datasets", "models", "ensemble", "baselines", "training", "methods",
-    "copies", "experiment", "stats", "report", "distributed", "protocol", "cli",
+    "copies", "experiment", "stats", "report", "distributed", "protocol", "cli", "recordings", "deployment", "runs",
 )
 
 #: Public names of the protocol, importable from here (loaded on first use).
@@ -43,12 +47,17 @@ _PROTOCOL_NAMES = (
     "format_report",
 )
 
-__all__ = [*_SUBMODULES, *_PROTOCOL_NAMES]
+#: Public names of :mod:`~event_transforms.tactile.recordings`, importable from here.
+_RECORDING_NAMES = ("RecordingSet", "RecordingSettings", "load_recording_data", "export_scene")
+
+__all__ = [*_SUBMODULES, *_PROTOCOL_NAMES, *_RECORDING_NAMES]
 
 
 def __getattr__(name: str) -> Any:
     if name in _SUBMODULES:
         return importlib.import_module(f"{__name__}.{name}")
+    if name in _RECORDING_NAMES:
+        return getattr(importlib.import_module(f"{__name__}.recordings"), name)
     if name in _PROTOCOL_NAMES:
         return getattr(importlib.import_module(f"{__name__}.protocol"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -2,8 +2,9 @@
 
 :class:`TactileGrasps` gives one split of one :class:`~event_transforms.tactile.scenes.BenchmarkScene`:
 ``train`` (48 sequences) and ``holdout`` (24, for the stopping rule) from the training session,
-and ``val`` (24) and ``test`` (96) from the deployment session, each sequence 36 frames of 10 ms cropped to 140×150 around the
-contact and pooled 2×2 to 70×75. ``paper_split=True`` keeps the paper's 6 + 6 evaluation
+and ``val`` (24) and ``test`` (96) from the deployment session, each sequence 36 frames of 10 ms cropped to a fixed 140×150
+window centred on the sensor (not on the true contact: that would be an oracle) and pooled 2×2
+to 70×75. ``paper_split=True`` keeps the paper's 6 + 6 evaluation
 sequences (the first 6 of each, so the two splits are nested). The data come from
 :mod:`event_transforms.tactile.simulation` (the paper's recordings are not public), are
 generated once into a cache directory and reused. Results on them are results on
@@ -25,6 +26,7 @@ import hashlib
 import json
 import os
 import tempfile
+import warnings
 from collections.abc import Callable
 from functools import cached_property
 from pathlib import Path
@@ -94,6 +96,24 @@ def _atomic_save(obj: object, path: Path) -> None:
         raise
 
 
+def _load_cache(path: Path) -> dict[str, Tensor] | None:
+    """A cache file's contents, or ``None`` when there is none; a file that cannot be read
+    (truncated, corrupted) is named in a warning, deleted and rebuilt by the caller."""
+    if not path.exists():
+        return None
+    try:
+        data = torch.load(path, mmap=True, weights_only=True)
+        if not isinstance(data, dict) or not {"frames", "force", "diameter_mm", "seed"} <= set(data):
+            raise ValueError("not a data-set cache file")
+        return data
+    except Exception as error:  # noqa: BLE001 - any unreadable cache file is rebuilt, by name
+        first = str(error).splitlines()[0] if str(error) else ""
+        warnings.warn(f"discarded the unreadable cache file {path} ({type(error).__name__}: {first}); rebuilding it",
+                      stacklevel=3)
+        path.unlink(missing_ok=True)
+        return None
+
+
 def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool: int) -> str:
     """File name keyed by a hash of everything that determines the data."""
     description = {
@@ -104,6 +124,7 @@ def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool
         "seeds": [seeds.start, seeds.stop],
         "crop_size": list(crop_size),
         "pool": pool,
+        "crop": "sensor-centre",  # issue 24: a fixed crop, not the oracle contact crop
     }
     text = json.dumps(description, sort_keys=True)
     return f"tactile-grasps-v{SIMULATOR_VERSION}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.pt"
@@ -111,7 +132,7 @@ def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool
 
 #: Settings added after the cache format was fixed; left at their defaults they do not
 #: enter the cache key, so every earlier scene keeps its cache file.
-_LATER_SETTINGS = ("release_lag_ratio", "label_lowpass_ms")
+_LATER_SETTINGS = ("release_lag_ratio", "label_lowpass_ms", "strip_length_exponent", "contrast_exponent")
 
 
 def _config_key(config: SimulatorConfig) -> dict[str, Any]:
@@ -126,14 +147,16 @@ def _config_key(config: SimulatorConfig) -> dict[str, Any]:
 def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (140, 150), pool: int = 2) -> dict[str, Tensor]:
     """Simulate sequences ``seeds`` of ``session``: frames (int16/int32), force, sizes, seeds.
 
-    Sequence ``seed`` uses ``session.diameter(seed - seeds.start)``: sizes alternate.
+    Sequence ``seed`` uses ``session.diameter(seed - seeds.start)``: sizes alternate. The
+    crop is fixed, centred on the sensor (:meth:`Recording.sensor_crop`), not centred on the
+    true contact (an oracle a real pipeline does not have).
     """
     grasps = [
         draw_grasp(session.diameter(k), seed=seed, config=session.config) for k, seed in enumerate(seeds)
     ]
     recordings = simulate_grasps(grasps, session.config)
     frames = torch.stack(
-        [r.frames(crop=r.contact_crop(crop_size), pool=pool, dtype=torch.int64) for r in recordings]
+        [r.frames(crop=r.sensor_crop(crop_size), pool=pool, dtype=torch.int64) for r in recordings]
     ) if recordings else torch.zeros(0, session.config.n_frames, 2, crop_size[0] // pool, crop_size[1] // pool, dtype=torch.int64)
     storage = torch.int16 if frames.numel() == 0 or int(frames.max()) <= 32767 else torch.int32
     return {
@@ -142,6 +165,20 @@ def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (14
         "diameter_mm": torch.tensor([g.diameter_mm for g in grasps], dtype=torch.float64),
         "seed": torch.tensor(list(seeds), dtype=torch.int64),
     }
+
+
+def item_index(index: object, length: int, what: str) -> int:
+    """A data set's ``index`` checked (an integer in ``[-length, length)``) and made non-negative.
+
+    Example:
+        >>> item_index(-1, 4, "sequences")
+        3
+    """
+    if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+        raise TypeError(f"index must be an integer, got {type(index).__name__}")
+    if not -length <= index < length:
+        raise IndexError(f"index {index} is out of range for {length} {what}")
+    return int(index) % length
 
 
 class TactileGrasps(Dataset):
@@ -173,7 +210,7 @@ class TactileGrasps(Dataset):
             ``seed + offset(s) + k``).
         transform: optional event transform applied to the frames of each item, called
             with ``metadata=meta`` (a plain callable is called as ``transform(frames)``).
-        crop_size: (height, width) of the window around the contact, in sensor pixels.
+        crop_size: (height, width) of the fixed window centred on the sensor, in sensor pixels.
         pool: side of the sum-pooled blocks.
 
     Attributes:
@@ -221,9 +258,10 @@ class TactileGrasps(Dataset):
         # The cache always holds the full split; the paper split reads its first rows.
         seeds = range(first, first + SPLIT_SIZES[split])
         self.path = self.root / _cache_name(self.session, seeds, self.crop_size, self.pool)
-        if not self.path.exists():
+        data = _load_cache(self.path)
+        if data is None:
             _atomic_save(generate(self.session, seeds, crop_size=self.crop_size, pool=self.pool), self.path)
-        data = torch.load(self.path, mmap=True, weights_only=True)
+            data = torch.load(self.path, mmap=True, weights_only=True)
         self._counts = data["frames"][:size]
         self.forces = data["force"][:size]
         self._diameter = data["diameter_mm"][:size].tolist()
@@ -238,11 +276,7 @@ class TactileGrasps(Dataset):
         return {"diameter_mm": float(self._diameter[index]), "seed": int(self._seeds[index]), "index": int(index)}
 
     def __getitem__(self, index: int) -> tuple[Tensor, Tensor, dict[str, Any]]:
-        if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
-            raise TypeError(f"index must be an integer, got {type(index).__name__}")
-        if not -len(self) <= index < len(self):
-            raise IndexError(f"index {index} is out of range for {len(self)} sequences")
-        index = int(index) % len(self)
+        index = item_index(index, len(self), "sequences")
         frames = self._counts[index].to(torch.float32)
         meta = self.meta(index)
         if self.transform is not None:

@@ -106,9 +106,25 @@ def _grouped_conv(x: Tensor, weight: Tensor, groups: int) -> Tensor:
     as products).
     """
     members, out, channels = weight.shape[:3]
-    if weight.shape[-2:] != (1, 1):
-        return F.conv2d(x, weight.flatten(0, 1), padding="same", groups=groups)
     n, _, height, width = x.shape
+    if weight.shape[-2:] != (1, 1):
+        # im2col and one batched matrix product per member: a member's result does not
+        # depend on how many members share the ensemble (oneDNN's grouped convolution picks
+        # its algorithm by the group count, so seed 0 alone and seed 0 beside seven others
+        # differed in the last bits, and training amplified that; issue 24)
+        kh, kw = weight.shape[-2:]
+        if kh % 2 == 0 or kw % 2 == 0:
+            return F.conv2d(x, weight.flatten(0, 1), padding="same", groups=groups)
+        k = channels * kh * kw
+        columns = F.unfold(x, (kh, kw), padding=(kh // 2, kw // 2))  # (N, C_total*kh*kw, H*W)
+        if groups == 1:  # expanded, not broadcast: the same product as for M separate inputs
+            columns = columns.unsqueeze(1).expand(n, members, k, height * width)
+        else:
+            columns = columns.view(n, members, k, height * width)
+        # member-major (M, K, N*H*W): one product per member, the same for any M
+        columns = columns.permute(1, 2, 0, 3).reshape(members, k, n * height * width)
+        y = torch.bmm(weight.reshape(members, out, k), columns)  # (M, out, N*H*W)
+        return y.view(members, out, n, height * width).permute(2, 0, 1, 3).reshape(n, members * out, height, width)
     if groups == 1:  # every member's kernels on the one input
         y = torch.matmul(weight.reshape(members * out, channels), x.reshape(n, channels, height * width))
     else:
@@ -409,7 +425,12 @@ def clip_grad_norm_per_member_(parameters: Sequence[Tensor], max_norm: float) ->
     grads = [p.grad for p in parameters if p.grad is not None]
     if not grads:
         return torch.zeros(0)
-    squares = torch.stack([g.detach().reshape(g.shape[0], -1).square().sum(1) for g in grads]).sum(0)
+    # member by member: a row reduction of (M, K) sums in another order than the same row
+    # alone, and a last-bit change in the clip scale made a seed's training depend on how
+    # many members shared its ensemble (issue 24)
+    squares = torch.stack(
+        [torch.stack([g.detach()[m].square().sum() for g in grads]).sum() for m in range(grads[0].shape[0])]
+    )
     norms = squares.sqrt()
     coef = (max_norm / (norms + 1e-6)).clamp(max=1.0)
     for g in grads:
@@ -596,7 +617,13 @@ def fit_ensemble(
         >>> [m.val_steps for m in result.members], len(result.members[0].train_loss)
         ([[3, 6], [3, 6]], 6)
     """
-    from tqdm.auto import tqdm
+    try:
+        from tqdm.auto import tqdm
+    except ImportError as error:
+        raise ImportError(
+            "the training loop needs tqdm, which is not installed: pip install 'event-transforms[app]'",
+            name="tqdm",
+        ) from error
 
     from .baselines import stack_items
     from .training import Stopwatch, collate

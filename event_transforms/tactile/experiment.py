@@ -46,6 +46,7 @@ from .methods import methods_for, parse_method
 from .report import format_report
 from .scenes import SCENES, BenchmarkScene, get_scene
 from .stats import deltas_vs_none, paired_t, summarize_scene
+from .runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
 from .training import Stopwatch, phase_mse, write_json_atomic
 
 __all__ = [
@@ -55,6 +56,9 @@ __all__ = [
     "choose_methods",
     "plan_run",
     "PROGRESS_LEGEND",
+    "environment",
+    "online_augmentation_cost",
+    "single_model_wall",
 ]
 
 #: What the columns of the plain progress lines mean (printed once at the start of a run).
@@ -159,7 +163,7 @@ def run_unit(
     from .ensemble import EnsembleForceRegressor, fit_ensemble
     from .models import ForceRegressor
 
-    scene = get_scene(scene)
+    scene = data.scene if isinstance(scene, str) and scene == data.scene.name else get_scene(scene)
     parsed = [parse_method(m, copies=config.copies, scene=scene) for m in methods]
     offset, scale = _force_stats(data.train)
     models, train_sets, member_seeds, aug_once, augment, batches = [], [], [], [], [], []
@@ -250,7 +254,16 @@ class _Unit:
         return re.sub(r"[^a-z0-9.+-]+", "_", f"{self.scene}__{'+'.join(self.methods)}".lower())
 
 
-def _units(scenes: Sequence[str], methods: dict[str, Sequence[str]], group: str) -> list[_Unit]:
+def _resolve(scene: str, data: dict[str, SceneData] | None) -> BenchmarkScene:
+    """A scene by name: the given data's own scene (e.g. a folder of recordings), else a built-in one."""
+    if isinstance(scene, str) and data and scene in data:
+        return data[scene].scene
+    return get_scene(scene)
+
+
+def _units(
+    scenes: Sequence[str], methods: dict[str, Sequence[str]], group: str, data: dict[str, SceneData] | None = None
+) -> list[_Unit]:
     """Work units; the costly ones (many copies) first, so ranks finish together."""
     units = []
     for scene in scenes:
@@ -259,16 +272,19 @@ def _units(scenes: Sequence[str], methods: dict[str, Sequence[str]], group: str)
             units.append(_Unit(scene, names))
         else:
             units.extend(_Unit(scene, (m,)) for m in names)
-    return sorted(units, key=lambda u: -max(parse_method(m, scene=u.scene).copies for m in u.methods))
+    return sorted(units, key=lambda u: -max(parse_method(m, scene=_resolve(u.scene, data)).copies for m in u.methods))
 
 
-def _budget_scenes(scenes: Sequence[str], chosen: dict[str, Sequence[str]]) -> list[str]:
+def _budget_scenes(
+    scenes: Sequence[str], chosen: dict[str, Sequence[str]], data: dict[str, SceneData] | None = None
+) -> list[str]:
     """The scenes whose verdicts get a budget check: a gap, ``none`` and another method."""
-    return [s for s in scenes if get_scene(s).gaps and "none" in chosen[s] and len(chosen[s]) > 1]
+    return [s for s in scenes if _resolve(s, data).gaps and "none" in chosen[s] and len(chosen[s]) > 1]
 
 
 def choose_methods(
-    scenes: Sequence[str], methods: dict[str, Sequence[str]] | Sequence[str] | None = None, *, full: bool = False
+    scenes: Sequence[str], methods: dict[str, Sequence[str]] | Sequence[str] | None = None, *, full: bool = False,
+    data: dict[str, SceneData] | None = None,
 ) -> dict[str, tuple[str, ...]]:
     """Each scene's methods: given per scene, given for all, or :func:`methods_for`; every name
     checked (:func:`parse_method`) before any work.
@@ -277,25 +293,24 @@ def choose_methods(
         >>> choose_methods(["control"], ["none", "fs2"])
         {'control': ('none', 'fs2')}
     """
-    for scene in scenes:
-        get_scene(scene)
+    resolved = {s: _resolve(s, data) for s in scenes}
     if isinstance(methods, dict):
-        chosen = {s: tuple(methods.get(s, methods_for(s, full=full))) for s in scenes}
+        chosen = {s: tuple(methods.get(s, methods_for(resolved[s], full=full))) for s in scenes}
     elif methods is not None:
         chosen = {s: tuple(methods) for s in scenes}
     else:
-        chosen = {s: methods_for(s, full=full) for s in scenes}
+        chosen = {s: methods_for(resolved[s], full=full) for s in scenes}
     for scene, names in chosen.items():
         if len(set(names)) != len(names):
             raise ValueError(f"methods must be distinct, got {names} for scene {scene!r}")
         for name in names:
-            parse_method(name, scene=scene)  # fail before any training
+            parse_method(name, scene=resolved[scene])  # fail before any training
     return chosen
 
 
 def plan_run(
     scenes: Sequence[str], methods: dict[str, Sequence[str]], seeds: Sequence[int], config: ProtocolConfig, *,
-    group: str = "method", budget_check: bool = True,
+    group: str = "method", budget_check: bool = True, data: dict[str, SceneData] | None = None,
 ) -> dict[str, Any]:
     """What a run costs before it starts: units, members and member-steps (one member = one
     method × seed trained for ``config.steps``), the budget check's share included.
@@ -309,9 +324,9 @@ def plan_run(
         >>> plan["units"], plan["members"], plan["member_steps"], plan["budget_member_steps"]
         (4, 32, 3200, 3200)
     """
-    units = _units(scenes, methods, group)
+    units = _units(scenes, methods, group, data)
     members = sum(len(u.methods) for u in units) * len(seeds)
-    checked = _budget_scenes(scenes, methods) if budget_check else []
+    checked = _budget_scenes(scenes, methods, data) if budget_check else []
     budget_members = 2 * len(checked) * len(seeds)
     return {
         "units": len(units),
@@ -325,10 +340,38 @@ def plan_run(
     }
 
 
-def _environment() -> dict[str, Any]:
+def _cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo``; ``platform.processor()`` elsewhere)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def environment(device: str = "cpu", threads: int | None = None) -> dict[str, Any]:
+    """What a result depends on besides the code: package version and commit, torch, the CPU
+    model and the kernel set torch dispatches to (``ATEN_CPU_CAPABILITY``, and what
+    ``torch.backends.cpu.get_cpu_capability()`` reports), threads and device. The same code
+    under another kernel set gives per-seed MSEs that differ in the last digits, and training
+    amplifies that: compare verdicts (sign, significance) across machines, not digits."""
+    from .. import __version__
+
+    try:
+        capability = torch.backends.cpu.get_cpu_capability()
+    except (AttributeError, RuntimeError):  # pragma: no cover - older torch
+        capability = "unknown"
     return {
+        "package_version": __version__,
+        "commit": git_commit(),
         "torch": torch.__version__,
-        "threads": torch.get_num_threads(),
+        "cpu_model": _cpu_model(),
+        "cpu_capability": capability,
+        "ATEN_CPU_CAPABILITY": os.environ.get("ATEN_CPU_CAPABILITY"),
+        "threads": threads if threads is not None else torch.get_num_threads(),
+        "device": str(device),
         "platform": platform.platform(),
         "processor": platform.processor() or platform.machine(),
         "cpu_count": os.cpu_count(),
@@ -396,9 +439,11 @@ def _work(
     rank: int, world: int, units: list[_Unit], seeds: list[int], config: ProtocolConfig, runs: Path,
     root: str | None, device: str, threads: int | None, log: Callable[[str], None] | None, progress: bool | None,
     given: dict[str, SceneData] | None = None, phase: str = "unit", later_cost: float = 0.0,
+    keys: dict[str, dict[str, Any]] | None = None,
 ) -> None:
     """Rank ``rank``'s share of the units (every ``world``-th), each saved as it finishes; a
-    unit whose file exists is read back instead (the one resume loop)."""
+    unit whose file holds its key (:mod:`~event_transforms.tactile.runs`) is read back instead
+    (the one resume loop)."""
     if threads:
         torch.set_num_threads(threads)
     cache: dict[str, SceneData] = dict(given or {})
@@ -409,18 +454,21 @@ def _work(
     for index, unit in mine:
         label = f"[rank {rank}] {phase} {index + 1}/{len(units)} {unit.scene}: {', '.join(unit.methods)}"
         path = runs / f"{unit.slug}.json"
-        if path.exists():
+        stored, reason = read_unit(path, (keys or {}).get(unit.slug, {}))
+        if stored is not None:
             tracker.left -= cost[index]
             if log:
                 log(f"{label} — resumed from disk")
             continue
+        if reason and log:
+            log(f"{label} — {reason}: recomputing")
         if unit.scene not in cache:
             cache[unit.scene] = load_scene_data(unit.scene, root, paper_split=False)
         tick = time.perf_counter()
         result = run_unit(unit.scene, unit.methods, seeds, config, cache[unit.scene], device=device,
                           progress=False if plain else progress, description=label,
                           on_validation=tracker.callback(label, cost[index]) if plain else None)
-        write_json_atomic(path, result)
+        write_unit(path, (keys or {}).get(unit.slug, {}), result)
         eta = tracker.finished(cost[index])
         if log:
             scores = "; ".join(
@@ -430,25 +478,35 @@ def _work(
 
 
 def _run_units(
-    units: list[_Unit], seeds: list[int], config: ProtocolConfig, runs: Path, jobs: int, options: tuple,
-    phase: str, later_cost: float,
+    units: list[_Unit], seeds: list[int], config: ProtocolConfig, out: Path, jobs: int, options: tuple,
+    phase: str, later_cost: float, data_keys: dict[str, str],
 ) -> dict[str, Any] | None:
     """Run ``units`` on the ranks (torchrun's, ``jobs`` spawned ones, or this process); every
-    unit's result on rank 0, ``None`` on the other ranks of a torchrun group."""
-    arguments = (units, seeds, config, runs, *options, phase, later_cost)
-    write_json_atomic(runs / "config.json", asdict(config))
+    unit's result on rank 0, ``None`` on the other ranks of a torchrun group. Units are kept
+    under ``out/runs/<hash of settings, seeds, model defaults, version>/``."""
+    folder = folder_key(config, seeds)
+    runs = out / "runs" / folder_name(config, seeds)
+    keys = {u.slug: unit_key(folder, u.scene, u.methods, data_keys[u.scene]) for u in units}
+    arguments = (units, seeds, config, runs, *options, phase, later_cost, keys)
+    write_json_atomic(runs / "config.json", folder)
+
+    def read(unit: _Unit) -> dict[str, Any]:
+        result, reason = read_unit(runs / f"{unit.slug}.json", keys[unit.slug])
+        if result is None:
+            raise ValueError(f"unit {unit.slug}: {reason or 'its run file is missing'} after the run")
+        return result
+
     group = distributed.current_group()
     if group is not None:  # the ranks of torchrun
         rank, world = group
         _work(rank, world, *arguments)
-        mine = {u.slug: json.loads((runs / f"{u.slug}.json").read_text())
-                for i, u in enumerate(units) if i % world == rank}
+        mine = {u.slug: read(u) for i, u in enumerate(units) if i % world == rank}
         return distributed.gather_to_rank0(mine)
     if jobs > 1:
         distributed.spawn(_work, arguments, jobs)
     else:
         _work(0, 1, *arguments)
-    return {u.slug: json.loads((runs / f"{u.slug}.json").read_text()) for u in units}
+    return {u.slug: read(u) for u in units}
 
 
 def _per_method(units: list[_Unit], results: dict[str, Any], scene: str, names: Sequence[str]) -> dict[str, list]:
@@ -488,6 +546,69 @@ def _budget_check(method: str, steps: int, delta: dict[str, Any], runs_2n: dict[
             "robust": robust}
 
 
+def _describe_data(data: dict[str, SceneData], scenes: Sequence[str]) -> str:
+    """What the results rest on: simulated grasps, or folders of recordings (path, files, content hash)."""
+    parts = []
+    for scene in scenes:
+        dataset = getattr(data[scene], "dataset", None)
+        if isinstance(dataset, dict):
+            parts.append(f"{scene}: recordings in {dataset['folder']} ({dataset['files']} files, content hash "
+                         f"{dataset['content_hash'][:16]})")
+    simulated = [s for s in scenes if not isinstance(getattr(data[s], "dataset", None), dict)]
+    if simulated:
+        parts.append(f"{', '.join(simulated)}: simulated tactile grasps (synthetic data, not the paper's recordings)")
+    return "; ".join(parts)
+def online_augmentation_cost(method_name: str, scene: str | BenchmarkScene, data: SceneData, *,
+                             batch_size: int = 8, copies: int = 1, repeats: int = 3, seed: int = 0) -> float | None:
+    """Seconds to augment one epoch's copies online, as a DataLoader would: every training
+    item's ``copies`` copies transformed once, ``batch_size`` at a time, through the
+    :class:`~event_transforms.tactile.copies.DeviceAugment` the online protocol uses (median of
+    ``repeats`` passes; ``None`` for a method without copies)."""
+    method = parse_method(method_name, copies=copies, scene=scene)
+    transform = method.build(data.noise_bank)
+    if transform is None:
+        return None
+    online = OnlineCopies(data.train, method.copies)
+    order = list(range(len(data.train), len(online)))  # the copies
+    times = []
+    for _ in range(repeats):
+        augment = DeviceAugment(transform, seed)
+        for start in range(0, len(order), batch_size):
+            items = [online[i] for i in order[start:start + batch_size]]
+            frames = torch.stack([torch.as_tensor(item[0]) for item in items]).float()
+            augment(frames, [item[2] for item in items])
+        times.append(augment.stopwatch.seconds)
+    return statistics.median(times)
+
+
+def single_model_wall(scene: str | BenchmarkScene, data: SceneData, config: ProtocolConfig, *,
+                      repeats: int = 3, seed: int = 0) -> dict[str, Any]:
+    """One model (``none``, one seed) trained alone for ``config.steps`` steps, ``repeats``
+    times: wall seconds per run (median, min, max). With fixed copies every method does this
+    same training work, so it is every method's training time per run."""
+    times = []
+    for _ in range(repeats):
+        tick = time.perf_counter()
+        run_unit(scene, ["none"], [seed], config, data, progress=False)
+        times.append(time.perf_counter() - tick)
+    return {"median": statistics.median(times), "min": min(times), "max": max(times), "repeats": repeats,
+            "runs_s": times}
+
+
+def _timing(scenes: Sequence[str], chosen: dict[str, Sequence[str]], data: dict[str, SceneData],
+            config: ProtocolConfig, threads: int | None) -> dict[str, Any]:
+    """The time columns: one model's wall time per run (measured on the first scene: every
+    scene's data have the same shape) and each scene's methods' online augmentation cost."""
+    if threads:
+        torch.set_num_threads(threads)
+    wall = single_model_wall(data[scenes[0]].scene, data[scenes[0]], config)
+    online: dict[str, dict[str, float | None]] = {}
+    for scene in scenes:
+        online[scene] = {m: online_augmentation_cost(m, data[scene].scene, data[scene], batch_size=config.batch_size,
+                                                     copies=config.copies) for m in chosen[scene]}
+    return {"single_model_wall_s": wall, "single_model_scene": scenes[0], "online_aug_s_per_epoch": online}
+
+
 def run_protocol(
     scenes: Sequence[str] | None,
     seeds: Sequence[int],
@@ -505,6 +626,7 @@ def run_protocol(
     progress: bool | None = None,
     log: Callable[[str], None] | None = None,
     budget_check: bool = True,
+    measure_time: bool = True,
 ) -> dict[str, Any]:
     """Run every scene's methods for every seed; write ``results.json`` and ``results.md``.
 
@@ -521,6 +643,14 @@ def run_protocol(
     "delta_2n", "ci95_halfwidth", "robust"}``: robust when Δ keeps its sign and moves by less
     than the CI half-width.
 
+    With ``measure_time``, rank 0 then measures the time columns: one model trained alone
+    for ``config.steps`` steps, three times (:func:`single_model_wall`), and per method the
+    online augmentation cost of one epoch (:func:`online_augmentation_cost`); per method
+    ``online_wall_s`` is one model's time plus that cost times the epochs of a run.
+
+    ``results.json`` records the environment (:func:`environment`): package version and
+    commit, torch, CPU model, kernel set, threads and device.
+
     ``data`` (scene name -> :class:`~event_transforms.tactile.copies.SceneData`) replaces the
     simulated scenes, e.g. with your own recordings; it is sent to every worker. Without it,
     workers read the data cache.
@@ -530,23 +660,24 @@ def run_protocol(
     """
     config = config or ProtocolConfig()
     scenes = list(scenes or SCENES)
-    chosen = choose_methods(scenes, methods, full=full)
+    chosen = choose_methods(scenes, methods, full=full, data=data)
     if group not in ("scene", "method"):
         raise ValueError(f"group must be 'scene' or 'method', got {group!r}")
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs must be a positive int, got {jobs!r}")
     out = Path(out)
     seeds = [int(s) for s in seeds]
-    units = _units(scenes, chosen, group)
-    plan = plan_run(scenes, chosen, seeds, config, group=group, budget_check=budget_check)
+    given = data
+    units = _units(scenes, chosen, group, given)
+    plan = plan_run(scenes, chosen, seeds, config, group=group, budget_check=budget_check, data=given)
     start = time.perf_counter()
 
     # Data first, in this process: the cache is written once, workers only read it.
-    given = data
     data = dict(given) if given is not None else {scene: load_scene_data(scene, root) for scene in scenes}
     missing = [scene for scene in scenes if scene not in data]
     if missing:
         raise ValueError(f"data must hold every scene, missing {missing}")
+    data_keys = {scene: data_key(data[scene]) for scene in scenes}
     if log:
         for scene, d in data.items():
             holdout = f"{len(d.holdout)} hold-out (training session), " if d.holdout is not None else ""
@@ -558,8 +689,7 @@ def run_protocol(
             f"{plan['budget_member_steps']:,} member-steps; total {plan['total_member_steps']:,}")
         log(PROGRESS_LEGEND)
     options = (root, device, threads, log, progress, given)
-    results = _run_units(units, seeds, config, out / "runs" / config.key(), jobs, options, "unit",
-                         plan["budget_member_steps"])
+    results = _run_units(units, seeds, config, out, jobs, options, "unit", plan["budget_member_steps"], data_keys)
 
     # The budget check: none and the method with the largest |Δ|, at twice the steps.
     checked = plan["budget_check_scenes"]
@@ -570,11 +700,12 @@ def run_protocol(
         if distributed.current_group() is not None:
             choices = distributed.broadcast_from_rank0(choices)
     double = ProtocolConfig(**{**asdict(config), "steps": 2 * config.steps})
-    budget_units = _units(list(choices), {s: ("none", m) for s, m in choices.items()}, group)
-    budget_results = (_run_units(budget_units, seeds, double, out / "runs" / double.key(), jobs, options,
-                                 "budget check", 0.0) if budget_units else {})
+    budget_units = _units(list(choices), {s: ("none", m) for s, m in choices.items()}, group, given)
+    budget_results = (_run_units(budget_units, seeds, double, out, jobs, options, "budget check", 0.0, data_keys)
+                      if budget_units else {})
     if results is None:  # a torchrun rank other than 0
         return {}
+    timing = _timing(scenes, chosen, data, config, threads) if measure_time else {}
 
     scene_results = {}
     for scene in scenes:
@@ -584,6 +715,18 @@ def run_protocol(
             sizes["holdout"] = len(d.holdout)
         summary = summarize_scene(d.scene, _per_method(units, results, scene, chosen[scene]), _baselines(d), sizes)
         summary["generation_s"] = d.seconds
+        dataset = getattr(d, "dataset", None)
+        if isinstance(dataset, dict):  # a folder of recordings: how many recordings the intervals rest on
+            summary["recordings"] = dataset["recordings"]
+            summary["dataset"] = dataset
+        if timing:
+            wall = timing["single_model_wall_s"]
+            epochs_of = lambda s_: config.steps * config.batch_size / max(s_["train_items"], 1)  # noqa: E731
+            for method, s_ in summary["methods"].items():
+                cost = timing["online_aug_s_per_epoch"][scene].get(method)
+                s_["single_wall_s"] = wall
+                s_["online_aug_s_per_epoch"] = cost
+                s_["online_wall_s"] = wall["median"] + (cost or 0.0) * epochs_of(s_)
         if scene in choices:
             method = choices[scene]
             summary["budget_check"] = _budget_check(
@@ -597,8 +740,9 @@ def run_protocol(
                    "threads_per_job": threads, "group": group, "full": full, "budget_check": budget_check},
         "plan": plan,
         "wall_s": time.perf_counter() - start,
-        "environment": _environment(),
-        "data": "simulated tactile grasps (synthetic data, not the paper's recordings)",
+        "environment": environment(device, threads),
+        "timing": timing,
+        "data": _describe_data(data, scenes),
         "scenes": scene_results,
     }
     write_json_atomic(out / "results.json", results_json)

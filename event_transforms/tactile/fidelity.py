@@ -57,6 +57,7 @@ def _size_methods() -> None:
             "fs-1": lambda: FrameShift(-1),
             "tes-2:0.5": lambda: TemporalEventShift(-2, 0.5),
             "fs1": lambda: FrameShift(1),
+            "tes1:0.5": lambda: TemporalEventShift(1, 0.5),
         }
     )
 

@@ -9,11 +9,15 @@ costs:
 - ``inferred``: :func:`event_transforms.infer_scene` on the training grasps and the
   deployment's *validation* frames (labels unused), bolt sizes as metadata; its policy.
 - ``prior``: generic ranges a user could guess without data, one effect per copy (the
-  independent combination): frame shifts in [−3, 3], rotation ±45°, a noise bank recorded
-  by a *different* camera (another sensor seed of the training camera's model), and the
-  stretch to the deployment size where the bolt sizes differ (sizes are metadata a user has).
-- ``everything``: the same generic effects and a ±3 px contact shift, all stacked on every
-  copy (the hybrid combination): the naive "augment with everything" policy.
+  independent combination): frame shifts in [−3, 3] (never 0), rotation ±45°, a ±3 px
+  contact shift, a noise bank recorded by a *different* camera (another sensor seed of the
+  training camera's model), and the stretch to the deployment size where the bolt sizes
+  differ (sizes are metadata a user has).
+- ``everything``: *the same* effects with the same ranges, all stacked on every copy (the
+  hybrid combination): the naive "augment with everything" policy. ``prior`` vs
+  ``everything`` tests one thing, the combination; what stacking means here, named: every
+  copy of ``everything`` is shifted by 1–3 frames (the frame shift draws no 0), rotated and
+  translated, where a ``prior`` copy gets one of the five effects.
 - ``stretch``: :class:`~event_transforms.StretchToTarget`, across the contact strip by
   (D₂/D₁)^½ (Hertz line contact), on scenes whose deployment size differs.
 """
@@ -71,13 +75,15 @@ def other_camera_bank(scene: str | BenchmarkScene, n_frames: int = 360) -> Tenso
     from .datasets import noise_bank
 
     scene = get_scene(scene)
+    if getattr(scene, "prior_bank", None) is not None:  # a folder of recordings: its training camera
+        return scene.prior_bank
     config = scene.train.config
     return noise_bank(n_frames, seed=1, config=config.replace(sensor_seed=config.sensor_seed + 1))
 
 
-def prior_scene(scene: str | BenchmarkScene, bank: Tensor, *, position: bool = False) -> Scene:
-    """The generic :class:`~event_transforms.Scene` of ``prior`` (``position``: and a ±3 px
-    contact shift, for ``everything``)."""
+def prior_scene(scene: str | BenchmarkScene, bank: Tensor, *, position: bool = True) -> Scene:
+    """The generic :class:`~event_transforms.Scene` of ``prior`` and ``everything``
+    (``position``: with the ±3 px contact shift; both policies use it)."""
     scene = get_scene(scene)
     sizes = {}
     if scene.target_size is not None:
@@ -99,14 +105,14 @@ def prior_policy(scene: str | BenchmarkScene, bank: Tensor | None = None) -> nn.
         >>> import torch
         >>> policy = prior_policy("timing", torch.zeros(8, 2, 70, 75))
         >>> [type(t).__name__ for t in policy.transforms]
-        ['RandomFrameShift', 'RandomRotation', 'AddNoise']
+        ['RandomFrameShift', 'RandomRotation', 'RandomTranslate', 'AddNoise']
     """
     bank = other_camera_bank(scene) if bank is None else bank
     return prior_scene(scene, bank).policy("independent")
 
 
 def everything_policy(scene: str | BenchmarkScene, bank: Tensor | None = None) -> nn.Module:
-    """``everything``: every generic effect stacked on each copy.
+    """``everything``: ``prior``'s effects, all stacked on each copy.
 
     Example:
         >>> import torch
@@ -136,8 +142,12 @@ def _inferred(scene: BenchmarkScene, root: str | None) -> Scene:
 
 def inferred_scene(scene: str | BenchmarkScene, root: str | None = None) -> Scene:
     """:func:`~event_transforms.infer_scene` on the scene's 48 training grasps and its 24
-    deployment validation grasps (frames only), bolt sizes as metadata (cached per scene)."""
-    return _inferred(get_scene(scene), None if root is None else str(root))
+    deployment validation grasps (frames only), bolt sizes as metadata (cached per scene); a
+    scene of recordings (:class:`~event_transforms.tactile.recordings.RecordingScene`) holds its own."""
+    scene = get_scene(scene)
+    if getattr(scene, "inferred", None) is not None:
+        return scene.inferred
+    return _inferred(scene, None if root is None else str(root))
 
 
 def inferred_policy(scene: str | BenchmarkScene, root: str | None = None) -> nn.Module:

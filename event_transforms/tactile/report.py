@@ -13,11 +13,12 @@ from typing import Any
 
 from .stats import mean_sd, significant
 
-__all__ = ["format_summary_table", "format_scene_table", "format_budget_check", "format_findings", "format_report"]
+__all__ = ["format_summary_table", "format_scene_table", "format_budget_check", "format_findings", "format_environment",
+           "format_report"]
 
 #: The columns of the summary table (the README's table), in order.
-SUMMARY_COLUMNS = ("scene", "method", "test MSE", "Δ vs none [95 % CI]", "unpaired CI", "r",
-                   "Holm p: t / Wilcoxon", "budget check")
+SUMMARY_COLUMNS = ("scene", "method", "test MSE", "Δ vs none [family 95 % CI]", "unpaired CI", "r",
+                   "family p: t / Wilcoxon", "Δ vs matched [family 95 % CI]", "budget check")
 
 
 def _format_mean_sd(values: Sequence[float]) -> str:
@@ -25,44 +26,96 @@ def _format_mean_sd(values: Sequence[float]) -> str:
     return f"{mean:.2f}" if len(values) < 2 else f"{mean:.2f} ± {sd:.2f}"
 
 
+def _ci_text(delta: dict[str, Any] | None) -> str:
+    """``Δ [lo, hi]`` with the family-wise interval, bold where it excludes 0."""
+    if delta is None:
+        return "—"
+    ci = delta.get("ci_family") or delta.get("ci95")
+    if not ci:
+        return f"{delta['mean']:+.2f}"
+    mark = "**" if significant(delta) else ""
+    return f"{mark}{delta['mean']:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}]{mark}"
+
+
+def _p_text(delta: dict[str, Any]) -> str:
+    t_p = delta.get("t_p_family", delta.get("t_p_holm", math.nan))
+    if math.isnan(t_p):
+        return "—"
+    floor = delta.get("wilcoxon_floor", 0.0)
+    wilcoxon = (f"{delta.get('p_family', delta['p_holm']):.3f}" if floor <= 0.05
+                else f"n/a (floor {floor:.3g})")
+    return f"{t_p:.3f} / {wilcoxon}"
+
+
+def _time_cells(s: dict[str, Any]) -> list[str]:
+    online = s.get("online_aug_s_per_epoch")
+    wall = s.get("single_wall_s")
+    return [
+        f"{s['aug_s_once']:.2f}",
+        "—" if online is None else f"{online:.3f}",
+        "—" if not wall else f"{wall['median']:.1f} [{wall['min']:.1f}, {wall['max']:.1f}]",
+        "—" if s.get("online_wall_s") is None else f"{s['online_wall_s']:.1f}",
+    ]
+
+
 def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = True, key: str = "test_mse") -> str:
     """A markdown table of one scene: baselines, then methods (MSE in N²).
 
-    Columns: test MSE (mean ± sd over seeds); Δ vs none with its paired 95 % interval (bold
-    where significant after Holm); the unpaired (Welch) interval of the same Δ and the
-    correlation r of ``none``'s and the method's per-seed MSEs (what the pairing bought);
-    Holm-corrected p-values; the median step whose weights the stopping rule kept.
+    Columns: test MSE (mean ± sd over seeds); Δ vs none with its family-wise paired 95 %
+    interval (bold where it excludes 0; a duplicate row says "= row X" and is not in the
+    family); the unpaired (Welch) interval of the same Δ and the correlation r of ``none``'s
+    and the method's per-seed MSEs (what the pairing bought); family-adjusted p-values (the
+    Wilcoxon only where it can reach 0.05); the policy rows' Δ vs the scene's matched row;
+    the median step whose weights the stopping rule kept and the share of members that
+    stopped before the cap. Timings: augmentation once (fixed copies); online augmentation
+    per epoch (every training item transformed once, batch by batch as a DataLoader would);
+    one model's training wall time alone (median [min, max] over repeats); one model's wall
+    time with online augmentation (training + online augmentation × epochs).
     """
-    head = ["method", "test MSE", "Δ vs none [95 % CI]", "unpaired CI", "r", "Holm p: t / Wilcoxon", "kept step"]
+    head = ["method", "test MSE", "Δ vs none [family 95 % CI]", "unpaired CI", "r", "family p: t / Wilcoxon",
+            "Δ vs matched [family 95 % CI]", "kept step (stopped early)"]
     if timings:
-        head += ["aug s once", "aug s/epoch", "train s"]
+        head += ["aug s once", "online aug s/epoch", "1 model s/run", "1 model s/run online"]
     rows = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * len(head)) + "|"]
     baseline_key = "test_mse_paper_split" if key.endswith("paper_split") else "test_mse"
     for base, values in summary["baselines"].items():
-        cells = [f"*{base}* (baseline)", f"{values[baseline_key]:.2f}", "—", "—", "—", "—", "—"]
-        rows.append("| " + " | ".join(cells + (["—"] * 3 if timings else [])) + " |")
+        cells = [f"*{base}* (baseline)", f"{values[baseline_key]:.2f}"] + ["—"] * 6
+        rows.append("| " + " | ".join(cells + (["—"] * 4 if timings else [])) + " |")
     matched = set(summary["matched_methods"])
     for method, s in summary["methods"].items():
         delta = s["delta_vs_none" if key == "test_mse" else "delta_vs_none_paper_split"]
-        welch_text = r_text = "—"
-        if delta is None:
-            delta_text, p_text = "—", "—"
+        welch_text = r_text = p_text = "—"
+        original = s.get("duplicate_of")
+        if original is not None:
+            delta_text = f"= row {original}"
         else:
-            welch = delta.get("ci95_welch")
-            welch_text = f"[{welch[0]:+.2f}, {welch[1]:+.2f}]" if welch else "—"
-            r = delta.get("correlation")
-            r_text = f"{r:+.2f}" if r is not None and not math.isnan(r) else "—"
-            ci = delta["ci95"]
-            mark = "**" if significant(delta) else ""
-            delta_text = f"{mark}{delta['mean']:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}]{mark}" if ci else f"{delta['mean']:+.2f}"
-            p_text = (f"{delta['t_p_holm']:.3f} / {delta['p_holm']:.3f}"
-                      if not math.isnan(delta["p_holm"]) else "—")
+            delta_text = _ci_text(delta)
+            if delta is not None:
+                welch = delta.get("ci95_welch")
+                welch_text = f"[{welch[0]:+.2f}, {welch[1]:+.2f}]" if welch else "—"
+                r = delta.get("correlation")
+                r_text = f"{r:+.2f}" if r is not None and not math.isnan(r) else "—"
+                p_text = _p_text(delta)
+        versus = "—"
+        if "matched_row" in s and key == "test_mse":
+            if s["matched_row"] is None:
+                versus = "no matched row ran"
+            elif original is not None and original == s["matched_row"]:
+                versus = f"= row {original}"
+            elif original is not None:
+                versus = f"= row {original}"
+            else:
+                vs = s.get("delta_vs_matched")
+                versus = f"{s['matched_row']}: {_ci_text(vs)}" if vs else "—"
         label = f"{method} (matched)" if method in matched else method
         kept = [step for step in s.get("best_step", []) if step is not None]
-        cells = [label, _format_mean_sd(s[key]), delta_text, welch_text, r_text, p_text,
-                 f"{statistics.median(kept):.0f}/{s['steps']}" if kept else "—"]
+        early = s.get("stopped_before_cap")
+        kept_text = f"{statistics.median(kept):.0f}/{s['steps']}" if kept else "—"
+        if kept and early is not None:
+            kept_text += f" ({early:.0%})"
+        cells = [label, _format_mean_sd(s[key]), delta_text, welch_text, r_text, p_text, versus, kept_text]
         if timings:
-            cells += [f"{s['aug_s_once']:.2f}", f"{s['aug_s_per_epoch']:.3f}", f"{s['train_s']:.1f}"]
+            cells += _time_cells(s)
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join(rows)
 
@@ -106,7 +159,8 @@ def format_budget_check(check: dict[str, Any] | None) -> str:
 
 
 def format_findings(name: str, summary: dict[str, Any]) -> list[str]:
-    """One sentence per method: what it buys (Δ test MSE and its interval) and costs."""
+    """One sentence per method: what it buys (Δ test MSE and its family-wise interval),
+    against the matched row for the policy rows, and what it costs."""
     lines = []
     best_baseline = min(summary["baselines"].items(), key=lambda kv: kv[1]["test_mse"], default=None)
     none = summary["methods"].get("none")
@@ -118,17 +172,51 @@ def format_findings(name: str, summary: dict[str, Any]) -> list[str]:
             f"ratio {mean / best_baseline[1]['test_mse']:.2f}."
         )
     for method, s in summary["methods"].items():
-        delta = s["delta_vs_none"]
-        if delta is None or not delta.get("ci95"):
+        if s.get("duplicate_of"):
+            lines.append(f"{name} / {method}: bit-identical per seed to {s['duplicate_of']} (the same copies); "
+                         "not a separate test.")
             continue
-        lo, hi = delta["ci95"]
+        delta = s["delta_vs_none"]
+        if delta is None or not (delta.get("ci_family") or delta.get("ci95")):
+            continue
+        lo, hi = delta.get("ci_family") or delta["ci95"]
         verdict = ("buys" if hi < 0 else "costs") if significant(delta) else "shows no resolved change:"
-        lines.append(
-            f"{name} / {method}: {verdict} {delta['mean']:+.2f} N² test MSE (95 % CI {lo:+.2f} to {hi:+.2f}, "
-            f"Holm p {delta['t_p_holm']:.3f} by the t-test, {delta['p_holm']:.3f} by Wilcoxon), for "
-            f"{s['aug_s_once']:.2f} s of augmentation once and {s['train_s']:.0f} s of training per run."
-        )
+        text = (f"{name} / {method}: {verdict} {delta['mean']:+.2f} N² test MSE vs none (family 95 % CI {lo:+.2f} "
+                f"to {hi:+.2f}, {delta.get('better_seeds', '?')}/{delta['n']} seeds better)")
+        vs = s.get("delta_vs_matched")
+        if vs and vs.get("ci_family"):
+            mlo, mhi = vs["ci_family"]
+            word = ("better than" if mhi < 0 else "worse than") if significant(vs) else "not resolved from"
+            text += (f"; {word} the matched {s['matched_row']} by {vs['mean']:+.2f} N² (family 95 % CI {mlo:+.2f} "
+                     f"to {mhi:+.2f}, {vs['better_seeds']}/{vs['n']} seeds better)")
+        wall = s.get("single_wall_s")
+        cost = f"{s['aug_s_once']:.2f} s of augmentation once"
+        if wall:
+            cost += f", {wall['median']:.1f} s for one model alone"
+        if s.get("online_aug_s_per_epoch") is not None:
+            cost += f", {s['online_aug_s_per_epoch']:.3f} s per epoch augmenting online"
+        lines.append(text + f"; costs {cost}.")
     return lines
+
+
+def format_environment(results: dict[str, Any]) -> str:
+    """One paragraph: the machine the numbers come from, and what they cover.
+
+    Example:
+        >>> format_environment({"environment": {"cpu_model": "X", "cpu_capability": "AVX2",
+        ...     "ATEN_CPU_CAPABILITY": None, "torch": "2.0", "threads": 1, "device": "cpu",
+        ...     "package_version": "0.1"}})[:45]
+        "One machine's numbers: CPU X, torch 2.0 with "
+    """
+    env = results.get("environment", {})
+    forced = env.get("ATEN_CPU_CAPABILITY")
+    kernels = f"{env.get('cpu_capability', 'unknown')} kernels" + (f" (ATEN_CPU_CAPABILITY={forced})" if forced else "")
+    return (f"One machine's numbers: CPU {env.get('cpu_model', 'unknown')}, torch {env.get('torch', '?')} with "
+            f"{kernels}, {env.get('threads', '?')} thread(s) per job, device {env.get('device', '?')}, "
+            f"event-transforms {env.get('package_version', '?')}. Another CPU kernel set changes per-seed MSEs in "
+            "the last digits and training amplifies that, so compare verdicts (sign, significance), not digits. "
+            "Intervals cover training randomness (initial weights, batch order, augmentation draws) with the "
+            "data fixed: every seed trains and is tested on the same grasps.")
 
 
 def format_report(results: dict[str, Any], *, timings: bool = True) -> str:
@@ -136,14 +224,19 @@ def format_report(results: dict[str, Any], *, timings: bool = True) -> str:
 
     The first line names the commit that produced the results (``results["commit"]``).
     """
-    parts = [f"Produced by commit `{results.get('commit', 'unknown')}`.\n",
+    parts = [f"Produced by commit `{results.get('commit', 'unknown')}`.\n", format_environment(results), "",
              "### Summary (the README's table)\n", format_summary_table(results), ""]
     for name, summary in results["scenes"].items():
         gaps = ", ".join(summary["gaps"]) or "none (control)"
         sizes = summary["split_sizes"]
         holdout = f" ({sizes['holdout']} hold-out from the training session)" if "holdout" in sizes else ""
+        counts = summary.get("recordings")  # a folder of recordings: what the intervals rest on
+        recorded = (f" from {counts['train']} train / {counts['holdout']} hold-out / {counts['val']} val / "
+                    f"{counts['test']} test recordings (the intervals rest on {counts['test']} test recordings)"
+                    if counts else "")
         parts.append(f"### {name}: {summary['description']}\n\ngaps: {gaps}; "
-                     f"{sizes['train']} train{holdout} / {sizes['val']} val / {sizes['test']} test sequences\n")
+                     f"{sizes['train']} train{holdout} / {sizes['val']} val / {sizes['test']} test sequences"
+                     f"{recorded}\n")
         parts.append(format_scene_table(name, summary, timings=timings))
         parts.append("")
         if summary["gaps"]:

@@ -9,29 +9,44 @@ distributions of a :class:`Session` — one setup on one day — and a
 whose settings differ between the two are the scene's *gaps*; each gap has *matched*
 augmentations, the ones that simulate it:
 
-==========================  ============================  ================================
-scene                       gap (train → deploy)          matched augmentations
-==========================  ============================  ================================
-``paper``                   size: 12 + 18 mm → 15 mm      ``resize``, ``resize-hertz``
-``size-extrapolation``      size: 12 + 15 mm → 18 mm      ``resize``, ``resize-hertz``
-``timing``                  delay: 0–4 ms → 16–24 ms      ``fs2``, ``tes2:0.5``
-``orientation``             angle: ±10° → ±(30–50)°       ``rot50``
-``noise``                   background 3×, hot pixels 10× ``noise``
-``paper-lag``               size: 12 + 18 mm → 15 mm;     ``fs-1``, ``tes-2:0.5``
-                            delay: 12–18 ms → 0–4 ms
-``control``                 none (15 mm, like training)   (none: every method is a control)
-==========================  ============================  ================================
+Every scene's description names the simulator effect that makes its gap:
 
-``paper-lag`` is the paper's split with the lag effects the paper credits its time shifts
-to: in both sessions the membrane relaxes three times more slowly than it is pressed
-(``release_lag_ratio=3``) and the F/T label is the force through a 15 ms low-pass
-(``label_lowpass_ms``), so on release the events lead the label; the grasps are triggered
-with the recording (20 ms of start jitter instead of 60, so a one-frame offset shows in
-24 unlabeled grasps); and the offset between
-the F/T clock and the camera differs between the sessions (events 12–18 ms after the
-force in training, 0–4 ms in deployment), so deployment events come about one frame
-*earlier*: the paper's left shifts, FS-1 (``shift=-1``) and TES-2(0.5) (``shift=-2``,
-half of the events), are the matched methods.
+======================  ==========================================================  ======================
+scene                   the physics that differs (train → deploy)                   matched augmentations
+======================  ==========================================================  ======================
+``paper``               bolt size 12 + 18 mm → 15 mm: the strip's half-width        ``resize``,
+                        grows as √D (the size model: ``SIZE_MODELS``)               ``resize-hertz``
+``size-extrapolation``  bolt size 12 + 15 mm → 18 mm (outside the range)            ``resize``,
+                                                                                    ``resize-hertz``
+``timing``              transport delay force → membrane 0–4 ms → 16–24 ms          ``fs2``, ``tes2:0.5``
+``orientation``         contact angle ±10° → ±(30–50)°                              ``rot50``
+``noise``               camera: shot-noise rates 3×, hot pixels 10×                 ``noise``
+``paper-offset``        the paper's sizes, and a clock offset between the F/T       ``fs-1``,
+                        sensor and the camera: events 12–18 ms after the force      ``tes-2:0.5``
+                        → 0–4 ms (one frame earlier)
+``paper-membrane``      the paper's sizes, and a colder, more viscous membrane:     ``fs1``, ``tes1:0.5``
+                        creep τ 2–8 ms → 10–20 ms and release 3× slower than
+                        pressing (events later and smeared, most on release)
+``paper-lag``           (full runs; ablation) the old ``paper-lag``: the offset     ``fs-1``,
+                        gap of ``paper-offset`` with slow release (×3) and a 15 ms  ``tes-2:0.5``
+                        low-pass F/T label in *both* sessions
+``paper-lag-only``      (full runs; ablation) the lag effects in both sessions,     ``resize``,
+                        no offset: a size gap only, so time shifts simulate no gap  ``resize-hertz``
+``control``             none (15 mm, like training)                                 (none)
+======================  ==========================================================  ======================
+
+The lag scenes separate what the earlier ``paper-lag`` mixed (issue 24): its only
+train/deploy timing difference was the clock offset, which a frame shift undoes exactly;
+the lag effects were the same in both sessions, and with them alone time shifts *hurt*.
+``paper-offset`` holds the offset, ``paper-membrane`` a lag that differs between sessions
+for a stated physical reason (a colder membrane), and the two ablations keep the old
+scene and its lag-only half in the full results.
+
+Every scene uses the base session's 60 ms start jitter (grasps not triggered with the
+recording). Under it a one-frame timing difference is below what
+:func:`event_transforms.infer_scene` can resolve from 24 unlabeled recordings (see its
+docstring), so on ``paper-offset`` and ``paper-membrane`` the ``inferred`` row finds the
+size gap only: that is the point of those rows, not a defect of the scenes.
 
 The timing gap is a transport delay (the membrane sees the force ``delay`` ms after the
 force sensor reads it): events arrive about two frames later in deployment, which
@@ -64,6 +79,7 @@ __all__ = [
     "BenchmarkScene",
     "BASE_SESSION",
     "PAPER_LAG_SETTINGS",
+    "MEMBRANE_DEPLOY_SETTINGS",
     "SCENES",
     "get_scene",
 ]
@@ -93,7 +109,8 @@ FACTORS: dict[str, tuple[str, ...]] = {
     "center": ("center_jitter_px",),
     "contact": (
         "contact", "width_exponent", "reference_half_width_px", "reference_force_n",
-        "reference_diameter_mm", "strip_half_length_px", "edge_px", "contrast",
+        "reference_diameter_mm", "strip_half_length_px", "edge_px", "contrast", "strip_length_exponent",
+        "contrast_exponent",
     ),
     "recording": ("sensor_size", "n_frames", "frame_ms", "substep_ms"),
 }
@@ -296,54 +313,86 @@ class BenchmarkScene:
         return Scene(frame_ms=self.train.config.frame_ms, **kwargs)
 
 
-#: The lag effects of ``paper-lag``, in both sessions: a membrane that relaxes 3× more
-#: slowly than it is pressed, a 15 ms low-pass on the F/T label, grasps triggered with the
-#: recording (start and end jittered over 20 ms, not 60), and (training only) a 12-18 ms
-#: offset between the F/T clock and the camera.
+#: The lag effects of the ablation scene ``paper-lag``, in both sessions: a membrane that
+#: relaxes 3× more slowly than it is pressed, a 15 ms low-pass on the F/T label, and
+#: (training only) a 12-18 ms offset between the F/T clock and the camera.
 PAPER_LAG_SETTINGS: dict[str, Any] = {
     "release_lag_ratio": 3.0,
     "label_lowpass_ms": 15.0,
     "delay_ms": (12.0, 18.0),
-    "timing_jitter_ms": 20.0,
 }
-#: The deployment's offset in ``paper-lag``.
+#: The deployment's offset in ``paper-offset`` and ``paper-lag``.
 PAPER_LAG_DEPLOY_DELAY_MS = (0.0, 4.0)
+#: ``paper-membrane``'s deployment membrane: colder silicone is more viscous, so it creeps
+#: more slowly (τ 10-20 ms instead of the base 2-8 ms) and relaxes 3× more slowly than it
+#: is pressed.
+MEMBRANE_DEPLOY_SETTINGS: dict[str, Any] = {"lag_ms": (10.0, 20.0), "release_lag_ratio": 3.0}
 
 
 def _scenes() -> dict[str, BenchmarkScene]:
     base = BASE_SESSION
     scenes = [
         BenchmarkScene.from_gaps(
-            "paper", "the paper's split: train on 12 and 18 mm bolts, deploy on the unseen 15 mm bolt",
+            "paper", "the paper's split: 12 and 18 mm bolts in training, the unseen 15 mm in deployment; the strip's "
+            "half-width grows as sqrt(D) (the size model decides what else does)",
             base, {"size": {"diameters_mm": (15.0,)}}, ("resize", "resize-hertz"),
             train={"diameters_mm": (12.0, 18.0)},
         ),
         BenchmarkScene.from_gaps(
-            "size-extrapolation", "train on 12 and 15 mm bolts, deploy on an 18 mm bolt (outside the range)",
+            "size-extrapolation", "12 and 15 mm bolts in training, an 18 mm bolt in deployment (outside the range); "
+            "the strip's half-width grows as sqrt(D)",
             base, {"size": {"diameters_mm": (18.0,)}}, ("resize", "resize-hertz"),
             train={"diameters_mm": (12.0, 15.0)},
         ),
         BenchmarkScene.from_gaps(
-            "timing", "events reach the deployment camera 16-24 ms after the force (0-4 ms in training)",
+            "timing", "a transport delay between force and membrane: events 0-4 ms after the force in training, "
+            "16-24 ms in deployment (two frames later)",
             base, {"timing": {"delay_ms": (16.0, 24.0)}}, ("fs2", "tes2:0.5"),
         ),
         BenchmarkScene.from_gaps(
-            "orientation", "contact angles of ±10° in training, ±(30-50)° in deployment",
+            "orientation", "the contact axis turns: angles of ±10° in training, ±(30-50)° in deployment",
             base, {"orientation": {"angle_deg": (30.0, 50.0), "angle_symmetric": True}}, ("rot50",),
         ),
         BenchmarkScene.from_gaps(
-            "noise", "a deployment camera with 3x the background activity and 10x the hot pixels",
+            "noise", "another camera in deployment: 3x the shot-noise rates and 10x the hot pixels",
             base, {"noise": {"shot_noise_hz": (0.3, 30.0), "hot_pixel_fraction": 1e-3}}, ("noise",),
         ),
         BenchmarkScene("control", "deployment drawn like training: no gap", base, base, ()),
         BenchmarkScene.from_gaps(
+            "paper-offset",
+            "the paper's sizes (half-width ∝ √D) and a clock offset between the F/T sensor and the camera: events "
+            "12-18 ms after the force in training, 0-4 ms in deployment (one frame earlier)",
+            base,
+            {"size": {"diameters_mm": (15.0,)}, "timing": {"delay_ms": PAPER_LAG_DEPLOY_DELAY_MS}},
+            ("fs-1", "tes-2:0.5"),
+            train={"diameters_mm": (12.0, 18.0), "delay_ms": PAPER_LAG_SETTINGS["delay_ms"]},
+        ),
+        BenchmarkScene.from_gaps(
+            "paper-membrane",
+            "the paper's sizes (half-width ∝ √D) and a colder, more viscous membrane in deployment: creep time "
+            "constant 2-8 ms -> 10-20 ms and release 3x slower than pressing (events later and smeared)",
+            base,
+            {"size": {"diameters_mm": (15.0,)}, "timing": dict(MEMBRANE_DEPLOY_SETTINGS)},
+            ("fs1", "tes1:0.5"),
+            train={"diameters_mm": (12.0, 18.0)},
+        ),
+        BenchmarkScene.from_gaps(
             "paper-lag",
-            "the paper's split with its lag effects: slow membrane release, a low-pass F/T label, and events "
-            "12-18 ms after the force in training but 0-4 ms in deployment",
+            "ablation: the paper-offset scene's clock offset with slow release (3x) and a 15 ms low-pass F/T label "
+            "in both sessions",
             base,
             {"size": {"diameters_mm": (15.0,)}, "timing": {"delay_ms": PAPER_LAG_DEPLOY_DELAY_MS}},
             ("fs-1", "tes-2:0.5"),
             train={"diameters_mm": (12.0, 18.0), **PAPER_LAG_SETTINGS},
+        ),
+        BenchmarkScene.from_gaps(
+            "paper-lag-only",
+            "ablation: slow release (3x) and a 15 ms low-pass F/T label in both sessions, no clock offset: "
+            "the paper's size gap only",
+            base,
+            {"size": {"diameters_mm": (15.0,)}},
+            ("resize", "resize-hertz"),
+            train={"diameters_mm": (12.0, 18.0), "release_lag_ratio": 3.0, "label_lowpass_ms": 15.0},
         ),
     ]
     return {scene.name: scene for scene in scenes}

@@ -13,6 +13,16 @@ them. One *grasp* is:
    Hertz line contact, b = k·(F_m·R)^e with R = D/2 and e = 1/2 (thin layers are nearer
    1/3; the exponent is configurable). The strip has a fixed length (the gripper pad), an
    orientation drawn per experiment, and a centre near the sensor centre.
+
+   **Size models.** How the strip changes with the bolt diameter D is a modelling choice,
+   and the benchmark's size verdicts depend on it (``benchmarks/physics_sensitivity.py``).
+   By default only the half-width grows with D (as √D), so a stretch across the strip by
+   √(D₂/D₁) is the generator's exact inverse. :data:`SIZE_MODELS` names documented
+   variants: ``"hertz"`` (the default), ``"thin-layer"`` (e = ⅓: a thin membrane on a
+   rigid backing), ``"hertz-growing"`` and ``"thin-layer-growing"`` (additionally the
+   strip's half-length grows as (D/D_ref)^½, a thicker bolt's curved ends reaching further
+   along the pad, and its contrast as (D/D_ref)^½, a deeper indentation darkening more),
+   via ``strip_length_exponent`` and ``contrast_exponent``.
 4. **DVS.** The camera sees the membrane's log intensity on a fine time grid (1 ms
    substeps); each pixel emits an ON (OFF) event whenever its log intensity rose (fell) by
    its threshold since its last event, v2e/ESIM style, with per-pixel threshold mismatch
@@ -35,6 +45,7 @@ from __future__ import annotations
 
 __all__ = [
     "SIMULATOR_VERSION",
+    "SIZE_MODELS",
     "SimulatorConfig",
     "Grasp",
     "Recording",
@@ -110,7 +121,12 @@ class SimulatorConfig:
         reference_force_n, reference_diameter_mm: the reference point fixing k.
         strip_half_length_px: half the strip's length along the bolt's axis.
         edge_px: width of the strip's soft edge.
-        contrast: fractional darkening inside the strip (0 < contrast < 1).
+        contrast: fractional darkening inside the strip (0 < contrast < 1) at the
+            reference diameter.
+        strip_length_exponent: the strip's half-length is ``strip_half_length_px ·
+            (D / reference_diameter_mm) ** strip_length_exponent`` (0: fixed by the pad).
+        contrast_exponent: the strip's contrast is ``contrast · (D /
+            reference_diameter_mm) ** contrast_exponent``, capped at 0.95 (0: fixed).
         center_jitter_px: the strip centre is uniform within ± this of the sensor centre.
         lag: apply the membrane's first-order lag.
         lag_ms: range of the lag time constant τ (drawn per experiment).
@@ -180,6 +196,9 @@ class SimulatorConfig:
     # issue 18 (lag effects); their defaults leave every earlier seed's output unchanged
     release_lag_ratio: float = 1.0
     label_lowpass_ms: float = 0.0
+    # issue 24 (size models); their defaults leave every earlier seed's output unchanged
+    strip_length_exponent: float = 0.0
+    contrast_exponent: float = 0.0
 
     def __post_init__(self) -> None:
         height, width = self.sensor_size
@@ -217,6 +236,9 @@ class SimulatorConfig:
                 raise ValueError(f"{name} must be a (min, max) pair, got {(low, high)!r}")
         if not (self.release_lag_ratio > 0 and math.isfinite(self.release_lag_ratio)):
             raise ValueError(f"release_lag_ratio must be a positive number, got {self.release_lag_ratio!r}")
+        for name in ("strip_length_exponent", "contrast_exponent", "width_exponent"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name} must be a finite number, got {getattr(self, name)!r}")
         if not (self.label_lowpass_ms >= 0 and math.isfinite(self.label_lowpass_ms)):
             raise ValueError(f"label_lowpass_ms must be non-negative, got {self.label_lowpass_ms!r}")
         if self.lag and self.lag_ms[0] <= 0:
@@ -296,9 +318,21 @@ class Recording:
             dtype=dtype,
         )
 
+    def sensor_crop(self, size: tuple[int, int] = (140, 150)) -> tuple[int, int, int, int]:
+        """``(top, left, height, width)`` window of ``size`` centred on the *sensor*: a fixed
+        crop that needs no knowledge of the contact (the benchmark's data use it; with the
+        default ±6 px centre jitter and 45 px strip half-length the strip stays inside)."""
+        height, width = self.config.sensor_size
+        crop_h, crop_w = size
+        if not (0 < crop_h <= height and 0 < crop_w <= width):
+            raise ValueError(f"size must fit the sensor {self.config.sensor_size}, got {size!r}")
+        return (height - crop_h) // 2, (width - crop_w) // 2, crop_h, crop_w
+
     def contact_crop(self, size: tuple[int, int] = (140, 150)) -> tuple[int, int, int, int]:
         """``(top, left, height, width)`` window of ``size`` centred on the contact, inside
-        the sensor (the paper's 140×150 crop "around the contact area")."""
+        the sensor (the paper's 140×150 crop "around the contact area"). It reads the true
+        contact centre, an oracle a real pipeline does not have: the benchmark's data use
+        :meth:`sensor_crop` instead."""
         height, width = self.config.sensor_size
         crop_h, crop_w = size
         if not (0 < crop_h <= height and 0 < crop_w <= width):
@@ -571,6 +605,24 @@ def _to_events(parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], width: in
 # --------------------------------------------------------------------------- simulation
 
 
+#: Documented variants of how the contact strip changes with the bolt diameter: name ->
+#: the :class:`SimulatorConfig` settings (see the module docstring, "Size models").
+SIZE_MODELS: dict[str, dict[str, float]] = {
+    "hertz": {"width_exponent": 0.5},
+    "thin-layer": {"width_exponent": 1.0 / 3.0},
+    "hertz-growing": {"width_exponent": 0.5, "strip_length_exponent": 0.5, "contrast_exponent": 0.5},
+    "thin-layer-growing": {"width_exponent": 1.0 / 3.0, "strip_length_exponent": 0.5, "contrast_exponent": 0.5},
+}
+
+
+def _strip_shape(grasps: Sequence[Grasp], config: SimulatorConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Per grasp: the strip's half-length (px) and contrast under the size model."""
+    ratio = np.array([g.diameter_mm for g in grasps], dtype=np.float64) / config.reference_diameter_mm
+    half_length = config.strip_half_length_px * ratio**config.strip_length_exponent
+    contrast = np.minimum(config.contrast * ratio**config.contrast_exponent, 0.95)
+    return half_length, contrast
+
+
 def _contact_events(
     grasps: Sequence[Grasp], width_px: np.ndarray, config: SimulatorConfig
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -585,13 +637,14 @@ def _contact_events(
     edge = config.edge_px
     # Gather the pixels each strip can ever touch; every other pixel sees constant light.
     owner, pixel, across, along = [], [], [], []
+    half_length, contrast = _strip_shape(grasps, config)
     for index, grasp in enumerate(grasps):
         theta = np.deg2rad(grasp.angle_deg)
         dy, dx = ys - grasp.center_yx[0], xs - grasp.center_yx[1]
         # Image rows grow downwards: a counter-clockwise angle has direction (cos, -sin).
         u = np.abs(dx * np.sin(theta) + dy * np.cos(theta))  # distance across the strip
         v = np.abs(dx * np.cos(theta) - dy * np.sin(theta))  # distance along it
-        active = np.flatnonzero((u < width_px[index].max()) & (v < config.strip_half_length_px))
+        active = np.flatnonzero((u < width_px[index].max()) & (v < half_length[index]))
         owner.append(np.full(active.size, index))
         pixel.append(active)
         across.append(u[active])
@@ -599,7 +652,7 @@ def _contact_events(
     owner, pixel = np.concatenate(owner), np.concatenate(pixel)
     across = np.concatenate(across) / edge
     # Darkening at full width: contrast, tapered over the edge at the strip's ends.
-    depth = config.contrast * np.clip((config.strip_half_length_px - np.concatenate(along)) / edge, 0, 1)
+    depth = contrast[owner] * np.clip((half_length[owner] - np.concatenate(along)) / edge, 0, 1)
     b_edge = width_px / edge
 
     def log_intensity(step: int) -> np.ndarray:

@@ -11,7 +11,19 @@ order), so methods are compared pairwise, seed by seed:
 - :func:`welch_interval` and :func:`correlation` — the unpaired interval and the correlation of
   the per-seed values, reported beside the paired interval to show what pairing bought;
 - :func:`summarize_scene` — one scene's entry of a protocol's ``results.json``: per method
-  the per-seed values and Δ vs ``none``, Holm-corrected within the scene.
+  the per-seed values and Δ vs ``none``; policy rows also Δ vs the scene's matched row.
+
+**What the intervals cover, and the significance rule.** Seeds vary the initial weights,
+the batch order and the augmentation draws; the training, hold-out and test grasps are the
+same for every seed. So an interval covers training randomness with fixed data, not the
+variation between data sets. One family per scene: its methods' Δ vs ``none``, a row that
+is bit-identical per seed to an earlier row (a *duplicate*, shown as "= row X") excluded.
+The interval shown is the family-wise one: the paired t-interval at level 1 − 0.05/m for a
+family of m (Bonferroni), and a Δ is significant (bold) exactly when that interval
+excludes 0, i.e. when m × the t-test's p ≤ 0.05; so bold and interval never disagree.
+Holm's p-values are kept in ``results.json`` beside them. The exact Wilcoxon p of n pairs
+cannot go below 2 / 2**n, m times that after the family adjustment; where that floor is
+above 0.05 the test cannot reach significance and the table says so.
 
 With n pairs the exact signed-rank p-value cannot go below 2 / 2**n (0.0625 for 5 seeds,
 0.002 for 10), whatever the data: a method can only be called significant by that test
@@ -40,6 +52,9 @@ __all__ = [
     "correlation",
     "mean_sd",
     "significant",
+    "wilcoxon_floor",
+    "duplicates",
+    "paired_delta",
     "deltas_vs_none",
     "summarize_scene",
 ]
@@ -267,16 +282,77 @@ def correlation(a: Sequence[float], b: Sequence[float]) -> float:
 
 
 def significant(delta: dict[str, Any] | None, alpha: float = 0.05) -> bool:
-    """The paired t-test, Holm-corrected within the scene, rejects "no change" at ``alpha``.
-
-    The exact Wilcoxon p-value is reported beside it but cannot decide with few seeds: with
-    n pairs it is at least 2 / 2**n (0.0625 for 5 seeds), so it never reaches 0.05.
+    """The family-wise interval (``ci_family``: the paired t-interval at level 1 − α/m)
+    excludes 0 (equivalently: m × the t-test's p ≤ α). Results without a family interval
+    (older files) fall back to the unadjusted 95 % interval with the Holm-corrected p.
     """
-    if not delta or not delta.get("ci95"):
+    if not delta:
+        return False
+    ci = delta.get("ci_family")
+    if ci is not None:
+        return bool(ci[1] < 0 or ci[0] > 0)
+    if not delta.get("ci95"):
         return False
     lo, hi = delta["ci95"]
     p = delta.get("t_p_holm")
     return bool((hi < 0 or lo > 0) and p is not None and not math.isnan(p) and p <= alpha)
+
+
+def wilcoxon_floor(n: int, family: int = 1) -> float:
+    """The smallest family-adjusted exact Wilcoxon p of ``n`` pairs: min(1, m · 2 / 2**n).
+
+    Example:
+        >>> wilcoxon_floor(8, 12)
+        0.09375
+    """
+    return min(1.0, family * 2.0 / 2.0**n) if n > 0 else 1.0
+
+
+def duplicates(methods: dict[str, Any], key: str = "test_mse") -> dict[str, str]:
+    """Rows bit-identical per seed to an earlier row: name -> the earlier row's name.
+
+    Example:
+        >>> duplicates({"none": {"seeds": [0, 1], "test_mse": [1.0, 2.0]},
+        ...             "stretch": {"seeds": [0, 1], "test_mse": [0.5, 0.7]},
+        ...             "inferred": {"seeds": [0, 1], "test_mse": [0.5, 0.7]}})
+        {'inferred': 'stretch'}
+    """
+    seen: dict[tuple, str] = {}
+    out = {}
+    for name, method in methods.items():
+        signature = (tuple(method["seeds"]), tuple(float(v) for v in method[key]))
+        if signature in seen:
+            out[name] = seen[signature]
+        else:
+            seen[signature] = name
+    return out
+
+
+def paired_delta(reference: dict[str, Any], method: dict[str, Any], key: str, family: int) -> dict[str, Any] | None:
+    """Δ of ``key`` (method − reference) paired by seed, with the family-wise interval."""
+    base = dict(zip(reference["seeds"], reference[key]))
+    pairs = [(base[s], v) for s, v in zip(method["seeds"], method[key]) if s in base]
+    if not pairs:
+        return None
+    first, second = [a for a, _ in pairs], [b for _, b in pairs]
+    test = paired_t(first, second)
+    wide = paired_t(first, second, level=1 - 0.05 / max(family, 1)) if test.ci is not None else test
+    welch = welch_interval(first, second)
+    return {
+        "mean": test.mean,
+        "ci95": list(test.ci) if test.ci is not None else None,
+        "ci_family": list(wide.ci) if wide.ci is not None else None,
+        "family_size": family,
+        "p_value": test.wilcoxon_p_value,
+        "t_p_value": test.t_p_value,
+        "t_p_family": min(1.0, family * test.t_p_value) if not math.isnan(test.t_p_value) else math.nan,
+        "p_family": min(1.0, family * test.wilcoxon_p_value) if not math.isnan(test.wilcoxon_p_value) else math.nan,
+        "wilcoxon_floor": wilcoxon_floor(test.n, family),
+        "n": test.n,
+        "better_seeds": sum(b < a for a, b in pairs),
+        "ci95_welch": list(welch) if welch is not None else None,
+        "correlation": correlation(first, second),
+    }
 
 
 def mean_sd(values: Sequence[float]) -> tuple[float, float]:
@@ -285,45 +361,34 @@ def mean_sd(values: Sequence[float]) -> tuple[float, float]:
     return statistics.fmean(values), (statistics.stdev(values) if len(values) > 1 else math.nan)
 
 
-def deltas_vs_none(methods: dict[str, Any], key: str) -> dict[str, dict[str, Any]]:
-    """Δ of ``key`` vs ``none`` for every other method, paired seed by seed: the paired
-    t-interval, the exact Wilcoxon p, both Holm-corrected within the family given; beside
-    them the unpaired (Welch) interval and the correlation of the per-seed values, which
-    say what the pairing bought.
+def deltas_vs_none(methods: dict[str, Any], key: str, *, exclude: Sequence[str] = ()) -> dict[str, dict[str, Any]]:
+    """Δ of ``key`` vs ``none`` for every other method not in ``exclude`` (one family),
+    paired seed by seed (:func:`paired_delta`): the paired t-interval unadjusted and
+    family-wise, the t and exact Wilcoxon p-values, raw, Holm-corrected and Bonferroni
+    (``*_family``), the family's Wilcoxon floor; beside them the unpaired (Welch) interval
+    and the correlation of the per-seed values, which say what the pairing bought.
 
     ``methods`` maps a name to ``{"seeds": [...], key: [...]}``.
     """
     reference = methods.get("none")
     if reference is None:
         return {}
-    base = dict(zip(reference["seeds"], reference[key]))
-    tests, unpaired = {}, {}
-    for name, method in methods.items():
-        if name == "none":
-            continue
-        pairs = [(base[s], v) for s, v in zip(method["seeds"], method[key]) if s in base]
-        if pairs:
-            first, second = [a for a, _ in pairs], [b for _, b in pairs]
-            tests[name] = paired_t(first, second)
-            welch = welch_interval(first, second)
-            unpaired[name] = (list(welch) if welch is not None else None, correlation(first, second))
-    adjusted = dict(zip(tests, holm([t.wilcoxon_p_value for t in tests.values()])))
-    adjusted_t = dict(zip(tests, holm([t.t_p_value for t in tests.values()])))
-    return {
-        name: {
-            "mean": test.mean,
-            "ci95": list(test.ci) if test.ci is not None else None,
-            "p_value": test.wilcoxon_p_value,
-            "p_holm": adjusted[name],
-            "t_p_value": test.t_p_value,
-            "t_p_holm": adjusted_t[name],
-            "significant": significant({"ci95": test.ci, "t_p_holm": adjusted_t[name]}),
-            "n": test.n,
-            "ci95_welch": unpaired[name][0],
-            "correlation": unpaired[name][1],
-        }
-        for name, test in tests.items()
-    }
+    family = [name for name in methods if name != "none" and name not in exclude]
+    out = {}
+    for name in family:
+        delta = paired_delta(reference, methods[name], key, len(family))
+        if delta is not None:
+            out[name] = delta
+    holm_w = holm([d["p_value"] for d in out.values()])
+    holm_t = holm([d["t_p_value"] for d in out.values()])
+    for (name, delta), pw, pt in zip(out.items(), holm_w, holm_t):
+        delta["p_holm"], delta["t_p_holm"] = pw, pt
+        delta["significant"] = significant(delta)
+    return out
+
+
+#: Policy rows compared with the scene's matched row too.
+POLICY_ROWS = ("inferred", "prior", "everything")
 
 
 def summarize_scene(
@@ -332,7 +397,10 @@ def summarize_scene(
 ) -> dict[str, Any]:
     """One scene's entry of ``results.json``: gaps, baselines, and per method the per-seed
     values and Δ vs ``none`` on test MSE (``delta_vs_none``) and on the paper's 6 + 6 split
-    (``delta_vs_none_paper_split``), each Holm-corrected within the scene."""
+    (``delta_vs_none_paper_split``), one family per scene without duplicate rows (a row
+    bit-identical per seed to an earlier one gets ``duplicate_of`` and no Δ of its own);
+    policy rows (``inferred``, ``prior``, ``everything``) also ``delta_vs_matched``, against
+    the scene's first matched method that ran (a family of their own)."""
     methods: dict[str, Any] = {}
     for name, runs in per_method.items():
         runs = sorted(runs, key=lambda r: r["seed"])
@@ -343,6 +411,10 @@ def summarize_scene(
             "test_mse_paper_split": [r["test_mse_paper_split"] for r in runs],
             "val_mse_paper_split": [r["val_mse_paper_split"] for r in runs],
             "best_step": [r.get("best_step") for r in runs],
+            # members whose kept weights come from before the step cap (the stopping rule acted)
+            "stopped_before_cap": statistics.fmean(
+                1.0 if (r.get("best_step") is not None and r["best_step"] < r["steps"]) else 0.0 for r in runs
+            ),
             "holdout_mse": [r.get("holdout_mse") for r in runs],
             "steps": runs[0]["steps"],
             "copies": runs[0]["copies"],
@@ -356,9 +428,22 @@ def summarize_scene(
                 phase: statistics.fmean(r["test_phase_mse"][phase] for r in runs) for phase in ("grasp", "hold", "release")
             },
         }
+    dupes = duplicates(methods)
+    for name, original in dupes.items():
+        methods[name]["duplicate_of"] = original
     for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
-        for name, delta in deltas_vs_none(methods, key).items():
+        for name, delta in deltas_vs_none(methods, key, exclude=tuple(dupes)).items():
             methods[name][field_name] = delta
+    # the policy rows against the scene's matched row (the first matched method that ran)
+    matched = next((m for m in scene.matched_methods if m in methods and m not in dupes), None)
+    policies = [m for m in POLICY_ROWS if m in methods and m not in dupes and m != matched]
+    for name in policies:
+        methods[name]["matched_row"] = matched
+        if matched is not None:
+            methods[name]["delta_vs_matched"] = paired_delta(methods[matched], methods[name], "test_mse", len(policies))
+    for name in dupes:
+        if name in POLICY_ROWS:
+            methods[name]["matched_row"] = matched
     return {
         "description": scene.description,
         "gaps": list(scene.gaps),

@@ -73,7 +73,7 @@ class Param:
 
 #: A module's description of its params dict: a :class:`Param` per own entry and a
 #: ``(child, shape)`` pair per child of a container.
-Spec = dict[str, Union[Param, "tuple[EventTransform, torch.Size]"]]
+Spec = Mapping[str, Union[Param, "tuple[EventTransform, torch.Size]"]]
 
 
 def _values(tensor: Tensor) -> np.ndarray:
@@ -161,8 +161,9 @@ class _CheckedParams(dict):
 def slice_params(params: Params, index: Tensor) -> Params:
     """The parameters of the samples ``index`` (a CPU int64 tensor): every leaf indexed on dim 0."""
     out = type(params)()
-    if isinstance(params, _CheckedParams):
+    if isinstance(params, _CheckedParams) and isinstance(out, _CheckedParams):
         out.owner = params.owner
     for key, value in params.items():
-        out[key] = slice_params(value, index) if isinstance(value, Mapping) else value.index_select(0, index)
+        out[key] = slice_params(dict(value), index) if isinstance(value, Mapping) and not isinstance(value, dict) else (
+            slice_params(value, index) if isinstance(value, dict) else value.index_select(0, index))
     return out

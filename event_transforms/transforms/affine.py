@@ -12,6 +12,8 @@ dtype. Values are moved or interpolated, never inspected.
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import torch
@@ -99,7 +101,7 @@ class Rotate(_Rotation):
         super().__init__(center=center, mode=mode, p=p)
         self.angle = as_number(angle, "angle")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"angle": torch.full((shape[0],), self.angle, dtype=torch.float64)}
 
     def _settings(self) -> str:
@@ -126,7 +128,7 @@ class RandomRotation(_Rotation):
         super().__init__(center=center, mode=mode, p=p)
         self.degrees = check_pair(degrees, "degrees", symmetric=True)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"angle": uniform(*self.degrees, shape[0], generator)}
 
     def _settings(self) -> str:
@@ -152,7 +154,7 @@ class Resize(_Zoom):
         super().__init__(center=center, mode=mode, p=p)
         self.scale = check_positive(scale, "scale")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"scale": torch.full((shape[0],), self.scale, dtype=torch.float64)}
 
     def _settings(self) -> str:
@@ -199,7 +201,7 @@ class RandomResize(_Zoom):
             self.choices = tuple(check_positive(c, "choices") for c in choices)
             self._choices = torch.tensor(self.choices, dtype=torch.float64)  # CPU, drawn from in make_params
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         if self.choices is not None:
             return {"scale": choice(self._choices, shape[0], generator)}
         assert self.scale is not None
@@ -267,7 +269,7 @@ class Affine(_AffineWarp):
         if max(abs(s) for s in self.shear) >= 90:
             raise ValueError(f"shear must lie in (-90, 90) degrees, got {shear!r}")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         return {
             "angle": torch.full((b,), self.angle, dtype=torch.float64),
@@ -336,7 +338,7 @@ class RandomAffine(_AffineWarp):
                 ranges = check_pair(shear, "shear", symmetric=True, low=-89.999, high=89.999) + (0.0, 0.0)
             self.shear = ranges
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b, _, _, height, width = shape
         params: Params = {"angle": uniform(*self.degrees, b, generator)}
         params["scale"] = torch.ones(b, dtype=torch.float64) if self.scale is None else uniform(*self.scale, b, generator)
@@ -391,7 +393,7 @@ class RandomPerspective(_Warp):
         if not 0 <= self.distortion_scale < 1:
             raise ValueError(f"distortion_scale must lie in [0, 1), got {distortion_scale!r}")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b, _, _, height, width = shape
         reach = self.distortion_scale * torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=torch.float64)
         inwards = torch.tensor([[1.0, 1.0], [1.0, -1.0], [-1.0, -1.0], [-1.0, 1.0]], dtype=torch.float64)
@@ -446,7 +448,7 @@ class RandomElastic(_Warp):
         self.alpha = check_pair(alpha, "alpha", low=0.0, single=True)
         self.sigma = check_positive(sigma, "sigma")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b, _, _, height, width = shape
         noise = uniform(-1.0, 1.0, b * 2 * height * width, generator).view(b, 2, height, width)
         return {"alpha": uniform(*self.alpha, b, generator), "noise": noise}

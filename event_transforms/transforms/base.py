@@ -33,13 +33,13 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 import torch
 from torch import Tensor, nn
 
-from .._validation import as_batch, check_frames, check_probability, check_shape
+from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape
 from ..events.batch import EventBatch, merge_streams
 from ..functional._dispatch import NoKernelError
 from ._params import CHECK_RANGE, Param, Params, Spec, _CheckedParams, check_tree, slice_params
@@ -63,6 +63,27 @@ def _gated(params: Params, gate: Tensor, spec: Spec) -> Params:
             off = off_samples.view(-1, *([1] * (leaf.dim() - 1)))
             out[key] = torch.where(off, torch.as_tensor(entry.neutral, dtype=leaf.dtype), leaf)
     return out
+
+
+def _numpy_frames(frames: object) -> Any:
+    """A numpy array of frames (tonic's ``ToFrame``, ``DiskCachedDataset``) as a tensor, converted
+    once at the outermost transform; the memory is shared when torch can (the transforms never
+    write into their input) and copied otherwise (read-only or negative-stride arrays)."""
+    if not isinstance(frames, np.ndarray):
+        return frames
+    if frames.dtype.kind not in "biuf" or frames.dtype == np.uint16 or frames.dtype == np.uint32:
+        raise TypeError(
+            f"frames as a numpy array must have one of the frame dtypes {FRAME_DTYPES}, got numpy dtype {frames.dtype}"
+        )
+    if not frames.flags.writeable or any(stride < 0 for stride in frames.strides):
+        frames = frames.copy()
+    return torch.from_numpy(frames)
+
+
+def _passthrough(frames: Any) -> Any:
+    """What ``torch.from_numpy``/``torch.as_tensor`` become in a container: numpy frames were
+    converted at its boundary already."""
+    return _numpy_frames(frames)
 
 
 def _video_of(frames: object) -> Any:
@@ -122,7 +143,18 @@ def _cpu(tensor: Tensor) -> Tensor:
 GroupFn = Callable[[Tensor, Tensor], Tensor]
 
 
-def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | None]) -> Tensor:
+AnyGroupFn = Callable[[Any, Tensor], Any]
+
+
+@overload
+def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | None]) -> Tensor: ...
+@overload
+def apply_by_group(frames: EventBatch, group: Tensor, functions: Sequence[AnyGroupFn | None]) -> EventBatch: ...
+@overload
+def apply_by_group(
+    frames: Tensor | EventBatch, group: Tensor, functions: Sequence[AnyGroupFn | None]
+) -> Tensor | EventBatch: ...
+def apply_by_group(frames: Tensor | EventBatch, group: Tensor, functions: Sequence[AnyGroupFn | None]) -> Any:
     """Apply ``functions[g]`` to the samples whose ``group`` is ``g``; ``None`` keeps them.
 
     Each function gets the sub-batch and the (CPU) indices of its samples, and is called
@@ -184,7 +216,7 @@ def apply_by_group(frames: Tensor, group: Tensor, functions: Sequence[GroupFn | 
     return out
 
 
-def _apply_by_group_events(batch: EventBatch, group: Tensor, functions: Sequence[GroupFn | None]) -> EventBatch:
+def _apply_by_group_events(batch: EventBatch, group: Tensor, functions: Sequence[AnyGroupFn | None]) -> EventBatch:
     """:func:`apply_by_group` for an :class:`EventBatch`: streams gathered by slices of the
     (CPU) offsets, results put back in stream order; no host synchronisation."""
     size = len(batch)
@@ -271,7 +303,10 @@ class EventTransform(nn.Module):
 
         Args:
             inputs: frames ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` (a tensor, a
-                ``tv_tensors.Video``, or a dict holding them under ``"frames"``), then
+                ``tv_tensors.Video``, a numpy array — tonic's ``ToFrame`` and
+                ``DiskCachedDataset`` output, converted once here with
+                ``torch.from_numpy``, the result a tensor — or a dict holding them under
+                ``"frames"``), then
                 anything (labels, ...), returned unchanged, except that a transform that
                 :attr:`couples_samples` mixes the second input (or the dict's
                 :attr:`label_key` entry), the labels, through :meth:`apply_labels`.
@@ -307,7 +342,7 @@ class EventTransform(nn.Module):
                 params = self.make_params(first.frame_shape, generator=generator, metadata=metadata)
             else:
                 with torch.profiler.record_function(CHECK_RANGE):
-                    params = check_tree(self, params, first.frame_shape)
+                    params = self._check_params(params, first.frame_shape)
             out = self._run(first, params)
             if self.couples_samples and rest:  # the labels, mixed as on frames
                 rest = (self._mix_labels(rest[0], params, False, len(first)), *rest[1:])
@@ -323,6 +358,7 @@ class EventTransform(nn.Module):
             frames = first[FRAMES_KEY]
             if metadata is None:
                 metadata = {k: v for k, v in first.items() if k != FRAMES_KEY}
+        frames = _numpy_frames(frames)
         video = _video_of(frames)
         like = frames if video is not None else None
         if video is not None:
@@ -332,8 +368,8 @@ class EventTransform(nn.Module):
             params = self.make_params(batch.shape, generator=generator, metadata=metadata)
         else:
             with torch.profiler.record_function(CHECK_RANGE):
-                params = check_tree(self, params, check_shape(batch.shape))
-        out = unbatch(self._run(batch, params))
+                params = self._check_params(params, check_shape(batch.shape))
+        out = unbatch(self._run(batch, params) if batch.device.type != "meta" else self._run_meta(batch, params))
         if like is not None:
             out = video.wrap(out, like=like)
         if self.couples_samples:
@@ -349,6 +385,31 @@ class EventTransform(nn.Module):
         if isinstance(first, Mapping):
             out = {**first, FRAMES_KEY: out}
         return (out, *rest) if rest else out
+
+    def _check_params(self, params: Params, shape: torch.Size) -> Params:
+        """:func:`check_tree`, with meta-device leaves (which hold no values to apply) refused by name."""
+        stack: list[tuple[str, Any]] = [("params", params)]
+        while stack:
+            path, node = stack.pop()
+            if isinstance(node, Mapping):
+                stack.extend((f"{path}[{key!r}]", value) for key, value in node.items())
+            elif isinstance(node, Tensor) and node.device.type == "meta":
+                raise ValueError(
+                    f"{type(self).__name__}: {path} is on the meta device, which holds no values to apply; "
+                    "pass the CPU tree make_params returns"
+                )
+        return check_tree(self, params, shape)
+
+    def _run_meta(self, batch: Tensor, params: Params) -> Tensor:
+        """:meth:`_run` on meta-device frames (shapes only): a transform that must read the
+        frames' values (exact TES, count checks) cannot run there and says so by name."""
+        try:
+            return self._run(batch, params)
+        except NotImplementedError as error:
+            raise ValueError(
+                f"{type(self).__name__} reads the values of the frames, which frames on the meta device do not "
+                f"hold (frames of shape {tuple(batch.shape)} on device 'meta'); run it on real frames"
+            ) from error
 
     def _mix_labels(self, labels: object, params: Params, single: bool, size: int) -> Any:
         """Check the labels of a coupled call (batch first) and hand them to :meth:`apply_labels`."""
@@ -406,6 +467,11 @@ class EventTransform(nn.Module):
         ``module(frames, params=...)`` to replay the call exactly.
         """
         shape = check_shape(shape)
+        if generator is not None and not isinstance(generator, torch.Generator):
+            raise TypeError(
+                f"{type(self).__name__}.make_params: generator must be a torch.Generator or None, got "
+                f"{type(generator).__name__} {generator!r}"
+            )
         params = self.sample_params(shape, generator=generator, metadata=metadata)
         if self.p < 1:
             params["apply"] = bernoulli(self.p, shape[0], generator)
@@ -529,11 +595,18 @@ class Lambda(EventTransform):
 def as_transform(transform: object, name: str = "transform") -> EventTransform:
     """``transform`` if it is an :class:`EventTransform`, else a :class:`Lambda` around it.
 
+    ``torch.from_numpy`` and ``torch.as_tensor`` become a pass-through: a container
+    converts numpy frames once, before its members run.
+
     Raises:
         TypeError: ``transform`` is not callable.
     """
     if isinstance(transform, EventTransform):
         return transform
+    if transform is torch.from_numpy or transform is torch.as_tensor:
+        # Compose([torch.from_numpy, ...]): the container converts numpy frames once, before
+        # its members run, so the member would get a tensor; it passes the frames through.
+        return Lambda(_passthrough)
     if not callable(transform):
         raise TypeError(f"{name} must be an EventTransform or a callable, got {type(transform).__name__}")
     return Lambda(transform)

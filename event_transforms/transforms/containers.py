@@ -44,7 +44,9 @@ def _refuse_coupled(member: EventTransform, where: str, container: str) -> None:
         )
 
 
-def _members(transforms: object, name: str, *, events_first: bool = False) -> nn.ModuleList:
+def _members(transforms: object, name: str, *, events_first: bool = False) -> Any:
+    """The members as an ``nn.ModuleList`` of :class:`EventTransform` (typed ``Any``: a
+    ``ModuleList`` yields ``nn.Module`` to type checkers)."""
     if isinstance(transforms, (nn.Module, str, bytes)) or not isinstance(transforms, Sequence):
         raise TypeError(
             f"{name} must be a sequence of transforms or callables, got {type(transforms).__name__}"
@@ -82,19 +84,19 @@ class Compose(EventTransform):
 
     def __init__(self, transforms: Sequence[EventTransform | Callable[[Tensor], Tensor]]) -> None:
         super().__init__()
-        self.transforms = _members(transforms, "transforms", events_first=True)
+        self.transforms: Sequence[EventTransform] = _members(transforms, "transforms", events_first=True)
         keys = {t.label_key for t in self.transforms if t.couples_samples and t.label_key is not None}
         if len(keys) > 1:
             raise ValueError(f"transforms: coupled members must agree on label_key, got {sorted(keys)}")
         self._label_key = keys.pop() if keys else None
 
     @property
-    def couples_samples(self) -> bool:  # type: ignore[override]
+    def couples_samples(self) -> bool:
         """Whether a member mixes samples: then the labels are mixed by the members, in order."""
         return any(t.couples_samples for t in self.transforms)
 
     @property
-    def label_key(self) -> str | None:  # type: ignore[override]
+    def label_key(self) -> str | None:
         """The coupled members' ``label_key`` (for dict inputs)."""
         return self._label_key
 
@@ -162,13 +164,15 @@ class OneOf(EventTransform):
         ([1, 1, 0, 1, 1, 1], [-1, -1, -1, -1, -1, -1])
     """
 
+    weights: Tensor  # a buffer
+
     def __init__(
         self,
         transforms: Sequence[EventTransform | Callable[[Tensor], Tensor]],
         weights: Sequence[float] | None = None,
     ) -> None:
         super().__init__()
-        self.transforms = _members(transforms, "transforms")
+        self.transforms: Sequence[EventTransform] = _members(transforms, "transforms")
         for i, member in enumerate(self.transforms):
             _refuse_coupled(member, f"transforms[{i}]", "OneOf")
         n = len(self.transforms)

@@ -7,6 +7,8 @@ computed on the frames' device; nothing is read back to the host.
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import torch
@@ -67,7 +69,7 @@ class RandomEventDrop(EventTransform):
             raise ValueError(f"methods must be a non-empty subset of {_DROPS}, got {methods!r}")
         self.methods = tuple(methods)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b, t, _, h, w = shape
         codes = torch.tensor([_DROPS.index(m) for m in self.methods])
         method = choice(codes, b, generator)
@@ -173,6 +175,7 @@ class DropPixel(EventTransform):
         if self.pixels is not None:
             mask = _pixel_mask(self.pixels, b, height, width, inputs.device)
         else:
+            assert isinstance(inputs, Tensor)  # an EventBatch without pixels was refused above
             mask = _hot_pixels(inputs, self.rate_hz * self.frame_ms / 1000.0)
         return call_kernel(F.drop_pixel, inputs, mask)
 
@@ -204,7 +207,7 @@ class RandomDropPixel(EventTransform):
         super().__init__(p=p)
         self.fraction = check_pair(fraction, "fraction", single=True, low=0.0, high=1.0)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         return {"fraction": uniform(*self.fraction, b, generator), "seed": seeds(b, generator)}
 
@@ -249,7 +252,7 @@ class RefractoryPeriod(EventTransform):
         low, high = check_pair(period_us, "period_us", low=0.0, single=True)
         self.period_us = (float(low), float(high))
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"period_us": uniform(*self.period_us, shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
@@ -286,7 +289,7 @@ class Decimation(EventTransform):
             raise ValueError(f"n must hold whole numbers >= 1, got {n!r}")
         self.n = (int(low), int(high))
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"n": integers(self.n[1] - self.n[0] + 1, shape[0], generator) + self.n[0]}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import torch
@@ -9,7 +10,9 @@ from torch import Tensor
 
 from .._validation import FRAME_DTYPES
 from ..events.batch import EventBatch, bin_events
-from ..events.binning import CHUNK_EVENTS, _grid, _integer, _T_STARTS, _explicit_starts, events_to_frames
+from ..events.binning import (
+    CHUNK_EVENTS, _explicit_starts, _grid, _integer, _order_names, _T_STARTS, _time_unit, events_to_frames,
+)
 from .base import EventTransform, Params
 
 __all__ = ["EventsToFrames"]
@@ -43,6 +46,10 @@ class EventsToFrames(EventTransform):
         pool: side of the square blocks summed into one output pixel.
         dtype: dtype of the counts.
         chunk_size: events read at a time (bounds the extra memory).
+        time_unit: the timestamps' unit, ``"us"``, ``"ms"``, ``"s"`` or ``"ns"``, as in
+            :func:`~event_transforms.functional.events_to_frames` (``None``: microseconds,
+            float timestamps that look like seconds refused).
+        columns: what each column of ``(N, k)`` rows holds, e.g. ``"txyp"``.
 
     Shape:
         - input: an event stream of N events (or a ``(B, N, 4)`` batch of equally long
@@ -78,6 +85,8 @@ class EventsToFrames(EventTransform):
         pool: int = 1,
         dtype: torch.dtype = torch.float32,
         chunk_size: int = CHUNK_EVENTS,
+        time_unit: str | None = None,
+        columns: str | Sequence[str] | None = None,
     ) -> None:
         super().__init__()
         if sensor_size is None and tonic_sensor_size is None:
@@ -101,6 +110,8 @@ class EventsToFrames(EventTransform):
             raise TypeError(f"dtype must be one of the frame dtypes {FRAME_DTYPES}, got {dtype!r}")
         self.dtype = grid.dtype
         self.chunk_size = _integer(chunk_size, "chunk_size")
+        self.time_unit = _time_unit(time_unit)
+        self.columns = None if columns is None else "".join(_order_names(columns))
 
     @property
     def takes_events(self) -> bool:
@@ -123,6 +134,8 @@ class EventsToFrames(EventTransform):
             pool=self.pool,
             dtype=self.dtype,
             chunk_size=self.chunk_size,
+            time_unit=self.time_unit,
+            columns=self.columns,
         )
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor:

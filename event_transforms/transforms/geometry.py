@@ -13,6 +13,8 @@ no ``p`` (wrap a size-keeping variant in :class:`~event_transforms.RandomApply` 
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import torch
@@ -51,7 +53,7 @@ class Translate(_Roll):
         super().__init__(p=p)
         self.shift = tuple(per_sample_pairs(shift, 1, "shift", dtype=torch.int64)[0].tolist())
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"shift": torch.tensor(self.shift, dtype=torch.int64).expand(shape[0], 2).clone()}
 
     def _settings(self) -> str:
@@ -86,7 +88,7 @@ class RandomTranslate(_Roll):
             raise ValueError(f"max_shift must be non-negative, got {max_shift!r}")
         self.max_shift = pair
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         my, mx = self.max_shift
         dy = integers(2 * my + 1, b, generator) - my
@@ -160,7 +162,7 @@ class RandomCrop(_Crop):
     def __init__(self, size: int | Sequence[int], *, resize: bool = False, mode: str = "bilinear", p: float = 1.0) -> None:
         super().__init__(size, resize=resize, mode=mode, p=p)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         rows, cols = self._room(shape)
         return {"top": integers(rows + 1, shape[0], generator), "left": integers(cols + 1, shape[0], generator)}
 
@@ -179,7 +181,7 @@ class CenterCrop(_Crop):
     def __init__(self, size: int | Sequence[int], *, resize: bool = False, mode: str = "bilinear", p: float = 1.0) -> None:
         super().__init__(size, resize=resize, mode=mode, p=p)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         rows, cols = self._room(shape)
         b = shape[0]
         return {"top": torch.full((b,), rows // 2, dtype=torch.int64), "left": torch.full((b,), cols // 2, dtype=torch.int64)}
@@ -313,7 +315,7 @@ class SpatialJitter(EventTransform):
         low, high = check_pair(sigma, "sigma", low=0.0, single=True)
         self.sigma = (float(low), float(high))
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"sigma": uniform(*self.sigma, shape[0], generator), "seed": seeds(shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:

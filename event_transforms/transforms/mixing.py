@@ -34,6 +34,8 @@ because it simulates a physical effect of a tactile scene.
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import numpy as np
@@ -51,7 +53,9 @@ from .base import EventTransform, Param, Params, _draw_device, integers, seeds
 __all__ = ["Cutout", "CutMix", "MixUp"]
 
 
-def _centred_box(size_h: Tensor, size_w: Tensor, shape: Sequence[int], generator) -> dict[str, Tensor]:
+def _centred_box(
+    size_h: Tensor, size_w: Tensor, shape: Sequence[int], generator: torch.Generator | None
+) -> dict[str, Tensor]:
     """Boxes of (B,) sizes at uniform centres, clipped to the frame: top, left, height, width."""
     b, height, width = shape[0], shape[-2], shape[-1]
     cy = integers(max(height, 1), b, generator)
@@ -101,7 +105,7 @@ class Cutout(EventTransform):
         super().__init__(p=p)
         self.size = _size(size, "size")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         h = torch.full((b,), self.size[0], dtype=torch.int64)
         w = torch.full((b,), self.size[1], dtype=torch.int64)
@@ -196,7 +200,7 @@ class CutMix(_Mixing):
     ) -> None:
         super().__init__(alpha, num_classes=num_classes, label_key=label_key, p=p)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b, height, width = shape[0], shape[-2], shape[-1]
         partner = self._partners(b, generator)
         side = torch.sqrt(1 - _beta(self.alpha, b, generator))
@@ -244,7 +248,7 @@ class MixUp(_Mixing):
     ) -> None:
         super().__init__(alpha, num_classes=num_classes, label_key=label_key, p=p)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
         partner, weight = self._partners(b, generator), _beta(self.alpha, b, generator)
         return {"partner": partner, "weight": weight, "seed": seeds(b, generator)}

@@ -51,6 +51,9 @@ class AddNoise(EventTransform):
         [[1.0, 2.0, 3.0], [2.0, 3.0, 4.0]]
     """
 
+    bank: Tensor  # buffers (nn.Module.__getattr__ types them as Tensor | Module)
+    _entry_values: Tensor | None
+
     def __init__(self, bank: Tensor, *, p: float = 1.0) -> None:
         super().__init__(p=p)
         if not isinstance(bank, Tensor) or bank.dim() != 4 or bank.shape[1] != 2:
@@ -81,7 +84,7 @@ class AddNoise(EventTransform):
         super()._load_from_state_dict(*args, **kwargs)
         self._index_bank()
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b, t, _, h, w = shape
         n, _, bh, bw = self.bank.shape
         if (bh, bw) != (h, w) or n < t:
@@ -115,6 +118,7 @@ class AddNoise(EventTransform):
         select = np.repeat(low - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()))
         target = host[select] + np.repeat(np.arange(b) * (t * frame) - offset * frame, counts)
         target_t = torch.from_numpy(target).to(frames.device)
+        assert self._entry_values is not None  # a sparse bank (self._entries is set)
         values = self._entry_values.index_select(0, torch.from_numpy(select).to(frames.device))
         return _add_entries(frames, target_t, values, "noise")
 
@@ -145,7 +149,7 @@ class AddPoissonNoise(EventTransform):
         self.rate_hz = check_pair(rate_hz, "rate_hz", low=0.0, single=True)
         self.frame_ms = check_positive(frame_ms, "frame_ms")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         rate = uniform(*self.rate_hz, shape[0], generator)
         params: Params = {"rate_hz": rate}
         totals = _poisson_totals(rate * (self.frame_ms / 1000.0), shape, generator)

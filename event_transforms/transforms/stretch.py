@@ -8,6 +8,8 @@ events by β². See :func:`event_transforms.functional.stretch`.
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import torch
@@ -80,7 +82,7 @@ class Stretch(_StretchWarp):
         super().__init__(axis=axis, center=center, mode=mode, p=p)
         self.factor = check_positive(factor, "factor")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"factor": torch.full((shape[0],), self.factor, dtype=torch.float64)}
 
     def _settings(self) -> str:
@@ -129,7 +131,7 @@ class RandomStretch(_StretchWarp):
                 raise TypeError(f"choices must be a non-empty sequence of factors > 0, got {choices!r}")
             self.choices = tuple(check_positive(c, "choices") for c in choices)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         if self.choices is not None:
             return {"factor": choice(torch.tensor(self.choices, dtype=torch.float64), shape[0], generator)}
         assert self.factor is not None

@@ -10,6 +10,8 @@ best settings are FS-1 = ``FrameShift(-1)`` and TES-2(0.50) =
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 
 import torch
@@ -106,7 +108,7 @@ class FrameShift(_Shift):
         super().__init__(p=p)
         self.shift = as_number(shift, "shift", integer=True, low=-_MAX_SHIFT, high=_MAX_SHIFT)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"shift": torch.full((shape[0],), self.shift, dtype=torch.int64)}
 
     def _settings(self) -> str:
@@ -138,7 +140,7 @@ class RandomFrameShift(_Shift):
         self.shifts = _check_shifts(shifts)
         self._choices = torch.tensor(self.shifts, dtype=torch.int64)  # CPU, drawn from in make_params
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"shift": choice(self._choices, shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
@@ -183,7 +185,7 @@ class TemporalEventShift(_EventShift):
         self.fraction = check_probability(fraction, "fraction")
         self.mode = check_choice(mode, "mode", TES_MODES)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         batch = shape[0]
         return self._draws(
             torch.full((batch,), self.shift, dtype=torch.int64),
@@ -230,7 +232,7 @@ class RandomTemporalEventShift(_EventShift):
         self.fractions = check_pair(fractions, "fractions", low=0.0, high=1.0, single=True)
         self.mode = check_choice(mode, "mode", TES_MODES)
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         batch = shape[0]
         return self._draws(
             choice(torch.tensor(self.shifts, dtype=torch.int64), batch, generator),
@@ -288,7 +290,7 @@ class _CropTime(EventTransform):
         if self.length < 1:
             raise ValueError(f"length must be >= 1, got {length!r}")
 
-    def _room(self, shape) -> int:
+    def _room(self, shape: torch.Size) -> int:
         return shape[1] - _check_length(self.length, shape[1])
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
@@ -322,7 +324,7 @@ class CropTime(_CropTime):
         super().__init__(length)
         self.start = as_number(start, "start", integer=True, low=0)
 
-    def _room(self, shape) -> int:
+    def _room(self, shape: torch.Size) -> int:
         room = super()._room(shape)
         if self.start > room:
             raise ValueError(
@@ -330,7 +332,7 @@ class CropTime(_CropTime):
             )
         return room
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         self._room(shape)
         return {"start": torch.full((shape[0],), self.start, dtype=torch.int64)}
 
@@ -352,7 +354,7 @@ class RandomCropTime(_CropTime):
         [6, 4, 3]
     """
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"start": integers(self._room(shape) + 1, shape[0], generator)}
 
     def _settings(self) -> str:
@@ -389,7 +391,7 @@ class TimeJitter(EventTransform):
         super().__init__(p=p)
         self.std_us = _range(std_us, "std_us")
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"std_us": uniform(*self.std_us, shape[0], generator), "seed": seeds(shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
@@ -428,7 +430,7 @@ class TimeSkew(EventTransform):
         self.coefficient = _range(coefficient, "coefficient", low=1e-12)
         self.offset_us = _range(offset_us, "offset_us", low=-float("inf"))
 
-    def sample_params(self, shape, *, generator=None, metadata=None) -> Params:
+    def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {
             "coefficient": uniform(*self.coefficient, shape[0], generator),
             "offset_us": uniform(*self.offset_us, shape[0], generator),

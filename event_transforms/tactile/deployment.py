@@ -1,0 +1,149 @@
+"""A model a user keeps: train on a folder of recordings, save a checkpoint, stream force estimates.
+
+:func:`train_model` trains one reference :class:`~event_transforms.tactile.models.ForceRegressor`
+by the protocol's rules (the same trainer, one-cycle learning rate, clipping, forces scaled by
+the training mean and standard deviation, the weights with the lowest MSE on the training
+role's hold-out recordings) with no augmentation, the inferred policy or any method name, and
+returns it with its preprocessing (``frame_ms``, ``crop``, ``pool``, sensor size, force offset,
+force scaling), which :meth:`ForceRegressor.save` writes beside the weights.
+:func:`predict_stream` reads an event file of any length in chunks, bins it with
+:func:`~event_transforms.functional.iter_frames` and runs :meth:`ForceRegressor.step` frame by
+frame, writing ``t_us,force_n`` (each frame's centre, on the force files' clock) and timing
+every step.
+"""
+
+from __future__ import annotations
+
+__all__ = ["train_model", "predict_stream"]
+
+import math
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from .models import ForceRegressor
+
+
+def train_model(
+    data: Any,
+    method: str = "none",
+    *,
+    steps: int = 300,
+    batch_size: int = 8,
+    lr: float = 1e-2,
+    eval_every: int = 50,
+    hidden_channels: tuple[int, ...] = (4,),
+    input_pool: int = 14,
+    seed: int = 0,
+    device: str = "cpu",
+    progress: bool | None = False,
+) -> tuple[ForceRegressor, dict[str, Any]]:
+    """Train one model on ``data`` (a :class:`~event_transforms.tactile.copies.SceneData`,
+    e.g. from :func:`~event_transforms.tactile.recordings.load_recording_data`).
+
+    Args:
+        data: training, hold-out, validation and test sets.
+        method: ``"none"``, ``"inferred"`` or any method name of
+            :func:`~event_transforms.tactile.methods.parse_method` (one synthetic copy per item).
+        steps, batch_size, lr, eval_every: the protocol's training settings.
+        hidden_channels, input_pool: the model's size (default: the quick configuration's).
+        seed: initial weights, batch order and augmentation draw.
+        device: where to train; the model comes back on the CPU.
+        progress: a progress bar (``None``: when stderr is a terminal).
+
+    Returns:
+        The model (eval mode) and a summary: the kept step, hold-out, validation and test MSE.
+    """
+    from .copies import build_training_set, paired_batches
+    from .ensemble import EnsembleForceRegressor, fit_ensemble
+    from .experiment import _evaluate, _force_stats
+    from .methods import parse_method
+    from .training import Stopwatch, phase_mse
+
+    parsed = parse_method(method, scene=data.scene)
+    torch.manual_seed(seed)
+    model = ForceRegressor(hidden_channels=tuple(hidden_channels), input_pool=input_pool)
+    offset, scale = _force_stats(data.train)
+    train_set = build_training_set(parsed, data, seed=seed, fixed=True, stopwatch=Stopwatch())
+    copies = parsed.copies if parsed.build(data.noise_bank) is not None else 0
+    batches = [paired_batches(len(data.train), copies, batch_size, steps, seed=seed)]
+    ensemble = EnsembleForceRegressor.from_models([model]).to(device)
+    ensemble.set_force_scaling([offset], [max(scale, 1e-6)])
+    holdout = data.holdout is not None
+    result = fit_ensemble(
+        ensemble, [train_set], data.holdout if holdout else data.train, steps=steps, batch_size=batch_size,
+        seeds=[seed], lr_max=lr, clip=1.0, schedule="one-cycle", eval_every=eval_every,
+        select="best" if holdout else "final", device=device, progress=progress, batches=batches, fixed_data=True,
+        description=f"train {method}",
+    )
+    scores = {}
+    for split in ("val", "test"):
+        pred, target = _evaluate(ensemble, getattr(data, split))
+        scores[f"{split}_mse"] = phase_mse(pred[0], target)["all"] if target.shape[-1] > 10 else float(
+            (pred[0] - target).square().mean())
+    record = result.members[0]
+    trained = ensemble.to("cpu").member(0).eval()
+    summary = {"method": method, "seed": seed, "steps": steps, "kept_step": record.best_step if holdout else steps,
+               "holdout_mse": record.selected_val_loss if holdout else math.nan, **scores,
+               "force_offset": offset, "force_scale": max(scale, 1e-6), "train_items": len(train_set)}
+    return trained, summary
+
+
+def predict_stream(
+    model: ForceRegressor,
+    events: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    chunk_size: int = 2**16,
+) -> dict[str, Any]:
+    """Stream an event file through ``model`` (binned as its ``preprocessing`` says) and write
+    ``t_us,force_n`` per frame to ``out``.
+
+    ``t_us`` is each frame's centre on the force files' clock (the events' clock minus the
+    checkpoint's ``force_offset_ms``), so the output reads back as a force file of the layout.
+
+    Returns:
+        ``frames``, ``events``, and the per-step latency ``p50_ms``/``p99_ms``/``mean_ms``.
+    """
+    from ..functional import iter_frames
+    from .recordings import _EventFile, _scan
+
+    settings = getattr(model, "preprocessing", None) or {}
+    missing = [k for k in ("frame_ms", "crop", "pool", "sensor_size") if k not in settings]
+    if missing:
+        raise ValueError(f"the model's checkpoint holds no preprocessing {missing}; train it with `event-transforms train`")
+    path = Path(events)
+    if not path.is_file():
+        raise ValueError(f"events file {str(path)!r} does not exist")
+    sensor = tuple(settings["sensor_size"])
+    source = _EventFile(path)
+    scan = _scan(source, sensor, str(path))  # checked first: sorted, inside the sensor, microseconds
+    frame_ms = float(settings["frame_ms"])
+    frame_us = frame_ms * 1000.0
+    t0 = (scan.t_min // frame_us) * frame_us
+    offset_us = 1000.0 * float(settings.get("force_offset_ms", 0.0))
+    latencies = []
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    temporary = out.with_name(f".{out.name}.tmp")
+    state = None
+    count = 0
+    with torch.no_grad(), open(temporary, "w") as handle:
+        handle.write("t_us,force_n\n")
+        frames = iter_frames(source.chunks(chunk_size), sensor_size=sensor, t_start=t0, frame_ms=frame_ms,
+                             crop=tuple(settings["crop"]), pool=int(settings["pool"]))
+        for frame in frames:
+            tick = time.perf_counter()
+            force, state = model.step(frame.unsqueeze(0), state)
+            latencies.append(time.perf_counter() - tick)
+            centre = t0 + (count + 0.5) * frame_us - offset_us
+            handle.write(f"{centre:.0f},{float(force[0]):.9g}\n")
+            count += 1
+    os.replace(temporary, out)
+    ms = np.array(latencies) * 1000.0
+    return {"frames": count, "events": scan.events, "p50_ms": float(np.percentile(ms, 50)),
+            "p99_ms": float(np.percentile(ms, 99)), "mean_ms": float(ms.mean())}
