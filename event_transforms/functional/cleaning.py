@@ -11,8 +11,8 @@ import torch
 from torch import Tensor
 
 from .._validation import as_batch, as_number, check_frames, check_positive
-from ..events.batch import EventBatch, _bin_index
-from ..events.binning import _grid
+from ..events.batch import EventBatch, _relative_times
+from ..events.binning import _event_index, _grid
 from ._dispatch import kernel_for, register_kernel
 from ._event_ops import _compact, _require_grid
 
@@ -138,15 +138,17 @@ def denoise_events(batch: EventBatch, radius: int, temporal_radius: int) -> Even
         >>> denoise_events(batch, 1, 1).x.tolist()  # the event at (0, 0) has no neighbour
         [3, 4]
     """
-    _require_grid(batch, "denoise")
+    starts, _, n_frames = _require_grid(batch, "denoise")
     if batch.num_events == 0:
         return batch
     b = len(batch)
     height, width = batch.sensor_size
     grid = _grid(batch.sensor_size, None, None, 1, batch.frame_ms, torch.float32)
-    starts, _, n_frames = _require_grid(batch, "denoise")
-    index, inside = _bin_index(batch, starts, n_frames, grid)
     block = n_frames * grid.frame_size
+    index, pixel, inside = _event_index(batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid,
+                                        b * block >= 2**31)
+    inside &= pixel >= 0
+    index = index.masked_fill(~inside, 0)
     entry = index.to(torch.int64).add_(batch.sample_index().to(torch.int64) * block)
     occupied = torch.zeros(b * block, dtype=torch.float32, device=batch.device)
     occupied.index_put_((entry,), inside.to(torch.float32), accumulate=True)
