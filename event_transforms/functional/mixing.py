@@ -242,7 +242,7 @@ def _with_partners(batch: EventBatch, partner: Tensor) -> tuple[EventBatch, Tens
     own_len, part_len = lengths, lengths.index_select(0, partner)
     total = own_len + part_len
     offsets = torch.cat([torch.zeros(1, dtype=torch.int64), torch.cumsum(total, 0)])
-    size = int(offsets[-1])
+    size = sum(total.tolist())  # host numbers (CPU offsets): no device read
     per_stream = torch.stack([own_len, starts, starts.index_select(0, partner), offsets[:-1]]).to(device, non_blocking=True)
     owner = torch.repeat_interleave(torch.arange(len(batch), device=device), total.to(device, non_blocking=True),
                                     output_size=size)
