@@ -49,6 +49,9 @@ class AugmentedDataset(Dataset):
         fixed: deterministic copies (True) or fresh ones per access (False).
         seed: seed of the fixed copies.
 
+    Shape:
+        Each item's frames ``(T, 2, H, W)``; a copy's frames have the shape the transform gives.
+
     Example:
         >>> def add_one(frames):
         ...     return frames + 1

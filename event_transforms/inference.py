@@ -313,6 +313,10 @@ def infer_scene(
         frame_ms: frame length in milliseconds (timing in ms, shifts in frames).
         z_gap: the Welch z a difference must exceed to be a gap.
 
+    Shape:
+        - train: ``(N, T, 2, H, W)`` or a list of ``(T, 2, H, W)``.
+        - deploy: ``(M, T, 2, H, W)`` or a list of ``(T, 2, H, W)``, the same ``(H, W)``.
+
     Returns:
         A :class:`~event_transforms.Scene` whose :attr:`~event_transforms.Scene.gaps` are
         the factors that differ beyond their estimation error and whose policy uses the

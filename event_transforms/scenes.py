@@ -136,6 +136,11 @@ class ResizeToTarget(_ToTarget, _Zoom):
         center, mode: as in :func:`event_transforms.functional.resize`.
         p: probability that a sample is resized.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtypes as in
+    :class:`~event_transforms.Resize`.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> transform = ResizeToTarget(15.0, center="image")
         >>> frames = torch.zeros(2, 1, 2, 5, 5)
@@ -192,6 +197,9 @@ class StretchToTarget(_ToTarget, _StretchWarp):
         axis, center, mode: as in :class:`~event_transforms.Stretch` (the contact axis by
             default).
         p: probability that a sample is stretched.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtypes as in :class:`~event_transforms.Stretch`.
 
     Example:
         >>> transform = StretchToTarget(15.0, center="image")
@@ -260,6 +268,10 @@ class Scene:
         evidence: what the scene was inferred from, if it was
             (:func:`~event_transforms.scenes.infer_scene` fills it: each factor's estimates
             in training and deployment with their uncertainty); not compared.
+
+    Shape:
+        ``noise``: ``(N, 2, H, W)`` static-scene frames. :meth:`policy` returns a transform of
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames.
 
     Example:
         >>> scene = Scene(training_sizes=(12.0, 18.0), target_size=15.0, lag_shifts=(-1,))

@@ -13,6 +13,7 @@ import torch
 
 import event_transforms as et
 from event_transforms.functional import EventBatch, bin_events, collate_events, events_to_frames
+from event_transforms import functional as F
 from event_transforms.functional import to_voxel_grid
 from event_transforms.events.batch import merge_streams
 from event_transforms.transforms.base import slice_params
@@ -115,10 +116,26 @@ class TestBinning:
     def test_outside_sensor_dropped_and_empty(self):
         batch = EventBatch.from_streams([torch.tensor([[-1, 0, 0, 1], [17, 0, 0, 1], [3, 4, 0, 0]]), torch.zeros(0, 4)],
                                         sensor_size=SENSOR)
-        out = bin_events(batch, frame_ms=1.0, n_frames=2)
+        with pytest.warns(F.EventsOutsideSensorWarning, match="2 of 3 events lie outside sensor_size"):
+            out = bin_events(batch, frame_ms=1.0, n_frames=2)
         assert out.sum().item() == 1 and out[0, 0, 0, 4, 3] == 1
         assert bin_events(batch[1:], frame_ms=1.0, n_frames=2).sum() == 0
         assert bin_events(batch[:0], frame_ms=1.0, n_frames=2).shape == (0, 2, 2, *SENSOR)
+
+    def test_lost_events_warn_with_their_counts_and_nothing_else_does(self):
+        import warnings
+
+        rows_ = torch.tensor([[1, 1, 0, 1], [2, 2, 5_000, 0], [-3, 1, 100, 1], [4, 4, 900, 0]])
+        batch = EventBatch.from_streams([rows_, rows_[[0, 3]]], sensor_size=SENSOR)
+        with pytest.warns(F.EventsOutsideWindowWarning, match=r"^1 events lie outside the window .*\(per stream: 1 of 4, 0 of 2\)"):
+            with pytest.warns(F.EventsOutsideSensorWarning, match="1 of 6 events"):
+                out = bin_events(batch, frame_ms=1.0, n_frames=2)
+        assert out.sum().item() == 4  # the two kept events of each stream
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # nothing lost: no warning; a crop is asked for, not lost
+            bin_events(batch[1:], frame_ms=1.0, n_frames=2)
+            bin_events(batch[1:], frame_ms=1.0, n_frames=2, crop=(0, 0, 2, 2))
+            bin_events(batch[:0], frame_ms=1.0, n_frames=2)
 
     def test_voxel_grid(self):
         batch = make_batch(3)

@@ -1,4 +1,4 @@
-"""One list of public names: ``__all__``, the lazy top-level names, the README transform table
+"""One list of public names: ``__all__``, the lazy top-level names, the transform table of docs/transforms.md
 and the shared batteries (frames and events) must agree, so adding a transform cannot skip one."""
 
 from __future__ import annotations
@@ -34,9 +34,9 @@ def transform_classes() -> dict[str, type]:
 
 def readme_table() -> dict[str, str]:
     """Class name -> the *frames / events* cell, for every class named in the README's transform table."""
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "transforms.md").read_text()
     header = "| module | paper / source | frames / events | what it does |"
-    assert header in text, "README.md has no transform table with a frames / events column"
+    assert header in text, "docs/transforms.md has no transform table with a frames / events column"
     rows = text.split(header, 1)[1].split("\n\n", 1)[0].strip().splitlines()[1:]
     out = {}
     for row in rows:
@@ -61,9 +61,9 @@ def test_every_transform_is_a_lazy_top_level_name():
 def test_readme_table_lists_every_transform():
     table = readme_table()
     missing = set(transform_classes()) - set(table)
-    assert not missing, f"transforms missing from the README table: {sorted(missing)}"
+    assert not missing, f"transforms missing from the transform table (docs/transforms.md): {sorted(missing)}"
     unknown = set(table) - set(transform_classes()) - {"Lambda"}
-    assert not unknown, f"README table names that are not transforms: {sorted(unknown)}"
+    assert not unknown, f"transform table (docs/transforms.md) names that are not transforms: {sorted(unknown)}"
 
 
 def test_batteries_cover_the_readme_table():
@@ -77,7 +77,7 @@ def test_batteries_cover_the_readme_table():
         if cell.startswith(("frames", "both")) and name != "EventsToFrames":
             assert name in frames, f"{name} takes frames but runs no frame battery"
         takes_events = cell.startswith(("events", "both")) and name not in CONTAINERS | RESHAPING | {"EventsToFrames"}
-        assert (name in events) == takes_events, f"{name}: README says {cell!r}, event battery has it: {name in events}"
+        assert (name in events) == takes_events, f"{name}: docs/transforms.md says {cell!r}, event battery has it: {name in events}"
 
 
 def test_functional_all_holds_every_dispatcher_and_kernel():

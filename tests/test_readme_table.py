@@ -1,8 +1,8 @@
-"""The README's results table is what the README's main command printed (issue 17, item 6).
+"""The results table of the docs is what the README's main command printed (issue 17, item 6).
 
 ``event-transforms reproduce`` writes a summary table (``report.format_summary_table``) at the
-top of ``results.md``; ``benchmarks/reproduce_quick.md`` is that output, and the README shows
-the same table. These tests parse the markdown tables and compare them cell by cell.
+top of ``results.md``; ``benchmarks/reproduce_quick.md`` is that output, and the Results page of
+the docs (``docs/results.md``, moved there from the README) shows the same table. These tests parse the markdown tables and compare them cell by cell.
 """
 
 from __future__ import annotations
@@ -46,15 +46,15 @@ def test_parser_reads_cells_and_skips_the_separator():
 def test_readme_table_is_the_printed_table_cell_by_cell():
     printed = summary_table((ROOT / "benchmarks" / "reproduce_quick.md").read_text())
     assert printed is not None, (
-        "benchmarks/reproduce_quick.md has no summary table: regenerate it and the README table with the "
+        "benchmarks/reproduce_quick.md has no summary table: regenerate it and the table of docs/results.md with the "
         "README's main command on the release commit"
     )
-    readme = summary_table((ROOT / "README.md").read_text())
-    assert readme is not None, "README.md has no table with the summary table's columns"
-    assert len(readme) == len(printed), f"README has {len(readme) - 1} rows, the printed table {len(printed) - 1}"
+    readme = summary_table((ROOT / "docs" / "results.md").read_text())
+    assert readme is not None, "docs/results.md has no table with the summary table's columns"
+    assert len(readme) == len(printed), f"docs/results.md has {len(readme) - 1} rows, the printed table {len(printed) - 1}"
     for index, (mine, theirs) in enumerate(zip(readme, printed)):
         for column, a, b in zip(SUMMARY_COLUMNS, mine, theirs):
-            assert a == b, f"row {index} ({mine[0]} / {mine[1]}), column {column!r}: README {a!r}, printed {b!r}"
+            assert a == b, f"row {index} ({mine[0]} / {mine[1]}), column {column!r}: docs/results.md {a!r}, printed {b!r}"
 
 
 def test_printed_table_names_a_clean_commit():

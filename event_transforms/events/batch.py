@@ -39,6 +39,7 @@ from torch import Tensor
 
 from .._validation import read_host
 from .binning import (
+    _OUTSIDE_SENSOR,
     _T_STARTS,
     _accumulate,
     _accumulator,
@@ -87,6 +88,10 @@ class EventBatch:
         frame_ms: bin width of the batch's frame grid, or ``None`` (no grid).
         t_start: (B,) CPU starts of the grid in microseconds (with ``frame_ms``).
         n_frames: number of bins of the grid, or ``None``.
+
+    Shape:
+        - x, y, t, p: ``(N,)``, N events of all streams; ``offsets``: ``(B + 1,)``.
+        - as a transform's input: ``frame_shape`` = ``(B, T, 2, H, W)`` (T = ``n_frames``, or 1).
 
     Example:
         >>> import numpy as np
@@ -191,8 +196,19 @@ class EventBatch:
                 structured arrays); the parsing itself (field names, NaN in float
                 columns) still refuses malformed input.
 
+        Shape:
+            - streams: B streams, each ``(N_b, 4)`` rows ``(x, y, t, p)``, a structured array or
+              a mapping of ``(N_b,)`` columns; or one ``(B, N, 4)`` array.
+            - output: a batch of B streams, ``sum(N_b)`` events.
+
         Raises:
             ValueError: malformed streams, coordinates beyond int16, mixed timestamp kinds.
+
+        Example:
+            >>> streams = [torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]), torch.tensor([[1, 1, 50, -1]])]
+            >>> batch = EventBatch.from_streams(streams, sensor_size=(2, 3), frame_ms=10.0)
+            >>> batch.lengths, batch.t_start.tolist(), batch.p.tolist()  # polarity -1/1 read as 0/1
+            ([2, 1], [0, 0], [1, 0, 0])
         """
         if sensor_size is None and tonic_sensor_size is None:
             raise TypeError("EventBatch.from_streams needs sensor_size=(H, W) or tonic_sensor_size=(W, H, P)")
@@ -247,6 +263,22 @@ class EventBatch:
         ``"floor"``/``"first"`` read each stream's first timestamp: one host read when the
         columns are on an accelerator (build the grid on the CPU, in the ``DataLoader``,
         to keep training steps free of it). An empty stream starts at 0.
+
+        Args:
+            frame_ms: bin width in milliseconds (> 0).
+            t_start: ``"floor"``, ``"first"``, a time in microseconds or one per stream.
+            n_frames: the grid's number of bins (``None``: enough for the last event).
+
+        Shape:
+            - t_start: a number, or ``(B,)``.
+            - output: the same columns; ``frame_shape`` ``(B, n_frames or 1, 2, H, W)``.
+
+        Example:
+            >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+            ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3))
+            >>> gridded = batch.with_grid(10.0, n_frames=2)
+            >>> gridded.t_start.tolist(), gridded.frame_shape
+            ([0, 0], torch.Size([2, 2, 2, 2, 3]))
         """
         frame_us = _frame_us(frame_ms)
         starts = _resolve_starts(self, t_start, frame_us)
@@ -304,13 +336,32 @@ class EventBatch:
         )
 
     def to(self, device: torch.device | str, *, non_blocking: bool = False) -> EventBatch:
-        """The batch with its columns on ``device`` (offsets and grid stay on the CPU)."""
+        """The batch with its columns on ``device`` (offsets and grid stay on the CPU).
+
+        Args:
+            device: the target device.
+            non_blocking: copy asynchronously (from pinned memory).
+
+        Shape:
+            Columns ``(N,)`` on ``device``; offsets ``(B + 1,)`` on the CPU.
+
+        Example:
+            >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+            ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3))
+            >>> moved = batch.to("cpu")
+            >>> moved.device, moved.offsets.tolist()
+            (device(type='cpu'), [0, 2, 3])
+        """
         move = lambda c: c.to(device, non_blocking=non_blocking)  # noqa: E731
         sample = None if self._sample is None else move(self._sample)
         return self._replace(x=move(self.x), y=move(self.y), t=move(self.t), p=move(self.p), _sample=sample)
 
     def pin_memory(self) -> EventBatch:
-        """The batch with its (CPU) columns in pinned memory, for fast non-blocking copies."""
+        """The batch with its (CPU) columns in pinned memory, for fast non-blocking copies.
+
+        Shape:
+            The columns' shapes kept.
+        """
         return self._replace(x=self.x.pin_memory(), y=self.y.pin_memory(), t=self.t.pin_memory(), p=self.p.pin_memory())
 
     def __getitem__(self, index: int | slice | Sequence[int] | Tensor) -> EventBatch:
@@ -335,7 +386,22 @@ class EventBatch:
         return self.index_select(torch.as_tensor(index, dtype=torch.int64).reshape(-1))
 
     def index_select(self, index: Tensor) -> EventBatch:
-        """The streams ``index`` (a CPU int64 tensor), in that order, as a new batch."""
+        """The streams ``index`` (a CPU int64 tensor), in that order, as a new batch.
+
+        Args:
+            index: stream positions, negative ones counted from the end; repeats allowed.
+
+        Shape:
+            - index: ``(K,)``.
+            - output: a batch of K streams.
+
+        Example:
+            >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+            ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3))
+            >>> picked = batch.index_select(torch.tensor([1, 0, 1]))
+            >>> picked.lengths, picked.x.tolist()
+            ([1, 2, 1], [1, 0, 2, 1])
+        """
         rows = [int(i) for i in index.tolist()]
         b = len(self)
         for i in rows:
@@ -351,11 +417,31 @@ class EventBatch:
         return self._replace(**cols, offsets=offsets, t_start=t_start)
 
     def split(self) -> list[EventBatch]:
-        """One single-stream batch per stream."""
+        """One single-stream batch per stream.
+
+        Shape:
+            B batches of one stream each.
+
+        Example:
+            >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+            ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3))
+            >>> [part.lengths for part in batch.split()]
+            [[2], [1]]
+        """
         return [self[i] for i in range(len(self))]
 
     def sample_index(self) -> Tensor:
-        """(N,) int32 stream index of every event, on the batch's device (built once, cached)."""
+        """(N,) int32 stream index of every event, on the batch's device (built once, cached).
+
+        Shape:
+            ``(N,)`` int32.
+
+        Example:
+            >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+            ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3))
+            >>> batch.sample_index().tolist()
+            [0, 0, 1]
+        """
         if self._sample is None:
             lengths = torch.tensor(self.lengths, dtype=torch.int64)
             ids = torch.arange(len(self), dtype=torch.int32)
@@ -363,11 +449,33 @@ class EventBatch:
         return self._sample
 
     def columns(self) -> dict[str, Tensor]:
-        """The columns as a dict ``{"x", "y", "t", "p"}``."""
+        """The columns as a dict ``{"x", "y", "t", "p"}``.
+
+        Shape:
+            Four ``(N,)`` columns: x, y int16, t int64 (or float64), p int8.
+
+        Example:
+            >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+            ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3))
+            >>> {name: column.tolist() for name, column in batch.columns().items()}
+            {'x': [0, 2, 1], 'y': [1, 0, 1], 't': [100, 15000, 50], 'p': [1, 0, 0]}
+        """
         return {k: getattr(self, k) for k in _FIELDS}
 
     def to_padded(self) -> tuple[Tensor, Tensor]:
-        """``(B, N_max, 4)`` int64/float64 rows ``(x, y, t, p)`` padded with zeros, and the (B,) lengths."""
+        """``(B, N_max, 4)`` int64/float64 rows ``(x, y, t, p)`` padded with zeros, and the (B,) lengths.
+
+        Shape:
+            - rows: ``(B, N_max, 4)``, N_max the longest stream; int64 (float64 for float times).
+            - lengths: ``(B,)`` int64.
+
+        Example:
+            >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+            ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3))
+            >>> rows, lengths = batch.to_padded()
+            >>> rows[1].tolist(), lengths.tolist()
+            ([[1, 1, 50, 0], [0, 0, 0, 0]], [2, 1])
+        """
         lengths = self.lengths
         width = max(lengths, default=0)
         dtype = self.t.dtype
@@ -486,6 +594,17 @@ def collate_events(
     :meth:`EventBatch.from_streams`). Bind the sensor and grid with :func:`functools.partial`:
     ``DataLoader(dataset, batch_size=32, collate_fn=partial(collate_events, sensor_size=(180, 240), frame_ms=10.0))``.
 
+    Args:
+        streams: event streams (as :meth:`EventBatch.from_streams` takes them), or tuples
+            whose first entry is a stream and the rest labels.
+        sensor_size: ``(H, W)``; or tonic's ``tonic_sensor_size=(W, H, P)``.
+        frame_ms, t_start, n_frames: the frame grid, as in :meth:`EventBatch.from_streams`.
+
+    Shape:
+        - streams: B streams of ``N_b`` events each.
+        - output: an :class:`EventBatch` of B streams, or ``(batch, *labels)`` with the labels
+          stacked ``(B, ...)``.
+
     Example:
         >>> import numpy as np
         >>> events = np.zeros(2, dtype=[("x", "<i2"), ("y", "<i2"), ("t", "<i8"), ("p", "<i1")])
@@ -556,6 +675,21 @@ def bin_events(
     host synchronisation, except the one read of the dropped counts for the warnings, ``n_frames=None`` without a grid (the last bin is read
     back) and ``t_start="floor"``/``"first"`` without a grid (the first events).
 
+    Args:
+        batch: the event streams.
+        frame_ms: bin width in milliseconds (the grid's, or required without a grid).
+        t_start: the start rule without a grid: ``"floor"``, ``"first"``, or a time in
+            microseconds (one number or one per stream).
+        n_frames: number of bins (default: the grid's, or enough for the last event).
+        crop: ``(top, left, height, width)`` window inside the sensor, or ``None``.
+        pool: side of the square blocks summed into one output pixel.
+        dtype: dtype of the counts.
+
+    Shape:
+        - batch: B streams on a ``(H, W)`` sensor.
+        - output: ``(B, T, 2, H', W')`` on the batch's device, ``(H', W')`` the crop divided by
+          ``pool``.
+
     Example:
         >>> batch = EventBatch(torch.tensor([0, 2], dtype=torch.int16), torch.tensor([1, 0], dtype=torch.int16),
         ...     torch.tensor([5, 15_000]), torch.tensor([1, 0], dtype=torch.int8), torch.tensor([0, 1, 2]), (2, 3))
@@ -591,14 +725,15 @@ def bin_events(
         n_frames = _integer(n_frames, "n_frames", low=0)
     b = len(batch)
     total = b * n_frames * grid.frame_size
-    counts = _bin_counts(batch, starts, n_frames, grid, total)
-    _warn_lost(batch, starts, n_frames, grid.frame_us, frame_ms)
+    counts, lost = _bin_counts(batch, starts, n_frames, grid, total)
+    if lost is not None and any(lost.tolist()):  # the one host read: two counts
+        _warn_lost(batch, starts, n_frames, grid.frame_us, frame_ms)
     return counts.view(b, n_frames, 2, grid.out_h, grid.out_w)
 
 
 def _warn_lost(batch: EventBatch, starts: Tensor, n_frames: int, frame_us: float | int, frame_ms: float) -> None:
     """The warnings of :func:`events_to_frames` for the events binning drops (outside the
-    sensor or the window): one host read of the counts."""
+    sensor or the window), with the count per stream. Called only when some were dropped."""
     from ..functional._event_ops import warn_dropped
     from .binning import _bins_of
 
@@ -622,7 +757,7 @@ def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
     return batch.t - start_of.index_select(0, batch.sample_index())
 
 
-def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, total: int) -> Tensor:
+def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, total: int) -> tuple[Tensor, Tensor | None]:
     """(total,) counts in ``grid.dtype``, by the one binning kernel of :mod:`.binning`: int32
     indices from the pixel table and the float32 bin quotient, every event not counted sent
     to one spare slot, and an ``index_add_`` of ones straight into the output dtype when no
@@ -631,15 +766,23 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
     On the CPU one sample at a time: its block (``T * 2 * H' * W'`` values) is zeroed, then
     its events are added while the block is still in cache, 2-3x faster than one scatter
     over the whole output. On accelerators, one ``index_add_`` for the batch (sync-free).
+
+    Also returns, on the device, how many events lay off the sensor and how many on it but
+    outside the time window (``None`` when there are no events): the caller reads these two
+    numbers to decide whether to warn, instead of a second pass over the events.
     """
     device = batch.device
     dtype = grid.dtype
     n = batch.num_events
-    if n == 0 or total == 0:
-        return torch.zeros(total, dtype=dtype, device=device)
+    if n == 0:
+        return torch.zeros(total, dtype=dtype, device=device), None
     index, pixel, in_time = _event_index(
         batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid, total >= 2**31 - 1
     )
+    off_sensor = pixel == _OUTSIDE_SENSOR
+    lost = torch.stack([off_sensor.sum(), in_time.logical_not().logical_and_(off_sensor.logical_not_()).sum()])
+    if total == 0:
+        return torch.zeros(total, dtype=dtype, device=device), lost
     counted = in_time.logical_and_(pixel >= 0)
     block = n_frames * grid.frame_size
     if device.type == "cpu":
@@ -656,4 +799,4 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
         index = index.add_(batch.sample_index().to(index.dtype).mul(block))
         counts = torch.zeros(total + 1, dtype=_accumulator(dtype, n), device=device)
         _accumulate(counts, _to_spare(index, counted, total))
-    return _as_dtype(counts[:total], dtype)
+    return _as_dtype(counts[:total], dtype), lost

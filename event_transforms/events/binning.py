@@ -80,12 +80,32 @@ MAX_BYTES = 2**32
 
 
 class EventsOutsideSensorWarning(UserWarning):
-    """Events lay outside ``sensor_size`` and were dropped (usually a wrong sensor size)."""
+    """Events lay outside ``sensor_size`` and were dropped (usually a wrong sensor size).
+
+    Example:
+        >>> import warnings
+        >>> events = torch.tensor([[1, 2, 100, 1], [300, 4, 2000, 0]])  # x, y, t (µs), p
+        >>> with warnings.catch_warnings(record=True) as caught:
+        ...     warnings.simplefilter("always")
+        ...     frames = events_to_frames(events, sensor_size=(10, 10))
+        >>> caught[0].category.__name__, int(frames.sum())
+        ('EventsOutsideSensorWarning', 1)
+    """
 
 
 class EventsOutsideWindowWarning(UserWarning):
     """Events lay outside the time window the caller asked for (``t_start``, ``n_frames``)
-    and were dropped, as asked; the warning counts them."""
+    and were dropped, as asked; the warning counts them.
+
+    Example:
+        >>> import warnings
+        >>> events = torch.tensor([[1, 2, 100, 1], [3, 4, 25_000, 0]])  # the second in bin 2
+        >>> with warnings.catch_warnings(record=True) as caught:
+        ...     warnings.simplefilter("always")
+        ...     frames = events_to_frames(events, sensor_size=(10, 10), n_frames=1)
+        >>> caught[0].category.__name__, frames.shape
+        ('EventsOutsideWindowWarning', torch.Size([1, 2, 10, 10]))
+    """
 
 
 # --------------------------------------------------------------------------- columns

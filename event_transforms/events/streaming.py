@@ -71,6 +71,11 @@ def iter_frames(
             timestamps that look like seconds refused).
         columns: the order of ``(N, k)`` chunks' columns, e.g. ``"txyp"``.
 
+    Shape:
+        - chunks: each ``(N_k, 4)`` rows ``(x, y, t, p)``, a structured array or a mapping of
+          ``(N_k,)`` columns.
+        - yields: ``(2, H', W')``, ``(H', W')`` the crop divided by ``pool``.
+
     Yields:
         ``(2, H', W')`` counts, one per bin from ``t_start`` on.
 

@@ -48,6 +48,10 @@ class NoKernelError(TypeError):
 def register_kernel(dispatcher: Callable[..., Any], input_type: type) -> Callable[[Kernel], Kernel]:
     """Decorator: the function is ``dispatcher``'s kernel for inputs of ``input_type``.
 
+    Args:
+        dispatcher: the public operation (e.g. :func:`~event_transforms.functional.rotate`).
+        input_type: ``torch.Tensor`` (frames) or :class:`~event_transforms.EventBatch`.
+
     Example:
         >>> import torch
         >>> from event_transforms import functional as F
@@ -65,12 +69,36 @@ def register_kernel(dispatcher: Callable[..., Any], input_type: type) -> Callabl
 
 
 def has_kernel(dispatcher: Callable[..., Any], input_type: type) -> bool:
-    """Whether ``dispatcher`` has a kernel for ``input_type`` (``torch.Tensor`` or ``EventBatch``)."""
+    """Whether ``dispatcher`` has a kernel for ``input_type`` (``torch.Tensor`` or ``EventBatch``).
+
+    Args:
+        dispatcher: the public operation.
+        input_type: ``torch.Tensor`` or :class:`~event_transforms.EventBatch`.
+
+    Example:
+        >>> import torch
+        >>> from event_transforms import EventBatch, functional as F
+        >>> has_kernel(F.rotate, EventBatch), has_kernel(F.spatial_jitter, torch.Tensor)
+        (True, False)
+    """
     return input_type in _KERNELS.get(dispatcher, {})
 
 
 def kernel_for(dispatcher: Callable[..., Any], inputs: object) -> Callable[..., Any]:
     """The kernel of ``dispatcher`` for the type of ``inputs``.
+
+    Args:
+        dispatcher: the public operation.
+        inputs: frames (a tensor) or an :class:`~event_transforms.EventBatch`.
+
+    Shape:
+        - inputs: frames ``(B, T, 2, H, W)`` or an EventBatch; only the type is read.
+
+    Example:
+        >>> import torch
+        >>> from event_transforms import functional as F
+        >>> kernel_for(F.horizontal_flip, torch.zeros(1, 1, 2, 2, 2)).__name__
+        'horizontal_flip_frames'
 
     Raises:
         TypeError: ``inputs`` is neither frames nor an EventBatch, or the operation has no
@@ -96,7 +124,27 @@ def kernel_for(dispatcher: Callable[..., Any], inputs: object) -> Callable[..., 
 
 
 def call_kernel(dispatcher: Callable[..., Any], inputs: Any, *args: Any, **kwargs: Any) -> Any:
-    """``kernel_for(dispatcher, inputs)(inputs, *args, **kwargs)``: what a module's ``apply`` calls."""
+    """``kernel_for(dispatcher, inputs)(inputs, *args, **kwargs)``: what a module's ``apply`` calls.
+
+    The kernel gets its arguments as they are (already checked, per sample): the dispatcher's
+    argument checks are skipped.
+
+    Args:
+        dispatcher: the public operation.
+        inputs: frames ``(B, T, 2, H, W)`` or an EventBatch.
+        *args, **kwargs: the kernel's arguments.
+
+    Shape:
+        - inputs: frames ``(B, T, 2, H, W)`` or an EventBatch.
+        - output: what the kernel returns (frames or an EventBatch).
+
+    Example:
+        >>> import torch
+        >>> from event_transforms import functional as F
+        >>> frames = torch.arange(4.0).view(1, 1, 2, 1, 2)
+        >>> call_kernel(F.horizontal_flip, frames, torch.tensor([True])).flatten().tolist()
+        [1.0, 0.0, 3.0, 2.0]
+    """
     return kernel_for(dispatcher, inputs)(inputs, *args, **kwargs)
 
 

@@ -66,6 +66,10 @@ def center_of_mass(frames: Tensor) -> Tensor:
         float64 tensor ``(2,)`` for one sequence or ``(B, 2)`` for a batch, on the
         frames' device, in pixel coordinates (row, column).
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(2,)`` or ``(B, 2)`` float ``(y, x)`` on the frames' device.
+
     Example:
         >>> frames = torch.zeros(3, 2, 5, 7)
         >>> frames[0, 1, 1, 2] = 1.0
@@ -404,6 +408,12 @@ def resize(
     Returns:
         The resized frames, same shape and device; dtype as in :func:`rotate`.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - scale: a number or ``(B,)``.
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
         >>> frames[0, 0, 2, 3] = 1.0  # one pixel right of the centre
@@ -445,6 +455,12 @@ def affine(
     Returns:
         The warped frames, same shape and device; dtype as in :func:`rotate`.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - angle, scale: a number or ``(B,)``; translate, shear: a pair or ``(B, 2)``.
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
         >>> frames[0, 1, 2, 2] = 3
@@ -465,13 +481,37 @@ def affine(
 
 @register_kernel(rotate, Tensor)
 def rotate_frames(frames: Tensor, angle: Tensor, *, center: Center = "mass", mode: str = "bilinear") -> Tensor:
-    """Kernel of :func:`rotate` for frames ``(B, T, 2, H, W)``, ``angle`` (B,) float64 CPU degrees."""
+    """Kernel of :func:`rotate` for frames ``(B, T, 2, H, W)``, ``angle`` (B,) float64 CPU degrees.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        angle: degrees, a number or one per sample ``(B,)``.
+        center: ``"mass"`` (event centroid of the whole sequence, image centre when
+            empty), ``"image"``, a ``(y, x)`` pair, or a ``(B, 2)`` tensor of pairs.
+        mode: ``"bilinear"`` (counts are interpolated, totals change slightly) or
+            ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`rotate` gives for a batch.
+    """
     return _affine(frames, angle, None, center, mode)
 
 
 @register_kernel(resize, Tensor)
 def resize_frames(frames: Tensor, scale: Tensor, *, center: Center = "mass", mode: str = "bilinear") -> Tensor:
-    """Kernel of :func:`resize` for frames ``(B, T, 2, H, W)``, ``scale`` (B,) float64 CPU."""
+    """Kernel of :func:`resize` for frames ``(B, T, 2, H, W)``, ``scale`` (B,) float64 CPU.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        scale: zoom factor > 0, a number or one per sample ``(B,)``.
+        center: ``"mass"``, ``"image"``, ``(y, x)`` or a ``(B, 2)`` tensor (see :func:`rotate`).
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`resize` gives for a batch.
+    """
     return _affine(frames, None, scale, center, mode)
 
 
@@ -486,7 +526,21 @@ def affine_frames(
     center: Center = "mass",
     mode: str = "bilinear",
 ) -> Tensor:
-    """Kernel of :func:`affine` for frames ``(B, T, 2, H, W)`` and per-sample CPU parameters."""
+    """Kernel of :func:`affine` for frames ``(B, T, 2, H, W)`` and per-sample CPU parameters.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        angle: degrees, counter-clockwise on the displayed image; a number or ``(B,)``.
+        scale: zoom factor > 0, a number or ``(B,)``.
+        shear: ``(x, y)`` shear angles in degrees (each in (-90, 90)), or ``(B, 2)``.
+        translate: ``(dy, dx)`` in pixels (down, right), or a ``(B, 2)`` tensor.
+        center: ``"mass"``, ``"image"``, ``(y, x)`` or a ``(B, 2)`` tensor (see :func:`rotate`).
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`affine` gives for a batch.
+    """
     return _affine(frames, angle, scale, center, mode, shear=shear, translate=translate)
 
 
@@ -495,7 +549,23 @@ def affine_frames(
 
 def event_centroid(batch: EventBatch) -> Tensor:
     """(B, 2) float64 ``(y, x)`` mean event position per stream on the batch's device; an
-    empty stream gets the image centre ``((H - 1) / 2, (W - 1) / 2)``. Sync-free."""
+    empty stream gets the image centre ``((H - 1) / 2, (W - 1) / 2)``. Sync-free.
+
+    Args:
+        batch: the event streams.
+
+    Shape:
+        - batch: B streams, N events.
+        - output: ``(B, 2)`` float64 ``(y, x)`` on the batch's device.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> event_centroid(batch).tolist()
+        [[0.5, 1.0], [1.0, 1.0]]
+    """
     height, width = batch.sensor_size
     lengths = torch.tensor(batch.lengths, dtype=torch.int64)
     device = batch.device
@@ -576,8 +646,20 @@ def _affine_events(
 @register_kernel(rotate, EventBatch)
 def rotate_events(batch: EventBatch, angle: Tensor, *, center: Center = "mass", mode: str = "bilinear") -> EventBatch:
     """Kernel of :func:`rotate` for an EventBatch: each event to the nearest pixel (``mode`` does
-    not apply). Example:
+    not apply).
 
+    Args:
+        batch: the event streams.
+        angle: ``(B,)`` degrees, counter-clockwise.
+        center: ``"mass"`` (each stream's event centroid), ``"image"`` or ``(y, x)``.
+        mode: kept for the dispatcher's signature; events move to the nearest pixel.
+
+    Shape:
+        - batch: B streams, N events.
+        - angle: ``(B,)``.
+        - output: the same streams and events, each at its nearest pixel.
+
+    Example:
         >>> from event_transforms import EventBatch
         >>> batch = EventBatch.from_streams([torch.tensor([[4, 2, 0, 1]])], sensor_size=(5, 5))
         >>> out = rotate_events(batch, torch.tensor([90.0]), center="image")
@@ -589,7 +671,26 @@ def rotate_events(batch: EventBatch, angle: Tensor, *, center: Center = "mass", 
 
 @register_kernel(resize, EventBatch)
 def resize_events(batch: EventBatch, scale: Tensor, *, center: Center = "mass", mode: str = "bilinear") -> EventBatch:
-    """Kernel of :func:`resize` for an EventBatch: each event to the nearest pixel."""
+    """Kernel of :func:`resize` for an EventBatch: each event to the nearest pixel.
+
+    Args:
+        batch: the event streams.
+        scale: ``(B,)`` zoom factors > 0.
+        center: ``"mass"`` (each stream's event centroid), ``"image"`` or ``(y, x)``.
+        mode: kept for the dispatcher's signature; events move to the nearest pixel.
+
+    Shape:
+        - batch: B streams, N events.
+        - scale: ``(B,)``.
+        - output: the same streams and events, each at its nearest pixel.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[3, 2, 0, 1]])], sensor_size=(5, 5))
+        >>> zoomed = resize_events(batch, torch.tensor([2.0]), center="image")
+        >>> zoomed.x.tolist(), zoomed.y.tolist()  # (x, y) = (3, 2) -> 2 + 2 (3 - 2), 2
+        ([4], [2])
+    """
     return _affine_events(batch, scale=scale, center=_event_center(center))
 
 
@@ -605,7 +706,29 @@ def affine_events(
     mode: str = "bilinear",
 ) -> EventBatch:
     """Kernel of :func:`affine` for an EventBatch: rotation and scale as :func:`rotate_events`,
-    then ``translate`` rounded to whole pixels; a non-zero ``shear`` is refused."""
+    then ``translate`` rounded to whole pixels; a non-zero ``shear`` is refused.
+
+    Args:
+        batch: the event streams.
+        angle: ``(B,)`` degrees, counter-clockwise.
+        scale: ``(B,)`` zoom factors > 0.
+        shear: must be ``None`` or zero: shear is not supported on events.
+        translate: ``(B, 2)`` ``(dy, dx)`` pixels, or ``None``.
+        center: ``"mass"`` (each stream's event centroid), ``"image"`` or ``(y, x)``.
+        mode: kept for the dispatcher's signature; events move to the nearest pixel.
+
+    Shape:
+        - batch: B streams, N events.
+        - angle, scale: ``(B,)``; translate: ``(B, 2)``.
+        - output: the same streams and events, each at its nearest pixel.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[2, 1, 0, 1]])], sensor_size=(3, 3))
+        >>> turned = affine_events(batch, torch.tensor([90.0]), torch.tensor([1.0]), center="image")
+        >>> turned.y.tolist(), turned.x.tolist()  # (y, x) = (1, 2) -> (0, 1) about (1, 1)
+        ([0], [1])
+    """
     if shear is not None and any(v != 0 for v in shear.flatten().tolist()):  # CPU params: no sync
         raise ValueError(f"affine: shear is not supported on events, got {describe(shear)}")
     out = _affine_events(batch, angle=angle, scale=scale, center=_event_center(center))
@@ -703,7 +826,19 @@ def _base_grid(height: int, width: int, device: torch.device, dtype: torch.dtype
 
 
 def perspective_frames(batch: Tensor, corners: Tensor, mode: str) -> Tensor:
-    """:func:`perspective` on a (B, T, 2, H, W) batch with checked (B, 4, 2) float64 CPU corners."""
+    """:func:`perspective` on a (B, T, 2, H, W) batch with checked (B, 4, 2) float64 CPU corners.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        corners: where the centres of the top-left, top-right, bottom-right and bottom-left
+            pixels go, as ``(y, x)`` pixel positions: ``(4, 2)`` for every sample or
+            ``(B, 4, 2)``; they must make a convex quadrilateral in that order.
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`perspective` gives for a batch.
+    """
     b, _, _, height, width = batch.shape
     out_dtype = _output_dtype(batch.dtype, mode)
     if batch.numel() == 0:
@@ -744,6 +879,12 @@ def perspective(
     Returns:
         The warped frames, same shape and device; dtype as in :func:`rotate`.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - corners: ``(4, 2)`` or ``(B, 4, 2)``.
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5, dtype=torch.int16)
         >>> frames[0, 1, 0, 0] = 3  # the top-left corner
@@ -782,7 +923,20 @@ def _smoothed(noise: Tensor, sigma: float, device: torch.device, dtype: torch.dt
 def elastic_frames(batch: Tensor, noise: Tensor, alpha: Tensor, sigma: float, mode: str) -> Tensor:
     """:func:`elastic` on a (B, T, 2, H, W) batch with checked (B, 2, H, W) ``noise`` and (B,)
     float64 CPU ``alpha`` (pixels): two 1-D Gaussian passes (zero outside the frame) smooth the
-    noise, and the field, in normalised units, moves the identity grid."""
+    noise, and the field, in normalised units, moves the identity grid.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        noise: raw displacements in [-1, 1], ``(2, H, W)`` or ``(B, 2, H, W)``, channel 0
+            along y (down), channel 1 along x (right); e.g. ``2 * torch.rand(B, 2, H, W) - 1``.
+        alpha: strength in pixels (>= 0), a number or ``(B,)``.
+        sigma: smoothness of the field in pixels (> 0).
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`elastic` gives for a batch.
+    """
     b, _, _, height, width = batch.shape
     out_dtype = _output_dtype(batch.dtype, mode)
     if batch.numel() == 0:
@@ -830,6 +984,12 @@ def elastic(
 
     Returns:
         The warped frames, same shape and device; dtype as in :func:`rotate`.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape and device; float input keeps its dtype, integer input gives float32
+          (``mode="nearest"`` keeps it).
+        - noise: ``(2, H, W)`` or ``(B, 2, H, W)``; alpha: a number or ``(B,)``.
 
     Example:
         >>> frames = torch.zeros(1, 2, 9, 9)

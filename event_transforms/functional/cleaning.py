@@ -33,6 +33,10 @@ def hot_pixels(frames: Tensor, rate_hz: float, *, frame_ms: float = 10.0) -> Ten
     Returns:
         bool ``(H, W)`` or ``(B, H, W)`` on the frames' device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: bool ``(H, W)`` or ``(B, H, W)`` on the frames' device.
+
     Example:
         >>> frames = torch.zeros(10, 2, 2, 3)
         >>> frames[:, 1, 0, 2] = 1.0  # one event per 10 ms frame: 100 Hz
@@ -76,6 +80,10 @@ def denoise(frames: Tensor | EventBatch, *, radius: int = 1, temporal_radius: in
         radius: spatial half-width of the window in pixels (>= 0).
         temporal_radius: temporal half-width in frames (>= 0).
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
     Example:
         >>> frames = torch.zeros(3, 2, 5, 5, dtype=torch.int16)
         >>> frames[1, 1, 0, 0] = 2  # alone
@@ -105,7 +113,24 @@ def _box_sum(values: Tensor, dim: int, radius: int) -> Tensor:
 
 @register_kernel(denoise, Tensor)
 def denoise_frames(batch: Tensor, radius: int, temporal_radius: int) -> Tensor:
-    """Kernel of :func:`denoise` for frames ``(B, T, 2, H, W)``."""
+    """Kernel of :func:`denoise` for frames: keep the counts of a pixel only if another
+    pixel within ``radius`` (space) and ``temporal_radius`` frames (time) holds an event.
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        radius: the spatial neighbourhood in pixels.
+        temporal_radius: the temporal neighbourhood in frames.
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
+    Example:
+        >>> frames = torch.zeros(1, 1, 2, 3, 3)
+        >>> frames[0, 0, 0, 0, 0] = 1  # alone: removed
+        >>> int(denoise_frames(frames, 1, 0).sum())
+        0
+    """
     if batch.numel() == 0:
         return batch.clone()
     occupied = batch > 0  # (B, T, 2, H, W)

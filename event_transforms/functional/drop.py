@@ -62,6 +62,11 @@ def drop_random(
         mode: ``"binomial"`` or ``"expected"``.
         generator: a ``torch.Generator`` on the frames' device, or ``None``.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - fraction: a number or ``(B,)``.
+
     Example:
         >>> frames = torch.full((4, 2, 8, 8), 10, dtype=torch.int32)
         >>> out = drop_random(frames, 0.5, generator=torch.Generator().manual_seed(0))
@@ -92,7 +97,19 @@ def drop_random_frames(batch: Tensor, fraction: Tensor, mode: str, seeds: Tensor
     Each event's fate is a counter-based uniform named by its sample's seed and its
     position in the sample (:class:`~._hypergeometric.Stream`), so a sample's result does
     not depend on its batch. One ``nonzero`` and one host read (the check and the numbers
-    the sampler needs)."""
+    the sampler needs).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        fraction: probability of dropping an event, in [0, 1], a number or ``(B,)``.
+        mode: ``"binomial"`` or ``"expected"``.
+        seeds: ``(B,)`` int64 per-sample seeds of the counter-based streams.
+        hint: the advice in the error message when the counts are not whole.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`drop_random` gives for a batch.
+    """
     keep = (1.0 - fraction).view(-1, 1, 1, 1, 1)
     if mode == "expected":
         dtype = batch.dtype if batch.is_floating_point() else torch.float32
@@ -122,7 +139,28 @@ def drop_random_events(
 ) -> EventBatch:
     """Kernel of :func:`drop_random` for an EventBatch: each event of sample b dropped with
     probability ``fraction[b]`` (its own uniform, from the sample's generator). One host
-    read of the kept counts."""
+    read of the kept counts.
+
+    Args:
+        batch: the event streams.
+        fraction: ``(B,)`` drop probabilities in [0, 1].
+        mode: ``"binomial"`` (events are whole; other modes are refused).
+        seeds: ``(B,)`` int64 per-sample seeds.
+        hint: the advice in the error for another mode.
+
+    Shape:
+        - batch: B streams, N events.
+        - fraction, seeds: ``(B,)``.
+        - output: B streams, at most N events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> drop_random_events(batch, torch.tensor([1.0, 0.0]), seeds=torch.tensor([3, 4])).lengths
+        [0, 1]
+    """
     if mode != "binomial":
         raise ValueError(f"drop_random on events drops whole events: mode must be 'binomial', got {mode!r}")
     _, dropped = _keys(batch, seeds, fraction)  # u < fraction, compared per sample slice
@@ -152,6 +190,11 @@ def drop_by_time(inputs: Tensor | EventBatch, start: Scalars, length: Scalars) -
     Returns:
         Frames with the window zeroed; dtype kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - start, length: integers or ``(B,)``.
+
     Example:
         >>> frames = torch.ones(5, 2, 1, 1, dtype=torch.uint8)
         >>> drop_by_time(frames, 1, 2)[:, 0, 0, 0].tolist()
@@ -163,7 +206,17 @@ def drop_by_time(inputs: Tensor | EventBatch, start: Scalars, length: Scalars) -
 
 @register_kernel(drop_by_time, Tensor)
 def drop_by_time_frames(batch: Tensor, start: Tensor, length: Tensor) -> Tensor:
-    """Kernel of :func:`drop_by_time` for frames ``(B, T, 2, H, W)`` with (B,) int64 CPU windows."""
+    """Kernel of :func:`drop_by_time` for frames ``(B, T, 2, H, W)`` with (B,) int64 CPU windows.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        start: first dropped frame, a non-negative integer or ``(B,)``.
+        length: number of dropped frames (a window past the end stops at the end).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`drop_by_time` gives for a batch.
+    """
     b, t = batch.shape[:2]
     mask = _window_mask(start, length, t, batch.device)
     return batch.masked_fill(mask.view(b, t, 1, 1, 1), 0)
@@ -172,7 +225,26 @@ def drop_by_time_frames(batch: Tensor, start: Tensor, length: Tensor) -> Tensor:
 @register_kernel(drop_by_time, EventBatch)
 def drop_by_time_events(batch: EventBatch, start: Tensor, length: Tensor) -> EventBatch:
     """Kernel of :func:`drop_by_time` for an EventBatch: sample b's events in bins
-    ``[start[b], start[b] + length[b])`` of the grid dropped. One host read of the kept counts."""
+    ``[start[b], start[b] + length[b])`` of the grid dropped. One host read of the kept counts.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        start: ``(B,)`` first dropped bin.
+        length: ``(B,)`` number of dropped bins.
+
+    Shape:
+        - batch: B streams, N events.
+        - start, length: ``(B,)``.
+        - output: B streams, at most N events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> drop_by_time_events(batch, torch.tensor([1, 0]), torch.tensor([1, 1])).t.tolist()
+        [100]
+    """
     from ..events.batch import _relative_times
     from ..events.binning import _bins_of
 
@@ -195,6 +267,11 @@ def drop_by_area(
     Returns:
         Frames with the rectangle zeroed; dtype kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - top, left, height, width: integers or ``(B,)``.
+
     Example:
         >>> frames = torch.ones(1, 2, 3, 4)
         >>> drop_by_area(frames, 1, 1, 2, 2)[0, 0].tolist()
@@ -207,7 +284,19 @@ def drop_by_area(
 
 @register_kernel(drop_by_area, Tensor)
 def drop_by_area_frames(batch: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
-    """Kernel of :func:`drop_by_area` for frames ``(B, T, 2, H, W)`` with (B,) int64 CPU rectangles."""
+    """Kernel of :func:`drop_by_area` for frames ``(B, T, 2, H, W)`` with (B,) int64 CPU rectangles.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        top: the rectangle's first row and column, non-negative integers or ``(B,)``.
+        left: the rectangle's first row and column, non-negative integers or ``(B,)``.
+        height: its size in pixels (a rectangle past the border stops there).
+        width: its size in pixels (a rectangle past the border stops there).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`drop_by_area` gives for a batch.
+    """
     b, _, _, h, w = batch.shape
     rows = _window_mask(top, height, h, batch.device)
     cols = _window_mask(left, width, w, batch.device)
@@ -218,7 +307,27 @@ def drop_by_area_frames(batch: Tensor, top: Tensor, left: Tensor, height: Tensor
 @register_kernel(drop_by_area, EventBatch)
 def drop_by_area_events(batch: EventBatch, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> EventBatch:
     """Kernel of :func:`drop_by_area` for an EventBatch: sample b's events in the sensor
-    rectangle dropped. One host read of the kept counts."""
+    rectangle dropped. One host read of the kept counts.
+
+    Args:
+        batch: the event streams.
+        top, left: ``(B,)`` the rectangle's first row and column.
+        height, width: ``(B,)`` its size in pixels.
+
+    Shape:
+        - batch: B streams, N events.
+        - top, left, height, width: ``(B,)``.
+        - output: B streams, at most N events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> one = torch.tensor([1, 1])
+        >>> drop_by_area_events(batch, one * 0, one * 0, one, one * 3).y.tolist()  # row 0 emptied
+        [1, 1]
+    """
     top, left, height, width = (_per_event(v.to(torch.int64), batch) for v in (top, left, height, width))
     y, x = batch.y.to(torch.int64), batch.x.to(torch.int64)
     hit = (y >= top) & (y < top + height) & (x >= left) & (x < left + width)
@@ -267,6 +376,11 @@ def drop_pixel(inputs: Tensor | EventBatch, pixels: Tensor | Sequence[Sequence[i
     Returns:
         The frames with those pixels zeroed; dtype and device kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - pixels: ``(N, 2)`` integers, or a bool ``(H, W)`` or ``(B, H, W)`` mask.
+
     Example:
         >>> drop_pixel(torch.ones(1, 2, 2, 3, dtype=torch.uint8), [[0, 1], [1, 2]])[0, 0].tolist()
         [[1, 0, 1], [1, 1, 0]]
@@ -278,7 +392,16 @@ def drop_pixel(inputs: Tensor | EventBatch, pixels: Tensor | Sequence[Sequence[i
 
 @register_kernel(drop_pixel, Tensor)
 def drop_pixel_frames(batch: Tensor, mask: Tensor) -> Tensor:
-    """Kernel of :func:`drop_pixel`: zero the (B or 1, H, W) bool ``mask`` pixels in every frame."""
+    """Kernel of :func:`drop_pixel`: zero the (B or 1, H, W) bool ``mask`` pixels in every frame.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        mask: bool ``(B, H, W)`` or ``(1, H, W)``: the pixels whose events go.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`drop_pixel` gives for a batch.
+    """
     return batch.masked_fill(mask.unsqueeze(1).unsqueeze(1), 0)
 
 
@@ -290,6 +413,16 @@ def drop_pixel_events(batch: EventBatch, mask: Tensor) -> EventBatch:
     Events outside the sensor (moved off it by an earlier transform) are kept: binning drops
     them. One host read of the kept counts.
 
+
+    Args:
+        batch: the event streams.
+        mask: bool, ``True`` on the pixels whose events go: ``(B, H, W)`` per stream or
+            ``(1, H, W)`` for all.
+
+    Shape:
+        - batch: B streams, N events.
+        - mask: ``(B, H, W)`` or ``(1, H, W)``, the sensor's size.
+        - output: B streams, at most N events.
     Example:
         >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 5, 1], [1, 0, 6, 0]])], sensor_size=(2, 2))
         >>> mask = torch.tensor([[[False, True], [False, False]]])  # pixel (y=0, x=1)
@@ -329,6 +462,18 @@ def random_pixel_mask(seed: Tensor, fraction: Tensor, height: int, width: int, d
         fraction: ``(B,)`` drop probabilities in [0, 1] (CPU).
         height, width: the frame size.
         device: where the mask is built.
+
+    Shape:
+        - seed, fraction: ``(B,)``.
+        - output: bool ``(B, height, width)`` on ``device``.
+
+    Example:
+        >>> mask = random_pixel_mask(torch.tensor([1, 2]), torch.tensor([0.5, 0.0]), 3, 4, torch.device("cpu"))
+        >>> mask.shape, mask[1].any().item()  # nothing dropped at fraction 0
+        (torch.Size([2, 3, 4]), False)
+        >>> alone = random_pixel_mask(torch.tensor([1]), torch.tensor([0.5]), 3, 4, torch.device("cpu"))
+        >>> torch.equal(mask[:1], alone)  # a sample's mask depends on its own seed only
+        True
     """
     pixel = torch.arange(height * width, dtype=torch.int64, device=device)
     seed = seed.to(device, non_blocking=True).unsqueeze(1)
@@ -351,6 +496,10 @@ def refractory_period(batch: EventBatch, period_us: Scalars) -> EventBatch:
         batch: an EventBatch.
         period_us: the refractory period in µs (>= 0), a number or ``(B,)``.
 
+    Shape:
+        - batch: an EventBatch of B streams with N events.
+        - output: an EventBatch of the same B streams, sensor and grid, at most N events.
+
     Example:
         >>> from event_transforms import EventBatch
         >>> rows = torch.tensor([[1, 1, 0, 1], [1, 1, 500, 0], [1, 1, 2000, 1], [0, 0, 100, 1]])
@@ -372,6 +521,10 @@ def decimation(batch: EventBatch, n: int | Sequence[int] | Tensor) -> EventBatch
     Args:
         batch: an EventBatch.
         n: keep one event in n (>= 1), an integer or ``(B,)``.
+
+    Shape:
+        - batch: an EventBatch of B streams with N events.
+        - output: an EventBatch of the same B streams, sensor and grid, at most N events.
 
     Example:
         >>> from event_transforms import EventBatch
@@ -406,7 +559,24 @@ def refractory_period_events(batch: EventBatch, period_us: Tensor) -> EventBatch
     """Drop an event when its pixel (either polarity) had an event less than ``period_us[b]``
     before it (the previous event, kept or not: a pixel's dead time restarts with every
     event it saw). The first event of each pixel is kept. Output in (time) order of the
-    input. One host read of the kept counts."""
+    input. One host read of the kept counts.
+
+    Args:
+        batch: the event streams.
+        period_us: ``(B,)`` dead time of a pixel in microseconds.
+
+    Shape:
+        - batch: B streams, N events.
+        - period_us: ``(B,)``.
+        - output: B streams, at most N events, in input order.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> events = torch.tensor([[0, 0, 0, 1], [0, 0, 400, 0], [0, 0, 1_000, 1], [1, 0, 10, 1]])
+        >>> batch = EventBatch.from_streams([events], sensor_size=(1, 2))
+        >>> refractory_period_events(batch, torch.tensor([500.0])).t.tolist()  # 400 follows 0 too soon
+        [0, 1000, 10]
+    """
     if batch.num_events == 0:
         return batch
     order, start, _ = _pixel_runs(batch)
@@ -423,7 +593,24 @@ def refractory_period_events(batch: EventBatch, period_us: Tensor) -> EventBatch
 @register_kernel(decimation, EventBatch)
 def decimation_events(batch: EventBatch, n: Tensor) -> EventBatch:
     """Keep every ``n[b]``-th event of each pixel (the n-th, 2n-th, ... in time), as tonic's
-    ``Decimation``. One host read of the kept counts."""
+    ``Decimation``. One host read of the kept counts.
+
+    Args:
+        batch: the event streams.
+        n: ``(B,)`` positive integers: keep each pixel's n-th, 2n-th, ... event.
+
+    Shape:
+        - batch: B streams, N events.
+        - n: ``(B,)``.
+        - output: B streams, at most N events, in input order.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> events = torch.tensor([[0, 0, 0, 1], [0, 0, 400, 0], [0, 0, 1_000, 1], [1, 0, 10, 1]])
+        >>> batch = EventBatch.from_streams([events], sensor_size=(1, 2))
+        >>> decimation_events(batch, torch.tensor([2])).t.tolist()  # pixel x = 0: its 2nd event
+        [400]
+    """
     if batch.num_events == 0:
         return batch
     order, _, rank = _pixel_runs(batch)

@@ -50,7 +50,16 @@ _NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
 
 
 def translate_frames(batch: Tensor, shift: Tensor) -> Tensor:
-    """:func:`translate` on a batch with a (B, 2) int64 CPU ``shift`` of (dy, dx)."""
+    """:func:`translate` on a batch with a (B, 2) int64 CPU ``shift`` of (dy, dx).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        shift: ``(dy, dx)`` integer pixels (down, right), or a ``(B, 2)`` integer tensor.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`translate` gives for a batch.
+    """
     b, t, p, height, width = batch.shape
     if batch.numel() == 0:
         return batch.clone()
@@ -94,6 +103,11 @@ def translate(inputs: Tensor | EventBatch, shift: Pairs) -> Tensor | EventBatch:
     Returns:
         The moved frames, same shape, dtype and device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - shift: a pair or ``(B, 2)``.
+
     Example:
         >>> frames = torch.arange(1, 7).reshape(1, 1, 2, 3).expand(1, 2, 2, 3)
         >>> translate(frames, (1, -1))[0, 0].tolist()
@@ -108,7 +122,26 @@ register_kernel(translate, Tensor)(translate_frames)
 
 @register_kernel(translate, EventBatch)
 def translate_events(batch: EventBatch, shift: Tensor) -> EventBatch:
-    """Move sample b's events by ``shift[b] = (dy, dx)`` whole pixels (int). Sync-free."""
+    """Move sample b's events by ``shift[b] = (dy, dx)`` whole pixels (int). Sync-free.
+
+    Args:
+        batch: the event streams.
+        shift: ``(B, 2)`` integer ``(dy, dx)`` per sample (down, right).
+
+    Shape:
+        - batch: B streams, N events.
+        - shift: ``(B, 2)``.
+        - output: the same streams and events (events may leave the sensor).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> moved = translate_events(batch, torch.tensor([[1, 0], [0, -1]]))
+        >>> moved.y.tolist(), moved.x.tolist()
+        ([2, 1, 1], [0, 2, 0])
+    """
     shift = shift.to(torch.int16)
     x = batch.x + _per_event(shift[:, 1].contiguous(), batch)
     y = batch.y + _per_event(shift[:, 0].contiguous(), batch)
@@ -134,7 +167,22 @@ def _size(value: object, name: str) -> tuple[int, int]:
 
 
 def crop_frames(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool = False, mode: str = "bilinear") -> Tensor:
-    """Crop ``size`` at per-sample (B,) int64 CPU ``top``/``left``; optionally resize back to H×W."""
+    """Crop ``size`` at per-sample (B,) int64 CPU ``top``/``left``; optionally resize back to H×W.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        top: the window's first row and column, integers or ``(B,)``; the window
+            must fit inside the frame.
+        left: the window's first row and column, integers or ``(B,)``; the window
+            must fit inside the frame.
+        size: ``n`` or ``(h, w)``, the window's size.
+        resize: resize the window back to H×W.
+        mode: ``"bilinear"`` or ``"nearest"``, for ``resize=True``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`crop` gives for a batch.
+    """
     b, t, p, height, width = batch.shape
     h, w = size
     device = batch.device
@@ -225,7 +273,29 @@ def crop_events(
     """Crop sample b to the window ``top[b], left[b]`` of ``size`` (H, W): coordinates move
     by ``(-top, -left)`` and the batch's sensor becomes ``size``. Events outside the window
     are kept (dropped when binned, as the frame crop drops them). ``resize=True``
-    interpolates frames and is refused. Sync-free."""
+    interpolates frames and is refused. Sync-free.
+
+    Args:
+        batch: the event streams.
+        top, left: ``(B,)`` the window's first row and column per sample.
+        size: ``(h, w)`` of the window, the new sensor size.
+        resize: must be ``False`` (resizing interpolates frames).
+        mode: unused on events.
+
+    Shape:
+        - batch: B streams, N events.
+        - top, left: ``(B,)``.
+        - output: the same streams and events on an ``(h, w)`` sensor.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> cropped = crop_events(batch, torch.tensor([0, 1]), torch.tensor([1, 1]), (1, 2))
+        >>> cropped.sensor_size, cropped.x.tolist(), cropped.y.tolist()
+        ((1, 2), [-1, 1, 0], [1, 0, 0])
+    """
     if resize:
         raise ValueError("crop(resize=True) interpolates frames; on events crop with resize=False")
     x = batch.x - _per_event(left.to(torch.int16), batch)
@@ -235,6 +305,17 @@ def crop_events(
 
 def center_crop(frames: Tensor, size: int | Sequence[int], *, resize: bool = False, mode: str = "bilinear") -> Tensor:
     """:func:`crop` at the image centre (the top-left corner rounds down, as in torchvision).
+
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        size: ``n`` or ``(h, w)`` pixels, at most the frame size.
+        resize: resize the window back to ``H × W`` (see :func:`crop`).
+        mode: ``"bilinear"`` or ``"nearest"``, for ``resize=True``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(..., h, w)``, dtype kept; with ``resize=True`` the frames' shape (dtype as in
+          :func:`resize`).
 
     Example:
         >>> center_crop(torch.ones(3, 2, 7, 8), (3, 4)).shape
@@ -259,6 +340,21 @@ def downsampled_size(height: int, width: int, factor: tuple[int, int], remainder
 
 
 def downsample_frames(batch: Tensor, factor: tuple[int, int], remainder: str = "drop") -> Tensor:
+    """Kernel of :func:`downsample` for frames: sum-pooling by ``factor`` (rows, columns).
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        factor: the pooling factor ``(fy, fx)``.
+        remainder: ``"drop"`` the leftover rows/columns or ``"keep"`` them in a partial block.
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: ``(B, T, 2, H', W')`` (:func:`downsampled_size`), the dtype kept.
+
+    Example:
+        >>> downsample_frames(torch.ones(1, 1, 2, 4, 4), (2, 2)).shape
+        torch.Size([1, 1, 2, 2, 2])
+    """
     b, t, p, height, width = batch.shape
     fy, fx = factor
     h, w = downsampled_size(height, width, factor, remainder)
@@ -332,6 +428,10 @@ def downsample(frames: Tensor | EventBatch, factor: int | Sequence[int], *, rema
         ``(…, H', W')`` with ``H' = H // fy`` (``"drop"``) or ``ceil(H / fy)`` (``"keep"``);
         dtype and device kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``(..., H // fy, W // fx)`` (``"keep"``: rounded up), dtype and device kept.
+
     Example:
         >>> frames = torch.ones(1, 2, 5, 4, dtype=torch.int32)
         >>> downsample(frames, 2)[0, 0].tolist(), downsample(frames, 2, remainder="keep")[0, 0].tolist()
@@ -390,6 +490,10 @@ def horizontal_flip(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> 
             (``x -> W - 1 - x``, equal to the frame flip after binning).
         flip: ``(B,)`` bool, the samples to mirror (default: all).
 
+    Shape:
+        - inputs: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        - output: same shape, dtype and device.
+
     Example:
         >>> horizontal_flip(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
@@ -405,6 +509,10 @@ def vertical_flip(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Te
         inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch
             (``y -> H - 1 - y``).
         flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - inputs: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        - output: same shape, dtype and device.
 
     Example:
         >>> vertical_flip(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
@@ -429,13 +537,31 @@ def _flags(flip: object, batch: int, name: str = "flip") -> Tensor | None:
 
 @register_kernel(horizontal_flip, Tensor)
 def horizontal_flip_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
-    """Kernel of :func:`horizontal_flip` for frames ``(B, T, 2, H, W)``."""
+    """Kernel of :func:`horizontal_flip` for frames ``(B, T, 2, H, W)``.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`horizontal_flip` gives for a batch.
+    """
     return _flip_frames(frames, flip, -1)
 
 
 @register_kernel(vertical_flip, Tensor)
 def vertical_flip_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
-    """Kernel of :func:`vertical_flip` for frames ``(B, T, 2, H, W)``."""
+    """Kernel of :func:`vertical_flip` for frames ``(B, T, 2, H, W)``.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        flip: ``(B,)`` bool, the samples to mirror (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`vertical_flip` gives for a batch.
+    """
     return _flip_frames(frames, flip, -2)
 
 
@@ -466,13 +592,49 @@ def _flip_frames(frames: Tensor, gate: Tensor | None, axis: int) -> Tensor:
 
 @register_kernel(horizontal_flip, EventBatch)
 def horizontal_flip_events(batch: EventBatch, flip: Tensor | None = None) -> EventBatch:
-    """Kernel of :func:`horizontal_flip` for an EventBatch: ``x -> W - 1 - x``. Sync-free."""
+    """Kernel of :func:`horizontal_flip` for an EventBatch: ``x -> W - 1 - x``. Sync-free.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples to mirror (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> horizontal_flip_events(batch, torch.tensor([True, False])).x.tolist()  # x -> 2 - x in stream 0
+        [2, 0, 1]
+    """
     return _flip_events(batch, flip, axis="x")
 
 
 @register_kernel(vertical_flip, EventBatch)
 def vertical_flip_events(batch: EventBatch, flip: Tensor | None = None) -> EventBatch:
-    """Kernel of :func:`vertical_flip` for an EventBatch: ``y -> H - 1 - y``. Sync-free."""
+    """Kernel of :func:`vertical_flip` for an EventBatch: ``y -> H - 1 - y``. Sync-free.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples to mirror (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> vertical_flip_events(batch, torch.tensor([True, False])).y.tolist()  # y -> 1 - y in stream 0
+        [0, 1, 1]
+    """
     return _flip_events(batch, flip, axis="y")
 
 
@@ -507,6 +669,11 @@ def spatial_jitter(batch: EventBatch, sigma: Tensor | float, seed: Tensor | int)
         sigma: standard deviation in pixels (>= 0), a number or ``(B,)``.
         seed: the per-sample seeds of the noise, an integer or ``(B,)`` int64 in [0, 2**63).
 
+    Shape:
+        - batch: an EventBatch of B streams with N events.
+        - sigma, seed: a number or ``(B,)``.
+        - output: an EventBatch of the same B streams, sensor and grid, N events.
+
     Example:
         >>> from event_transforms import EventBatch
         >>> batch = EventBatch.from_streams([torch.tensor([[5, 5, 0, 1]])], sensor_size=(10, 10))
@@ -528,7 +695,27 @@ def _nonnegative(value: object, batch: int, name: str) -> Tensor:
 @register_kernel(spatial_jitter, EventBatch)
 def spatial_jitter_events(batch: EventBatch, sigma: Tensor, seed: Tensor) -> EventBatch:
     """Add Gaussian noise of standard deviation ``sigma[b]`` pixels to x and y, rounded to
-    whole pixels (events leaving the sensor are dropped when binned). Sync-free."""
+    whole pixels (events leaving the sensor are dropped when binned). Sync-free.
+
+    Args:
+        batch: the event streams.
+        sigma: ``(B,)`` standard deviations in pixels (>= 0).
+        seed: ``(B,)`` int64 per-sample seeds.
+
+    Shape:
+        - batch: B streams, N events.
+        - sigma, seed: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> jittered = spatial_jitter_events(batch, torch.tensor([0.0, 2.0]), torch.tensor([1, 2]))
+        >>> jittered.x[:2].tolist(), jittered.t.tolist()  # sigma 0 moves nothing; times kept
+        ([0, 2], [100, 15000, 50])
+    """
     lengths = batch.lengths
     bounds = batch.offsets.tolist()
     noise_x = torch.empty(batch.num_events, dtype=torch.float32, device=batch.device)

@@ -82,6 +82,11 @@ def cutout(frames: Tensor | EventBatch, top: Scalars, left: Scalars, height: Sca
         top, left: the box's first row and column, integers >= 0 or ``(B,)``.
         height, width: its size in pixels.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - top, left, height, width: integers or ``(B,)``.
+
     Example:
         >>> cutout(torch.ones(1, 2, 3, 4, dtype=torch.int16), 1, 1, 2, 2)[0, 0].tolist()
         [[1, 1, 1, 1], [1, 0, 0, 1], [1, 0, 0, 1]]
@@ -95,7 +100,21 @@ def cutout(frames: Tensor | EventBatch, top: Scalars, left: Scalars, height: Sca
 
 @register_kernel(cutout, Tensor)
 def cutout_frames(batch: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
-    """Kernel of :func:`cutout` for frames ``(B, T, 2, H, W)`` with (B,) int64 CPU boxes."""
+    """Kernel of :func:`cutout` for frames: empty the box ``top, left, height, width`` of each sample.
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        top, left, height, width: ``(B,)`` integer boxes.
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
+    Example:
+        >>> box = torch.tensor([1])
+        >>> int(cutout_frames(torch.ones(1, 1, 2, 3, 3), box, box, box, box).sum())
+        16
+    """
     mask = _box_mask(top, left, height, width, batch.shape[-2:], batch.device)
     return batch.masked_fill(mask, 0)
 
@@ -119,6 +138,11 @@ def cutmix(
         partner: ``(B,)`` sample indices in ``[0, B)``.
         top, left, height, width: the box per sample, as in :func:`cutout`.
 
+    Shape:
+        - frames: ``(B, T, 2, H, W)`` (or ``(T, 2, H, W)``).
+        - partner: ``(B,)``; top, left, height, width: integers or ``(B,)``.
+        - output: the frames' shape, dtype and device.
+
     Example:
         >>> frames = torch.stack([torch.zeros(1, 2, 2, 3), torch.ones(1, 2, 2, 3)])
         >>> cutmix(frames, [1, 0], 0, 1, 2, 1)[0, 0, 0].tolist()
@@ -134,7 +158,23 @@ def cutmix(
 
 @register_kernel(cutmix, Tensor)
 def cutmix_frames(batch: Tensor, partner: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> Tensor:
-    """Kernel of :func:`cutmix` for frames ``(B, T, 2, H, W)`` with (B,) int64 CPU partners and boxes."""
+    """Kernel of :func:`cutmix` for frames: the box of sample b comes from sample ``partner[b]``.
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        partner: ``(B,)`` indices of each sample's partner.
+        top, left, height, width: ``(B,)`` integer boxes.
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
+    Example:
+        >>> frames = torch.stack([torch.zeros(1, 2, 2, 2), torch.ones(1, 2, 2, 2)])
+        >>> one = torch.tensor([1, 1])
+        >>> cutmix_frames(frames, torch.tensor([1, 0]), one * 0, one * 0, one, one)[:, 0, 0].tolist()
+        [[[1.0, 0.0], [0.0, 0.0]], [[0.0, 1.0], [1.0, 1.0]]]
+    """
     mask = _box_mask(top, left, height, width, batch.shape[-2:], batch.device)
     return torch.where(mask, batch.index_select(0, partner.to(batch.device, non_blocking=True)), batch)
 
@@ -165,6 +205,12 @@ def mixup(
     Returns:
         Blended frames: the input dtype for float input, float32 for integer input.
 
+    Shape:
+        - frames: ``(B, T, 2, H, W)`` (or ``(T, 2, H, W)``).
+        - partner: ``(B,)``; weight: a number or ``(B,)``.
+        - output: the frames' shape and device; float input keeps its dtype, integer input gives
+          float32.
+
     Example:
         >>> frames = torch.stack([torch.zeros(1, 2, 1, 1), torch.ones(1, 2, 1, 1)]).to(torch.int32)
         >>> mixup(frames, [1, 0], [0.75, 0.5]).flatten().tolist()
@@ -192,8 +238,23 @@ def _check_weight(weight: object, batch: int) -> Tensor:
 
 @register_kernel(mixup, Tensor)
 def mixup_frames(batch: Tensor, partner: Tensor, weight: Tensor, seed: Tensor | None = None) -> Tensor:
-    """Kernel of :func:`mixup` for frames ``(B, T, 2, H, W)``: (B,) CPU partners and weights
-    (``seed``, for the event kernel, is not used: the blend draws nothing)."""
+    """Kernel of :func:`mixup` for frames: ``weight[b] * x[b] + (1 - weight[b]) * x[partner[b]]``.
+
+    Args:
+        batch: frames ``(B, T, 2, H, W)``.
+        partner: ``(B,)`` indices of each sample's partner.
+        weight: ``(B,)`` mixing weights in [0, 1].
+        seed: not used (the event kernel's draws; the blend draws nothing).
+
+    Shape:
+        - batch: ``(B, T, 2, H, W)``.
+        - output: same shape; float dtypes kept, integer counts become float32.
+
+    Example:
+        >>> frames = torch.stack([torch.zeros(1, 2, 1, 1), torch.ones(1, 2, 1, 1)])
+        >>> mixup_frames(frames, torch.tensor([1, 0]), torch.tensor([0.25, 0.25])).flatten().tolist()
+        [0.75, 0.75, 0.25, 0.25]
+    """
     out_dtype = batch.dtype if batch.dtype.is_floating_point else torch.float32
     work = torch.float64 if batch.dtype == torch.float64 else torch.float32
     w = weight.to(batch.device, work, non_blocking=True).view(-1, 1, 1, 1, 1)
@@ -327,6 +388,11 @@ def mix_labels(labels: Tensor, partner: Scalars, weight: Scalars, *, num_classes
         partner: ``(B,)`` sample indices, as given to the frames' kernel.
         weight: the sample's own share, a number or ``(B,)``.
         num_classes: number of classes, for integer labels.
+
+    Shape:
+        - labels: ``(B, ...)`` float, or ``(B,)`` integer.
+        - partner: ``(B,)``; weight: a number or ``(B,)``.
+        - output: float labels' shape and dtype; ``(B, num_classes)`` float32 for integer labels.
 
     Example:
         >>> mix_labels(torch.tensor([0, 2]), [1, 0], [0.75, 1.0], num_classes=3).tolist()

@@ -107,6 +107,11 @@ def add_noise(inputs: Tensor | EventBatch, noise: Tensor) -> Tensor | EventBatch
     Returns:
         ``frames + noise`` in the frames' dtype, on the frames' device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - noise: the frames' shape, or ``(T, 2, H, W)`` for a batch.
+        - output: the frames' shape, dtype and device.
+
     Example:
         >>> frames = torch.zeros(2, 2, 3, 4, dtype=torch.int16)
         >>> noise = torch.ones(2, 2, 3, 4, dtype=torch.int16)
@@ -133,7 +138,17 @@ def add_noise(inputs: Tensor | EventBatch, noise: Tensor) -> Tensor | EventBatch
 @register_kernel(add_noise, Tensor)
 def add_noise_frames(batch: Tensor, bank: Tensor, offset: Tensor) -> Tensor:
     """Kernel of :func:`add_noise` for frames ``(B, T, 2, H, W)``: sample b gets frames
-    ``offset[b] .. offset[b] + T`` of ``bank`` ``(N, 2, H, W)`` added (dense)."""
+    ``offset[b] .. offset[b] + T`` of ``bank`` ``(N, 2, H, W)`` added (dense).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        bank: ``(N, 2, H, W)`` noise frames.
+        offset: ``(B,)`` the first bank frame of each sample's window.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`add_noise` gives for a batch.
+    """
     b, t = batch.shape[:2]
     index = (offset.to(torch.int64).view(b, 1) + torch.arange(t)).reshape(-1)
     bank = bank.to(batch.device)
@@ -149,6 +164,16 @@ def add_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventBa
     stream's frames plus that window, as :class:`~event_transforms.AddNoise` does on frames.
     Deterministic; one host read of the window's event count per stream.
 
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        bank: ``(N, 2, H, W)`` whole counts of a static scene, the sensor's size.
+        offset: ``(B,)`` the first bank frame of each stream's window.
+
+    Shape:
+        - batch: B streams, N events.
+        - bank: ``(N, 2, H, W)``; offset: ``(B,)``.
+        - output: B streams, N events plus the window's counts.
     Example:
         >>> batch = EventBatch.from_streams([torch.zeros(0, 4)], sensor_size=(1, 2), frame_ms=1.0,
         ...                                 t_start=0, n_frames=2)
@@ -211,6 +236,11 @@ def add_poisson_noise(
     Returns:
         Frames plus noise counts, in the frames' dtype.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+        - rate_hz: a number or ``(B,)``.
+
     Example:
         >>> frames = torch.zeros(36, 2, 70, 75)
         >>> out = add_poisson_noise(frames, 5.0, generator=torch.Generator().manual_seed(0))
@@ -238,7 +268,19 @@ def add_poisson_noise_frames(
     batch: Tensor, rate_hz: Tensor, seeds: Tensor, *, frame_ms: float = 10.0, count: Tensor | None = None
 ) -> Tensor:
     """Kernel of :func:`add_poisson_noise` for frames ``(B, T, 2, H, W)``: ``rate_hz`` (B,)
-    CPU float64, per-sample ``seeds``, and for sparse noise the totals ``count`` (B,)."""
+    CPU float64, per-sample ``seeds``, and for sparse noise the totals ``count`` (B,).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        rate_hz: events per second per pixel and polarity (>= 0), a number or ``(B,)``.
+        seeds: ``(B,)`` int64 per-sample seeds of the counter-based streams.
+        frame_ms: frame length in milliseconds (> 0).
+        count: ``(B,)`` event totals drawn by the module, or ``None`` to draw them here.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`add_poisson_noise` gives for a batch.
+    """
     return _add_poisson_noise(batch, rate_hz * (frame_ms / 1000.0), totals=count, seeds=seeds)
 
 
@@ -248,7 +290,29 @@ def add_poisson_noise_events(
 ) -> EventBatch:
     """Kernel of :func:`add_poisson_noise` for an EventBatch: per pixel and polarity a Poisson
     process of ``rate_hz[b]`` over the grid's window (the grid's bin width replaces
-    ``frame_ms``; ``count`` does not apply). Added events follow the sample's own events."""
+    ``frame_ms``; ``count`` does not apply). Added events follow the sample's own events.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        rate_hz: ``(B,)`` events per second per pixel and polarity (>= 0).
+        seeds: ``(B,)`` int64 per-sample seeds.
+        frame_ms: ignored: the grid's bin width applies.
+        count: ignored on events.
+
+    Shape:
+        - batch: B streams, N events.
+        - rate_hz, seeds: ``(B,)``.
+        - output: B streams, N events plus the noise.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> noisy = add_poisson_noise_events(batch, torch.tensor([0.0, 1000.0]), torch.tensor([1, 2]))
+        >>> noisy.lengths[0], noisy.lengths[1] > 1  # 1000 Hz x 20 ms x 12 pixel-polarities: about 240
+        (2, True)
+    """
     return _poisson_events(batch, rate_hz, seeds)
 
 

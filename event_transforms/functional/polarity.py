@@ -30,6 +30,10 @@ def flip_polarity(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Te
             (``p -> 1 - p``).
         flip: ``(B,)`` bool, the samples to flip (default: all).
 
+    Shape:
+        - inputs: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        - output: same shape, dtype and device.
+
     Example:
         >>> flip_polarity(torch.tensor([[[[1]], [[5]]]]))[0, :, 0, 0].tolist()
         [5, 1]
@@ -40,7 +44,16 @@ def flip_polarity(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Te
 
 @register_kernel(flip_polarity, Tensor)
 def flip_polarity_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
-    """Kernel of :func:`flip_polarity` for frames ``(B, T, 2, H, W)``: the flagged samples flipped."""
+    """Kernel of :func:`flip_polarity` for frames ``(B, T, 2, H, W)``: the flagged samples flipped.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        flip: ``(B,)`` bool, the samples to flip (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`flip_polarity` gives for a batch.
+    """
     swapped = frames.flip(-3)
     if flip is None or all(flip.tolist()):
         return swapped
@@ -49,7 +62,25 @@ def flip_polarity_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
 
 @register_kernel(flip_polarity, EventBatch)
 def flip_polarity_events(batch: EventBatch, flip: Tensor | None = None) -> EventBatch:
-    """Kernel of :func:`flip_polarity` for an EventBatch: ON and OFF swapped in the flagged samples. Sync-free."""
+    """Kernel of :func:`flip_polarity` for an EventBatch: ON and OFF swapped in the flagged samples. Sync-free.
+
+    Args:
+        batch: the event streams.
+        flip: ``(B,)`` bool, the samples whose polarities swap (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - flip: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> flip_polarity_events(batch, torch.tensor([True, False])).p.tolist()
+        [0, 1, 0]
+    """
     flags = [True] * len(batch) if flip is None else flip.tolist()
     if not any(flags):
         return batch
@@ -81,6 +112,15 @@ def merge_polarities(frames: Tensor | EventBatch, *, keepdim: bool = True) -> Te
     tonic's ``MergePolarities``: binned, it equals the frame kernel with ``keepdim=True``.
     ``keepdim=False`` needs frames (an EventBatch always has two polarities).
 
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        keepdim: keep two channels (channel 1 zero) or return one (frames only).
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: the same shape with ``keepdim=True``; ``(..., T, 1, H, W)`` otherwise. Dtype and
+          device kept.
+
     Example:
         >>> frames = torch.tensor([[[[1, 0]], [[2, 3]]]])
         >>> merge_polarities(frames)[0, :, 0].tolist(), merge_polarities(frames, keepdim=False).shape
@@ -97,7 +137,16 @@ def merge_polarities(frames: Tensor | EventBatch, *, keepdim: bool = True) -> Te
 
 @register_kernel(merge_polarities, Tensor)
 def merge_polarities_frames(batch: Tensor, keepdim: bool = True) -> Tensor:
-    """Kernel of :func:`merge_polarities` for frames ``(B, T, 2, H, W)``."""
+    """Kernel of :func:`merge_polarities` for frames ``(B, T, 2, H, W)``.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        keepdim: keep two channels (channel 1 zero) or return one.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`merge_polarities` gives for a batch.
+    """
     merged = _sum_in(batch, 2, "merge_polarities", keepdim=True)
     if not keepdim:
         return merged

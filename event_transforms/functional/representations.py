@@ -76,6 +76,12 @@ def to_voxel_grid(
         float32 ``(n_bins, C, H, W)`` or ``(B, n_bins, C, H, W)`` on the events' device,
         ``C`` = 1 (signed) or 2 (split).
 
+    Shape:
+        - events: ``(N, 4)`` (or columns) for one stream, ``(B, N, 4)`` with ``lengths`` or
+          ``mask``, or an :class:`~event_transforms.EventBatch`.
+        - output: float32 ``(n_bins, C, H, W)`` or ``(B, n_bins, C, H, W)``, ``C`` = 1 (signed) or 2
+          (split).
+
     Example:
         >>> events = torch.tensor([[0, 0, 0, 1], [1, 0, 500, 0], [1, 0, 1000, 1]])
         >>> grid = to_voxel_grid(events, n_bins=3, sensor_size=(1, 2))
@@ -158,6 +164,11 @@ def to_time_surface(
     Raises:
         ValueError: a stream holds events on the sensor but none in its window (naming
             ``t_start``, ``frame_ms`` and ``n_frames``), rather than returning zeros.
+
+    Shape:
+        - events: ``(N, 4)`` (or columns) for one stream, or ``(B, N, 4)`` with ``lengths`` or
+          ``mask``.
+        - output: float32 ``(n_frames, 2, H, W)`` or ``(B, n_frames, 2, H, W)``.
 
     Example:
         >>> events = torch.tensor([[0, 0, 5_000, 1]])  # ON at 5 ms

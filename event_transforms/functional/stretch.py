@@ -86,6 +86,10 @@ def contact_axis(frames: Tensor) -> Tensor:
         displayed image (row 0 at the top): ``()`` for one sequence, ``(B,)`` for a batch, on
         the frames' device.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: ``()`` or ``(B,)`` float angles in degrees.
+
     Example:
         >>> frames = torch.zeros(1, 2, 9, 9)
         >>> for k in range(-3, 4):
@@ -109,6 +113,20 @@ def stretch_frames(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Ce
     built on the frames' device in float64 (the axis may come from the events, so it is
     never read back to the host), then :func:`~event_transforms.functional.spatial._warp`
     samples all T·2 frames of a sequence at once, as for rotate and resize.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        factor: stretch factor k > 0 across the axis, a number or one per sample ``(B,)``.
+        axis: ``"contact"`` (each sequence's contact axis), or the axis's angle in degrees,
+            counter-clockwise from the x axis on the displayed image (0: a horizontal
+            strip, stretched vertically); a number or ``(B,)``.
+        center: ``"mass"`` (event centroid of the whole sequence, image centre when empty),
+            ``"image"``, a ``(y, x)`` pair, or a ``(B, 2)`` tensor of pairs.
+        mode: ``"bilinear"`` or ``"nearest"``.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`stretch` gives for a batch.
     """
     b, t, p, height, width = batch.shape
     out_dtype = _output_dtype(batch.dtype, mode)

@@ -125,6 +125,14 @@ def frame_shift_frames(batch: Tensor, shifts: Tensor) -> Tensor:
     The shifts are read on the host (no device synchronisation). One shift for the whole
     batch: one concatenation with zero frames. Per-sample shifts: one gather of whole
     frames by a host-built row index, then zeroing the few vacated frames.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        shifts: ``(B,)`` integer shifts in frames (``j``: frame t moves to t + j).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`frame_shift` gives for a batch.
     """
     b, t = batch.shape[:2]
     if batch.numel() == 0:
@@ -259,6 +267,18 @@ def temporal_event_shift_frames(
     their values and brings back what the sampler needs (the largest count; in exact mode
     also the largest draw of any frame), then in exact mode the sampler's own (see
     :func:`~._hypergeometric.multivariate_hypergeometric`).
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        shifts: ``(B,)`` integer shifts in frames (``j``: frame t moves to t + j).
+        fractions: ``(B,)`` ζ in [0, 1], the share of each frame's and polarity's events moved.
+        mode: ``"exact"``, ``"binomial"`` or ``"expected"``.
+        seeds: ``(B,)`` int64 per-sample seeds of the counter-based streams.
+        hint: the advice in the error message when the counts are not whole.
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`temporal_event_shift` gives for a batch.
     """
     index, sample, values = _entries(batch)
     if mode == "expected":
@@ -400,6 +420,13 @@ def time_reversal(inputs: Tensor | EventBatch, reverse: Tensor | None = None) ->
         inputs: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
         reverse: ``(B,)`` bool, the samples to reverse (default: all).
 
+    Args:
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - output: same shape, dtype and device.
+
     Example:
         >>> frames = torch.zeros(3, 2, 1, 1, dtype=torch.int8)
         >>> frames[0, 1] = 4  # ON events in the first frame
@@ -414,7 +441,16 @@ def time_reversal(inputs: Tensor | EventBatch, reverse: Tensor | None = None) ->
 
 @register_kernel(time_reversal, Tensor)
 def time_reversal_frames(frames: Tensor, reverse: Tensor | None = None) -> Tensor:
-    """Kernel of :func:`time_reversal` for frames ``(B, T, 2, H, W)``: the flagged samples reversed."""
+    """Kernel of :func:`time_reversal` for frames ``(B, T, 2, H, W)``: the flagged samples reversed.
+
+    Args:
+        frames: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        reverse: ``(B,)`` bool, the samples to reverse (default: all).
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`time_reversal` gives for a batch.
+    """
     reversed_ = frames.flip(-4, -3)
     if reverse is None or all(reverse.tolist()):
         return reversed_
@@ -425,7 +461,25 @@ def time_reversal_frames(frames: Tensor, reverse: Tensor | None = None) -> Tenso
 def time_reversal_events(batch: EventBatch, reverse: Tensor | None = None) -> EventBatch:
     """Kernel of :func:`time_reversal` for an EventBatch: bin i goes to T - 1 - i (integer
     timestamps: ``t -> 2 t0 + T frame - 1 - t``, so the binned frames are exactly the frame
-    kernel's reversal) and polarities are swapped, for the flagged samples. Sync-free."""
+    kernel's reversal) and polarities are swapped, for the flagged samples. Sync-free.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        reverse: ``(B,)`` bool, the samples to reverse (``None``: all).
+
+    Shape:
+        - batch: B streams, N events.
+        - reverse: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> time_reversal_events(batch, torch.tensor([True, False])).t.tolist()  # t -> 19999 - t
+        [19899, 4999, 50]
+    """
     from .polarity import flip_polarity_events
 
     every = torch.ones(len(batch), dtype=torch.bool) if reverse is None else reverse.to(torch.bool)
@@ -465,6 +519,11 @@ def crop_time(inputs: Tensor | EventBatch, start: Scalars, length: int) -> Tenso
     Returns:
         ``(length, 2, H, W)`` or ``(B, length, 2, H, W)``; dtype and device kept.
 
+    Shape:
+        - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        - start: an integer or ``(B,)``.
+        - output: ``(length, 2, H, W)`` or ``(B, length, 2, H, W)``, dtype and device kept.
+
     Example:
         >>> frames = torch.arange(5).view(5, 1, 1, 1).expand(5, 2, 1, 1)
         >>> crop_time(frames, 1, 3)[:, 0, 0, 0].tolist()
@@ -481,7 +540,17 @@ def crop_time(inputs: Tensor | EventBatch, start: Scalars, length: int) -> Tenso
 
 @register_kernel(crop_time, Tensor)
 def crop_time_frames(batch: Tensor, start: Tensor, length: int) -> Tensor:
-    """Kernel of :func:`crop_time`: frames ``[start, start + length)`` with a (B,) int64 CPU ``start``."""
+    """Kernel of :func:`crop_time`: frames ``[start, start + length)`` with a (B,) int64 CPU ``start``.
+
+    Args:
+        batch: event counts ``(B, T, 2, H, W)`` (the dispatcher adds the batch dimension).
+        start: first kept frame, an integer or ``(B,)``, with ``start + length <= T``.
+        length: number of kept frames, in [1, T].
+
+    Shape:
+        - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
+        - output: as :func:`crop_time` gives for a batch.
+    """
     b, t, p, h, w = batch.shape
     index = (start.unsqueeze(1) + torch.arange(length)).to(batch.device, non_blocking=True)  # (B, length)
     if b == 0 or batch.numel() == 0:
@@ -493,7 +562,27 @@ def crop_time_frames(batch: Tensor, start: Tensor, length: int) -> Tensor:
 def crop_time_events(batch: EventBatch, start: Tensor, length: int) -> EventBatch:
     """Keep bins ``[start[b], start[b] + length)`` of the grid: times move ``start[b]`` bins
     earlier and the grid becomes ``length`` bins long (events outside it are dropped when
-    binned; equal to the frame kernel after binning). Sync-free."""
+    binned; equal to the frame kernel after binning). Sync-free.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        start: ``(B,)`` first kept bin per sample.
+        length: number of kept bins.
+
+    Shape:
+        - batch: B streams, N events.
+        - start: ``(B,)``.
+        - output: the same streams and events, the grid ``length`` bins long.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> cropped = crop_time_events(batch, torch.tensor([1, 0]), 1)
+        >>> cropped.t.tolist(), cropped.n_frames
+        ([-9900, 5000, 50], 1)
+    """
     _, frame_us, n_frames = _require_grid(batch, "CropTime")
     if isinstance(frame_us, int) and not batch.t.is_floating_point():
         t = batch.t - _per_event(start.to(torch.int64) * frame_us, batch)
@@ -508,7 +597,26 @@ def crop_time_events(batch: EventBatch, start: Tensor, length: int) -> EventBatc
 @register_kernel(frame_shift, EventBatch)
 def frame_shift_events(batch: EventBatch, shifts: Tensor) -> EventBatch:
     """Kernel of :func:`frame_shift` for an EventBatch with a frame grid: every event moves
-    ``shifts[b]`` bins (``t += j * frame``); events pushed out of the window are dropped."""
+    ``shifts[b]`` bins (``t += j * frame``); events pushed out of the window are dropped.
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        shifts: ``(B,)`` integer bins ``j`` (``t += j * frame``).
+
+    Shape:
+        - batch: B streams, N events.
+        - shifts: ``(B,)``.
+        - output: B streams, at most N events (those pushed out of the window dropped).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> shifted = frame_shift_events(batch, torch.tensor([1, 1]))  # a bin later
+        >>> shifted.t.tolist(), shifted.lengths  # the event in the last bin left the window
+        ([10100, 10050], [1, 1])
+    """
     return _shift_events(batch, shifts)
 
 
@@ -522,7 +630,31 @@ def temporal_event_shift_events(
     hint: str = _TES_HINT,
 ) -> EventBatch:
     """Kernel of :func:`temporal_event_shift` for an EventBatch with a frame grid (modes
-    ``"exact"`` and ``"binomial"``; ``"expected"`` moves fractions of events and is refused)."""
+    ``"exact"`` and ``"binomial"``; ``"expected"`` moves fractions of events and is refused).
+
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        shifts: ``(B,)`` integer bins ``j``.
+        fractions: ``(B,)`` ζ in [0, 1], the share of each bin's and polarity's events moved.
+        mode: ``"exact"`` (exactly round(ζ N)) or ``"binomial"``; ``"expected"`` is refused.
+        seeds: ``(B,)`` int64 per-sample seeds.
+        hint: the advice in the error for ``mode="expected"``.
+
+    Shape:
+        - batch: B streams, N events.
+        - shifts, fractions, seeds: ``(B,)``.
+        - output: B streams, at most N events (those pushed out of the window dropped).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> out = temporal_event_shift_events(batch, torch.tensor([1, 1]), torch.tensor([0.0, 1.0]), "exact",
+        ...                                   torch.tensor([1, 2]))
+        >>> out.t.tolist()  # ζ = 0 moves nothing; ζ = 1 moves every event a bin later
+        [100, 15000, 10050]
+    """
     if mode == "expected":
         raise ValueError("TES mode='expected' moves fractions of events, which events cannot hold; "
                          "use mode='exact' or 'binomial' on an EventBatch")
@@ -649,6 +781,10 @@ def time_jitter(batch: EventBatch, std_us: Scalars, seed: ShiftArg) -> EventBatc
         std_us: standard deviation in µs (>= 0), a number or ``(B,)``.
         seed: per-sample seeds, an integer or ``(B,)`` int64 in [0, 2**63).
 
+    Shape:
+        - batch: an EventBatch of B streams with N events.
+        - output: an EventBatch of the same B streams, sensor and grid, N events.
+
     Example:
         >>> from event_transforms import EventBatch
         >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 1000, 1]])], sensor_size=(2, 2))
@@ -665,7 +801,27 @@ def time_jitter(batch: EventBatch, std_us: Scalars, seed: ShiftArg) -> EventBatc
 @register_kernel(time_jitter, EventBatch)
 def time_jitter_events(batch: EventBatch, std_us: Tensor, seed: Tensor) -> EventBatch:
     """Add Gaussian noise of ``std_us[b]`` microseconds to the timestamps (rounded for
-    integer timestamps). Streams are no longer time-sorted. Sync-free."""
+    integer timestamps). Streams are no longer time-sorted. Sync-free.
+
+    Args:
+        batch: the event streams.
+        std_us: ``(B,)`` standard deviations in microseconds (>= 0).
+        seed: ``(B,)`` int64 per-sample seeds.
+
+    Shape:
+        - batch: B streams, N events.
+        - std_us, seed: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> jittered = time_jitter_events(batch, torch.tensor([0.0, 30.0]), torch.tensor([1, 2]))
+        >>> jittered.t[:2].tolist(), jittered.x.tolist()  # std 0 moves nothing; pixels kept
+        ([100, 15000], [0, 2, 1])
+    """
     bounds = batch.offsets.tolist()
     noise = torch.empty(batch.num_events, dtype=torch.float64, device=batch.device)
     for b, (s, std) in enumerate(zip(seed.tolist(), std_us.tolist())):
@@ -685,6 +841,10 @@ def time_skew(batch: EventBatch, coefficient: Scalars, offset_us: Scalars = 0.0)
         batch: an EventBatch.
         coefficient: factor > 0, a number or ``(B,)``.
         offset_us: shift in µs, a number or ``(B,)``.
+
+    Shape:
+        - batch: an EventBatch of B streams with N events.
+        - output: an EventBatch of the same B streams, sensor and grid, N events.
 
     Example:
         >>> from event_transforms import EventBatch
@@ -706,7 +866,26 @@ def time_skew(batch: EventBatch, coefficient: Scalars, offset_us: Scalars = 0.0)
 @register_kernel(time_skew, EventBatch)
 def time_skew_events(batch: EventBatch, coefficient: Tensor, offset_us: Tensor) -> EventBatch:
     """``t -> t0 + coefficient[b] (t - t0) + offset_us[b]`` about the stream's grid start
-    ``t0`` (the first event's time without a grid), rounded for integer timestamps. Sync-free."""
+    ``t0`` (the first event's time without a grid), rounded for integer timestamps. Sync-free.
+
+    Args:
+        batch: the event streams.
+        coefficient: ``(B,)`` time stretch factors.
+        offset_us: ``(B,)`` shifts in microseconds.
+
+    Shape:
+        - batch: B streams, N events.
+        - coefficient, offset_us: ``(B,)``.
+        - output: the same streams and events.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
+        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
+        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
+        >>> time_skew_events(batch, torch.tensor([2.0, 1.0]), torch.tensor([0.0, 10.0])).t.tolist()  # about t0 = 0
+        [200, 30000, 60]
+    """
     if batch.t_start is not None:
         origin = _per_event(batch.t_start.to(torch.float64), batch)
     else:

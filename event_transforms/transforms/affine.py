@@ -116,6 +116,12 @@ class RandomRotation(_Rotation):
         center, mode: as in :class:`Rotate`.
         p: probability that a sample is rotated.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel).
+
     Example:
         >>> transform = RandomRotation(45.0)
         >>> transform.make_params((3, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["angle"]
@@ -142,6 +148,12 @@ class Resize(_Zoom):
         scale: the paper's β = target size / source size (finite, > 0).
         center, mode: as in :class:`Rotate`.
         p: probability that a sample is resized.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel).
 
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
@@ -172,6 +184,12 @@ class RandomResize(_Zoom):
         choices: zoom factors, all > 0.
         center, mode: as in :class:`Rotate`.
         p: probability that a sample is resized.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel).
 
     Example:
         >>> transform = RandomResize(choices=(15 / 18, 15 / 12))
@@ -241,6 +259,12 @@ class Affine(_AffineWarp):
             or ``"nearest"`` (dtype kept).
         p: probability that a sample is warped.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel; no shear).
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
         >>> frames[0, 1, 2, 4] = 1.0
@@ -298,6 +322,12 @@ class RandomAffine(_AffineWarp):
             ``None`` for none.
         center, mode: as in :class:`Affine`.
         p: probability that a sample is warped.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (each event moved to its
+        nearest pixel; no shear).
 
     Example:
         >>> transform = RandomAffine(10.0, translate=(0.1, 0.1), scale=(0.9, 1.1), shear=5.0)
@@ -379,6 +409,10 @@ class RandomPerspective(_Warp):
             or ``"nearest"`` (dtype kept).
         p: probability that a sample is warped.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+
     Example:
         >>> transform = RandomPerspective(0.3)
         >>> frames = torch.ones(2, 4, 2, 9, 11)
@@ -427,6 +461,10 @@ class RandomElastic(_Warp):
         mode: ``"bilinear"`` (float output: input dtype for floats, float32 for integers)
             or ``"nearest"`` (dtype kept).
         p: probability that a sample is warped.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
 
     Example:
         >>> transform = RandomElastic(alpha=20.0, sigma=3.0)

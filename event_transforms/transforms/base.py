@@ -260,6 +260,10 @@ class EventTransform(nn.Module):
         p: probability that a sample is transformed; the others pass unchanged. Drawn
             per sample in :meth:`make_params` (entry ``"apply"``) when ``p < 1``.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        for a subclass with an event kernel; each subclass states its output.
+
     Example:
         >>> import event_transforms as et
         >>> rotation = et.RandomRotation(30.0, p=0.5)
@@ -558,6 +562,13 @@ class Lambda(EventTransform):
     parameters (its tree entry is empty) and is called on the whole batch
     ``(B, T, 2, H, W)``; it must keep the shape.
 
+    Args:
+        function: ``frames -> frames``, shape kept (a torchvision transform works).
+
+    Shape:
+        ``(B, T, 2, H, W)`` in and out (a single ``(T, 2, H, W)`` sequence is given a batch
+        dimension first, as for every transform).
+
     Example:
         >>> double = Lambda(lambda frames: 2 * frames)
         >>> double(torch.ones(1, 2, 1, 1)).flatten().tolist()
@@ -598,8 +609,20 @@ def as_transform(transform: object, name: str = "transform") -> EventTransform:
     ``torch.from_numpy`` and ``torch.as_tensor`` become a pass-through: a container
     converts numpy frames once, before its members run.
 
+    Args:
+        transform: an event transform, or a callable ``frames -> frames``.
+        name: what to call ``transform`` in the error message.
+
     Raises:
         TypeError: ``transform`` is not callable.
+
+    Example:
+        >>> as_transform(torch.neg)
+        Lambda(neg)
+        >>> as_transform(3, name="transforms[1]")
+        Traceback (most recent call last):
+        ...
+        TypeError: transforms[1] must be an EventTransform or a callable, got int
     """
     if isinstance(transform, EventTransform):
         return transform

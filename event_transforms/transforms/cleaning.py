@@ -29,6 +29,9 @@ class Denoise(EventTransform):
         temporal_radius: temporal half-width (frames, >= 0).
         p: probability that a sample is denoised.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+
     Example:
         >>> import torch
         >>> frames = torch.zeros(3, 2, 5, 5)

@@ -71,6 +71,11 @@ class Compose(EventTransform):
         transforms: event transforms or callables ``frames -> frames``; an
             ``EventsToFrames`` only first.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        when every member takes one; the output is what the members make of it (frames from an
+        event stream when the first member is ``EventsToFrames``).
+
     Example:
         >>> from event_transforms import FrameShift, HorizontalFlip, RandomRotation
         >>> hybrid = Compose([FrameShift(-1), HorizontalFlip()])
@@ -156,6 +161,10 @@ class OneOf(EventTransform):
         transforms: event transforms or callables, at least one.
         weights: non-negative relative probabilities, one per transform (default equal).
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        when every member takes one; the output is what the members make of it (the batch shape kept).
+
     Example:
         >>> from event_transforms import FrameShift, Resize
         >>> independent = OneOf([Resize(1.25), FrameShift(-1)])
@@ -227,6 +236,10 @@ class RandomApply(EventTransform):
     Args:
         transform: an event transform or a callable.
         p: probability per sample, in [0, 1].
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames, or an :class:`~event_transforms.EventBatch`
+        when every member takes one; the output is what the members make of it (the batch shape kept).
 
     Example:
         >>> from event_transforms import FrameShift

@@ -46,6 +46,10 @@ class RandomEventDrop(EventTransform):
         methods: the methods to choose from, uniformly.
         p: probability that a sample loses events.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (fewer events).
+
     Example:
         >>> drop = RandomEventDrop(fraction=(0.1, 0.5))
         >>> frames = torch.ones(3, 36, 2, 70, 75)
@@ -132,6 +136,10 @@ class DropPixel(EventTransform):
         frame_ms: the duration of one frame, for ``rate_hz``.
         p: probability that a sample is cleaned.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (``pixels=`` only).
+
     Example:
         >>> frames = torch.zeros(10, 2, 2, 3, dtype=torch.int32)
         >>> frames[:, 1, 0, 2] = 1  # 100 Hz
@@ -197,6 +205,10 @@ class RandomDropPixel(EventTransform):
         fraction: share of pixels dropped, in [0, 1], or a ``(min, max)`` range.
         p: probability that a sample is thinned.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> out = RandomDropPixel(0.5)(torch.ones(2, 3, 2, 20, 20), generator=torch.Generator().manual_seed(0))
         >>> [round(f, 2) for f in (out[:, 0, 0] == 0).float().mean((1, 2)).tolist()]
@@ -240,6 +252,10 @@ class RefractoryPeriod(EventTransform):
         period_us: refractory period in µs, or a ``(min, max)`` range.
         p: probability that a sample is filtered.
 
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams, fewer events. Frames raise ``TypeError`` (an event-only augmentation).
+
     Example:
         >>> import event_transforms as et
         >>> rows = torch.tensor([[1, 1, 0, 1], [1, 1, 500, 0], [1, 1, 2000, 1], [0, 0, 100, 1]])
@@ -274,6 +290,10 @@ class Decimation(EventTransform):
     Args:
         n: keep one event in n, or a ``(min, max)`` range of whole numbers (inclusive).
         p: probability that a sample is decimated.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams, fewer events. Frames raise ``TypeError`` (an event-only augmentation).
 
     Example:
         >>> import event_transforms as et

@@ -44,6 +44,14 @@ class _Roll(EventTransform):
 class Translate(_Roll):
     """Move every frame by a fixed ``(dy, dx)`` of whole pixels, zero fill. Counts and dtype kept.
 
+    Args:
+        shift: ``(dy, dx)`` whole pixels (positive: down, right).
+        p: probability that a sample is moved.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (whole sensor pixels).
+
     Example:
         >>> Translate((0, 1))(torch.ones(1, 2, 1, 3))[0, 0].tolist()
         [[0.0, 1.0, 1.0]]
@@ -71,6 +79,10 @@ class RandomTranslate(_Roll):
     Args:
         max_shift: ``m`` for both axes or ``(max_dy, max_dx)``, non-negative integers (pixels).
         p: probability that a sample is moved.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (whole sensor pixels).
 
     Example:
         >>> transform = RandomTranslate((2, 3))
@@ -173,6 +185,11 @@ class CenterCrop(_Crop):
     Args:
         size, resize, mode, p: as in :class:`RandomCrop`.
 
+    Shape:
+        ``(B, T, 2, H, W)`` -> ``(B, T, 2, h, w)``, or unchanged with ``resize=True``.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` whose sensor is the crop
+        (``resize=False``).
+
     Example:
         >>> CenterCrop(3)(torch.arange(25.).reshape(1, 1, 5, 5).expand(1, 2, 5, 5))[0, 0].tolist()
         [[6.0, 7.0, 8.0], [11.0, 12.0, 13.0], [16.0, 17.0, 18.0]]
@@ -229,6 +246,10 @@ class HorizontalFlip(EventTransform):
     Args:
         p: probability that a sample is mirrored.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> HorizontalFlip()(torch.arange(4.).reshape(1, 2, 1, 2))[0, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
@@ -245,6 +266,10 @@ class VerticalFlip(EventTransform):
     Args:
         p: probability that a sample is mirrored.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> VerticalFlip()(torch.arange(4.).reshape(1, 2, 2, 1))[0, :, :, 0].tolist()
         [[1.0, 0.0], [3.0, 2.0]]
@@ -257,6 +282,13 @@ class VerticalFlip(EventTransform):
 
 class RandomHorizontalFlip(HorizontalFlip):
     """Mirror each sequence left-right with probability ``p`` (per sample; default 0.5).
+
+    Args:
+        p: probability that a sample is mirrored (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> frames = torch.arange(8.).reshape(2, 1, 2, 1, 2)
@@ -272,6 +304,13 @@ class RandomHorizontalFlip(HorizontalFlip):
 
 class RandomVerticalFlip(VerticalFlip):
     """Mirror each sequence top-bottom with probability ``p`` (per sample; default 0.5).
+
+    Args:
+        p: probability that a sample is mirrored (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> frames = torch.arange(8.).reshape(2, 1, 2, 2, 1)
@@ -301,6 +340,10 @@ class SpatialJitter(EventTransform):
     Args:
         sigma: standard deviation in pixels, or a ``(min, max)`` range.
         p: probability that a sample is jittered.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (moved). Frames raise ``TypeError`` (an event-only augmentation).
 
     Example:
         >>> import event_transforms as et

@@ -95,6 +95,9 @@ class Cutout(EventTransform):
         size: ``n`` or ``(h, w)`` pixels.
         p: probability that a sample is cut.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+
     Example:
         >>> out = Cutout(3)(torch.ones(2, 4, 2, 9, 11), generator=torch.Generator().manual_seed(0))
         >>> out.shape, (out == 0).any().item()
@@ -184,6 +187,11 @@ class CutMix(_Mixing):
         label_key: for dict inputs, the entry holding the labels.
         p: probability that a sample is mixed (unchosen samples and their labels stay).
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept. The labels:
+        float ``(B, ...)`` kept in shape and dtype; integer class indices ``(B,)`` -> float
+        ``(B, num_classes)``.
+
     Example:
         >>> frames = torch.poisson(torch.full((4, 6, 2, 9, 11), 0.3))
         >>> force = torch.rand(4, 6)
@@ -235,6 +243,11 @@ class MixUp(_Mixing):
     Args:
         alpha: Beta parameter (> 0); small values keep λ near 0 or 1.
         num_classes, label_key, p: as in :class:`CutMix`.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (a weighted sum). The labels: float ``(B, ...)`` kept in shape and dtype; integer class
+        indices ``(B,)`` -> float ``(B, num_classes)``.
 
     Example:
         >>> frames = torch.poisson(torch.full((4, 6, 2, 9, 11), 0.3)).to(torch.int16)

@@ -137,6 +137,11 @@ class AddPoissonNoise(EventTransform):
         frame_ms: frame length in milliseconds (the paper's 10 ms).
         p: probability that a sample gets noise.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` (the noise as events over
+        the grid's window).
+
     Example:
         >>> transform = AddPoissonNoise((0.1, 10.0))
         >>> out = transform(torch.zeros(4, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))

@@ -23,6 +23,10 @@ class FlipPolarity(EventTransform):
     Args:
         p: probability that a sample is flipped.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
+
     Example:
         >>> import torch
         >>> FlipPolarity()(torch.tensor([[[[1]], [[5]]]]))[0, :, 0, 0].tolist()
@@ -37,6 +41,13 @@ class FlipPolarity(EventTransform):
 
 class RandomFlipPolarity(FlipPolarity):
     """Swap the polarities of each sequence with probability ``p`` (per sample; default 0.5).
+
+    Args:
+        p: probability that a sample is flipped (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch``.
 
     Example:
         >>> import torch
@@ -62,6 +73,9 @@ class MergePolarities(EventTransform):
 
     Args:
         p: probability that a sample's polarities are merged.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept. Channel 1 comes back zero.
 
     Example:
         >>> import torch

@@ -69,6 +69,10 @@ class Stretch(_StretchWarp):
             or ``"nearest"`` (dtype kept).
         p: probability that a sample is stretched.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
+
     Example:
         >>> frames = torch.zeros(1, 2, 5, 5)
         >>> frames[0, 1, 1:4, 2] = 1.0  # a vertical strip
@@ -102,6 +106,10 @@ class RandomStretch(_StretchWarp):
         choices: stretch factors, all > 0.
         axis, center, mode: as in :class:`Stretch`.
         p: probability that a sample is stretched.
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; float input keeps its dtype, integer
+        input gives float32 (``mode="nearest"`` keeps it).
 
     Example:
         >>> transform = RandomStretch((0.9, 1.1))

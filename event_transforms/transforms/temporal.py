@@ -255,6 +255,10 @@ class TimeReversal(EventTransform):
     Args:
         p: probability that a sample is reversed.
 
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` on the same frame grid.
+
     Example:
         >>> frames = torch.zeros(3, 2, 1, 1)
         >>> frames[0, 1] = 4.0
@@ -269,6 +273,13 @@ class TimeReversal(EventTransform):
 
 class RandomTimeReversal(TimeReversal):
     """Reverse each sequence in time (and swap polarities) with probability ``p`` (default 0.5).
+
+    Args:
+        p: probability that a sample is reversed (default 0.5).
+
+    Shape:
+        ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, unchanged; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` on the same frame grid.
 
     Example:
         >>> RandomTimeReversal(p=1.0)(torch.arange(4.).view(2, 2, 1, 1))[:, :, 0, 0].tolist()
@@ -348,6 +359,10 @@ class RandomCropTime(_CropTime):
     Args:
         length: number of kept frames (at most T).
 
+    Shape:
+        ``(B, T, 2, H, W)`` -> ``(B, length, 2, H, W)``; dtype and device kept.
+        An :class:`~event_transforms.EventBatch` gives an ``EventBatch`` whose grid is ``length`` bins.
+
     Example:
         >>> transform = RandomCropTime(30)
         >>> transform.make_params((3, 36, 2, 70, 75), generator=torch.Generator().manual_seed(0))["start"].tolist()
@@ -379,6 +394,10 @@ class TimeJitter(EventTransform):
     Args:
         std_us: standard deviation in µs, or a ``(min, max)`` range.
         p: probability that a sample is jittered.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (retimed; no longer time-sorted). Frames raise ``TypeError`` (an event-only augmentation).
 
     Example:
         >>> import event_transforms as et
@@ -415,6 +434,10 @@ class TimeSkew(EventTransform):
         coefficient: factor, or a ``(min, max)`` range (must be positive).
         offset_us: shift in µs, or a ``(min, max)`` range.
         p: probability that a sample is skewed.
+
+    Shape:
+        An :class:`~event_transforms.EventBatch` of B streams in, an ``EventBatch`` out:
+        the same streams and events (retimed). Frames raise ``TypeError`` (an event-only augmentation).
 
     Example:
         >>> import event_transforms as et
