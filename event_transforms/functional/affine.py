@@ -1048,6 +1048,17 @@ def perspective_events(batch: EventBatch, corners: Tensor, mode: str = "bilinear
     homography's horizon, are dropped with a warning. Float64 arithmetic, one gather of
     the nine coefficients per event whatever B; host reads: the dropped and kept counts.
 
+    Args:
+        batch: the event streams.
+        corners: ``(B, 4, 2)`` float64 ``(y, x)`` targets of the frame's corners, checked
+            convex (as :func:`perspective` checks them).
+        mode: not used (each event lands in one pixel).
+
+    Shape:
+        - batch: B streams, N events.
+        - corners: ``(B, 4, 2)``.
+        - output: B streams, at most N events (those on the sensor, in their order).
+
     Example:
         >>> from event_transforms import EventBatch
         >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 0, 1], [4, 4, 0, 1]])], sensor_size=(5, 5))
@@ -1084,6 +1095,18 @@ def elastic_events(batch: EventBatch, noise: Tensor, alpha: Tensor, sigma: float
     a field that folds the image has no inverse and the last step is used. Events off the
     sensor are dropped with a warning. No loop over the samples; host reads: the dropped
     and kept counts.
+
+    Args:
+        batch: the event streams.
+        noise: ``(B, 2, H, W)`` raw displacements in [-1, 1] on the batch's sensor.
+        alpha: ``(B,)`` strengths in pixels (>= 0).
+        sigma: smoothness of the field in pixels (> 0).
+        mode: not used (each event lands in one pixel).
+
+    Shape:
+        - batch: B streams, N events on an ``(H, W)`` sensor.
+        - noise: ``(B, 2, H, W)``; alpha: ``(B,)``.
+        - output: B streams, at most N events (those on the sensor, in their order).
 
     Example:
         >>> from event_transforms import EventBatch

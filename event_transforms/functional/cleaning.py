@@ -156,6 +156,15 @@ def denoise_events(batch: EventBatch, radius: int, temporal_radius: int) -> Even
     the grid's window or the sensor have no entry: they are kept, and the binning drops them
     with its warning. One host read (of the kept counts).
 
+    Args:
+        batch: the event streams, with a frame grid (``frame_ms``, ``n_frames``).
+        radius: spatial half-width of the window in pixels (>= 0).
+        temporal_radius: temporal half-width in bins of the grid (>= 0).
+
+    Shape:
+        - batch: B streams, N events.
+        - output: B streams, at most N events (in their order).
+
     Example:
         >>> from event_transforms import EventBatch
         >>> events = torch.tensor([[0, 0, 1500, 1], [3, 3, 500, 0], [4, 4, 1200, 1]])  # (x, y, t, p)

@@ -456,6 +456,15 @@ def downsample_events(batch: EventBatch, factor: tuple[int, int], remainder: str
     already outside the sensor stays outside (``c < 0`` floors below 0, ``c >= n`` goes to
     ``n' + (c - n) // f``), so a partial last block under ``"keep"`` does not take it in.
 
+    Args:
+        batch: the event streams.
+        factor: ``(fy, fx)`` positive integers.
+        remainder: ``"drop"`` or ``"keep"``, as in :func:`downsample` (sets the new sensor size).
+
+    Shape:
+        - batch: B streams, N events on an ``(H, W)`` sensor.
+        - output: the same streams and events on ``(H', W')``.
+
     Example:
         >>> from event_transforms import EventBatch
         >>> batch = EventBatch.from_streams([torch.tensor([[3, 4, 0, 1], [5, 1, 0, 0]])], sensor_size=(5, 6))

@@ -279,6 +279,15 @@ def cutout_events(batch: EventBatch, top: Tensor, left: Tensor, height: Tensor, 
     """Kernel of :func:`cutout` for an EventBatch: the events inside sample b's box removed.
     One host read (of the kept counts); binned, equal to :func:`cutout_frames`.
 
+    Args:
+        batch: the event streams.
+        top, left, height, width: ``(B,)`` integer boxes.
+
+    Shape:
+        - batch: B streams, N events.
+        - top, left, height, width: ``(B,)``.
+        - output: B streams, at most N events (in their order).
+
     Example:
         >>> from event_transforms import EventBatch
         >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 0, 1], [2, 1, 0, 1]])], sensor_size=(3, 4))
@@ -328,6 +337,16 @@ def cutmix_events(
     and takes sample ``partner[b]``'s events inside it (see the module docstring). One host
     read (of the kept counts); binned, equal to :func:`cutmix_frames`.
 
+    Args:
+        batch: the event streams.
+        partner: ``(B,)`` indices of each stream's partner in the batch.
+        top, left, height, width: ``(B,)`` integer boxes.
+
+    Shape:
+        - batch: B streams, N events.
+        - partner, top, left, height, width: ``(B,)``.
+        - output: B streams; stream b holds its own events outside its box, then its partner's inside.
+
     Example:
         >>> from event_transforms import EventBatch
         >>> a, b = torch.tensor([[0, 0, 0, 1], [1, 0, 0, 1]]), torch.tensor([[1, 0, 0, 0], [2, 0, 0, 0]])
@@ -354,6 +373,17 @@ def mixup_events(batch: EventBatch, partner: Tensor, weight: Tensor, seed: Tenso
     hash of sample b's ``seed`` and a counter, ``2·position + (0 for its own event, 1 for
     one of the partner's)`` (:mod:`~event_transforms.functional._random`): a sample's output depends only on its
     own events, its partner's and its seed. One host read (of the kept counts).
+
+    Args:
+        batch: the event streams.
+        partner: ``(B,)`` indices of each stream's partner in the batch.
+        weight: ``(B,)`` the stream's own share in [0, 1].
+        seed: ``(B,)`` int64 per-sample seeds of the draws.
+
+    Shape:
+        - batch: B streams, N events.
+        - partner, weight, seed: ``(B,)``.
+        - output: B streams; stream b holds its kept own events, then those taken from its partner.
 
     Example:
         >>> from event_transforms import EventBatch

@@ -158,6 +158,14 @@ def merge_polarities_events(batch: EventBatch, keepdim: bool = True) -> EventBat
     """Kernel of :func:`merge_polarities` for an EventBatch: every event's polarity set to 0
     (OFF), so binned, channel 0 holds all events and channel 1 none, as on frames. Sync-free.
 
+    Args:
+        batch: the event streams.
+        keepdim: must be true (one channel is a frame layout).
+
+    Shape:
+        - batch: B streams, N events.
+        - output: the same streams and events, ``p`` all 0.
+
     Raises:
         ValueError: ``keepdim=False`` (one channel is a frame layout; bin first).
 

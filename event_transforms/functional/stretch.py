@@ -275,6 +275,18 @@ def stretch_events(batch: EventBatch, factor: Tensor, axis: str | Tensor, center
     Events moved off the sensor are kept (binning drops them, with its warning), as for
     :func:`~event_transforms.functional.rotate`. Sync-free; a fixed number of ops whatever B.
 
+    Args:
+        batch: the event streams.
+        factor: ``(B,)`` stretch factors k > 0.
+        axis: ``"contact"`` or ``(B,)`` degrees, as in :func:`stretch`.
+        center: ``"mass"``, ``"image"``, a ``(y, x)`` pair or a ``(B, 2)`` tensor.
+        mode: not used (each event lands in one pixel).
+
+    Shape:
+        - batch: B streams, N events.
+        - factor: ``(B,)``.
+        - output: the same streams and events (events may leave the sensor).
+
     Example:
         >>> from event_transforms import EventBatch
         >>> events = torch.tensor([[1, 2, 0, 1], [2, 2, 0, 1], [3, 2, 0, 1], [2, 3, 0, 1]])  # (x, y, t, p)
