@@ -71,7 +71,7 @@ FRAME_DTYPES = (
 HOST_READ = "event_transforms::host_read"
 
 
-def read_host(values: Tensor) -> list[Any]:
+def read_host(values: Tensor) -> Any:
     """``values.tolist()`` for a small tensor computed on the frames' device: the one way a
     kernel reads device numbers on the host (a host synchronisation on an accelerator),
     marked for ``torch.profiler`` so the synchronisations of a call can be counted on any

@@ -9,7 +9,7 @@ from __future__ import annotations
 __all__ = ["AugmentedDataset"]
 
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import torch
@@ -23,6 +23,15 @@ from .transforms.base import EventTransform, as_transform
 def _copy_seed(seed: int, index: int) -> int:
     """A 63-bit seed for synthetic item ``index``, mixed by ``SeedSequence``."""
     return int(np.random.SeedSequence([seed, index]).generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+class SizedDataset(Protocol):
+    """A map-style data set as this module reads it: ``len(data)`` items ``data[i]`` (a
+    ``torch.utils.data.Dataset`` that defines ``__len__``, or a plain list of items)."""
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, index: int) -> Any: ...
 
 
 class AugmentedDataset(Dataset):
@@ -63,7 +72,7 @@ class AugmentedDataset(Dataset):
 
     def __init__(
         self,
-        base: Dataset,
+        base: SizedDataset,
         transform: EventTransform | Callable[[Tensor], Tensor],
         copies: int = 1,
         *,

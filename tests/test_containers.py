@@ -206,3 +206,20 @@ BATTERY = {
     "OneOf": lambda t, h, w: et.OneOf([et.RandomResize(choices=(0.83, 1.25)), et.FrameShift(-1)]),
     "RandomApply": lambda t, h, w: et.RandomApply(et.RandomFrameShift((-1, 1)), p=0.5),
 }
+
+
+def test_torch_module_apply_reaches_every_submodule():
+    """``nn.Module.apply(fn)`` on a tree that holds transforms calls ``fn`` on each submodule
+    (a transform's own ``apply(inputs, params)`` answers torch's one-callable call)."""
+    seen: list[str] = []
+    tree = nn.Sequential(
+        et.Compose([et.RandomRotation(10.0), et.OneOf([et.RandomFrameShift([1]), et.AddPoissonNoise(5.0)])]),
+        nn.Conv2d(2, 2, 3),
+    )
+    assert tree.apply(lambda m: seen.append(type(m).__name__)) is tree
+    assert seen.count("RandomRotation") == 1 and seen.count("RandomFrameShift") == 1
+    assert {"Compose", "OneOf", "AddPoissonNoise", "Conv2d", "Sequential"} <= set(seen)
+    frames = torch.poisson(torch.full((2, 3, 2, 6, 6), 0.5))
+    params = et.RandomRotation(10.0).make_params(frames.shape, generator=torch.Generator().manual_seed(0))
+    rotation = et.RandomRotation(10.0)
+    assert torch.equal(rotation(frames, params=params), rotation(frames, params=params))  # the transform path is untouched

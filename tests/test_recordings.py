@@ -369,6 +369,90 @@ class TestBadInput:
         assert list((tmp_path / "cache").glob("*")) in ([], [tmp_path / "cache" / "hashes.json"])
 
 
+def seconds_folder(source: Path, root: Path) -> Path:
+    """A copy of ``source`` whose event files hold float64 seconds, ``(t_us + 0.5) / 1e6``: half
+    a microsecond off the integer grid, so the rounding of the conversion back to microseconds
+    cannot move an event across a bin edge (the frames must equal the microsecond file's)."""
+    import shutil
+
+    shutil.copytree(source, root)
+    for path in root.glob("r*.npy"):
+        events = np.load(path)
+        seconds = np.zeros(len(events), dtype=[("x", "<i2"), ("y", "<i2"), ("t", "<f8"), ("p", "<i1")])
+        for c in "xyp":
+            seconds[c] = events[c]
+        seconds["t"] = (events["t"] + 0.5) / 1e6
+        np.save(path, seconds)
+    return root
+
+
+class TestTimeUnit:
+    def test_float_seconds_file_equals_the_microsecond_file(self, folder, cache, tmp_path):
+        root = seconds_folder(folder, tmp_path / "s")
+        for split in ("train", "val", "unlabeled"):
+            us = RecordingSet(folder, split=split, cache=cache, **SMALL)
+            s = RecordingSet(root, split=split, cache=tmp_path / "c", time_unit="s", **SMALL)
+            assert len(s) == len(us) > 0 and s.crop == us.crop and s.crop_source == us.crop_source
+            for i in range(len(us)):
+                (f_us, force_us, meta_us), (f_s, force_s, meta_s) = us[i], s[i]
+                assert torch.equal(f_us, f_s) and meta_us == meta_s
+                assert torch.equal(force_us, force_s) or (force_us.isnan().all() and force_s.isnan().all())
+        # the same as the library's binning of the seconds file (events_to_frames, time_unit="s")
+        data = RecordingSet(root, split="val", cache=tmp_path / "c", time_unit="s", crop=(4, 6, 20, 30), **SMALL)
+        expected = events_to_frames(np.load(root / "r6.npy"), sensor_size=SENSOR, crop=(4, 6, 20, 30), pool=2,
+                                    time_unit="s")
+        torch.testing.assert_close(torch.cat([data[0][0], data[1][0]]), expected[:24], rtol=0, atol=0)
+        assert data.settings.as_dict()["time_unit"] == "s" and "time_unit" not in RecordingSettings().as_dict()
+
+    def test_seconds_without_a_unit_are_refused_naming_it(self, folder, tmp_path):
+        root = seconds_folder(folder, tmp_path / "s")
+        with pytest.raises(ValueError, match=r"row 2 \(r0.npy\): timestamps look like seconds.*time_unit='s'"):
+            RecordingSet(root, split="train", cache=tmp_path / "c", **SMALL)
+        with pytest.raises(ValueError, match=r"time_unit must be one of .*got 'sec'"):
+            RecordingSettings(time_unit="sec")
+        with pytest.raises(ValueError, match=r"time_unit must be one of .*got 'sec'"):
+            RecordingSet(root, split="train", cache=tmp_path / "c", time_unit="sec", **SMALL)
+
+    def test_integer_milliseconds(self, tmp_path):
+        """Whole-millisecond integer timestamps with time_unit="ms" bin like the same events in µs."""
+        root = make_folder(tmp_path / "us", train=3, deploy=2, unlabeled=0)
+        ms = tmp_path / "ms"
+        import shutil
+
+        shutil.copytree(root, ms)
+        for path in sorted(root.glob("r*.npy")):
+            events = np.load(path)
+            events["t"] = events["t"] // 1000 * 1000  # whole milliseconds, still sorted
+            np.save(path, events)
+            events["t"] //= 1000
+            np.save(ms / path.name, events)
+        us_set = RecordingSet(root, split="train", cache=tmp_path / "c", **SMALL)
+        ms_set = RecordingSet(ms, split="train", cache=tmp_path / "c", time_unit="ms", **SMALL)
+        assert len(us_set) == len(ms_set) > 0
+        assert all(torch.equal(us_set[i][0], ms_set[i][0]) and torch.equal(us_set[i][1], ms_set[i][1])
+                   for i in range(len(us_set)))
+
+    def test_cli_option_and_predict_read_the_unit(self, folder, tmp_path):
+        from event_transforms.tactile.deployment import predict_stream
+        from event_transforms.tactile.models import ForceRegressor
+
+        args = cli.build_parser().parse_args(["infer-scene", "--data", str(folder), "--time-unit", "s"])
+        assert cli._recording_settings(args).time_unit == "s"
+        assert cli.build_parser().parse_args(["infer-scene", "--data", str(folder)]).time_unit is None
+        root = seconds_folder(folder, tmp_path / "s")
+        torch.manual_seed(0)
+        model = ForceRegressor(hidden_channels=(2,), input_pool=2).eval()
+        base = {"frame_ms": 10.0, "crop": [4, 6, 20, 30], "pool": 2, "sensor_size": list(SENSOR)}
+        model.preprocessing = base
+        predict_stream(model, folder / "r6.npy", tmp_path / "us.csv")
+        model.preprocessing = {**base, "time_unit": "s"}  # what train records for --time-unit s
+        predict_stream(model, root / "r6.npy", tmp_path / "s.csv")
+        assert (tmp_path / "us.csv").read_text() == (tmp_path / "s.csv").read_text()
+        with pytest.raises(ValueError, match="timestamps look like seconds"):
+            model.preprocessing = base
+            predict_stream(model, root / "r6.npy", tmp_path / "x.csv")
+
+
 class TestCache:
     def test_read_back_without_binning(self, folder, tmp_path, monkeypatch):
         first = RecordingSet(folder, split="val", cache=tmp_path, **SMALL)

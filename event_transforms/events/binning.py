@@ -53,7 +53,7 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from numbers import Integral, Real
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 import torch
@@ -478,8 +478,9 @@ def _frame_us(frame_ms: object) -> float | int:
     """Bin width in microseconds: an int when it is a whole number of microseconds."""
     if isinstance(frame_ms, Tensor) and frame_ms.dim() == 0:
         frame_ms = frame_ms.item()
+    # a numbers.Real compares like a float (typeshed gives Real no comparison operators)
     if isinstance(frame_ms, (bool, np.bool_)) or not isinstance(frame_ms, Real) or not (
-        math.isfinite(frame_ms) and frame_ms > 0
+        math.isfinite(frame_ms) and cast(float, frame_ms) > 0
     ):
         raise ValueError(f"frame_ms must be a positive finite number, got {frame_ms!r}")
     width = float(frame_ms) * 1000.0
@@ -543,7 +544,7 @@ def _explicit_starts(t_start: object, batch: int) -> Tensor:
             raise TypeError(f"t_start must hold numbers, got {v!r}")
         if not math.isfinite(v):
             raise ValueError(f"t_start must be finite, got {t_start!r}")
-        if abs(v) > _INT64_MAX:
+        if abs(cast(float, v)) > _INT64_MAX:  # a numbers.Real (exact for ints past 2**53)
             raise ValueError(f"t_start must lie within int64 microseconds, got {v!r}")
     if all(float(v).is_integer() for v in values):
         return torch.tensor([int(v) for v in values], dtype=torch.int64)
@@ -605,7 +606,9 @@ class _Grid:
         return 2 * self.out_h * self.out_w
 
 
-def _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype) -> _Grid:
+def _grid(
+    sensor_size: object, tonic_sensor_size: object, crop: object, pool: object, frame_ms: object, dtype: object
+) -> _Grid:
     height, width = _sensor(sensor_size, tonic_sensor_size)
     pool = _integer(pool, "pool")
     top, left, crop_h, crop_w = _check_crop(crop, height, width, pool)

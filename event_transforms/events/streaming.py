@@ -172,6 +172,7 @@ def _iter_frames(
         if past_window:
             break  # every later event is past the window: the remaining bins are complete
     if tally.events.item() and not tally.in_window.item():
+        assert starts is not None  # set by the first chunk that held events
         raise _empty_window_error(
             "the stream", starts.item(), t_start, frame_ms, n_frames, grid, tally.t_min[0], tally.t_max[0],
             int(tally.events.item()),

@@ -91,7 +91,9 @@ class Stream:
         return cls.of_samples(seeds, zeros, torch.arange(entries, device=device), rows)
 
 
-def _stream(stream: Stream | None, entries: int, rows: int, generator: torch.Generator | None, device) -> Stream:
+def _stream(
+    stream: Stream | None, entries: int, rows: int, generator: torch.Generator | None, device: torch.device
+) -> Stream:
     return stream if stream is not None else Stream.single(entries, rows, generator, device)
 
 
@@ -248,7 +250,8 @@ def multivariate_hypergeometric(
         return pool.clone()
     stream = _stream(stream, pool.numel(), size.numel(), generator, pool.device)
     if stats is None:
-        stats = tuple(int(v) for v in read_host(torch.stack(level_stats(size, total))))
+        widest, small = (int(v) for v in read_host(torch.stack(level_stats(size, total))))
+        stats = (widest, small)
     draw, width = stats
     if draw <= _SMALL:
         return _small_subsets(pool, segment, size, total, stream, draw, level)
@@ -258,6 +261,8 @@ def multivariate_hypergeometric(
     size = torch.where(finish, 0, size)
     # size / total is 0 / 1 = 0 for an empty row (and for every finished row).
     prob = size.to(torch.float64) / total.clamp_min(1).to(torch.float64)
+    largest: int | None
+    events: int | None
     largest, events = (None, None) if expansion is None else expansion
     kept = binomial_counts(pool, prob, segment, stream=stream, level=level, largest=largest, events=events)
     kept_total = segment_sum(kept, segment, size.numel())

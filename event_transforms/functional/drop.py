@@ -122,6 +122,8 @@ def drop_random_frames(batch: Tensor, fraction: Tensor, mode: str, seeds: Tensor
     values = flat.index_select(0, index)
     if index.numel() == 0:
         return batch.clone()
+    if seeds is None:
+        raise ValueError(f"drop_random with mode={mode!r} needs seeds (one int64 seed per sample)")
     counts = values.to(torch.int64)
     high, events = count_stats(values, counts, hint=hint, extra=[counts.clamp_max(_EXPAND_MAX).sum()])
     volume = batch[0].numel()
@@ -163,6 +165,8 @@ def drop_random_events(
     """
     if mode != "binomial":
         raise ValueError(f"drop_random on events drops whole events: mode must be 'binomial', got {mode!r}")
+    if seeds is None:
+        raise ValueError("drop_random on events needs seeds (one int64 seed per sample)")
     _, dropped = _keys(batch, seeds, fraction)  # u < fraction, compared per sample slice
     return _compact(batch, ~dropped)
 

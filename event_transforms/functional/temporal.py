@@ -152,12 +152,12 @@ def frame_shift_frames(batch: Tensor, shifts: Tensor) -> Tensor:
         if first > 0:
             return torch.cat([zeros, batch[:, : t - first]], dim=1)
         return torch.cat([batch[:, -first:], zeros], dim=1)
-    source = np.arange(t)[None, :] - values[:, None]  # (B, T)
-    vacated = np.flatnonzero((source < 0) | (source >= t))
-    rows = (np.clip(source, 0, t - 1) + t * np.arange(b)[:, None]).reshape(-1)
-    out = batch.reshape(b * t, -1).index_select(0, torch.from_numpy(rows).to(batch.device))
-    if vacated.size:
-        out.index_fill_(0, torch.from_numpy(vacated).to(batch.device), 0)
+    origin = np.arange(t)[None, :] - values[:, None]  # (B, T)
+    emptied = np.flatnonzero((origin < 0) | (origin >= t))
+    picks = (np.clip(origin, 0, t - 1) + t * np.arange(b)[:, None]).reshape(-1)
+    out = batch.reshape(b * t, -1).index_select(0, torch.from_numpy(picks).to(batch.device))
+    if emptied.size:
+        out.index_fill_(0, torch.from_numpy(emptied).to(batch.device), 0)
     return out.view(batch.shape)
 
 
@@ -291,6 +291,8 @@ def temporal_event_shift_frames(
     out = batch.clone(memory_format=torch.contiguous_format)
     if index.numel() == 0:
         return out
+    if seeds is None:
+        raise ValueError(f"temporal_event_shift with mode={mode!r} needs seeds (one int64 seed per sample)")
     moved, high = _draw_moved(batch.shape, index, sample, values, fractions, mode, seeds, hint)
     exact = _exact_limit(batch.dtype)
     if 2 * high <= exact:  # X - Z + Z' <= 2 max X: the dtype holds every result
@@ -701,12 +703,14 @@ def _shift_events(
     """
     group, groups = _groups(batch)
     frame_us = _frame_us(batch.frame_ms)
-    n_frames = batch.n_frames
+    n_frames = _require_grid(batch, "frame shift / TES")[2]  # an int: _groups checked the grid
     device = batch.device
     inside = group < groups
     if fraction is None:
         moved = inside
     else:
+        if seed is None:
+            raise ValueError(f"temporal_event_shift on events with mode={mode!r} needs seed (one int64 per sample)")
         u, below = _keys(batch, seed, fraction)
         moved = below & inside
         if mode == "exact":

@@ -27,7 +27,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -95,10 +95,10 @@ def _seeds(text: str) -> list[int]:
     return seeds
 
 
-def _positive_number(cast: type, what: str):
+def _positive_number(cast: Callable[[str], float], what: str) -> Callable[[str], float]:
     """An argparse type: ``cast(text)``, finite and > 0, else one line naming the value."""
 
-    def parse(text: str):
+    def parse(text: str) -> float:
         try:
             value = cast(text)
         except ValueError:
@@ -279,6 +279,9 @@ def _recording_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--pool", type=_positive, default=2, help="sum-pool factor (default 2)")
     group.add_argument("--force-offset-ms", type=_finite, default=0.0,
                        help="the force clock's lag behind the events' clock in ms (default 0)")
+    group.add_argument("--time-unit", choices=("us", "ms", "s", "ns"),
+                       help="unit of the event files' timestamps (default: microseconds; float timestamps that "
+                       "look like seconds are refused without it); force files stay in t_us")
 
 
 def _recording_settings(args: argparse.Namespace) -> Any:
@@ -287,6 +290,7 @@ def _recording_settings(args: argparse.Namespace) -> Any:
     return RecordingSettings(
         sensor_size=tuple(args.sensor_size), frame_ms=args.frame_ms, frames=args.frames, stride=args.stride,
         crop=None if args.crop is None else tuple(args.crop), pool=args.pool, force_offset_ms=args.force_offset_ms,
+        time_unit=args.time_unit,
     )
 
 
@@ -518,7 +522,7 @@ def _simulate(args: argparse.Namespace) -> int:
     for name in SCENES:
         data = load_scene_data(name, root)
         _print(f"scene {name!r}: {len(data.train)} train, {len(data.val)} val, {len(data.test)} test sequences, "
-               f"static-scene bank {tuple(data.noise_bank.shape)}, ready in {data.seconds:.1f} s")
+               f"static-scene bank {'none' if data.noise_bank is None else tuple(data.noise_bank.shape)}, ready in {data.seconds:.1f} s")
     _print(f"all scenes in {time.perf_counter() - total:.1f} s (root: {root or 'package cache'})")
     return 0
 

@@ -21,7 +21,7 @@ import torch
 from torch import Tensor, nn
 from torch.utils.data import Dataset
 
-from ..data import AugmentedDataset
+from ..data import AugmentedDataset, SizedDataset
 from .methods import Method
 from .scenes import BenchmarkScene, get_scene
 from .training import Stopwatch, TimedTransform
@@ -43,15 +43,19 @@ class SceneData:
 
     ``holdout`` holds sequences of the *training* session that are not training items: the
     stopping rule's data (never deployment data). Without one, the final weights are kept.
+    ``dataset`` describes a folder of recordings (folder, files, content hash, settings, counts;
+    :func:`~event_transforms.tactile.recordings.load_recording_data`); ``None`` for the built-in
+    scenes.
     """
 
     scene: BenchmarkScene
-    train: Dataset
-    val: Dataset
-    test: Dataset
+    train: SizedDataset
+    val: SizedDataset
+    test: SizedDataset
     noise_bank: torch.Tensor | None = None
     seconds: float = 0.0
-    holdout: Dataset | None = None
+    holdout: SizedDataset | None = None
+    dataset: dict[str, Any] | None = None
 
 
 def load_scene_data(
@@ -82,7 +86,7 @@ class MaterializedDataset(Dataset):
     memory) and returned as float32, so an item reads back exactly as it was computed.
     """
 
-    def __init__(self, data: Dataset) -> None:
+    def __init__(self, data: SizedDataset) -> None:
         self.items = []
         for index in range(len(data)):
             frames, force, *rest = data[index]
@@ -104,7 +108,7 @@ class MaterializedDataset(Dataset):
 
 def build_training_set(
     method: Method, data: SceneData, *, seed: int, fixed: bool, stopwatch: Stopwatch
-) -> Dataset:
+) -> SizedDataset:
     """The training items followed by ``method.copies`` synthetic copies of each.
 
     One :class:`~event_transforms.AugmentedDataset` whose transform (wrapped in a
@@ -130,7 +134,7 @@ class OnlineCopies(Dataset):
         (3, {'diameter_mm': 12.0, 'copy': 2})
     """
 
-    def __init__(self, base: Dataset, copies: int) -> None:
+    def __init__(self, base: SizedDataset, copies: int) -> None:
         if isinstance(copies, bool) or not isinstance(copies, int) or copies < 0:
             raise ValueError(f"copies must be a non-negative int, got {copies!r}")
         self.base, self.copies = base, copies

@@ -100,8 +100,9 @@ def predict_stream(
     *,
     chunk_size: int = 2**16,
 ) -> dict[str, Any]:
-    """Stream an event file through ``model`` (binned as its ``preprocessing`` says) and write
-    ``t_us,force_n`` per frame to ``out``.
+    """Stream an event file through ``model`` (binned as its ``preprocessing`` says, its
+    timestamps read in the training recordings' ``time_unit``) and write ``t_us,force_n`` per
+    frame to ``out``.
 
     ``t_us`` is each frame's centre on the force files' clock (the events' clock minus the
     checkpoint's ``force_offset_ms``), so the output reads back as a force file of the layout.
@@ -121,7 +122,8 @@ def predict_stream(
         raise ValueError(f"events file {str(path)!r} does not exist")
     sensor = tuple(settings["sensor_size"])
     source = _EventFile(path)
-    scan = _scan(source, sensor, str(path))  # checked first: sorted, inside the sensor, microseconds
+    time_unit = settings.get("time_unit")  # the training recordings' unit (None: microseconds)
+    scan = _scan(source, sensor, str(path), time_unit)  # checked first: sorted, inside the sensor, units
     frame_ms = float(settings["frame_ms"])
     frame_us = frame_ms * 1000.0
     t0 = (scan.t_min // frame_us) * frame_us
@@ -135,7 +137,7 @@ def predict_stream(
     with torch.no_grad(), open(temporary, "w") as handle:
         handle.write("t_us,force_n\n")
         frames = iter_frames(source.chunks(chunk_size), sensor_size=sensor, t_start=t0, frame_ms=frame_ms,
-                             crop=tuple(settings["crop"]), pool=int(settings["pool"]))
+                             crop=tuple(settings["crop"]), pool=int(settings["pool"]), time_unit=time_unit or "us")
         for frame in frames:
             tick = time.perf_counter()
             force, state = model.step(frame.unsqueeze(0), state)

@@ -133,10 +133,11 @@ def gather_to_rank0(mine: dict[str, Any]) -> dict[str, Any] | None:
 
     dist.barrier()
     rank, world = dist.get_rank(), dist.get_world_size()
-    gathered: list[Any] | None = [None] * world if rank == 0 else None
-    dist.gather_object(mine, gathered, dst=0)
     if rank != 0:
+        dist.gather_object(mine, None, dst=0)
         return None
+    gathered: list[Any] = [None] * world
+    dist.gather_object(mine, gathered, dst=0)
     return {k: v for part in gathered for k, v in part.items()}
 
 

@@ -67,13 +67,14 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
 from .models import (
+    ConvLSTMCell,
     ForceRegressor,
     _check_positive_int,
     _feature_channels,
@@ -130,6 +131,14 @@ def _grouped_conv(x: Tensor, weight: Tensor, groups: int) -> Tensor:
     else:
         y = torch.matmul(weight.reshape(members, out, channels), x.reshape(n, members, channels, height * width))
     return y.reshape(n, members * out, height, width)
+
+
+def _gate_bias(cell: ConvLSTMCell) -> Tensor:
+    """A cell's gate bias (ForceRegressor builds every cell with one)."""
+    bias = cell.input_conv.bias
+    if bias is None:
+        raise ValueError("an ensemble member's ConvLSTM cells need a gate bias (bias=True); this cell has none")
+    return bias
 
 
 class _GroupedCell(nn.Module):
@@ -204,6 +213,10 @@ class EnsembleForceRegressor(nn.Module):
         ((3, 2, 4), True)
     """
 
+    # buffers (register_buffer), declared for the type checker
+    force_offset: Tensor
+    force_scale: Tensor
+
     def __init__(self, members: int, **kwargs: Any) -> None:
         super().__init__()
         members = _check_positive_int(members, "members")
@@ -234,12 +247,17 @@ class EnsembleForceRegressor(nn.Module):
         self.register_buffer("force_offset", torch.zeros(members))
         self.register_buffer("force_scale", torch.ones(members))
 
+    @property
+    def _layers(self) -> tuple[_GroupedCell, ...]:
+        """The layers' grouped cells in order: the items of ``cells``, typed."""
+        return tuple(cast(_GroupedCell, cell) for cell in self.cells)
+
     @torch.no_grad()
     def _load_models(self, models: Sequence[ForceRegressor]) -> None:
-        for index, cell in enumerate(self.cells):
-            sources = [m.lstm.cells[index] for m in models]
+        for index, cell in enumerate(self._layers):
+            sources = [m.lstm.layers[index] for m in models]
             cell.input_weight.copy_(torch.stack([s.input_conv.weight for s in sources]))
-            cell.input_bias.copy_(torch.stack([s.input_conv.bias for s in sources]))
+            cell.input_bias.copy_(torch.stack([_gate_bias(s) for s in sources]))
             cell.recurrent_weight.copy_(torch.stack([s.recurrent_conv.weight for s in sources]))
         self.head_weight.copy_(torch.stack([m.head.weight[0] for m in models]))
         self.head_bias.copy_(torch.stack([m.head.bias[0] for m in models]))
@@ -276,9 +294,9 @@ class EnsembleForceRegressor(nn.Module):
         if isinstance(index, bool) or not isinstance(index, int) or not -self.members <= index < self.members:
             raise IndexError(f"index must be an int in [0, {self.members}), got {index!r}")
         model = ForceRegressor(**self.config).to(device=self.head_weight.device, dtype=self.head_weight.dtype)
-        for cell, source in zip(model.lstm.cells, self.cells):
+        for cell, source in zip(model.lstm.layers, self._layers):
             cell.input_conv.weight.copy_(source.input_weight[index])
-            cell.input_conv.bias.copy_(source.input_bias[index])
+            _gate_bias(cell).copy_(source.input_bias[index])
             cell.recurrent_conv.weight.copy_(source.recurrent_weight[index])
         model.head.weight.copy_(self.head_weight[index].unsqueeze(0))
         model.head.bias.copy_(self.head_bias[index].unsqueeze(0))
@@ -371,7 +389,7 @@ class EnsembleForceRegressor(nn.Module):
         if not shared:  # (M*B*T, C', h, w) -> (B*T, M*C', h, w), member-major channels
             x = x.unflatten(0, (members, batch * steps)).transpose(0, 1).flatten(1, 2)
         first = x
-        for index, cell in enumerate(self.cells):
+        for index, cell in enumerate(self._layers):
             if index:
                 x = F.avg_pool2d(x, 2)
             gates = cell.input_gates(x, shared and index == 0)
@@ -667,12 +685,12 @@ def fit_ensemble(
     if fixed_data:
         for m, data in enumerate(train_sets):
             if (augment is None or augment[m] is None) and id(data) not in pooled_sets:
-                pooled, forces = [], []
-                for start in range(0, len(data), 16):  # 16 raw items in memory at a time
-                    frames, force, _ = collate([data[i] for i in range(start, min(start + 16, len(data)))])
-                    pooled.append(model.pool(frames.to(device)))
+                chunks, forces = [], []
+                for first in range(0, len(data), 16):  # 16 raw items in memory at a time
+                    frames, force, _ = collate([data[i] for i in range(first, min(first + 16, len(data)))])
+                    chunks.append(model.pool(frames.to(device)))
                     forces.append(force.to(device))
-                pooled_sets[id(data)] = (torch.cat(pooled), torch.cat(forces))
+                pooled_sets[id(data)] = (torch.cat(chunks), torch.cat(forces))
     if batches is None:
         batches = [shuffled_batches(len(data), batch_size, steps, seed=seed) for data, seed in zip(train_sets, seeds)]
     else:
@@ -688,6 +706,7 @@ def fit_ensemble(
     watch = stopwatch if stopwatch is not None else Stopwatch()
     params = list(model.parameters())
     optimiser = torch.optim.Adam(params, lr=lr_max)
+    scheduler: torch.optim.lr_scheduler.LRScheduler | None
     if schedule == "one-cycle":
         scheduler = torch.optim.lr_scheduler.OneCycleLR(optimiser, max_lr=lr_max, total_steps=steps)
     elif schedule == "cosine":
@@ -717,14 +736,15 @@ def fit_ensemble(
             indices = batches[m][step]
             if id(train_sets[m]) in pooled_sets and (augment is None or augment[m] is None):
                 pooled, force = pooled_sets[id(train_sets[m])]
-                index = indices.to(device)
-                inputs.append(pooled.index_select(0, index))
-                targets.append(force.index_select(0, index))
+                rows = indices.to(device)
+                inputs.append(pooled.index_select(0, rows))
+                targets.append(force.index_select(0, rows))
                 continue
             frames, force, metas = _stack_member_batch(train_sets[m], indices, collate)
             frames = frames.to(device, non_blocking=True)
-            if augment is not None and augment[m] is not None:
-                frames = augment[m](frames, metas)
+            member_augment = None if augment is None else augment[m]
+            if member_augment is not None:
+                frames = member_augment(frames, metas)
             inputs.append(model.pool(frames))  # pooled per member: M small tensors stacked
             targets.append(force.to(device, non_blocking=True))
         frames, force = torch.stack(inputs), torch.stack(targets)

@@ -30,24 +30,33 @@ import re
 import statistics
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import torch
-from torch import nn
-from torch.utils.data import Dataset
 
 from .._validation import check_positive
 from . import distributed
-from .copies import DeviceAugment, OnlineCopies, SceneData, build_training_set, load_scene_data, paired_batches
+from .copies import (
+    DeviceAugment,
+    OnlineCopies,
+    SceneData,
+    SizedDataset,
+    build_training_set,
+    load_scene_data,
+    paired_batches,
+)
 from .methods import methods_for, parse_method
 from .report import format_report
 from .scenes import SCENES, BenchmarkScene, get_scene
 from .stats import deltas_vs_none, paired_t, summarize_scene
 from .runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
 from .training import Stopwatch, phase_mse, write_json_atomic
+
+if TYPE_CHECKING:
+    from .ensemble import EnsembleForceRegressor
 
 __all__ = [
     "ProtocolConfig",
@@ -125,12 +134,12 @@ class ProtocolConfig:
         return hashlib.sha256(text.encode()).hexdigest()[:10]
 
 
-def _force_stats(data: Dataset) -> tuple[float, float]:
+def _force_stats(data: SizedDataset) -> tuple[float, float]:
     forces = torch.stack([torch.as_tensor(data[i][1]).double() for i in range(len(data))])
     return float(forces.mean()), float(forces.std()) if forces.numel() > 1 else 1.0
 
 
-def _evaluate(model: nn.Module, data: Dataset, batch_size: int = 16) -> tuple[torch.Tensor, torch.Tensor]:
+def _evaluate(model: EnsembleForceRegressor, data: SizedDataset, batch_size: int = 16) -> tuple[torch.Tensor, torch.Tensor]:
     """Predicted and measured force ``(M, N, T)`` / ``(N, T)`` (float64, CPU) of an ensemble."""
     from .baselines import stack_items
     from .ensemble import predict_ensemble
@@ -166,6 +175,7 @@ def run_unit(
     scene = data.scene if isinstance(scene, str) and scene == data.scene.name else get_scene(scene)
     parsed = [parse_method(m, copies=config.copies, scene=scene) for m in methods]
     offset, scale = _force_stats(data.train)
+    augment: list[DeviceAugment | None]
     models, train_sets, member_seeds, aug_once, augment, batches = [], [], [], [], [], []
     watch = Stopwatch()
     for method in parsed:
@@ -204,6 +214,7 @@ def run_unit(
     for index, record in enumerate(result.members):
         method = parsed[index // len(seeds)]
         size = len(train_sets[index])
+        member_augment = augment[index]
         test_phases = phase_mse(test_pred[index], test_target)
         out.setdefault(method.name, []).append(
             {
@@ -226,7 +237,7 @@ def run_unit(
                 "aug_s_once": aug_once[index],
                 # online copies: this member's augmentation time, per pass over its set
                 "aug_s_per_epoch": (
-                    augment[index].stopwatch.seconds * size / max(passes, 1) if augment[index] is not None else 0.0
+                    member_augment.stopwatch.seconds * size / max(passes, 1) if member_augment is not None else 0.0
                 ),
                 # one ensemble trains every member at once: its time is shared equally
                 "train_s": result.train_s / len(result.members),
@@ -262,7 +273,7 @@ def _resolve(scene: str, data: dict[str, SceneData] | None) -> BenchmarkScene:
 
 
 def _units(
-    scenes: Sequence[str], methods: dict[str, Sequence[str]], group: str, data: dict[str, SceneData] | None = None
+    scenes: Sequence[str], methods: Mapping[str, Sequence[str]], group: str, data: dict[str, SceneData] | None = None
 ) -> list[_Unit]:
     """Work units; the costly ones (many copies) first, so ranks finish together."""
     units = []
@@ -276,14 +287,14 @@ def _units(
 
 
 def _budget_scenes(
-    scenes: Sequence[str], chosen: dict[str, Sequence[str]], data: dict[str, SceneData] | None = None
+    scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], data: dict[str, SceneData] | None = None
 ) -> list[str]:
     """The scenes whose verdicts get a budget check: a gap, ``none`` and another method."""
     return [s for s in scenes if _resolve(s, data).gaps and "none" in chosen[s] and len(chosen[s]) > 1]
 
 
 def choose_methods(
-    scenes: Sequence[str], methods: dict[str, Sequence[str]] | Sequence[str] | None = None, *, full: bool = False,
+    scenes: Sequence[str], methods: Mapping[str, Sequence[str]] | Sequence[str] | None = None, *, full: bool = False,
     data: dict[str, SceneData] | None = None,
 ) -> dict[str, tuple[str, ...]]:
     """Each scene's methods: given per scene, given for all, or :func:`methods_for`; every name
@@ -294,7 +305,7 @@ def choose_methods(
         {'control': ('none', 'fs2')}
     """
     resolved = {s: _resolve(s, data) for s in scenes}
-    if isinstance(methods, dict):
+    if isinstance(methods, Mapping):
         chosen = {s: tuple(methods.get(s, methods_for(resolved[s], full=full))) for s in scenes}
     elif methods is not None:
         chosen = {s: tuple(methods) for s in scenes}
@@ -309,7 +320,7 @@ def choose_methods(
 
 
 def plan_run(
-    scenes: Sequence[str], methods: dict[str, Sequence[str]], seeds: Sequence[int], config: ProtocolConfig, *,
+    scenes: Sequence[str], methods: Mapping[str, Sequence[str]], seeds: Sequence[int], config: ProtocolConfig, *,
     group: str = "method", budget_check: bool = True, data: dict[str, SceneData] | None = None,
 ) -> dict[str, Any]:
     """What a run costs before it starts: units, members and member-steps (one member = one
@@ -519,7 +530,7 @@ def _per_method(units: list[_Unit], results: dict[str, Any], scene: str, names: 
 
 
 def _budget_choices(units: list[_Unit], results: dict[str, Any], scenes: list[str],
-                    chosen: dict[str, Sequence[str]]) -> dict[str, str]:
+                    chosen: Mapping[str, Sequence[str]]) -> dict[str, str]:
     """Per checked scene, the method with the largest |Δ test MSE| vs ``none``."""
     choices = {}
     for scene in scenes:
@@ -595,7 +606,7 @@ def single_model_wall(scene: str | BenchmarkScene, data: SceneData, config: Prot
             "runs_s": times}
 
 
-def _timing(scenes: Sequence[str], chosen: dict[str, Sequence[str]], data: dict[str, SceneData],
+def _timing(scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], data: dict[str, SceneData],
             config: ProtocolConfig, threads: int | None) -> dict[str, Any]:
     """The time columns: one model's wall time per run (measured on the first scene: every
     scene's data have the same shape) and each scene's methods' online augmentation cost."""
@@ -615,7 +626,7 @@ def run_protocol(
     out: str | Path,
     *,
     config: ProtocolConfig | None = None,
-    methods: dict[str, Sequence[str]] | Sequence[str] | None = None,
+    methods: Mapping[str, Sequence[str]] | Sequence[str] | None = None,
     full: bool = False,
     root: str | None = None,
     jobs: int = 1,
@@ -703,7 +714,7 @@ def run_protocol(
     budget_units = _units(list(choices), {s: ("none", m) for s, m in choices.items()}, group, given)
     budget_results = (_run_units(budget_units, seeds, double, out, jobs, options, "budget check", 0.0, data_keys)
                       if budget_units else {})
-    if results is None:  # a torchrun rank other than 0
+    if results is None or budget_results is None:  # a torchrun rank other than 0
         return {}
     timing = _timing(scenes, chosen, data, config, threads) if measure_time else {}
 

@@ -106,6 +106,13 @@ _PATTERN = re.compile(
 )
 
 
+def _add_noise(bank: torch.Tensor | None) -> nn.Module:
+    """The ``noise`` method's transform (:meth:`Method.build` refuses a missing bank first)."""
+    if bank is None:
+        raise ValueError("method 'noise' needs a static-scene noise bank, got None")
+    return AddNoise(bank)
+
+
 def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "paper") -> Method:
     """Turn a method name (see the module docstring) into a :class:`Method` for ``scene``.
 
@@ -157,7 +164,7 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
         exponent = 0.5 if base == "resize-hertz" else 1.0
         return Method(name, lambda bank: ResizeToTarget(target, exponent=exponent), copies)
     if base == "noise":
-        return Method(name, lambda bank: AddNoise(bank), copies, needs_noise_bank=True)
+        return Method(name, _add_noise, copies, needs_noise_bank=True)
     if base in ("independent", "hybrid"):
         if scene.name == "paper":
             return Method.from_scene(name, PAPER_SCENE, copies, combination=base)
@@ -166,6 +173,7 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
             name, lambda bank: scene.library_scene(bank).policy(base), copies, needs_noise_bank=needs_bank
         )
     frames = scene.train.config.n_frames
+    make: Callable[[torch.Tensor | None], nn.Module]
     if match["deg"] is not None:
         degrees = float(match["deg"])
         make = lambda bank: RandomRotation(degrees)  # noqa: E731

@@ -28,7 +28,7 @@ import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import torch
 import torch.nn.functional as F
@@ -70,6 +70,13 @@ def _check_positive_int(value: object, name: str) -> int:
     if value < 1:
         raise ValueError(f"{name} must be a positive int, got {value!r}")
     return value
+
+
+def _pair(entry: tuple[Tensor, ...], name: str) -> tuple[Tensor, Tensor]:
+    """A layer's ``(h, c)`` state entry, checked to be a pair."""
+    if len(entry) != 2:
+        raise ValueError(f"{name} must be an (h, c) pair, got {len(entry)} entries")
+    return entry[0], entry[1]
 
 
 _FEATURES = ("linear", "log1p", "signed")
@@ -315,6 +322,11 @@ class ConvLSTM(nn.Module):
             for c_in, c_h in zip(inputs, hidden)
         )
 
+    @property
+    def layers(self) -> tuple[ConvLSTMCell, ...]:
+        """The layers' cells in order: the items of :attr:`cells` (an ``nn.ModuleList``), typed."""
+        return tuple(cast(ConvLSTMCell, cell) for cell in self.cells)
+
     @staticmethod
     def run_layer(
         cell: ConvLSTMCell, x: Tensor, hx: tuple[Tensor, Tensor] | None
@@ -341,8 +353,8 @@ class ConvLSTM(nn.Module):
         if hx is not None and len(hx) != len(self.cells):
             raise ValueError(f"hx must hold one (h, c) per layer ({len(self.cells)}), got {len(hx)}")
         state: State = []
-        for index, cell in enumerate(self.cells):
-            x, last = self.run_layer(cell, x, None if hx is None else hx[index])
+        for index, cell in enumerate(self.layers):
+            x, last = self.run_layer(cell, x, None if hx is None else _pair(hx[index], f"hx[{index}]"))
             state.append(last)
         return x, state
 
@@ -419,6 +431,12 @@ class ForceRegressor(nn.Module):
         7
     """
 
+    # buffers (register_buffer) and the attributes :meth:`load` sets, declared for the type checker
+    force_offset: Tensor
+    force_scale: Tensor
+    preprocessing: dict[str, Any]
+    package_version: str
+
     def __init__(
         self,
         in_channels: int = 2,
@@ -445,7 +463,7 @@ class ForceRegressor(nn.Module):
         self.global_inputs = global_inputs
         channels = _feature_channels(in_channels, cumulative, features)
         self.lstm = ConvLSTM(channels, hidden_channels, kernel_size, True, recurrent_activation)
-        last = self.lstm.cells[-1].hidden_channels
+        last = self.lstm.layers[-1].hidden_channels
         width = (2 if readout == "mean+max" else 1) * last
         if global_inputs:
             width += _global_channels(in_channels, cumulative, features)
@@ -456,10 +474,10 @@ class ForceRegressor(nn.Module):
     @property
     def config(self) -> dict[str, object]:
         """The constructor's keyword arguments: ``ForceRegressor(**model.config)`` rebuilds it."""
-        first = self.lstm.cells[0]
+        first = self.lstm.layers[0]
         return {
             "in_channels": self.in_channels,
-            "hidden_channels": tuple(cell.hidden_channels for cell in self.lstm.cells),
+            "hidden_channels": tuple(cell.hidden_channels for cell in self.lstm.layers),
             "kernel_size": first.kernel_size,
             "input_pool": self.input_pool,
             "recurrent_activation": first.recurrent_activation,
@@ -513,7 +531,7 @@ class ForceRegressor(nn.Module):
             checkpoint = torch.load(path, map_location="cpu", weights_only=True)
             if not isinstance(checkpoint, dict) or checkpoint.get("format") != _CHECKPOINT_FORMAT:
                 raise ValueError("not a ForceRegressor checkpoint of this version")
-            config = {k: tuple(v) if isinstance(v, list) else v for k, v in checkpoint["config"].items()}
+            config: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in checkpoint["config"].items()}
             model = cls(**config)
             model.load_state_dict(checkpoint["state_dict"])
         except Exception as error:  # noqa: BLE001 - one line naming the file, never a raw traceback
@@ -556,7 +574,7 @@ class ForceRegressor(nn.Module):
         pooled = _pool_counts(frames, self.input_pool, self.head.weight.dtype)
         inputs, _ = _input_features(pooled, self.cumulative, features=self.features)
         x = inputs
-        for index, cell in enumerate(self.lstm.cells):
+        for index, cell in enumerate(self.lstm.layers):
             if index:
                 x = F.avg_pool2d(x.flatten(0, 1), 2).unflatten(0, (batch, steps))
             x, _ = ConvLSTM.run_layer(cell, x, None)
@@ -583,10 +601,10 @@ class ForceRegressor(nn.Module):
         inputs, running = _input_features(pooled.unsqueeze(1), self.cumulative, running, self.features)
         x = inputs = inputs[:, 0]
         new_state: State = []
-        for index, cell in enumerate(self.lstm.cells):
+        for index, cell in enumerate(self.lstm.layers):
             if index:
                 x = F.avg_pool2d(x, 2)
-            hx = cell.zero_state(x) if state is None else state[index]
+            hx = cell.zero_state(x) if state is None else _pair(state[index], f"state[{index}]")
             hx = cell.step_gates(cell.input_conv(x), hx)
             new_state.append(hx)
             x = hx[0]

@@ -39,6 +39,7 @@ __all__ = [
 ]
 
 import functools
+from typing import Any
 
 from torch import Tensor, nn
 
@@ -75,8 +76,9 @@ def other_camera_bank(scene: str | BenchmarkScene, n_frames: int = 360) -> Tenso
     from .datasets import noise_bank
 
     scene = get_scene(scene)
-    if getattr(scene, "prior_bank", None) is not None:  # a folder of recordings: its training camera
-        return scene.prior_bank
+    prior_bank = getattr(scene, "prior_bank", None)
+    if prior_bank is not None:  # a folder of recordings: its training camera
+        return prior_bank
     config = scene.train.config
     return noise_bank(n_frames, seed=1, config=config.replace(sensor_seed=config.sensor_seed + 1))
 
@@ -85,7 +87,7 @@ def prior_scene(scene: str | BenchmarkScene, bank: Tensor, *, position: bool = T
     """The generic :class:`~event_transforms.Scene` of ``prior`` and ``everything``
     (``position``: with the ±3 px contact shift; both policies use it)."""
     scene = get_scene(scene)
-    sizes = {}
+    sizes: dict[str, Any] = {}
     if scene.target_size is not None:
         sizes = {"training_sizes": scene.train.diameters_mm, "target_size": scene.target_size}
     return Scene(
@@ -145,8 +147,9 @@ def inferred_scene(scene: str | BenchmarkScene, root: str | None = None) -> Scen
     deployment validation grasps (frames only), bolt sizes as metadata (cached per scene); a
     scene of recordings (:class:`~event_transforms.tactile.recordings.RecordingScene`) holds its own."""
     scene = get_scene(scene)
-    if getattr(scene, "inferred", None) is not None:
-        return scene.inferred
+    inferred = getattr(scene, "inferred", None)
+    if inferred is not None:
+        return inferred
     return _inferred(scene, None if root is None else str(root))
 
 

@@ -29,10 +29,12 @@ anything else   kept as text in each item's metadata
 ``t``, ``p``), ``.csv`` with a header naming the columns, and through optional extras
 ``.aedat4`` (the ``aedat`` package) and HDF5 ``.h5``/``.hdf5`` (``h5py``: a structured
 ``events`` or Prophesee-style ``CD/events`` dataset, or one dataset per column). Timestamps
-are microseconds, sorted; polarity bool, {0, 1} or {-1, 1}.
+are microseconds unless ``time_unit`` (``--time-unit``) says ``"ns"``, ``"ms"`` or ``"s"``,
+sorted; float timestamps with fractions spanning less than 1e6 look like seconds and are
+refused without a ``time_unit``. Polarity bool, {0, 1} or {-1, 1}.
 
 **Force files**: CSV with a header holding ``t_us`` (microseconds on the events' clock, after
-the declared offset) and ``force_n`` (newtons), sorted by time, at any rate. The force clock
+the declared offset, whatever ``time_unit`` the event files use) and ``force_n`` (newtons), sorted by time, at any rate. The force clock
 runs ``force_offset_ms`` behind the camera's: a sample at ``t_us`` on the force clock is at
 ``t_us + 1000 · force_offset_ms`` on the events' clock (default 0).
 
@@ -153,10 +155,15 @@ class RecordingSettings:
             of ``recordings.csv`` where given, else the contact area of the training data.
         pool: side of the sum-pooled blocks.
         force_offset_ms: the force clock's lag behind the events' clock.
+        time_unit: unit of the event files' timestamps: ``"us"``, ``"ms"``, ``"s"`` or
+            ``"ns"`` (``None``: microseconds, float timestamps that look like seconds
+            refused). Force files stay in ``t_us``.
 
     Example:
         >>> RecordingSettings(frames=36).window_stride
         36
+        >>> RecordingSettings(time_unit="s").as_dict()["time_unit"]
+        's'
     """
 
     sensor_size: tuple[int, int] = (180, 240)
@@ -166,9 +173,13 @@ class RecordingSettings:
     crop: tuple[int, int, int, int] | None = None
     pool: int = 2
     force_offset_ms: float = 0.0
+    time_unit: str | None = None
 
     def __post_init__(self) -> None:
         from .._validation import check_positive
+        from ..events.binning import _time_unit
+
+        _time_unit(self.time_unit)  # ValueError naming time_unit and the value
 
         size = tuple(self.sensor_size)
         if len(size) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1 for v in size):
@@ -196,11 +207,14 @@ class RecordingSettings:
         return int(round(width)) if abs(width - round(width)) < 1e-9 * width else width
 
     def as_dict(self) -> dict[str, Any]:
-        """The settings as plain JSON values."""
+        """The settings as plain JSON values (``time_unit`` only when given, so that the
+        keys of data binned before the setting existed stay valid)."""
         out = dataclasses.asdict(self)
         out["sensor_size"] = list(self.sensor_size)
         out["crop"] = None if self.crop is None else list(self.crop)
         out["stride"] = self.window_stride
+        if self.time_unit is None:
+            del out["time_unit"]
         return out
 
 
@@ -305,13 +319,14 @@ def read_table(root: str | os.PathLike[str]) -> list[Recording]:
                     raise ValueError
             except ValueError:
                 raise ValueError(f"{where}: diameter_mm must be a positive number, got {row['diameter_mm']!r}") from None
-        crop = None
+        crop: tuple[int, int, int, int] | None = None
         if has_crop:
-            crop = tuple(row[c] for c in _CROP_COLUMNS)
+            texts = tuple(row[c] for c in _CROP_COLUMNS)
             try:
-                crop = tuple(int(v) for v in crop)
+                top, left, height, width = (int(v) for v in texts)
             except ValueError:
-                raise ValueError(f"{where}: crop columns must be integers, got {crop}") from None
+                raise ValueError(f"{where}: crop columns must be integers, got {texts}") from None
+            crop = (top, left, height, width)
         split = row.get("split", "").lower()
         allowed = {"train": ("train", "holdout"), "deploy": ("val", "test")}[role]
         if split and (split not in allowed or force is None):
@@ -490,13 +505,16 @@ class _Scan:
     totals: np.ndarray  # (H, W) int64
 
 
-def _scan(source: _EventFile, sensor: tuple[int, int], where: str) -> _Scan:
+def _scan(source: _EventFile, sensor: tuple[int, int], where: str, time_unit: str | None = None) -> _Scan:
     """Check an event file chunk by chunk (sorted, inside the sensor, polarity, units) and
-    count events per pixel."""
+    count events per pixel; ``t_min``/``t_max`` in microseconds (read in ``time_unit``)."""
+    from ..events.binning import _SECONDS_SPAN, _to_microseconds
+
     height, width = sensor
     totals = np.zeros(height * width, dtype=np.int64)
     last = None
-    t_min = t_max = None
+    t_min: int | float | None = None
+    t_max: int | float | None = None
     offset = 0
     fractional = False
     for chunk in source.chunks():
@@ -532,14 +550,17 @@ def _scan(source: _EventFile, sensor: tuple[int, int], where: str) -> _Scan:
         t_min = t[0].item() if t_min is None else t_min
         t_max = last = t[-1].item()
         offset += t.size
-    if t_min is None:
+    if t_min is None or t_max is None:
         raise ValueError(f"{where}: the event file holds no events")
     span = t_max - t_min
-    if fractional and span < 1e4:
+    if time_unit is None and fractional and span < _SECONDS_SPAN:
         raise ValueError(
             f"{where}: timestamps look like seconds, not microseconds (fractional values spanning {span:g}); "
-            "multiply them by 1e6"
+            "give their unit: time_unit='s' (--time-unit s), or 'ms', 'ns', or 'us' if they are microseconds"
         )
+    if time_unit is not None:  # to microseconds exactly as the binning converts them
+        dtype = torch.float64 if isinstance(t_min, float) else torch.int64
+        t_min, t_max = _to_microseconds(torch.tensor([t_min, t_max], dtype=dtype), time_unit).tolist()
     return _Scan(offset, t_min, t_max, totals.reshape(height, width))
 
 
@@ -731,7 +752,7 @@ class RecordingSet(Dataset):
         cache: cache folder (default ``default_cache_dir() / "recordings"``).
         log: called with one line per recording binned (not per one read from the cache).
         **overrides: fields of :class:`RecordingSettings` (``sensor_size``, ``frame_ms``,
-            ``frames``, ``stride``, ``crop``, ``pool``, ``force_offset_ms``).
+            ``frames``, ``stride``, ``crop``, ``pool``, ``force_offset_ms``, ``time_unit``).
 
     Attributes:
         recordings: the rows of the chosen recordings.
@@ -803,7 +824,7 @@ class RecordingSet(Dataset):
         if settings.crop is not None:
             return settings.crop, "given"
         if all(r.crop is not None for r in table):
-            sizes = {r.crop[2:] for r in table}  # type: ignore[index]
+            sizes = {r.crop[2:] for r in table if r.crop is not None}
             if len(sizes) != 1:
                 raise ValueError(f"recordings.csv: every row's crop must have one size, got {sorted(sizes)}")
             first = table[0]
@@ -818,11 +839,14 @@ class RecordingSet(Dataset):
 
     def _scan(self, recording: Recording) -> _Scan:
         settings = self.settings
-        path = self.cache / f"scan-{_key({'events': self._hashes[recording.row][0], 'sensor': settings.sensor_size})}.pt"
+        described: dict[str, Any] = {"events": self._hashes[recording.row][0], "sensor": settings.sensor_size}
+        if settings.time_unit is not None:  # t_min, t_max are microseconds converted from that unit
+            described["time_unit"] = settings.time_unit
+        path = self.cache / f"scan-{_key(described)}.pt"
         data = _load_cached(path)
         if data is None:
             try:
-                scan = _scan(_EventFile(recording.events), settings.sensor_size, recording.where())
+                scan = _scan(_EventFile(recording.events), settings.sensor_size, recording.where(), settings.time_unit)
             except ValueError as error:
                 raise _named(error, recording) from None
             data = {"format": _CACHE_FORMAT, "events": scan.events, "t_min": scan.t_min, "t_max": scan.t_max,
@@ -837,6 +861,8 @@ class RecordingSet(Dataset):
         description = {"format": _CACHE_FORMAT, "events": events_hash, "force": force_hash,
                        "sensor": settings.sensor_size, "frame_ms": settings.frame_ms, "crop": crop,
                        "pool": settings.pool, "force_offset_ms": settings.force_offset_ms}
+        if settings.time_unit is not None:
+            description["time_unit"] = settings.time_unit
         path = self.cache / f"recording-{_key(description)}.pt"
         data = _load_cached(path)
         if data is not None:
@@ -891,9 +917,9 @@ class RecordingSet(Dataset):
     def diameters(self) -> tuple[float, ...] | None:
         """The distinct sizes of the chosen recordings (``None`` without ``diameter_mm``)."""
         sizes = [r.diameter_mm for r in self.recordings]
-        if not sizes or any(s is None for s in sizes):
+        if not sizes or None in sizes:
             return None
-        return tuple(sorted(set(sizes)))  # type: ignore[arg-type]
+        return tuple(sorted({s for s in sizes if s is not None}))
 
     def __getstate__(self) -> dict[str, Any]:  # workers reload the memory-mapped cache
         state = dict(self.__dict__)
@@ -959,8 +985,11 @@ def _bin_recording(recording: Recording, scan: _Scan, settings: RecordingSetting
     out = torch.zeros(shape, dtype=torch.int32)
     source = _EventFile(recording.events)
     try:
+        # the scan checked the whole file's units (seconds-looking floats refused without a unit),
+        # so the chunks are read as that unit, microseconds by default
         stream = iter_frames(source.chunks(), sensor_size=settings.sensor_size, t_start=t0,
-                             frame_ms=settings.frame_ms, n_frames=n_frames, crop=crop, pool=pool, dtype=torch.int32)
+                             frame_ms=settings.frame_ms, n_frames=n_frames, crop=crop, pool=pool, dtype=torch.int32,
+                             time_unit=settings.time_unit or "us")
         for k, frame in enumerate(stream):
             out[k] = frame
     except ValueError as error:
@@ -1048,10 +1077,9 @@ def load_recording_data(
     }
     scene = RecordingScene.build(name or root.resolve().name, settings, train_sizes, deploy_sizes, inferred,
                                  quiet(train_frames), dataset)
-    data = SceneData(scene, splits["train"], splits["val"], splits["test"], quiet(deploy_frames),
-                     time.perf_counter() - start, holdout=splits["holdout"] if len(splits["holdout"]) else None)
-    data.dataset = dataset  # type: ignore[attr-defined]
-    return data
+    return SceneData(scene, splits["train"], splits["val"], splits["test"], quiet(deploy_frames),
+                     time.perf_counter() - start, holdout=splits["holdout"] if len(splits["holdout"]) else None,
+                     dataset=dataset)
 
 
 def _sizes(*sets: RecordingSet) -> tuple[float, ...] | None:
@@ -1153,7 +1181,7 @@ def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = 
         for block in range(0, SPLIT_SIZES[split], 24):
             seeds = range(first + block, first + min(block + 24, SPLIT_SIZES[split]))
             grasps = [draw_grasp(session.diameter(s - first), seed=s, config=session.config) for s in seeds]
-            for seed, recording in zip(seeds, simulate_grasps(grasps, session.config)):
+            for seed, grasp, recording in zip(seeds, grasps, simulate_grasps(grasps, session.config)):
                 k = seed - first
                 name = f"{split}_{k:03d}"
                 np.save(out / "events" / f"{name}.npy", recording.events)
@@ -1162,7 +1190,7 @@ def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = 
                     handle.write("t_us,force_n\n")
                     handle.writelines(f"{int(t)},{float(np.float32(f))!r}\n" for t, f in force)
                 top, left, height, width = recording.sensor_crop((140, 150))
-                rows.append(f"events/{name}.npy,force/{name}.csv,{role},{recording.grasp.diameter_mm:g},{split},"
+                rows.append(f"events/{name}.npy,force/{name}.csv,{role},{grasp.diameter_mm:g},{split},"
                             f"{top},{left},{height},{width},{seed},{scene.name}")
         if log:
             log(f"exported {SPLIT_SIZES[split]} {split} grasps of {scene.name!r} in {time.perf_counter() - tick:.1f} s")

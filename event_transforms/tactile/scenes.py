@@ -88,11 +88,14 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from torch import Tensor
 
 from .simulation import Grasp, SimulatorConfig, draw_grasp
+
+if TYPE_CHECKING:
+    from ..scenes import Scene as LibraryScene
 
 #: Which settings belong to which nuisance factor. A scene's gaps are the factors whose
 #: settings differ between its training and deployment sessions.
@@ -282,7 +285,7 @@ class BenchmarkScene:
 
     def library_scene(
         self, noise_bank: Tensor | None = None, *, size_exponent: float | None = None, size_transform: str = "resize"
-    ):
+    ) -> LibraryScene:
         """The :class:`event_transforms.Scene` declaring this scene's gaps.
 
         Its :meth:`~event_transforms.Scene.policy` builds the matched augmentations:

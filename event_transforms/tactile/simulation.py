@@ -64,6 +64,7 @@ import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import torch
@@ -252,7 +253,7 @@ class SimulatorConfig:
         """Length of one recording, ``n_frames · frame_ms``."""
         return self.n_frames * self.frame_ms
 
-    def replace(self, **changes: object) -> SimulatorConfig:
+    def replace(self, **changes: Any) -> SimulatorConfig:
         """A copy with some settings changed (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
 
@@ -636,7 +637,10 @@ def _contact_events(
     ys, xs = np.divmod(np.arange(height * width), width)
     edge = config.edge_px
     # Gather the pixels each strip can ever touch; every other pixel sees constant light.
-    owner, pixel, across, along = [], [], [], []
+    owners: list[np.ndarray] = []
+    pixels: list[np.ndarray] = []
+    acrosses: list[np.ndarray] = []
+    alongs: list[np.ndarray] = []
     half_length, contrast = _strip_shape(grasps, config)
     for index, grasp in enumerate(grasps):
         theta = np.deg2rad(grasp.angle_deg)
@@ -645,14 +649,14 @@ def _contact_events(
         u = np.abs(dx * np.sin(theta) + dy * np.cos(theta))  # distance across the strip
         v = np.abs(dx * np.cos(theta) - dy * np.sin(theta))  # distance along it
         active = np.flatnonzero((u < width_px[index].max()) & (v < half_length[index]))
-        owner.append(np.full(active.size, index))
-        pixel.append(active)
-        across.append(u[active])
-        along.append(v[active])
-    owner, pixel = np.concatenate(owner), np.concatenate(pixel)
-    across = np.concatenate(across) / edge
+        owners.append(np.full(active.size, index))
+        pixels.append(active)
+        acrosses.append(u[active])
+        alongs.append(v[active])
+    owner, pixel = np.concatenate(owners), np.concatenate(pixels)
+    across = np.concatenate(acrosses) / edge
     # Darkening at full width: contrast, tapered over the edge at the strip's ends.
-    depth = contrast[owner] * np.clip((half_length[owner] - np.concatenate(along)) / edge, 0, 1)
+    depth = contrast[owner] * np.clip((half_length[owner] - np.concatenate(alongs)) / edge, 0, 1)
     b_edge = width_px / edge
 
     def log_intensity(step: int) -> np.ndarray:
@@ -695,17 +699,17 @@ def _contact_events(
 
     if not fired_index:
         return [(np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.int8),) for _ in grasps]
-    step = np.concatenate(fired_step)
-    index = np.concatenate(fired_index)
+    steps = np.concatenate(fired_step)
+    indices = np.concatenate(fired_index)
     signed = np.concatenate(fired_count)
     count = np.abs(signed)
     # Spread the n events of one substep evenly over it: t = t_prev + dt·(k + ½)/n.
-    repeat = np.repeat(np.arange(step.size), count)
+    repeat = np.repeat(np.arange(steps.size), count)
     k = np.arange(repeat.size) - np.repeat(np.cumsum(count) - count, count)
-    t_us = np.floor((step[repeat] - 1) * dt_us + dt_us * (k + 0.5) / count[repeat]).astype(np.int64)
+    t_us = np.floor((steps[repeat] - 1) * dt_us + dt_us * (k + 0.5) / count[repeat]).astype(np.int64)
     polarity = (signed[repeat] > 0).astype(np.int8)
-    who = owner[index[repeat]]
-    where = pixel[index[repeat]]
+    who = owner[indices[repeat]]
+    where = pixel[indices[repeat]]
     order = np.argsort(who, kind="stable")
     bounds = np.searchsorted(who[order], np.arange(len(grasps) + 1))
     return [

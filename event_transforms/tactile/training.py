@@ -14,14 +14,15 @@ import json
 import os
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import torch
 from torch import Tensor, nn
 
-from ..transforms.base import EventTransform, Param, as_transform
+from ..events.batch import EventBatch
+from ..transforms.base import EventTransform, Param, Params, Spec, as_transform
 
 __all__ = [
     "Stopwatch",
@@ -88,18 +89,24 @@ class TimedTransform(EventTransform):
         self.transform = as_transform(transform)
         self.stopwatch = Stopwatch() if stopwatch is None else stopwatch
 
-    def sample_params(self, shape, *, generator=None, metadata=None):
+    def sample_params(
+        self,
+        shape: torch.Size,
+        *,
+        generator: torch.Generator | None = None,
+        metadata: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
+    ) -> Params:
         with self.stopwatch:
             return self.transform.make_params(shape, generator=generator, metadata=metadata)
 
-    def params_spec(self, shape):
+    def params_spec(self, shape: torch.Size) -> Spec:
         # the wrapped transform's tree, as it is (its own gate included)
         return {**self.transform.params_spec(shape), "apply": Param("bool", optional=True)}
 
-    def output_shape(self, shape):
+    def output_shape(self, shape: torch.Size) -> torch.Size:
         return self.transform.output_shape(shape)
 
-    def apply(self, frames: Tensor, params) -> Tensor:
+    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         with self.stopwatch:
             return self.transform(frames, params=params)
 

@@ -65,7 +65,7 @@ class _Rotation(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"angle": Param("float", neutral=0.0)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.rotate, inputs, params["angle"], center=self.center, mode=self.mode)
 
 
@@ -73,7 +73,7 @@ class _Zoom(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"scale": Param("float", low=float.fromhex("0x1p-1022"), neutral=1.0)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.resize, inputs, params["scale"], center=self.center, mode=self.mode)
 
 
@@ -239,7 +239,7 @@ class _AffineWarp(_Affine):
             "translate": Param("float", shape=(2,), neutral=0.0), "shear": Param("float", shape=(2,), neutral=0.0),
         }
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(
             F.affine, inputs, params["angle"], params["scale"], shear=params["shear"], translate=params["translate"],
             center=self.center, mode=self.mode,
@@ -437,7 +437,7 @@ class RandomPerspective(_Warp):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"corners": Param("float", shape=(4, 2))}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.perspective, inputs, params["corners"].detach().to("cpu", torch.float64), self.mode)
 
     def _settings(self) -> str:
@@ -494,7 +494,7 @@ class RandomElastic(_Warp):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"alpha": Param("float", low=0.0), "noise": Param("float", shape=(2, *shape[-2:]), low=-1.0, high=1.0)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         alpha = params["alpha"].detach().to("cpu", torch.float64)
         return call_kernel(F.elastic, inputs, params["noise"], alpha, self.sigma, self.mode)
 

@@ -31,6 +31,7 @@ container or data set is handed (a plain function, a torchvision transform) is w
 
 from __future__ import annotations
 
+import functools
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, overload
@@ -49,11 +50,26 @@ __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAME
 #: The key under which a dict input holds the frames.
 FRAMES_KEY = "frames"
 
+def _also_module_apply(apply: Callable[..., Any]) -> Callable[..., Any]:
+    """``apply`` of a transform that also answers ``torch.nn.Module.apply(fn)``: a call with
+    one callable (not frames, not an EventBatch) and nothing else is torch's ``module.apply``,
+    which calls ``fn`` on every submodule and then on the module."""
+
+    @functools.wraps(apply)
+    def both(self: Any, inputs: Any, *args: Any, **kwargs: Any) -> Any:
+        if not args and not kwargs and callable(inputs) and not isinstance(inputs, (Tensor, EventBatch)):
+            return torch.nn.Module.apply(self, inputs)
+        return apply(self, inputs, *args, **kwargs)
+
+    both._takes_module_apply = True  # type: ignore[attr-defined]
+    return both
+
+
 def _gated(params: Params, gate: Tensor, spec: Spec) -> Params:
     """``params`` with each entry whose :class:`Param` has a ``neutral`` value set to it where
     ``gate`` is off (a gated EventBatch call runs its kernel once on the whole batch)."""
     out = type(params)()
-    if isinstance(params, _CheckedParams):
+    if isinstance(params, _CheckedParams) and isinstance(out, _CheckedParams):
         out.owner = params.owner
     out.update(params)
     off_samples = ~gate.to(torch.bool)
@@ -211,7 +227,7 @@ def apply_by_group(frames: Tensor | EventBatch, group: Tensor, functions: Sequen
     covered = sum(size for _, size, _ in results)
     out = frames.to(out_dtype, copy=True) if covered < batch else torch.empty(frames.shape, dtype=out_dtype, device=device)
     for on_device, size, result in results:
-        if size:
+        if on_device is not None:  # a proper, non-empty subset (a whole batch returned above)
             out.index_copy_(0, on_device, cast(result))
     return out
 
@@ -347,10 +363,10 @@ class EventTransform(nn.Module):
             else:
                 with torch.profiler.record_function(CHECK_RANGE):
                     params = self._check_params(params, first.frame_shape)
-            out = self._run(first, params)
+            moved = self._run(first, params)
             if self.couples_samples and rest:  # the labels, mixed as on frames
                 rest = (self._mix_labels(rest[0], params, False, len(first)), *rest[1:])
-            return (out, *rest) if rest else out
+            return (moved, *rest) if rest else moved
         if self.takes_events:
             first = self.events_to_frames(first)  # events in, frames from here on
         frames = first
@@ -386,9 +402,8 @@ class EventTransform(nn.Module):
                 first = {**first, self.label_key: self._mix_labels(first[self.label_key], params, single, batch.shape[0])}
             elif rest:
                 rest = (self._mix_labels(rest[0], params, single, batch.shape[0]), *rest[1:])
-        if isinstance(first, Mapping):
-            out = {**first, FRAMES_KEY: out}
-        return (out, *rest) if rest else out
+        result: Any = {**first, FRAMES_KEY: out} if isinstance(first, Mapping) else out
+        return (result, *rest) if rest else result
 
     def _check_params(self, params: Params, shape: torch.Size) -> Params:
         """:func:`check_tree`, with meta-device leaves (which hold no values to apply) refused by name."""
@@ -440,6 +455,8 @@ class EventTransform(nn.Module):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
+        if "apply" in cls.__dict__ and not getattr(cls.__dict__["apply"], "_takes_module_apply", False):
+            cls.apply = _also_module_apply(cls.__dict__["apply"])  # type: ignore[method-assign]
         if cls.sample_params is not EventTransform.sample_params and cls.params_spec is EventTransform.params_spec:
             raise TypeError(
                 f"{cls.__name__} draws parameters (it overrides sample_params), so it must declare them: "
@@ -491,11 +508,19 @@ class EventTransform(nn.Module):
         """Override: this transform's own parameters for a checked batch ``shape``."""
         return {}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # pragma: no cover - abstract
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # pragma: no cover - abstract; shadows nn.Module.apply (see docstring)
         """Override: transform a checked batch ``(B, T, 2, H, W)`` or an EventBatch with given
         parameters, by calling the operation's kernels through the registry:
         ``call_kernel(F.rotate, inputs, params["angle"], ...)``
-        (:func:`~event_transforms.functional._dispatch.call_kernel`)."""
+        (:func:`~event_transforms.functional._dispatch.call_kernel`).
+
+        The name shadows ``torch.nn.Module.apply`` (``module.apply(fn)``, which calls
+        ``fn`` on every submodule): kept because every transform and user subclass defines
+        it. A call with one callable and nothing else is torch's meaning: every subclass's
+        ``apply`` is wrapped when the class is defined so that ``model.apply(init_fn)`` on a
+        module tree that holds transforms still reaches every submodule. Type checkers flag
+        each definition against ``nn.Module.apply``: each carries
+        ``# type: ignore[override]``, and a subclass needs the same comment."""
         raise NotImplementedError
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
@@ -524,7 +549,13 @@ class EventTransform(nn.Module):
         """Override with :attr:`takes_events`: turn a call's first input into frames."""
         raise TypeError(f"{type(self).__name__} takes frames, not events")
 
-    def _run(self, frames: Tensor, params: Params) -> Tensor:
+    @overload
+    def _run(self, frames: Tensor, params: Params) -> Tensor: ...
+    @overload
+    def _run(self, frames: EventBatch, params: Params) -> EventBatch: ...
+    @overload
+    def _run(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch: ...
+    def _run(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``.
 
         A coupled transform gets the whole batch (partners lie outside any sub-batch) and
@@ -552,6 +583,9 @@ class EventTransform(nn.Module):
     def _settings(self) -> str:
         """Override: the settings shown in ``repr`` (``p`` is added by the base class)."""
         return ""
+
+
+EventTransform.apply = _also_module_apply(EventTransform.apply)  # type: ignore[method-assign]
 
 
 class Lambda(EventTransform):
@@ -584,7 +618,7 @@ class Lambda(EventTransform):
     def params_spec(self, shape: torch.Size) -> Spec:
         return {}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         if isinstance(frames, EventBatch):
             raise NoKernelError("", events=True, detail="has no kernel for an EventBatch; bin the events first with "
                                 "EventsToFrames (it can stand anywhere in a Compose)")

@@ -10,6 +10,7 @@ from torch import Tensor
 
 from .._validation import as_number
 from .. import functional as F
+from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
 from .base import EventTransform, Params
 
@@ -46,8 +47,8 @@ class Denoise(EventTransform):
         self.radius = as_number(radius, "radius", integer=True, low=0)
         self.temporal_radius = as_number(temporal_radius, "temporal_radius", integer=True, low=0)
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
-        return call_kernel(F.denoise, frames, self.radius, self.temporal_radius)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+        return call_kernel(F.denoise, inputs, self.radius, self.temporal_radius)
 
     def _settings(self) -> str:
         return f"radius={self.radius}, temporal_radius={self.temporal_radius}"

@@ -28,6 +28,7 @@ import torch
 from torch import Tensor, nn
 
 from .._validation import as_number, check_probability
+from ..events.batch import EventBatch
 from .base import EventTransform, Param, Params, _draw_device, apply_by_group, as_transform, slice_params
 
 __all__ = ["Compose", "OneOf", "RandomApply"]
@@ -96,12 +97,12 @@ class Compose(EventTransform):
         self._label_key = keys.pop() if keys else None
 
     @property
-    def couples_samples(self) -> bool:
+    def couples_samples(self) -> bool:  # type: ignore[override]  # read-only here: follows the members
         """Whether a member mixes samples: then the labels are mixed by the members, in order."""
         return any(t.couples_samples for t in self.transforms)
 
     @property
-    def label_key(self) -> str | None:
+    def label_key(self) -> str | None:  # type: ignore[override]  # read-only here: follows the members
         """The coupled members' ``label_key`` (for dict inputs)."""
         return self._label_key
 
@@ -137,11 +138,11 @@ class Compose(EventTransform):
             shape = transform.output_shape(shape)
         return shape
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         for i, transform in enumerate(self.transforms):
             shape = transform.output_shape(frames.shape) if isinstance(frames, Tensor) else None  # not for events
             frames = transform._run(frames, params[str(i)])
-            if shape is not None and frames.shape != shape:
+            if shape is not None and isinstance(frames, Tensor) and frames.shape != shape:
                 raise ValueError(
                     f"transforms[{i}] ({type(transform).__name__}) returned shape {tuple(frames.shape)}, "
                     f"expected {tuple(shape)}"
@@ -215,7 +216,7 @@ class OneOf(EventTransform):
         spec.update({str(i): (t, shape) for i, t in enumerate(self.transforms)})
         return spec
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         branches = [
             (lambda sub, index, t=t, i=i: t._run(sub, slice_params(params[str(i)], index)))
             for i, t in enumerate(self.transforms)
@@ -265,6 +266,6 @@ class RandomApply(EventTransform):
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Metadata = None) -> Params:
         return {"0": self.transform.make_params(shape, generator=generator, metadata=metadata)}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:
+    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return self.transform._run(frames, params["0"])
 

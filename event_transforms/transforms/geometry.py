@@ -37,7 +37,7 @@ class _Roll(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"shift": Param("int", shape=(2,), neutral=0)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.translate, inputs, params["shift"])
 
 
@@ -136,7 +136,7 @@ class _Crop(EventTransform):
         rows, cols = self._room(shape)
         return {"top": Param("int", low=0, high=rows), "left": Param("int", low=0, high=cols)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         if isinstance(inputs, EventBatch) and self.resize:
             raise ValueError(f"{type(self).__name__}(resize=True) interpolates frames; on events crop with resize=False")
         self._room(inputs.frame_shape if isinstance(inputs, EventBatch) else inputs.shape)
@@ -230,7 +230,7 @@ class Downsample(EventTransform):
         self.factor = _factor(factor)
         self.remainder = check_choice(remainder, "remainder", REMAINDERS)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.downsample, inputs, self.factor, self.remainder)
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
@@ -257,7 +257,7 @@ class HorizontalFlip(EventTransform):
 
     _gates_itself = True
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.horizontal_flip, inputs, params.get("apply"))
 
 class VerticalFlip(EventTransform):
@@ -277,7 +277,7 @@ class VerticalFlip(EventTransform):
 
     _gates_itself = True
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.vertical_flip, inputs, params.get("apply"))
 
 class RandomHorizontalFlip(HorizontalFlip):
@@ -364,7 +364,7 @@ class SpatialJitter(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"sigma": Param("float", low=0.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.spatial_jitter, inputs, params["sigma"], params["seed"])
 
     def _settings(self) -> str:

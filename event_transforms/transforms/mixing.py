@@ -117,7 +117,7 @@ class Cutout(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return _box_spec(shape)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.cutout, inputs, params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
@@ -223,7 +223,7 @@ class CutMix(_Mixing):
             "partner": Param("int", low=0, high=b - 1), "weight": Param("float", low=0.0, high=1.0), **_box_spec(shape)
         }
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         partner, _ = self._effective(params)
         return call_kernel(F.cutmix, inputs, partner, params["top"], params["left"], params["height"], params["width"])
 
@@ -272,7 +272,7 @@ class MixUp(_Mixing):
             "seed": Param("int", low=0, high=2**63 - 1),
         }
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         partner, weight = self._effective(params)
         return call_kernel(F.mixup, inputs, partner, weight, params["seed"])
 

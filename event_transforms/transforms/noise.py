@@ -97,7 +97,7 @@ class AddNoise(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"offset": Param("int", low=0, high=max(self.bank.shape[0] - shape[1], 0))}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         if isinstance(inputs, EventBatch):
             return call_kernel(F.add_noise, inputs, self.bank, params["offset"])
         frames = inputs
@@ -166,7 +166,7 @@ class AddPoissonNoise(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"rate_hz": Param("float", low=0.0, neutral=0.0), "count": Param("int", low=0, optional=True), "seed": Param("int", low=0, high=2**63 - 1)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(
             F.add_poisson_noise, inputs, params["rate_hz"], params["seed"], frame_ms=self.frame_ms, count=params.get("count")
         )

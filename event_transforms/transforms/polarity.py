@@ -35,7 +35,7 @@ class FlipPolarity(EventTransform):
 
     _gates_itself = True
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.flip_polarity, inputs, params.get("apply"))
 
 
@@ -83,7 +83,7 @@ class MergePolarities(EventTransform):
         [[3, 3], [0, 0]]
     """
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.merge_polarities, inputs, True)
 
 

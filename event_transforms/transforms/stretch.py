@@ -41,7 +41,7 @@ class _StretchWarp(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"factor": Param("float", low=float.fromhex("0x1p-1022"))}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         b = len(inputs) if isinstance(inputs, EventBatch) else inputs.shape[0]
         axis = self.axis if isinstance(self.axis, str) else torch.full((b,), self.axis, dtype=torch.float64)
         return call_kernel(F.stretch, inputs, params["factor"], axis, self.center, self.mode)

@@ -54,7 +54,7 @@ class _Shift(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"shift": Param("int", neutral=0)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.frame_shift, inputs, params["shift"])
 
 
@@ -69,7 +69,7 @@ class _EventShift(EventTransform):
             spec["seed"] = Param("int", low=0, high=2**63 - 1)
         return spec
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         hint = (
             f"{type(self).__name__}(mode={self.mode!r}) moves whole events: apply it before interpolating "
             "transforms (bilinear rotate/resize), or use mode='expected'"
@@ -268,7 +268,7 @@ class TimeReversal(EventTransform):
 
     _gates_itself = True
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.time_reversal, inputs, params.get("apply"))
 
 class RandomTimeReversal(TimeReversal):
@@ -307,7 +307,7 @@ class _CropTime(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"start": Param("int", low=0, high=self._room(shape))}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         self._room(inputs.frame_shape if isinstance(inputs, EventBatch) else inputs.shape)
         return call_kernel(F.crop_time, inputs, params["start"], self.length)
 
@@ -416,7 +416,7 @@ class TimeJitter(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"std_us": Param("float", low=0.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.time_jitter, inputs, params["std_us"], params["seed"])
 
     def _settings(self) -> str:
@@ -462,7 +462,7 @@ class TimeSkew(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"coefficient": Param("float", low=1e-12, neutral=1.0), "offset_us": Param("float", neutral=0.0)}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.time_skew, inputs, params["coefficient"], params["offset_us"])
 
     def _settings(self) -> str:
