@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -11,9 +12,11 @@ import torchvision.transforms.v2.functional as TF
 from torchvision.transforms import InterpolationMode
 
 import event_transforms as et
+from event_transforms import EventBatch
+from event_transforms.events import EventsOutsideSensorWarning
 from event_transforms import functional as F
 
-from .event_data import T, make_batch, make_streams, rows
+from .event_data import SENSOR, T, check_hard_cases, frames_of, make_batch, make_streams, rows, same_events
 from .checkers import H, W, check_not_modified, check_sane, sparse_frames
 
 
@@ -557,9 +560,8 @@ class TestOnEvents:
         assert resized.lengths == batch.lengths
         with pytest.raises(ValueError, match="shear is not supported on events"):
             F.affine(batch, shear=(10.0, 0.0))
-        with pytest.raises(TypeError, match="perspective has no kernel for an EventBatch"):
-            et.RandomPerspective(0.3).apply  # noqa: B018 - the module exists; the functional refuses
-            F.perspective(batch, [[0, 0], [0, 16], [10, 16], [10, 0]])
+        corners = [[0, 0], [0, 16], [10, 16], [10, 0]]  # the sensor's own corners: the identity
+        assert same_events(F.perspective(batch, corners), batch)
 
 
 # --------------------------------------------------------------------------- batteries
@@ -585,4 +587,152 @@ EVENT_BATTERY = {
     "RandomResize": lambda: et.RandomResize((0.8, 1.25)),
     "RandomAffine": lambda: et.RandomAffine(20.0, translate=(0.1, 0.1)),
     "RandomRotation p": lambda: et.RandomRotation(30.0, p=0.5),
+    "RandomPerspective": lambda: et.RandomPerspective(0.3),
+    "RandomPerspective p": lambda: et.RandomPerspective(0.5, p=0.5),
+    "RandomElastic": lambda: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0),
+    "RandomElastic p": lambda: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0, p=0.5),
 }
+
+
+# --------------------------------------------------------------------------- perspective and elastic on events
+
+
+def _homography(corners, height, width):
+    """3×3 map of pixel (x, y, 1) from the frame's corners to ``corners`` ((4, 2) (y, x)):
+    the direct linear system of four point pairs, solved in NumPy (an independent reference)."""
+    source = [(0.0, 0.0), (width - 1.0, 0.0), (width - 1.0, height - 1.0), (0.0, height - 1.0)]  # (x, y)
+    rows_, rhs = [], []
+    for (x, y), (v, u) in zip(source, corners):  # target (y, x) -> (u, v) = (x', y')
+        rows_.append([x, y, 1, 0, 0, 0, -u * x, -u * y])
+        rows_.append([0, 0, 0, x, y, 1, -v * x, -v * y])
+        rhs += [u, v]
+    h = np.linalg.solve(np.array(rows_, dtype=np.float64), np.array(rhs, dtype=np.float64))
+    return np.append(h, 1.0).reshape(3, 3)
+
+
+def reference_perspective_events(events, corners, sensor):
+    height, width = sensor
+    h = _homography(corners, height, width)
+    out = []
+    for x, y, t, p in events:
+        u, v, w = h @ np.array([x, y, 1.0])
+        if w <= 0:
+            continue
+        nx, ny = round(u / w), round(v / w)
+        if 0 <= nx < width and 0 <= ny < height:
+            out.append((nx, ny, t, p))
+    return out
+
+
+def _smooth_reference(noise, sigma):
+    """(2, H, W) noise smoothed by a separable Gaussian of ±3σ, zero outside: plain loops."""
+    radius = math.ceil(3 * sigma)
+    weights = [math.exp(-0.5 * (k / sigma) ** 2) for k in range(-radius, radius + 1)]
+    total = sum(weights)
+    weights = [w / total for w in weights]
+    _, height, width = noise.shape
+    out = np.zeros(noise.shape)
+    for c in range(2):
+        for y in range(height):
+            for x in range(width):
+                acc = 0.0
+                for i, wy in enumerate(weights):
+                    for j, wx in enumerate(weights):
+                        yy, xx = y + i - radius, x + j - radius
+                        if 0 <= yy < height and 0 <= xx < width:
+                            acc += wy * wx * float(noise[c, yy, xx])
+                out[c, y, x] = acc
+    return out
+
+
+def reference_elastic_events(events, noise, alpha, sigma, sensor, steps=4):
+    """Per event: q <- p - field(q) from q = p, the field read bilinearly (clamped), rounded;
+    events off the sensor dropped."""
+    height, width = sensor
+    field = alpha * _smooth_reference(noise, sigma)
+
+    def read(c, y, x):
+        y, x = min(max(y, 0.0), height - 1.0), min(max(x, 0.0), width - 1.0)
+        y0, x0 = math.floor(y), math.floor(x)
+        y1, x1 = min(y0 + 1, height - 1), min(x0 + 1, width - 1)
+        wy, wx = y - y0, x - x0
+        top = field[c, y0, x0] + wx * (field[c, y0, x1] - field[c, y0, x0])
+        bottom = field[c, y1, x0] + wx * (field[c, y1, x1] - field[c, y1, x0])
+        return top + wy * (bottom - top)
+
+    out = []
+    for x, y, t, p in events:
+        qx, qy = float(x), float(y)
+        for _ in range(steps):
+            qx, qy = x - read(1, qy, qx), y - read(0, qy, qx)
+        nx, ny = round(qx), round(qy)
+        if 0 <= nx < width and 0 <= ny < height:
+            out.append((nx, ny, t, p))
+    return out
+
+
+class TestPerspectiveOnEvents:
+    def test_against_reference(self):
+        batch = make_batch(3)
+        module = et.RandomPerspective(0.6)
+        params = module.make_params(batch.frame_shape, generator=_g(4))
+        corners = params["corners"]
+        corners[1] = torch.tensor([[-2.0, 1.0], [0.5, 18.0], [12.0, 15.0], [9.0, -1.5]])  # reaching out: events leave
+        with pytest.warns(EventsOutsideSensorWarning, match="outside sensor_size"):
+            out = module(batch, params=params)
+        for b in range(3):
+            got = rows(out, b)
+            expected = reference_perspective_events(rows(batch, b), corners[b].tolist(), SENSOR)
+            assert got == expected
+        assert out.lengths[1] < batch.lengths[1]
+
+    def test_translation_equals_frames(self):
+        """Where the semantics coincide: corners moved by whole pixels are a translation, and
+        the frames' nearest warp then moves whole pixels too."""
+        batch = make_batch(2)
+        height, width = SENSOR
+        corners = torch.tensor([[0.0, 0.0], [0.0, width - 1.0], [height - 1.0, width - 1.0], [height - 1.0, 0.0]])
+        corners = corners + torch.tensor([2.0, -3.0])
+        with pytest.warns(EventsOutsideSensorWarning):
+            out = F.perspective(batch, corners)
+        frames = frames_of(batch)
+        assert torch.equal(frames_of(out), F.perspective(frames, corners, mode="nearest"))
+        assert torch.equal(frames_of(out), F.translate(frames, (2, -3)))
+
+    def test_hard_cases(self):
+        check_hard_cases(lambda: et.RandomPerspective(0.5))
+
+
+class TestElasticOnEvents:
+    def test_against_reference(self):
+        batch = make_batch(2)
+        module = et.RandomElastic(alpha=(4.0, 8.0), sigma=1.5)
+        params = module.make_params(batch.frame_shape, generator=_g(6))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", EventsOutsideSensorWarning)
+            out = module(batch, params=params)
+        for b in range(2):
+            expected = reference_elastic_events(rows(batch, b), params["noise"][b], float(params["alpha"][b]), 1.5, SENSOR)
+            assert rows(out, b) == expected
+
+    def test_shift_equals_frames_and_drops_with_warning(self):
+        """Where the semantics coincide: a field that is one whole-pixel shift over the events
+        moves them as the frames' nearest warp moves pixels; events pushed off are dropped
+        with the warning."""
+        height, width = SENSOR
+        events = torch.tensor([[x, y, 100 * (x + y), (x + y) % 2] for x in range(8) for y in range(4, 7)])
+        batch = EventBatch.from_streams([events], sensor_size=SENSOR, frame_ms=1.0, t_start=0, n_frames=T)
+        noise = torch.zeros(1, 2, height, width)
+        noise[0, 1] = 1.0  # the frames sample from the right: content moves left
+        with pytest.warns(EventsOutsideSensorWarning, match="9 of 24 events"):
+            out = F.elastic(batch, noise, alpha=3.0, sigma=0.3)  # 0.3 px: the field is 3 px everywhere
+        assert rows(out, 0) == [(x - 3, y, t, p) for x, y, t, p in rows(batch, 0) if x >= 3]
+        assert torch.equal(frames_of(out), F.elastic(frames_of(batch), noise, alpha=3.0, sigma=0.3, mode="nearest"))
+
+    def test_zero_strength_is_identity(self):
+        batch = make_batch()
+        noise = torch.rand(4, 2, *SENSOR, generator=_g(1)) * 2 - 1
+        assert same_events(F.elastic(batch, noise, alpha=0.0), batch)
+
+    def test_hard_cases(self):
+        check_hard_cases(lambda: et.RandomElastic(alpha=(2.0, 6.0), sigma=2.0))

@@ -3,14 +3,18 @@ loops over entries and windows), and the filter's invariant (hypothesis)."""
 
 from __future__ import annotations
 
+import warnings
+
 import pytest
 import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import event_transforms as et
+from event_transforms import EventBatch
 from event_transforms import functional as F
 
+from .event_data import SENSOR, T, check_hard_cases, frames_of, make_streams, rows
 from .checkers import H, W, check_not_modified, count_shapes, random_counts, sparse_frames
 
 
@@ -76,4 +80,76 @@ def test_denoise_only_removes_whole_entries(shape, seed, radius, temporal_radius
 
 BATTERY = {
     "Denoise": lambda t, h, w: et.Denoise(),
+}
+
+
+# --------------------------------------------------------------------------- on events (EventBatch kernels)
+
+
+def reference_denoise_events(batch, b: int, radius: int, temporal_radius: int) -> list[tuple]:
+    """Slow per-event reference: an event in the grid's window and on the sensor survives when
+    some event of its stream in another entry (pixel, bin, polarity) lies within ``radius``
+    pixels and ``temporal_radius`` bins; events outside the window or the sensor are kept."""
+    height, width = batch.sensor_size
+    frame_us = int(batch.frame_ms * 1000)
+    start = int(batch.t_start[b])
+    events = rows(batch, b)
+
+    def entry(event):
+        x, y, t, p = event
+        k = (t - start) // frame_us
+        if not (0 <= x < width and 0 <= y < height and 0 <= k < batch.n_frames):
+            return None
+        return (k, p, y, x)
+
+    entries = [entry(e) for e in events]
+    kept = []
+    for event, own in zip(events, entries):
+        if own is None:
+            kept.append(event)
+            continue
+        k, _, y, x = own
+        if any(other is not None and other != own and abs(other[0] - k) <= temporal_radius
+               and abs(other[2] - y) <= radius and abs(other[3] - x) <= radius for other in entries):
+            kept.append(event)
+    return kept
+
+
+class TestDenoiseOnEvents:
+    @pytest.mark.parametrize("radius, temporal_radius", [(1, 1), (0, 0), (2, 0), (1, 3)])
+    def test_against_reference_and_frames(self, radius, temporal_radius):
+        # sparse streams, plus an event outside the window and one off the sensor (both kept)
+        streams = [torch.cat([s[:40], torch.tensor([[2, 2, 10 * T * 1000, 1], [-1, 3, 500, 0]])])
+                   for s in make_streams(3, seed=4)]
+        batch = EventBatch.from_streams(streams, sensor_size=SENSOR, frame_ms=1.0, t_start=0, n_frames=T)
+        out = F.denoise(batch, radius=radius, temporal_radius=temporal_radius)
+        removed = 0
+        for b in range(len(batch)):
+            expected = reference_denoise_events(batch, b, radius, temporal_radius)
+            assert rows(out, b) == expected
+            removed += len(rows(batch, b)) - len(expected)
+        assert removed > 0 or radius == 2  # the case removes something
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the two events binning drops
+            assert torch.equal(frames_of(out), F.denoise(frames_of(batch), radius=radius, temporal_radius=temporal_radius))
+
+    def test_module_same_entry_does_not_count(self):
+        """Two events in one entry are one entry (as on frames): alone, both go."""
+        twins = torch.tensor([[4, 4, 100, 1], [4, 4, 200, 1], [9, 9, 100, 0], [9, 9, 200, 1]])
+        batch = EventBatch.from_streams([twins], sensor_size=SENSOR, frame_ms=1.0, t_start=0, n_frames=T)
+        out = et.Denoise()(batch)
+        assert rows(out, 0) == [(9, 9, 100, 0), (9, 9, 200, 1)]  # other polarity: another entry
+
+    def test_needs_a_grid(self):
+        batch = EventBatch.from_streams(make_streams(2), sensor_size=SENSOR)
+        with pytest.raises(ValueError, match="denoise on events needs the batch's frame grid"):
+            F.denoise(batch)
+
+    def test_hard_cases(self):
+        check_hard_cases(lambda: et.Denoise(temporal_radius=0))
+
+
+EVENT_BATTERY = {
+    "Denoise": lambda: et.Denoise(),
+    "Denoise p": lambda: et.Denoise(2, temporal_radius=0, p=0.5),
 }

@@ -10,12 +10,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import event_transforms as et
+from event_transforms import EventBatch
 from event_transforms import functional as F
 
 from event_transforms.functional._event_ops import JITTER
 
 from . import random_reference as reference
-from .event_data import frames_of, make_batch, rows
+from .event_data import SENSOR, check_hard_cases, frames_of, make_batch, make_streams, rows
 from .checkers import H, W, check_not_modified, count_shapes, random_counts, sparse_frames
 
 
@@ -247,8 +248,41 @@ class TestOnEvents:
         assert torch.equal(frames_of(F.translate(batch, (1, -2))), F.translate(frames, (1, -2)))
         out = F.crop(batch, 1, 2, (5, 6))
         assert out.sensor_size == (5, 6) and torch.equal(frames_of(out), F.crop(frames, 1, 2, (5, 6)))
-        with pytest.raises(TypeError, match="downsample has no kernel for an EventBatch"):
-            F.downsample(batch, 2)
+        assert torch.equal(frames_of(F.downsample(batch, 2, remainder="keep")), F.downsample(frames, 2, remainder="keep"))
+
+
+class TestDownsampleOnEvents:
+    @staticmethod
+    def reference(c: int, factor: int, size: int, new_size: int) -> int:
+        """Per event: its block; a coordinate outside the sensor stays outside."""
+        if c >= size:
+            return new_size + (c - size) // factor
+        return c // factor  # Python floors: c < 0 stays < 0
+
+    @pytest.mark.parametrize("factor, remainder", [((2, 2), "drop"), ((3, 2), "keep"), ((2, 5), "drop"), ((4, 3), "keep")])
+    def test_against_reference_and_frames(self, factor, remainder):
+        import warnings
+
+        from event_transforms.functional.geometry import downsampled_size
+
+        streams = [torch.cat([s, torch.tensor([[-3, 2, 10, 1], [SENSOR[1] + 1, 0, 20, 0], [0, SENSOR[0], 30, 1]])])
+                   for s in make_streams(3, seed=11)]
+        batch = EventBatch.from_streams(streams, sensor_size=SENSOR, frame_ms=1.0, t_start=0, n_frames=6)
+        out = F.downsample(batch, factor, remainder=remainder)
+        new_h, new_w = downsampled_size(*SENSOR, factor, remainder)
+        assert out.sensor_size == (new_h, new_w) and out.lengths == batch.lengths
+        for b in range(len(batch)):
+            expected = [(self.reference(x, factor[1], SENSOR[1], new_w), self.reference(y, factor[0], SENSOR[0], new_h), t, p)
+                        for x, y, t, p in rows(batch, b)]
+            assert rows(out, b) == expected
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the events outside the sensor (and under "drop" the remainder's)
+            assert torch.equal(frames_of(out), F.downsample(frames_of(batch), factor, remainder=remainder))
+
+    def test_module_and_hard_cases(self):
+        batch = make_batch()
+        assert torch.equal(frames_of(et.Downsample(2, remainder="keep")(batch)), et.Downsample(2, remainder="keep")(frames_of(batch)))
+        check_hard_cases(lambda: et.Downsample((2, 3), remainder="keep"))
 
 
 # --------------------------------------------------------------------------- batteries
@@ -282,4 +316,6 @@ EVENT_BATTERY = {
     "RandomTranslate": lambda: et.RandomTranslate((2, 3)),
     "SpatialJitter": lambda: et.SpatialJitter((0.5, 2.0)),
     "SpatialJitter p": lambda: et.SpatialJitter(1.5, p=0.5),
+    "Downsample": lambda: et.Downsample(2),
+    "Downsample keep": lambda: et.Downsample((3, 2), remainder="keep"),
 }

@@ -5,6 +5,7 @@ a sample's output depends on its partner)."""
 from __future__ import annotations
 
 import pickle
+import warnings
 
 import pytest
 import torch
@@ -12,8 +13,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import event_transforms as et
+from event_transforms import EventBatch
 from event_transforms import functional as F
 
+from .event_data import SENSOR, T, check_hard_cases, frames_of, make_streams, rows
+from .event_data import make_batch as make_event_batch
 from .checkers import H, W, check_not_modified, count_shapes, random_counts, sparse_frames
 
 DTYPES = [torch.float32, torch.float16, torch.bfloat16, torch.float64, torch.uint8, torch.int16, torch.int32, torch.int64]
@@ -218,4 +222,178 @@ BATTERY = {
     "Cutout": lambda t, h, w: et.Cutout((3, 2)),
     "CutMix": lambda t, h, w: et.CutMix(),
     "MixUp": lambda t, h, w: et.MixUp(0.4),
+}
+
+
+# --------------------------------------------------------------------------- on events (EventBatch kernels)
+
+
+def _grid_batch(streams, t_start=0):
+    return EventBatch.from_streams(streams, sensor_size=SENSOR, frame_ms=1.0, t_start=t_start, n_frames=T)
+
+
+def _inside(event, box):
+    x, y = event[0], event[1]
+    top, left, height, width = box
+    return top <= y < top + height and left <= x < left + width
+
+
+def _boxes(values):
+    return [torch.tensor(v) for v in values]
+
+
+class TestCutoutOnEvents:
+    def test_against_reference_and_frames(self):
+        batch = make_event_batch(3)
+        box = ([0, 5, 8], [3, 0, 9], [4, 17, 5], [2, 3, 20])
+        out = F.cutout(batch, *_boxes(box))
+        for b in range(3):
+            mine = [v[b] for v in box]
+            assert rows(out, b) == [e for e in rows(batch, b) if not _inside(e, mine)]
+        assert out.num_events < batch.num_events
+        assert torch.equal(frames_of(out), F.cutout(frames_of(batch), *_boxes(box)))
+
+    def test_module_and_hard_cases(self):
+        batch = make_event_batch(4)
+        module = et.Cutout((5, 4))
+        params = module.make_params(batch.frame_shape, generator=_g(3))
+        assert torch.equal(frames_of(module(batch, params=params)), module(frames_of(batch), params=params))
+        check_hard_cases(lambda: et.Cutout(3))
+
+
+def reference_cutmix_events(batch, b, partner, box):
+    """Slow per-event reference: the stream's own events outside its box, then its partner's
+    inside it, moved onto the stream's grid."""
+    q = partner[b]
+    if q == b:
+        return rows(batch, b)
+    mine = [v[b] for v in box]
+    shift = int(batch.t_start[b]) - int(batch.t_start[q])
+    own = [e for e in rows(batch, b) if not _inside(e, mine)]
+    return own + [(x, y, t + shift, p) for x, y, t, p in rows(batch, q) if _inside((x, y), mine)]
+
+
+def reference_mixup_events(batch, b, partner, weight, seed):
+    """Slow per-event reference of the draws: own event k kept when its uniform (counter 2k)
+    is below w, partner event k taken when its uniform (counter 2k + 1) is below 1 - w."""
+    from event_transforms.functional._random import sample_salts, uniform
+
+    q = partner[b]
+    if q == b:
+        return rows(batch, b)
+    salt = sample_salts(torch.tensor([seed[b]]), "cpu")
+    u = lambda counter: float(uniform(salt, torch.tensor([counter]), 1)[0])  # noqa: E731
+    shift = int(batch.t_start[b]) - int(batch.t_start[q])
+    own = [e for k, e in enumerate(rows(batch, b)) if u(2 * k) < weight[b]]
+    return own + [(x, y, t + shift, p) for k, (x, y, t, p) in enumerate(rows(batch, q)) if u(2 * k + 1) < 1 - weight[b]]
+
+
+class TestCutMixOnEvents:
+    @pytest.mark.parametrize("t_start", [0, [0, 2000, 1000, 0]])
+    def test_against_reference_and_frames(self, t_start):
+        batch = _grid_batch(make_streams(4, seed=8), t_start)
+        partner = [2, 0, 2, 1]  # sample 2 is its own partner
+        box = ([0, 5, 8, 3], [3, 0, 9, 4], [4, 17, 5, 6], [2, 3, 20, 7])
+        out = F.cutmix(batch, partner, *_boxes(box))
+        for b in range(4):
+            assert rows(out, b) == reference_cutmix_events(batch, b, partner, box)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # shifted partner events past the window
+            assert torch.equal(frames_of(out), F.cutmix(frames_of(batch), partner, *_boxes(box)))
+
+    def test_module_mixes_labels_as_on_frames(self):
+        batch = make_event_batch(6)
+        frames = frames_of(batch)
+        force = torch.rand(6, T)
+        module = et.CutMix()
+        params = module.make_params(batch.frame_shape, generator=_g(1))
+        out, mixed = module(batch, force, params=params)
+        expected, expected_force = module(frames, force, params=params)
+        assert torch.equal(frames_of(out), expected) and torch.equal(mixed, expected_force)
+
+    def test_gate_leaves_skipped_streams(self):
+        batch = make_event_batch(8)
+        module = et.CutMix(p=0.5)
+        params = module.make_params(batch.frame_shape, generator=_g(5))
+        out, _ = module(batch, torch.rand(8), params=params)
+        gate = params["apply"].tolist()
+        assert any(gate) and not all(gate)
+        for b, applied in enumerate(gate):
+            if not applied:
+                assert rows(out, b) == rows(batch, b)
+
+    def test_a_sample_depends_only_on_itself_and_its_partner(self):
+        batch = make_event_batch(5)
+        partner, box = [3, 4, 0, 1, 2], ([1, 2, 3, 0, 4], [2, 5, 0, 6, 1], [5, 4, 6, 8, 3], [7, 6, 5, 9, 8])
+        whole = F.cutmix(batch, partner, *_boxes(box))
+        for b in range(5):
+            pair = batch.index_select(torch.tensor([b, partner[b]]))
+            alone = F.cutmix(pair, [1, 0], *_boxes([[v[b], v[b]] for v in box]))
+            assert rows(alone, 0) == rows(whole, b)
+
+    def test_hard_cases(self):
+        check_hard_cases(lambda: et.CutMix(), coupled=True)
+
+
+class TestMixUpOnEvents:
+    @pytest.mark.parametrize("t_start", [0, [0, 2000, 1000, 0]])
+    def test_against_reference(self, t_start):
+        batch = _grid_batch(make_streams(4, seed=9), t_start)
+        partner, weight, seed = [1, 3, 2, 0], [0.3, 0.8, 0.5, 0.0], [11, 2**62 + 5, 7, 123]
+        out = F.mixup(batch, partner, weight, seed=seed)
+        for b in range(4):
+            assert rows(out, b) == reference_mixup_events(batch, b, partner, weight, seed)
+        ends = F.mixup(batch, partner, [1.0, 0.0, 1.0, 0.0], seed=seed)  # itself, or its partner's events
+        assert rows(ends, 0) == rows(batch, 0)
+        assert rows(ends, 1) == reference_cutmix_events(batch, 1, partner, ([0] * 4, [0] * 4, [99] * 4, [99] * 4))
+
+    def test_equals_frames_in_expectation(self):
+        """Binned, the mean over many draws is the frame MixUp (each entry a sum of Bernoulli
+        draws with mean w·x + (1 - w)·x'); checked with 5-sigma bounds per entry."""
+        pair = make_streams(2, seed=10)
+        copies = 400
+        batch = _grid_batch([pair[0], pair[1]] * copies)
+        partner = torch.arange(2 * copies) ^ 1  # 0 <-> 1, 2 <-> 3, ...
+        weight = torch.tensor([0.3, 0.6]).repeat(copies)
+        out = F.mixup(batch, partner, weight, seed=torch.arange(2 * copies) * 7919)
+        mean = frames_of(out, torch.float64).view(copies, 2, T, 2, *SENSOR).mean(0)
+        frames = frames_of(batch[:2], torch.float64)
+        expected = F.mixup(frames, [1, 0], [0.3, 0.6]).to(torch.float64)
+        w = torch.tensor([0.3, 0.6], dtype=torch.float64).view(2, 1, 1, 1, 1)
+        variance = w * (1 - w) * (frames + frames.flip(0)) / copies
+        assert bool(((mean - expected).abs() <= 5 * variance.sqrt() + 1e-12).all())
+        assert float((mean - expected).abs().max()) > 0  # draws, not the blend itself
+
+    def test_module_labels_replay_and_seed(self):
+        batch = make_event_batch(6)
+        force = torch.rand(6, T)
+        module = et.MixUp(0.4)
+        params = module.make_params(batch.frame_shape, generator=_g(3))
+        assert params["seed"].dtype == torch.int64 and params["seed"].shape == (6,)
+        out, mixed = module(batch, force, params=params)
+        again, _ = module(batch, force, params=params)
+        assert rows(out, 0) == rows(again, 0) and out.lengths == again.lengths
+        assert torch.equal(mixed, module(frames_of(batch).float(), force, params=params)[1])
+        with pytest.raises(ValueError, match="seed"):
+            F.mixup(batch, torch.arange(6), 0.5, seed=-1)
+
+    def test_a_sample_depends_only_on_itself_and_its_partner(self):
+        batch = make_event_batch(5)
+        partner, weight, seed = [3, 4, 0, 1, 2], [0.2, 0.4, 0.6, 0.8, 0.5], [1, 2, 3, 4, 5]
+        whole = F.mixup(batch, partner, weight, seed=seed)
+        for b in range(5):
+            pair = batch.index_select(torch.tensor([b, partner[b]]))
+            alone = F.mixup(pair, [1, 0], [weight[b], 0.5], seed=[seed[b], 0])
+            assert rows(alone, 0) == rows(whole, b)
+
+    def test_hard_cases(self):
+        check_hard_cases(lambda: et.MixUp(0.4), coupled=True)
+
+
+EVENT_BATTERY = {
+    "Cutout": lambda: et.Cutout((3, 2)),
+    "Cutout p": lambda: et.Cutout(4, p=0.5),
+    "CutMix": lambda: et.CutMix(),
+    "MixUp": lambda: et.MixUp(0.4),
+    "MixUp p": lambda: et.MixUp(1.0, p=0.5),
 }

@@ -10,7 +10,7 @@ import torch
 import event_transforms as et
 from event_transforms import functional as F
 
-from .event_data import frames_of, make_batch
+from .event_data import check_hard_cases, frames_of, make_batch, rows
 from .checkers import H, W, check_not_modified, sparse_frames
 
 
@@ -84,6 +84,26 @@ class TestOnEvents:
         assert torch.equal(frames_of(F.flip_polarity(batch, flags)), F.flip_polarity(frames, flags))
 
 
+class TestMergePolaritiesOnEvents:
+    def test_against_reference(self):
+        batch = make_batch()
+        out = et.MergePolarities()(batch)
+        for b in range(len(batch)):
+            assert rows(out, b) == [(x, y, t, 0) for x, y, t, _ in rows(batch, b)]  # every event OFF
+        assert out.p.dtype == torch.int8 and batch.p.sum() > 0  # the input is untouched
+
+    def test_equals_frames_after_binning(self):
+        batch = make_batch()
+        assert torch.equal(frames_of(F.merge_polarities(batch)), F.merge_polarities(frames_of(batch)))
+
+    def test_keepdim_false_refused(self):
+        with pytest.raises(ValueError, match="keepdim=False"):
+            F.merge_polarities(make_batch(), keepdim=False)
+
+    def test_hard_cases(self):
+        check_hard_cases(lambda: et.MergePolarities())
+
+
 # --------------------------------------------------------------------------- batteries
 # This topic's entries of the shared batteries (tests/test_battery.py on frames,
 # tests/test_shape_battery.py for size-changing modules, tests/test_event_batch.py on events).
@@ -97,4 +117,6 @@ BATTERY = {
 EVENT_BATTERY = {
     "FlipPolarity": lambda: et.FlipPolarity(),
     "RandomFlipPolarity": lambda: et.RandomFlipPolarity(),
+    "MergePolarities": lambda: et.MergePolarities(),
+    "MergePolarities p": lambda: et.MergePolarities(p=0.5),
 }

@@ -18,7 +18,9 @@ pixel (rounded to the nearest), so counts are conserved; a bilinear warp of fram
 spreads each count over up to four pixels (and a zoom by β multiplies the total by about
 β²). Events moved outside the sensor are kept (no host synchronisation, counts kept) and
 dropped when binned; a later transform that moves them back brings them back, which
-frames cannot. Frame shift and TES drop the events they push out of the grid's window,
+frames cannot. The perspective and elastic warps are the exception: they drop the events
+they move off the sensor, with the binning's warning (a homography sends points near its
+horizon past any int16 coordinate, and the elastic field is defined on the sensor only). Frame shift and TES drop the events they push out of the grid's window,
 as the frame kernels do.
 
 Host synchronisations: none, except where the output size depends on the data (event

@@ -34,7 +34,7 @@ from .._validation import (
 )
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import _round_to
+from ._event_ops import _compact, _round_to, warn_dropped
 
 __all__ = [
     "center_of_mass",
@@ -42,8 +42,8 @@ __all__ = [
     "rotate", "rotate_frames", "rotate_events",
     "resize", "resize_frames", "resize_events",
     "affine", "affine_frames", "affine_events",
-    "perspective", "perspective_frames",
-    "elastic", "elastic_frames",
+    "perspective", "perspective_frames", "perspective_events",
+    "elastic", "elastic_frames", "elastic_events",
 ]
 
 Center = str | Sequence[float] | Tensor
@@ -852,7 +852,9 @@ def perspective_frames(batch: Tensor, corners: Tensor, mode: str) -> Tensor:
     return _sample(batch, grid, mode, work, out_dtype)
 
 
-def perspective(frames: Tensor, corners: Sequence[Sequence[float]] | Tensor, *, mode: str = "bilinear") -> Tensor:
+def perspective(
+    frames: Tensor | EventBatch, corners: Sequence[Sequence[float]] | Tensor, *, mode: str = "bilinear"
+) -> Tensor | EventBatch:
     """Warp every frame of each sequence by the homography that moves the frame's corners to ``corners``.
 
     One homography per sequence, solved on the host; all T·2 frames are folded into
@@ -861,8 +863,14 @@ def perspective(frames: Tensor, corners: Sequence[Sequence[float]] | Tensor, *, 
     sensor plane would see the same contact. Pixels that come from outside the frame are
     zero. On a singleton axis the corners span [0, 1].
 
+    On an EventBatch (:func:`perspective_events`) each event moves by the homography itself
+    (the inverse of the frames' sampling map) to the nearest pixel, so counts are kept
+    (frames sampled by ``nearest`` repeat or skip pixels where the warp stretches or
+    squeezes; ``mode`` does not apply); events warped off the sensor are dropped, with the
+    :class:`~event_transforms.events.EventsOutsideSensorWarning` binning gives.
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
         corners: where the centres of the top-left, top-right, bottom-right and bottom-left
             pixels go, as ``(y, x)`` pixel positions: ``(4, 2)`` for every sample or
             ``(B, 4, 2)``; they must make a convex quadrilateral in that order.
@@ -886,8 +894,10 @@ def perspective(frames: Tensor, corners: Sequence[Sequence[float]] | Tensor, *, 
         (torch.int16, [[1, 1]])
     """
     kernel = kernel_for(perspective, frames)
-    batch, unbatch = as_batch(check_frames(frames))
     check_choice(mode, "mode", INTERPOLATIONS)
+    if isinstance(frames, EventBatch):
+        return kernel(frames, _check_corners(corners, len(frames)), mode)
+    batch, unbatch = as_batch(check_frames(frames))
     return unbatch(kernel(batch, _check_corners(corners, batch.shape[0]), mode))
 
 
@@ -897,6 +907,17 @@ def _gaussian_kernel(sigma: float, device: torch.device, dtype: torch.dtype) -> 
     offsets = np.arange(-radius, radius + 1, dtype=np.float64)
     weights = np.exp(-0.5 * (offsets / sigma) ** 2)
     return torch.from_numpy(weights / weights.sum()).to(device, dtype, non_blocking=True)
+
+
+def _smoothed(noise: Tensor, sigma: float, device: torch.device, dtype: torch.dtype) -> Tensor:
+    """(B·2, 1, H, W): each channel of (B, 2, H, W) ``noise`` smoothed by two 1-D Gaussian
+    passes of ``sigma`` pixels (zero outside the frame)."""
+    b, _, height, width = noise.shape
+    kernel = _gaussian_kernel(sigma, device, dtype)
+    radius = kernel.shape[0] // 2
+    field = noise.to(device, dtype, non_blocking=True).reshape(b * 2, 1, height, width)
+    field = torch.nn.functional.conv2d(field, kernel.view(1, 1, -1, 1), padding=(radius, 0))
+    return torch.nn.functional.conv2d(field, kernel.view(1, 1, 1, -1), padding=(0, radius))
 
 
 def elastic_frames(batch: Tensor, noise: Tensor, alpha: Tensor, sigma: float, mode: str) -> Tensor:
@@ -921,11 +942,7 @@ def elastic_frames(batch: Tensor, noise: Tensor, alpha: Tensor, sigma: float, mo
     if batch.numel() == 0:
         return batch.to(out_dtype, copy=True)
     work = _work_dtype(batch.dtype, mode)
-    kernel = _gaussian_kernel(sigma, batch.device, work)
-    radius = kernel.shape[0] // 2
-    field = noise.to(batch.device, work, non_blocking=True).reshape(b * 2, 1, height, width)
-    field = torch.nn.functional.conv2d(field, kernel.view(1, 1, -1, 1), padding=(radius, 0))
-    field = torch.nn.functional.conv2d(field, kernel.view(1, 1, 1, -1), padding=(0, radius))
+    field = _smoothed(noise, sigma, batch.device, work)
     norm = _normalisation(height, width)
     units = torch.from_numpy(alpha.numpy()[:, None] * np.array([norm[1, 1], norm[0, 0]]))  # (B, 2) as (y, x)
     field = field.view(b, 2, height, width) * units.to(batch.device, work, non_blocking=True).view(b, 2, 1, 1)
@@ -934,13 +951,13 @@ def elastic_frames(batch: Tensor, noise: Tensor, alpha: Tensor, sigma: float, mo
 
 
 def elastic(
-    frames: Tensor,
+    frames: Tensor | EventBatch,
     noise: Tensor,
     *,
     alpha: Scalars = 50.0,
     sigma: float = 5.0,
     mode: str = "bilinear",
-) -> Tensor:
+) -> Tensor | EventBatch:
     """Displace the pixels of every frame of each sequence by one smooth random field per sequence.
 
     The elastic distortion of Simard et al. (2003), as torchvision's ``ElasticTransform``:
@@ -951,8 +968,14 @@ def elastic(
     its ``alpha`` in pixels gives the same result, frame by frame). Pixels that come from
     outside the frame are zero.
 
+    On an EventBatch (:func:`elastic_events`) each event moves the other way: from p to the
+    q with ``q + field(q) = p`` (the frame map inverted, by a few fixed-point steps
+    ``q <- p - field(q)`` on the bilinearly interpolated field), to the nearest pixel.
+    Counts are kept (``mode`` does not apply); events warped off the sensor are dropped,
+    with the :class:`~event_transforms.events.EventsOutsideSensorWarning` binning gives.
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
         noise: raw displacements in [-1, 1], ``(2, H, W)`` or ``(B, 2, H, W)``, channel 0
             along y (down), channel 1 along x (right); e.g. ``2 * torch.rand(B, 2, H, W) - 1``.
         alpha: strength in pixels (>= 0), a number or ``(B,)``.
@@ -978,8 +1001,8 @@ def elastic(
         [[4, 2]]
     """
     kernel = kernel_for(elastic, frames)
-    batch, unbatch = as_batch(check_frames(frames))
-    b, _, _, height, width = batch.shape
+    batch, b, unbatch = batch_of(frames)
+    height, width = batch.sensor_size if isinstance(batch, EventBatch) else batch.shape[-2:]
     if not isinstance(noise, Tensor):
         raise TypeError(f"noise must be a tensor (2, H, W) or (B, 2, H, W), got {type(noise).__name__}")
     if tuple(noise.shape) == (2, height, width):
@@ -1001,3 +1024,131 @@ def elastic(
 
 register_kernel(perspective, Tensor)(perspective_frames)
 register_kernel(elastic, Tensor)(elastic_frames)
+
+
+def _keep_on_sensor(batch: EventBatch, x: Tensor, y: Tensor, valid: Tensor | None = None) -> EventBatch:
+    """``batch`` with float coordinates ``x, y`` rounded to the nearest pixel; the events that
+    land off the sensor (or are not ``valid``) dropped with the binning's
+    :class:`~event_transforms.events.EventsOutsideSensorWarning`. Host reads: the warning's counts
+    and the kept counts."""
+    height, width = batch.sensor_size
+    moved = batch._replace(x=_round_to(x, torch.int16), y=_round_to(y, torch.int16))
+    outside = (moved.x < 0) | (moved.x >= width) | (moved.y < 0) | (moved.y >= height)
+    if valid is not None:
+        outside |= ~valid
+    warn_dropped(moved, outside_sensor=outside, stacklevel=5)
+    return _compact(moved, ~outside)
+
+
+@register_kernel(perspective, EventBatch)
+def perspective_events(batch: EventBatch, corners: Tensor, mode: str = "bilinear") -> EventBatch:
+    """Kernel of :func:`perspective` for an EventBatch: each event moves by sample b's
+    homography (the frame's corners to ``corners[b]``, in pixels; the inverse of the frame
+    kernel's sampling map), to the nearest pixel; events off the sensor, or behind the
+    homography's horizon, are dropped with a warning. Float64 arithmetic, one gather of
+    the nine coefficients per event whatever B; host reads: the dropped and kept counts.
+
+    Args:
+        batch: the event streams.
+        corners: ``(B, 4, 2)`` float64 ``(y, x)`` targets of the frame's corners, checked
+            convex (as :func:`perspective` checks them).
+        mode: not used (each event lands in one pixel).
+
+    Shape:
+        - batch: B streams, N events.
+        - corners: ``(B, 4, 2)``.
+        - output: B streams, at most N events (those on the sensor, in their order).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 0, 1], [4, 4, 0, 1]])], sensor_size=(5, 5))
+        >>> corners = torch.tensor([[[1.0, 1.0], [0.0, 4.0], [4.0, 4.0], [4.0, 0.0]]])
+        >>> out = perspective_events(batch, corners)  # the top-left corner moves to (1, 1)
+        >>> out.x.tolist(), out.y.tolist()
+        ([1, 4], [1, 4])
+    """
+    if batch.num_events == 0 or len(batch) == 0:
+        return batch
+    height, width = batch.sensor_size
+    norm = _normalisation(height, width)
+    sampling = np.linalg.inv(norm) @ _perspective_matrices(corners, height, width) @ norm  # output pixel -> input pixel
+    forward = torch.from_numpy(np.linalg.inv(sampling).reshape(-1, 9).T.copy()).to(batch.device, non_blocking=True)
+    h = forward.index_select(1, batch.sample_index())  # (9, N)
+    x, y = batch.x.to(torch.float64), batch.y.to(torch.float64)
+    w = h[6] * x + h[7] * y + h[8]
+    valid = w > 0
+    w = torch.where(valid, w, torch.ones_like(w))
+    return _keep_on_sensor(batch, (h[0] * x + h[1] * y + h[2]) / w, (h[3] * x + h[4] * y + h[5]) / w, valid)
+
+
+#: Fixed-point steps of :func:`elastic_events` (each costs one bilinear gather of the field).
+ELASTIC_STEPS = 4
+
+
+@register_kernel(elastic, EventBatch)
+def elastic_events(batch: EventBatch, noise: Tensor, alpha: Tensor, sigma: float, mode: str = "bilinear") -> EventBatch:
+    """Kernel of :func:`elastic` for an EventBatch: the field of the frame kernel, in pixels
+    (``alpha[b]`` times the smoothed ``noise[b]``), is inverted per event by
+    ``ELASTIC_STEPS`` fixed-point steps ``q <- p - field(q)`` from ``q = p`` (the field read
+    bilinearly, clamped at the border), then rounded to the nearest pixel. The steps converge
+    where the field's slope is below 1 (a smooth field: ``alpha`` small against ``sigma``);
+    a field that folds the image has no inverse and the last step is used. Events off the
+    sensor are dropped with a warning. No loop over the samples; host reads: the dropped
+    and kept counts.
+
+    Args:
+        batch: the event streams.
+        noise: ``(B, 2, H, W)`` raw displacements in [-1, 1] on the batch's sensor.
+        alpha: ``(B,)`` strengths in pixels (>= 0).
+        sigma: smoothness of the field in pixels (> 0).
+        mode: not used (each event lands in one pixel).
+
+    Shape:
+        - batch: B streams, N events on an ``(H, W)`` sensor.
+        - noise: ``(B, 2, H, W)``; alpha: ``(B,)``.
+        - output: B streams, at most N events (those on the sensor, in their order).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[4, 4, 0, 1]])], sensor_size=(9, 9))
+        >>> noise = torch.zeros(1, 2, 9, 9)
+        >>> noise[0, 1] = 1.0  # frames sample from the right: content moves left
+        >>> elastic_events(batch, noise, torch.tensor([2.0]), 1.0).x.tolist()
+        [2]
+    """
+    b = len(batch)
+    if batch.num_events == 0 or b == 0:
+        return batch
+    height, width = batch.sensor_size
+    device, f64 = batch.device, torch.float64
+    field = _smoothed(noise, sigma, device, f64).view(b, 2, height * width)
+    field = (field * alpha.to(device, f64, non_blocking=True).view(b, 1, 1)).reshape(-1)  # pixels, (y, x) channels
+    sample = batch.sample_index().to(torch.int64)
+    base_y = sample * (2 * height * width)
+    base_x = base_y + height * width
+    px, py = batch.x.to(f64), batch.y.to(f64)
+    qx, qy = px, py
+    for _ in range(ELASTIC_STEPS):
+        dy, dx = _bilinear(field, (base_y, base_x), qy, qx, height, width)
+        qx, qy = px - dx, py - dy
+    return _keep_on_sensor(batch, qx, qy)
+
+
+def _bilinear(field: Tensor, bases: tuple[Tensor, ...], y: Tensor, x: Tensor, height: int, width: int) -> list[Tensor]:
+    """The flat ``field`` planes starting at each of ``bases`` (per event) read bilinearly at
+    ``(y, x)`` clamped to the frame."""
+    y, x = y.clamp(0, height - 1), x.clamp(0, width - 1)
+    y0, x0 = y.floor(), x.floor()
+    wy, wx = y - y0, x - x0
+    y0, x0 = y0.to(torch.int64), x0.to(torch.int64)
+    y1, x1 = (y0 + 1).clamp_max(height - 1), (x0 + 1).clamp_max(width - 1)
+    out = []
+    for base in bases:
+        top = torch.lerp(_at(field, base, y0, x0, width), _at(field, base, y0, x1, width), wx)
+        bottom = torch.lerp(_at(field, base, y1, x0, width), _at(field, base, y1, x1, width), wx)
+        out.append(torch.lerp(top, bottom, wy))
+    return out
+
+
+def _at(field: Tensor, base: Tensor, y: Tensor, x: Tensor, width: int) -> Tensor:
+    return field.index_select(0, base + y * width + x)

@@ -36,7 +36,7 @@ __all__ = [
     "vertical_flip", "vertical_flip_frames", "vertical_flip_events",
     "translate", "translate_frames", "translate_events",
     "crop", "crop_frames", "crop_events", "center_crop",
-    "downsample", "downsample_frames",
+    "downsample", "downsample_frames", "downsample_events",
     "spatial_jitter", "spatial_jitter_events",
 ]
 
@@ -404,7 +404,7 @@ def _factor(value: object) -> tuple[int, int]:
     return _size(value, "factor")
 
 
-def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = "drop") -> Tensor:
+def downsample(frames: Tensor | EventBatch, factor: int | Sequence[int], *, remainder: str = "drop") -> Tensor | EventBatch:
     """Sum each ``fy × fx`` block of pixels into one (sum-pooling): counts are conserved.
 
     The paper's "adding the closest neighbourhoods" (140×150 pooled 2×2 to 70×75). When H
@@ -415,8 +415,13 @@ def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = 
     8/16-bit integer frames whose block sums would overflow raise instead of wrapping, and
     float16/bfloat16 frames whose sums pass the dtype's range raise instead of giving ``inf``.
 
+    On an EventBatch (:func:`downsample_events`) each event moves to its block,
+    ``(y // fy, x // fx)``, and the sensor becomes ``(H', W')``: binned, the result equals
+    the frame kernel's. Under ``"drop"`` the events of the discarded rows and columns land
+    just outside the new sensor and the binning drops them, with its warning.
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
         factor: ``k`` or ``(fy, fx)``, positive integers.
         remainder: ``"drop"`` or ``"keep"``.
 
@@ -434,11 +439,54 @@ def downsample(frames: Tensor, factor: int | Sequence[int], *, remainder: str = 
         ([[4, 4], [4, 4]], [[4, 4], [4, 4], [2, 2]])
     """
     kernel = kernel_for(downsample, frames)
+    if isinstance(frames, EventBatch):
+        return kernel(frames, _factor(factor), check_choice(remainder, "remainder", REMAINDERS))
     batch, unbatch = as_batch(check_frames(frames))
     return unbatch(kernel(batch, _factor(factor), check_choice(remainder, "remainder", REMAINDERS)))
 
 
 register_kernel(downsample, Tensor)(downsample_frames)
+
+
+@register_kernel(downsample, EventBatch)
+def downsample_events(batch: EventBatch, factor: tuple[int, int], remainder: str = "drop") -> EventBatch:
+    """Kernel of :func:`downsample` for an EventBatch: each event to its block, the sensor to
+    ``(H', W')``. Sync-free; counts kept (binned, equal to :func:`downsample_frames`).
+
+    A coordinate ``c`` on an axis of ``n`` pixels and factor ``f`` becomes ``c // f``; one
+    already outside the sensor stays outside (``c < 0`` floors below 0, ``c >= n`` goes to
+    ``n' + (c - n) // f``), so a partial last block under ``"keep"`` does not take it in.
+
+    Args:
+        batch: the event streams.
+        factor: ``(fy, fx)`` positive integers.
+        remainder: ``"drop"`` or ``"keep"``, as in :func:`downsample` (sets the new sensor size).
+
+    Shape:
+        - batch: B streams, N events on an ``(H, W)`` sensor.
+        - output: the same streams and events on ``(H', W')``.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[3, 4, 0, 1], [5, 1, 0, 0]])], sensor_size=(5, 6))
+        >>> out = downsample_events(batch, (2, 2))
+        >>> out.sensor_size, out.x.tolist(), out.y.tolist()
+        ((2, 3), [1, 2], [2, 0])
+    """
+    height, width = batch.sensor_size
+    new_h, new_w = downsampled_size(height, width, factor, remainder)
+    y = _pool_coordinate(batch.y, factor[0], height, new_h)
+    x = _pool_coordinate(batch.x, factor[1], width, new_w)
+    return batch._replace(x=x, y=y, sensor_size=(new_h, new_w))
+
+
+def _pool_coordinate(column: Tensor, factor: int, size: int, new_size: int) -> Tensor:
+    """``column // factor`` (floor), with coordinates ``>= size`` kept beyond ``new_size``."""
+    pooled = torch.div(column, factor, rounding_mode="floor")
+    if size % factor == 0:
+        return pooled  # c >= size already gives c // f >= new_size
+    beyond = torch.div(column - size, factor, rounding_mode="floor") + new_size
+    return torch.where(column >= size, beyond, pooled).to(torch.int16)
 
 
 # --------------------------------------------------------------------------- flips

@@ -5,6 +5,17 @@ Boxes are per sample, the same in every frame of a sequence, given as ``(B,)`` i
 ``top, left, height, width`` already clipped to the frame. Partners are ``(B,)`` indices into
 the same batch. Cutout and CutMix move whole counts (dtype kept); MixUp blends values
 (input dtype for float input, float32 for integer input).
+
+On an EventBatch the kernels (``<op>_events``) keep or take whole events: Cutout drops
+the events in the box, CutMix takes the partner's events in the box instead of the
+sample's own, MixUp keeps each own event with probability w and takes each of the
+partner's with probability 1 - w (counter-based draws keyed by the sample's seed), so
+binned, its frames equal the frame MixUp's in expectation (each entry's mean is
+``w·x + (1 - w)·x'``) while staying whole counts. A stream's output holds its own kept
+events first, then those taken from its partner; with a frame grid, a partner's events are
+moved onto the sample's grid (by ``t_start[b] - t_start[partner]``), so binned, they land
+in the frames the frame kernel pastes them into. A sample that is its own partner is
+left as it is (frames: pasting or blending a sample with itself is the identity).
 """
 
 from __future__ import annotations
@@ -15,9 +26,15 @@ import torch
 from torch import Tensor
 
 from .._validation import as_batch, as_number, check_frames, describe, per_sample
+from ..events.batch import EventBatch
 from ._dispatch import kernel_for, register_kernel
+from ._event_ops import _compact
+from ._random import draw_seeds, sample_salts, uniform
 
-__all__ = ["cutout", "cutout_frames", "cutmix", "cutmix_frames", "mixup", "mixup_frames", "mix_labels"]
+__all__ = [
+    "cutout", "cutout_frames", "cutout_events", "cutmix", "cutmix_frames", "cutmix_events",
+    "mixup", "mixup_frames", "mixup_events", "mix_labels",
+]
 
 Scalars = float | Sequence[float] | Tensor
 
@@ -35,8 +52,8 @@ def _box_mask(
     return (inside_rows.unsqueeze(2) & inside_cols.unsqueeze(1)).unsqueeze(1).unsqueeze(1)
 
 
-def _check_box(batch: Tensor, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> list[Tensor]:
-    b = batch.shape[0]
+def _check_box(batch: Tensor | EventBatch, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> list[Tensor]:
+    b = len(batch) if isinstance(batch, EventBatch) else batch.shape[0]
     box = []
     for value, name in ((top, "top"), (left, "left"), (height, "height"), (width, "width")):
         t = per_sample(value, b, name, dtype=torch.int64)
@@ -53,14 +70,15 @@ def _check_partner(partner: object, batch: int) -> Tensor:
     return index
 
 
-def cutout(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> Tensor:
+def cutout(frames: Tensor | EventBatch, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> Tensor | EventBatch:
     """Empty a box of every frame of each sequence (DeVries & Taylor's Cutout, used by NDA).
 
     The box is the same in all frames of a sequence; a box past the border stops there.
-    Counts outside it and the dtype are kept.
+    Counts outside it and the dtype are kept. On an EventBatch (:func:`cutout_events`) the
+    events in the box are removed (binned, equal to the frame kernel's result).
 
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
         top, left: the box's first row and column, integers >= 0 or ``(B,)``.
         height, width: its size in pixels.
 
@@ -74,6 +92,8 @@ def cutout(frames: Tensor, top: Scalars, left: Scalars, height: Scalars, width: 
         [[1, 1, 1, 1], [1, 0, 0, 1], [1, 0, 0, 1]]
     """
     kernel = kernel_for(cutout, frames)
+    if isinstance(frames, EventBatch):
+        return kernel(frames, *_check_box(frames, top, left, height, width))
     batch, unbatch = as_batch(check_frames(frames))
     return unbatch(kernel(batch, *_check_box(batch, top, left, height, width)))
 
@@ -99,7 +119,9 @@ def cutout_frames(batch: Tensor, top: Tensor, left: Tensor, height: Tensor, widt
     return batch.masked_fill(mask, 0)
 
 
-def cutmix(frames: Tensor, partner: Scalars, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> Tensor:
+def cutmix(
+    frames: Tensor | EventBatch, partner: Scalars, top: Scalars, left: Scalars, height: Scalars, width: Scalars
+) -> Tensor | EventBatch:
     """Paste a box of each sample's partner (all frames) into the sample (Yun et al.'s CutMix).
 
     Sample b takes the box ``[top, top + height) × [left, left + width)`` from sample
@@ -107,8 +129,12 @@ def cutmix(frames: Tensor, partner: Scalars, top: Scalars, left: Scalars, height
     interpolated: the dtype is kept. Mix the labels with :func:`mix_labels` and the weight
     ``1 - height·width / (H·W)`` (the share of the sample's own pixels).
 
+    On an EventBatch (:func:`cutmix_events`) the sample's events in the box are replaced by
+    the partner's events in the box (see the module docstring): binned, equal to the frame
+    kernel's result.
+
     Args:
-        frames: a batch ``(B, T, 2, H, W)`` (or one sequence, its own partner).
+        frames: a batch ``(B, T, 2, H, W)`` (or one sequence, its own partner), or an EventBatch.
         partner: ``(B,)`` sample indices in ``[0, B)``.
         top, left, height, width: the box per sample, as in :func:`cutout`.
 
@@ -123,6 +149,8 @@ def cutmix(frames: Tensor, partner: Scalars, top: Scalars, left: Scalars, height
         [[0.0, 1.0, 0.0], [0.0, 1.0, 0.0]]
     """
     kernel = kernel_for(cutmix, frames)
+    if isinstance(frames, EventBatch):
+        return kernel(frames, _check_partner(partner, len(frames)), *_check_box(frames, top, left, height, width))
     batch, unbatch = as_batch(check_frames(frames))
     partner_t = _check_partner(partner, batch.shape[0])
     return unbatch(kernel(batch, partner_t, *_check_box(batch, top, left, height, width)))
@@ -151,13 +179,28 @@ def cutmix_frames(batch: Tensor, partner: Tensor, top: Tensor, left: Tensor, hei
     return torch.where(mask, batch.index_select(0, partner.to(batch.device, non_blocking=True)), batch)
 
 
-def mixup(frames: Tensor, partner: Scalars, weight: Scalars) -> Tensor:
+def mixup(
+    frames: Tensor | EventBatch,
+    partner: Scalars,
+    weight: Scalars,
+    *,
+    seed: Scalars | None = None,
+    generator: torch.Generator | None = None,
+) -> Tensor | EventBatch:
     """Blend each sample with its partner: ``w · x_b + (1 - w) · x_partner[b]`` (Zhang et al.'s MixUp).
 
+    On an EventBatch (:func:`mixup_events`) each of the sample's events is kept with
+    probability ``w`` and each of the partner's taken with probability ``1 - w``, drawn from
+    counter-based streams keyed by the sample's ``seed``: whole events, equal to the frame
+    blend in expectation after binning (see the module docstring).
+
     Args:
-        frames: a batch ``(B, T, 2, H, W)`` (or one sequence, its own partner).
+        frames: a batch ``(B, T, 2, H, W)`` (or one sequence, its own partner), or an EventBatch.
         partner: ``(B,)`` sample indices in ``[0, B)``.
         weight: the sample's own share ``w`` in [0, 1], a number or ``(B,)``.
+        seed: for an EventBatch, the per-sample seeds of the draws, an integer or ``(B,)``
+            int64 in [0, 2**63) (default: drawn from ``generator``); unused on frames.
+        generator: source of the seeds when ``seed`` is not given (``None``: torch's RNG).
 
     Returns:
         Blended frames: the input dtype for float input, float32 for integer input.
@@ -174,6 +217,12 @@ def mixup(frames: Tensor, partner: Scalars, weight: Scalars) -> Tensor:
         [0.25, 0.25, 0.5, 0.5]
     """
     kernel = kernel_for(mixup, frames)
+    if isinstance(frames, EventBatch):
+        b = len(frames)
+        seeds = draw_seeds(b, generator).cpu() if seed is None else per_sample(seed, b, "seed", dtype=torch.int64)
+        if seeds.numel() and bool((seeds < 0).any()):
+            raise ValueError(f"seed must lie in [0, 2**63), got {describe(seed)}")
+        return kernel(frames, _check_partner(partner, b), _check_weight(weight, b), seeds)
     batch, unbatch = as_batch(check_frames(frames))
     partner_t = _check_partner(partner, batch.shape[0])
     weight_t = _check_weight(weight, batch.shape[0])
@@ -188,13 +237,14 @@ def _check_weight(weight: object, batch: int) -> Tensor:
 
 
 @register_kernel(mixup, Tensor)
-def mixup_frames(batch: Tensor, partner: Tensor, weight: Tensor) -> Tensor:
+def mixup_frames(batch: Tensor, partner: Tensor, weight: Tensor, seed: Tensor | None = None) -> Tensor:
     """Kernel of :func:`mixup` for frames: ``weight[b] * x[b] + (1 - weight[b]) * x[partner[b]]``.
 
     Args:
         batch: frames ``(B, T, 2, H, W)``.
         partner: ``(B,)`` indices of each sample's partner.
         weight: ``(B,)`` mixing weights in [0, 1].
+        seed: not used (the event kernel's draws; the blend draws nothing).
 
     Shape:
         - batch: ``(B, T, 2, H, W)``.
@@ -211,6 +261,147 @@ def mixup_frames(batch: Tensor, partner: Tensor, weight: Tensor) -> Tensor:
     own = batch.to(work)
     other = own.index_select(0, partner.to(batch.device, non_blocking=True))
     return (other + w * (own - other)).to(out_dtype)
+
+
+# --------------------------------------------------------------------------- events
+
+
+def _in_box(x: Tensor, y: Tensor, owner: Tensor, box: Sequence[Tensor]) -> Tensor:
+    """Per event whether ``(y, x)`` lies in the box of sample ``owner`` (per-event gathers)."""
+    device = x.device
+    top, left, height, width = (v.to(device, torch.int64, non_blocking=True).index_select(0, owner) for v in box)
+    y64, x64 = y.to(torch.int64), x.to(torch.int64)
+    return (y64 >= top) & (y64 < top + height) & (x64 >= left) & (x64 < left + width)
+
+
+@register_kernel(cutout, EventBatch)
+def cutout_events(batch: EventBatch, top: Tensor, left: Tensor, height: Tensor, width: Tensor) -> EventBatch:
+    """Kernel of :func:`cutout` for an EventBatch: the events inside sample b's box removed.
+    One host read (of the kept counts); binned, equal to :func:`cutout_frames`.
+
+    Args:
+        batch: the event streams.
+        top, left, height, width: ``(B,)`` integer boxes.
+
+    Shape:
+        - batch: B streams, N events.
+        - top, left, height, width: ``(B,)``.
+        - output: B streams, at most N events (in their order).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 0, 1], [2, 1, 0, 1]])], sensor_size=(3, 4))
+        >>> cutout_events(batch, *(torch.tensor([v]) for v in (1, 1, 2, 2))).x.tolist()
+        [0]
+    """
+    if batch.num_events == 0:
+        return batch
+    sample = batch.sample_index().to(torch.int64)
+    return _compact(batch, ~_in_box(batch.x, batch.y, sample, (top, left, height, width)))
+
+
+def _with_partners(batch: EventBatch, partner: Tensor) -> tuple[EventBatch, Tensor, Tensor, Tensor]:
+    """Each stream followed by a copy of its partner's stream, as one batch (the candidates),
+    with, per candidate event, its stream (int64), whether it is the stream's own, and its
+    position in the stream it was copied from. Index arithmetic on the device, sizes from the
+    CPU offsets: sync-free, no loop over the streams. A copied event's time moves onto the
+    stream's grid (``t + t_start[b] - t_start[partner[b]]``) when the batch has one."""
+    device = batch.device
+    lengths = torch.tensor(batch.lengths, dtype=torch.int64)
+    starts = batch.offsets[:-1]
+    own_len, part_len = lengths, lengths.index_select(0, partner)
+    total = own_len + part_len
+    offsets = torch.cat([torch.zeros(1, dtype=torch.int64), torch.cumsum(total, 0)])
+    size = sum(total.tolist())  # host numbers (CPU offsets): no device read
+    per_stream = torch.stack([own_len, starts, starts.index_select(0, partner), offsets[:-1]]).to(device, non_blocking=True)
+    owner = torch.repeat_interleave(torch.arange(len(batch), device=device), total.to(device, non_blocking=True),
+                                    output_size=size)
+    own_n, own_start, part_start, first = per_stream.index_select(1, owner).unbind(0)
+    local = torch.arange(size, device=device) - first
+    own = local < own_n
+    position = torch.where(own, local, local - own_n)
+    source = torch.where(own, own_start, part_start) + position
+    columns = {k: getattr(batch, k).index_select(0, source) for k in ("x", "y", "t", "p")}
+    if batch.t_start is not None:
+        shift = (batch.t_start - batch.t_start.index_select(0, partner)).to(device, batch.t.dtype, non_blocking=True)
+        columns["t"] = torch.where(own, columns["t"], columns["t"] + shift.index_select(0, owner))
+    merged = batch._replace(**columns, offsets=offsets, _sample=owner.to(torch.int32))
+    return merged, owner, own, position
+
+
+@register_kernel(cutmix, EventBatch)
+def cutmix_events(
+    batch: EventBatch, partner: Tensor, top: Tensor, left: Tensor, height: Tensor, width: Tensor
+) -> EventBatch:
+    """Kernel of :func:`cutmix` for an EventBatch: sample b keeps its events outside its box
+    and takes sample ``partner[b]``'s events inside it (see the module docstring). One host
+    read (of the kept counts); binned, equal to :func:`cutmix_frames`.
+
+    Args:
+        batch: the event streams.
+        partner: ``(B,)`` indices of each stream's partner in the batch.
+        top, left, height, width: ``(B,)`` integer boxes.
+
+    Shape:
+        - batch: B streams, N events.
+        - partner, top, left, height, width: ``(B,)``.
+        - output: B streams; stream b holds its own events outside its box, then its partner's inside.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> a, b = torch.tensor([[0, 0, 0, 1], [1, 0, 0, 1]]), torch.tensor([[1, 0, 0, 0], [2, 0, 0, 0]])
+        >>> batch = EventBatch.from_streams([a, b], sensor_size=(1, 3))
+        >>> box = (torch.tensor([0, 0]), torch.tensor([1, 1]), torch.tensor([1, 1]), torch.tensor([1, 1]))
+        >>> out = cutmix_events(batch, torch.tensor([1, 0]), *box)  # column 1 from the partner
+        >>> out[0].x.tolist(), out[0].p.tolist()
+        ([0, 1], [1, 0])
+    """
+    if batch.num_events == 0 or len(batch) == 0:
+        return batch
+    merged, owner, own, _ = _with_partners(batch, partner)
+    inside = _in_box(merged.x, merged.y, owner, (top, left, height, width))
+    itself = (partner == torch.arange(len(batch))).to(batch.device, non_blocking=True).index_select(0, owner)
+    keep = torch.where(own, ~inside | itself, inside & ~itself)
+    return _compact(merged, keep)
+
+
+@register_kernel(mixup, EventBatch)
+def mixup_events(batch: EventBatch, partner: Tensor, weight: Tensor, seed: Tensor) -> EventBatch:
+    """Kernel of :func:`mixup` for an EventBatch: each event of sample b kept with probability
+    ``weight[b]``, each event of sample ``partner[b]`` taken with probability
+    ``1 - weight[b]`` (see the module docstring). Each event's uniform is a counter-based
+    hash of sample b's ``seed`` and a counter, ``2·position + (0 for its own event, 1 for
+    one of the partner's)`` (:mod:`~event_transforms.functional._random`): a sample's output depends only on its
+    own events, its partner's and its seed. One host read (of the kept counts).
+
+    Args:
+        batch: the event streams.
+        partner: ``(B,)`` indices of each stream's partner in the batch.
+        weight: ``(B,)`` the stream's own share in [0, 1].
+        seed: ``(B,)`` int64 per-sample seeds of the draws.
+
+    Shape:
+        - batch: B streams, N events.
+        - partner, weight, seed: ``(B,)``.
+        - output: B streams; stream b holds its kept own events, then those taken from its partner.
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 0, 1]]), torch.tensor([[1, 0, 0, 0]])], sensor_size=(1, 2))
+        >>> out = mixup_events(batch, torch.tensor([1, 0]), torch.tensor([1.0, 0.0]), torch.tensor([3, 4]))
+        >>> out[0].x.tolist(), out[1].x.tolist()  # weight 1: itself; weight 0: its partner
+        ([0], [0])
+    """
+    if batch.num_events == 0 or len(batch) == 0:
+        return batch
+    merged, owner, own, position = _with_partners(batch, partner)
+    device = batch.device
+    salt = sample_salts(seed, device).index_select(0, owner)
+    u = uniform(salt, position * 2 + (~own).to(torch.int64), 1)  # own and copied events: distinct counters
+    share = weight.to(device, torch.float64, non_blocking=True).index_select(0, owner)
+    itself = (partner == torch.arange(len(batch))).to(device, non_blocking=True).index_select(0, owner)
+    keep = torch.where(own, (u < share) | itself, (u < 1 - share) & ~itself)
+    return _compact(merged, keep)
 
 
 def mix_labels(labels: Tensor, partner: Scalars, weight: Scalars, *, num_classes: int | None = None) -> Tensor:

@@ -18,6 +18,7 @@ from .geometry import _flags, _sum_in
 
 __all__ = [
     "flip_polarity", "flip_polarity_frames", "flip_polarity_events", "merge_polarities", "merge_polarities_frames",
+    "merge_polarities_events",
 ]
 
 
@@ -92,7 +93,7 @@ def flip_polarity_events(batch: EventBatch, flip: Tensor | None = None) -> Event
     return batch._replace(p=p.to(torch.int8))
 
 
-def merge_polarities(frames: Tensor, *, keepdim: bool = True) -> Tensor:
+def merge_polarities(frames: Tensor | EventBatch, *, keepdim: bool = True) -> Tensor | EventBatch:
     """Count events regardless of polarity.
 
     With ``keepdim=True`` (default) the frames keep the library's ``(T, 2, H, W)`` contract
@@ -107,9 +108,13 @@ def merge_polarities(frames: Tensor, *, keepdim: bool = True) -> Tensor:
     sum passes the dtype's range raise instead of giving ``inf`` (one host synchronisation,
     those dtypes only).
 
+    On an EventBatch (:func:`merge_polarities_events`) every event becomes OFF (``p = 0``),
+    tonic's ``MergePolarities``: binned, it equals the frame kernel with ``keepdim=True``.
+    ``keepdim=False`` needs frames (an EventBatch always has two polarities).
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
-        keepdim: keep two channels (channel 1 zero) or return one.
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
+        keepdim: keep two channels (channel 1 zero) or return one (frames only).
 
     Shape:
         - frames: ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
@@ -124,6 +129,8 @@ def merge_polarities(frames: Tensor, *, keepdim: bool = True) -> Tensor:
     if not isinstance(keepdim, bool):
         raise TypeError(f"keepdim must be a bool, got {keepdim!r}")
     kernel = kernel_for(merge_polarities, frames)
+    if isinstance(frames, EventBatch):
+        return kernel(frames, keepdim)
     batch, unbatch = as_batch(check_frames(frames))
     return unbatch(kernel(batch, keepdim))
 
@@ -146,3 +153,31 @@ def merge_polarities_frames(batch: Tensor, keepdim: bool = True) -> Tensor:
     return torch.cat([merged, torch.zeros_like(merged)], dim=2)
 
 
+@register_kernel(merge_polarities, EventBatch)
+def merge_polarities_events(batch: EventBatch, keepdim: bool = True) -> EventBatch:
+    """Kernel of :func:`merge_polarities` for an EventBatch: every event's polarity set to 0
+    (OFF), so binned, channel 0 holds all events and channel 1 none, as on frames. Sync-free.
+
+    Args:
+        batch: the event streams.
+        keepdim: must be true (one channel is a frame layout).
+
+    Shape:
+        - batch: B streams, N events.
+        - output: the same streams and events, ``p`` all 0.
+
+    Raises:
+        ValueError: ``keepdim=False`` (one channel is a frame layout; bin first).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 5, 1], [1, 0, 6, 0]])], sensor_size=(2, 2))
+        >>> merge_polarities_events(batch).p.tolist()
+        [0, 0]
+    """
+    if not keepdim:
+        raise ValueError(
+            "merge_polarities(keepdim=False) makes one-channel frames; an EventBatch keeps two polarities: "
+            "bin the events first (EventsToFrames), or use keepdim=True"
+        )
+    return batch._replace(p=torch.zeros_like(batch.p))

@@ -16,10 +16,12 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, per_sample
-from ._dispatch import kernel_for, register_kernel
+from ..events.batch import EventBatch
+from ._dispatch import batch_of, kernel_for, register_kernel
+from ._event_ops import _round_to
 from .affine import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _output_dtype, _warp
 
-__all__ = ["stretch", "stretch_frames", "contact_axis"]
+__all__ = ["stretch", "stretch_frames", "stretch_events", "contact_axis"]
 
 Scalars = float | Tensor
 
@@ -174,13 +176,13 @@ def _check_factor(factor: object, batch: int, name: str = "factor") -> Tensor:
 
 
 def stretch(
-    frames: Tensor,
+    frames: Tensor | EventBatch,
     factor: Scalars,
     *,
     axis: str | Scalars = CONTACT,
     center: Center = "mass",
     mode: str = "bilinear",
-) -> Tensor:
+) -> Tensor | EventBatch:
     """Scale each sequence by ``factor`` across an axis through its centre; the axis's own
     direction is left alone.
 
@@ -202,8 +204,14 @@ def stretch(
     :func:`resize`. With bilinear sampling the total count grows by about ``factor``, as the
     events of a wider strip do.
 
+    On an EventBatch (:func:`stretch_events`) each event moves by the forward map to the
+    nearest pixel, the centre and axis taken from the events (their mean and second
+    moments, float64): counts are conserved (a stretch by k > 1 leaves gaps between the
+    moved events, where frames sampled by ``nearest`` repeat pixels and ``bilinear`` spreads
+    counts), so binned the result is not the frame kernel's; ``mode`` does not apply.
+
     Args:
-        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``.
+        frames: event counts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)``, or an EventBatch.
         factor: stretch factor k > 0 across the axis, a number or one per sample ``(B,)``.
         axis: ``"contact"`` (each sequence's contact axis), or the axis's angle in degrees,
             counter-clockwise from the x axis on the displayed image (0: a horizontal
@@ -227,8 +235,7 @@ def stretch(
         [[0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.5, 0.5, 0.0], [0.0, 1.0, 1.0, 1.0, 0.0], [0.0, 0.5, 0.5, 0.5, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0]]
     """
     kernel = kernel_for(stretch, frames)
-    batch, unbatch = as_batch(check_frames(frames))
-    b = batch.shape[0]
+    batch, b, unbatch = batch_of(frames)
     factor_t = _check_factor(factor, b)
     axis_t = _check_axis(axis, b)
     check_choice(mode, "mode", INTERPOLATIONS)
@@ -237,3 +244,77 @@ def stretch(
 
 
 register_kernel(stretch, Tensor)(stretch_frames)
+
+
+def _event_moments(batch: EventBatch) -> tuple[Tensor, Tensor]:
+    """(B, 2) float64 (y, x) event means (image centre for an empty stream) and (B, 3) central
+    second moments ``[c_yy, c_xx, c_xy]`` (zero when empty): one ``index_add_`` of the
+    per-event sums, whatever B. Sync-free."""
+    height, width = batch.sensor_size
+    device = batch.device
+    b = len(batch)
+    y, x = batch.y.to(torch.float64), batch.x.to(torch.float64)
+    values = torch.stack([torch.ones_like(x), y, x, y * y, x * x, y * x], 1)
+    sums = torch.zeros(b, 6, dtype=torch.float64, device=device).index_add_(0, batch.sample_index(), values)
+    count = sums[:, :1]
+    mean = sums[:, 1:3] / count.clamp_min(1)
+    image = torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=torch.float64, device=device)
+    centre = torch.where(count > 0, mean, image)
+    second = sums[:, 3:] / count.clamp_min(1)
+    products = torch.stack([mean[:, 0] * mean[:, 0], mean[:, 1] * mean[:, 1], mean[:, 0] * mean[:, 1]], 1)
+    return centre, torch.where(count > 0, second - products, torch.zeros_like(second))
+
+
+@register_kernel(stretch, EventBatch)
+def stretch_events(batch: EventBatch, factor: Tensor, axis: str | Tensor, center: Center = "mass",
+                   mode: str = "bilinear") -> EventBatch:
+    """Kernel of :func:`stretch` for an EventBatch: ``dst = c + (I + (k - 1) n nᵀ)(src - c)``
+    per event, rounded to the nearest pixel (``mode`` does not apply). ``center="mass"`` is
+    the stream's mean event position and ``axis="contact"`` the major axis of its events'
+    second moments (all events, float64, as :func:`contact_axis` weighs pixels by counts).
+    Events moved off the sensor are kept (binning drops them, with its warning), as for
+    :func:`~event_transforms.functional.rotate`. Sync-free; a fixed number of ops whatever B.
+
+    Args:
+        batch: the event streams.
+        factor: ``(B,)`` stretch factors k > 0.
+        axis: ``"contact"`` or ``(B,)`` degrees, as in :func:`stretch`.
+        center: ``"mass"``, ``"image"``, a ``(y, x)`` pair or a ``(B, 2)`` tensor.
+        mode: not used (each event lands in one pixel).
+
+    Shape:
+        - batch: B streams, N events.
+        - factor: ``(B,)``.
+        - output: the same streams and events (events may leave the sensor).
+
+    Example:
+        >>> from event_transforms import EventBatch
+        >>> events = torch.tensor([[1, 2, 0, 1], [2, 2, 0, 1], [3, 2, 0, 1], [2, 3, 0, 1]])  # (x, y, t, p)
+        >>> batch = EventBatch.from_streams([events], sensor_size=(7, 5))
+        >>> out = stretch_events(batch, torch.tensor([3.0]), torch.tensor([0.0]), "image")  # across a horizontal axis
+        >>> out.x.tolist(), out.y.tolist()
+        ([1, 2, 3, 2], [0, 0, 0, 3])
+    """
+    b = len(batch)
+    if batch.num_events == 0 or b == 0:
+        return batch
+    device, f64 = batch.device, torch.float64
+    height, width = batch.sensor_size
+    need_moments = isinstance(axis, str) or (isinstance(center, str) and center == "mass")
+    if need_moments:
+        centre, covariance = _event_moments(batch)
+    radians = _axis_radians(covariance) if isinstance(axis, str) else torch.deg2rad(axis.to(device, f64))
+    if isinstance(center, str):
+        yx = centre if center == "mass" else torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=f64, device=device)
+    else:
+        yx = torch.as_tensor(center, dtype=f64).to(device)
+    yx = yx.expand(b, 2)
+    normal = torch.stack([torch.sin(radians), torch.cos(radians)], 1)  # (B, 2) as (x, y), y down
+    grow = factor.to(device, f64) - 1.0
+    # x' = x + (k - 1) n_x (n · (p - c)),  y' = y + (k - 1) n_y (n · (p - c))
+    coefficients = torch.stack([grow * normal[:, 0], grow * normal[:, 1], normal[:, 0], normal[:, 1],
+                                normal[:, 0] * yx[:, 1] + normal[:, 1] * yx[:, 0]], 0)  # (5, B)
+    gx, gy, nx, ny, offset = coefficients.index_select(1, batch.sample_index()).unbind(0)
+    x, y = batch.x.to(f64), batch.y.to(f64)
+    along = nx * x + ny * y - offset  # n · (p - c)
+    return batch._replace(x=_round_to(x + gx * along, torch.int16), y=_round_to(y + gy * along, torch.int16))

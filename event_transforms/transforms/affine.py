@@ -399,7 +399,9 @@ class RandomPerspective(_Warp):
     Each corner of the frame moves inwards by up to ``distortion_scale`` times half the
     frame's height and width (torchvision's ``RandomPerspective``, drawn per sample on the
     CPU); the homography that takes the corners there warps all T·2 frames of the sequence
-    at once (see :func:`~event_transforms.functional.perspective`).
+    at once (see :func:`~event_transforms.functional.perspective`). On an EventBatch each
+    event moves by the homography to the nearest pixel; events warped off the sensor are
+    dropped with a warning.
 
     Args:
         distortion_scale: in [0, 1): how far the corners may move (0: identity).
@@ -449,7 +451,9 @@ class RandomElastic(_Warp):
     ``alpha`` are drawn on the CPU; the field (``alpha`` times the displacements smoothed
     by a Gaussian of ``sigma`` pixels) is shared by all frames of the sequence, which are
     warped together (see :func:`~event_transforms.functional.elastic`; torchvision's
-    ``ElasticTransform`` with one field per sequence).
+    ``ElasticTransform`` with one field per sequence). On an EventBatch each event moves by
+    the inverse of the frames' map (fixed-point steps), to the nearest pixel; events warped
+    off the sensor are dropped with a warning.
 
     Args:
         alpha: strength in pixels (>= 0), or a ``(min, max)`` range drawn per sample.

@@ -364,6 +364,8 @@ class EventTransform(nn.Module):
                 with torch.profiler.record_function(CHECK_RANGE):
                     params = self._check_params(params, first.frame_shape)
             moved = self._run(first, params)
+            if self.couples_samples and rest:  # the labels, mixed as on frames
+                rest = (self._mix_labels(rest[0], params, False, len(first)), *rest[1:])
             return (moved, *rest) if rest else moved
         if self.takes_events:
             first = self.events_to_frames(first)  # events in, frames from here on

@@ -10,6 +10,7 @@ from torch import Tensor
 
 from .._validation import as_number
 from .. import functional as F
+from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
 from .base import EventTransform, Params
 
@@ -20,7 +21,9 @@ class Denoise(EventTransform):
     """Remove events with no other event within ``radius`` pixels and ``temporal_radius`` frames.
 
     See :func:`~event_transforms.functional.denoise`. Counts kept are unchanged; the
-    dtype is kept.
+    dtype is kept. On an EventBatch (which needs a frame grid) the same rule is applied
+    event by event, with the neighbourhood counted in the grid's bins, so binned the result
+    equals the frame result.
 
     Args:
         radius: spatial half-width of the neighbourhood (pixels, >= 0).
@@ -44,8 +47,8 @@ class Denoise(EventTransform):
         self.radius = as_number(radius, "radius", integer=True, low=0)
         self.temporal_radius = as_number(temporal_radius, "temporal_radius", integer=True, low=0)
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        return call_kernel(F.denoise, frames, self.radius, self.temporal_radius)
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+        return call_kernel(F.denoise, inputs, self.radius, self.temporal_radius)
 
     def _settings(self) -> str:
         return f"radius={self.radius}, temporal_radius={self.temporal_radius}"

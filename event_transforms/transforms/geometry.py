@@ -210,7 +210,8 @@ class Downsample(EventTransform):
     The paper's 2×2 pooling of its 140×150 crop to 70×75. See
     :func:`~event_transforms.functional.downsample` for the remainder rule: ``"drop"``
     (default) discards the last ``H mod fy`` rows and ``W mod fx`` columns, ``"keep"``
-    sums them into a partial last block.
+    sums them into a partial last block. On an EventBatch each event moves to its block and
+    the batch's sensor becomes ``(H', W')`` (binned, equal to the frame result).
 
     Args:
         factor: ``k`` or ``(fy, fx)``.

@@ -9,8 +9,16 @@ dict input ``{"frames": ..., "force": ...}`` they mix the entry named by ``label
 Labels may be float targets ``(B, ...)`` (force per frame ``(B, T)``, soft or one-hot
 classes), mixed linearly, or integer class indices ``(B,)`` with ``num_classes`` set, which
 come back as soft targets ``(B, num_classes)``. The partners, boxes and weights are in
-``params`` (``partner``, ``weight``, and for CutMix ``top, left, height, width``), so a call
-replays and the weights can be logged.
+``params`` (``partner``, ``weight``, for CutMix ``top, left, height, width``, and for
+MixUp the per-sample ``seed`` of its event draws), so a call replays and the weights can be
+logged.
+
+**On an EventBatch** (``module(batch, labels)``) the events are mixed as whole events and
+the labels exactly as on frames: CutMix takes the partner's events inside the box instead
+of the sample's own, MixUp keeps each own event with probability λ and takes each of the
+partner's with probability 1 - λ (counter-based draws keyed by ``params["seed"]``), so the
+binned frames equal frame MixUp's in expectation; see
+:mod:`event_transforms.functional.mixing`.
 
 Use CutMix and MixUp on a collated batch, as torchvision's are used after the DataLoader.
 They declare :attr:`~event_transforms.EventTransform.couples_samples`: a
@@ -35,6 +43,7 @@ import torch
 from torch import Tensor
 
 from .._validation import as_number, check_positive
+from ..events.batch import EventBatch
 from ..functional.geometry import _size
 from .. import functional as F
 from ..functional._dispatch import call_kernel
@@ -78,7 +87,8 @@ class Cutout(EventTransform):
 
     DeVries & Taylor's Cutout as Neuromorphic Data Augmentation uses it: a box of
     ``size`` centred at a uniformly drawn pixel, clipped at the border (so near the border
-    it is smaller). Counts elsewhere and the dtype are kept. The clipped box is in
+    it is smaller). Counts elsewhere and the dtype are kept. On an EventBatch the events in
+    the box are removed. The clipped box is in
     ``params`` (``top, left, height, width``).
 
     Args:
@@ -107,8 +117,8 @@ class Cutout(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return _box_spec(shape)
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        return call_kernel(F.cutout, frames, params["top"], params["left"], params["height"], params["width"])
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+        return call_kernel(F.cutout, inputs, params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
         return f"size={self.size}"
@@ -213,9 +223,9 @@ class CutMix(_Mixing):
             "partner": Param("int", low=0, high=b - 1), "weight": Param("float", low=0.0, high=1.0), **_box_spec(shape)
         }
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         partner, _ = self._effective(params)
-        return call_kernel(F.cutmix, frames, partner, params["top"], params["left"], params["height"], params["width"])
+        return call_kernel(F.cutmix, inputs, partner, params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
         return self._common()
@@ -227,7 +237,8 @@ class MixUp(_Mixing):
     Zhang et al.'s MixUp: partners are a random permutation of the batch, λ ~ Beta(α, α)
     per sample (``params["weight"]``). Values are blended, so the output is float (the
     input dtype for float input, float32 for integer input). Mixes the second input (see
-    the module docstring).
+    the module docstring). On an EventBatch a share λ of the sample's events and 1 - λ of
+    its partner's are kept, drawn per event from ``params["seed"]`` (unused on frames).
 
     Args:
         alpha: Beta parameter (> 0); small values keep λ near 0 or 1.
@@ -252,14 +263,18 @@ class MixUp(_Mixing):
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
-        return {"partner": self._partners(b, generator), "weight": _beta(self.alpha, b, generator)}
+        partner, weight = self._partners(b, generator), _beta(self.alpha, b, generator)
+        return {"partner": partner, "weight": weight, "seed": seeds(b, generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"partner": Param("int", low=0, high=shape[0] - 1), "weight": Param("float", low=0.0, high=1.0)}
+        return {
+            "partner": Param("int", low=0, high=shape[0] - 1), "weight": Param("float", low=0.0, high=1.0),
+            "seed": Param("int", low=0, high=2**63 - 1),
+        }
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         partner, weight = self._effective(params)
-        return call_kernel(F.mixup, frames, partner, weight)
+        return call_kernel(F.mixup, inputs, partner, weight, params["seed"])
 
     def _settings(self) -> str:
         return self._common()

@@ -16,6 +16,7 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
+from ..events.batch import EventBatch
 from ..functional.affine import Center, _check_center
 from .. import functional as F
 from ..functional._dispatch import call_kernel
@@ -40,10 +41,10 @@ class _StretchWarp(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"factor": Param("float", low=float.fromhex("0x1p-1022"))}
 
-    def apply(self, frames: Tensor, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        b = frames.shape[0]
+    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+        b = len(inputs) if isinstance(inputs, EventBatch) else inputs.shape[0]
         axis = self.axis if isinstance(self.axis, str) else torch.full((b,), self.axis, dtype=torch.float64)
-        return call_kernel(F.stretch, frames, params["factor"], axis, self.center, self.mode)
+        return call_kernel(F.stretch, inputs, params["factor"], axis, self.center, self.mode)
 
     def _common(self) -> str:
         return f"axis={self.axis!r}, center={self.center!r}, mode={self.mode!r}"
@@ -56,7 +57,8 @@ class Stretch(_StretchWarp):
     pressed by a parallel gripper widens as √D (Hertz line contact) while the pad fixes its
     length, so a D₁ → D₂ change is a stretch across the strip by (D₂/D₁)^½, not the
     paper's isotropic zoom by D₂/D₁ (see :func:`event_transforms.functional.stretch`, which
-    it calls, for the maths and the measured fidelity).
+    it calls, for the maths and the measured fidelity). On an EventBatch each event moves to
+    the nearest pixel (counts kept; ``mode`` does not apply).
 
     Args:
         factor: stretch factor k > 0 across the axis.
