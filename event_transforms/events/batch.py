@@ -726,7 +726,7 @@ def bin_events(
     b = len(batch)
     total = b * n_frames * grid.frame_size
     counts, lost = _bin_counts(batch, starts, n_frames, grid, total)
-    if lost is not None and any(lost.tolist()):  # the one host read: two counts
+    if lost is not None and any(read_host(lost)):  # the one host read: two counts
         _warn_lost(batch, starts, n_frames, grid.frame_us, frame_ms)
     return counts.view(b, n_frames, 2, grid.out_h, grid.out_w)
 
