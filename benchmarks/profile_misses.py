@@ -43,6 +43,20 @@ def rows(batch: et.EventBatch) -> dict[str, tuple[Callable[[], Any], Callable[[]
     }
 
 
+def per_sample_parts(streams: Sequence[Any]) -> dict[str, float]:
+    """The DataLoader benchmark's per-sample path split into its steps: median ms per sample of
+    binning one stream and of each branch of its ``OneOf`` on the binned sample."""
+    to_frames = et.EventsToFrames(SENSOR, frame_ms=10.0, t_start=0, n_frames=N_FRAMES, crop=CROP, pool=2)
+    frames = [to_frames(s) for s in streams]
+    g = lambda: torch.Generator().manual_seed(0)  # noqa: E731
+    branches = {"RandomResize(0.8, 1.25)": et.RandomResize((0.8, 1.25)), "FrameShift(-1)": et.FrameShift(-1),
+                "TES-2(0.5) exact (frames)": et.TemporalEventShift(-2, 0.5)}
+    parts = {"EventsToFrames (one stream)": median_ms(lambda: [to_frames(s) for s in streams], 3) / len(streams)}
+    for name, branch in branches.items():
+        parts[name] = median_ms(lambda b=branch: [b(f, generator=g()) for f in frames], 3) / len(frames)
+    return parts
+
+
 def median_ms(call: Callable[[], Any], repeats: int) -> float:
     times = []
     for _ in range(repeats):
@@ -65,6 +79,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     clone_of = et.EventsToFrames(SENSOR, frame_ms=10.0, n_frames=N_FRAMES, crop=CROP, pool=2)(batch)
     clone = median_ms(clone_of.clone, 9)
     print(f"{batch.num_events:,} events in {len(batch)} streams; frames.clone() {clone:.2f} ms (median of 9)\n")
+    print("## DataLoader per-sample path, per sample (OneOf picks one branch per sample):")
+    for name, ms in per_sample_parts(grasp_streams(8)).items():
+        print(f"  {name:28s} {ms:7.2f} ms")
+    print()
     for name, (whole, augment) in rows(batch).items():
         whole()
         total = median_ms(whole, 5)

@@ -170,6 +170,11 @@ EVENT_BUDGETS = {
     "TimeReversal": (0, 25), "RandomTimeReversal": (0, 30), "HorizontalFlip": (0, 8), "RandomHorizontalFlip": (0, 12),
     "RandomTranslate": (0, 16), "FlipPolarity": (0, 8), "RandomFlipPolarity": (0, 12),
     "RandomRotation": (0, 130), "RandomResize": (0, 130), "RandomAffine": (0, 165),
+    # issue 25 item 4's kernels; their syncs: the kept-count read of a compaction, and for the warps
+    # the lost-event warning (RandomElastic: its count read and the four reads of the span it names)
+    "MergePolarities": (0, 6), "Downsample": (0, 20), "Cutout": (1, 55), "Denoise": (1, 95),
+    "RandomStretch": (0, 95), "RandomPerspective": (1, 105), "RandomElastic": (5, 310), "CutMix": (1, 110),
+    "MixUp": (1, 160),
 }
 
 # The affine event kernels' CPU path works slice by slice (a sample's six coefficients as
