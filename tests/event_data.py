@@ -6,6 +6,11 @@ import torch
 
 from event_transforms.functional import EventBatch, bin_events
 
+#: Aten op counts depend on the torch version that dispatches them (torch 2.3 decomposes some batched
+#: linear algebra differently by batch size): like tests/test_host_syncs.py, which .ci/floor leaves
+#: out, the "ops do not grow with B" check runs on the torch the budgets were measured on (2.14+).
+OP_COUNTS_CHECKED = tuple(int(v) for v in torch.__version__.split("+")[0].split(".")[:2]) >= (2, 14)
+
 SENSOR = (11, 17)  # non-square, H first
 T = 6
 FRAME_US = 1000
@@ -87,6 +92,8 @@ def check_hard_cases(make, *, coupled: bool = False) -> None:
             for i in range(3):
                 alone = transform(holed[i : i + 1], params=slice_params(params, torch.tensor([i])))
                 assert same_events(alone, whole[i])
+    if not OP_COUNTS_CHECKED:
+        return
     counts = []
     for size in (4, 32):
         batch = make_batch(size, seed=3)
