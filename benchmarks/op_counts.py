@@ -7,7 +7,9 @@ CPU: top-level aten ops, and syncs = ``.item()``/``nonzero``/``unique``/library 
 
 Each event case runs its module on a batch of B synthetic streams (20-200 events each, 6
 frames of 1 ms on 11 x 17 pixels, the test suite's shapes) with params drawn from a fixed
-generator; the frame cases run exact TES on B synthetic grasps (5 %-dense and Poisson(0.3)).
+generator; the frame cases run exact TES on B synthetic grasps (5 %-dense, Poisson(0.3), and
+counts above the expansion limit, up to ~20 as the scenes' pooled frames) and
+dense Poisson noise (2 events per cell) on B zero frames.
 
 Usage (from the repository root)::
 
@@ -101,6 +103,12 @@ FRAME_CASES: dict[str, tuple[Callable[[], Any], Callable[[int], torch.Tensor]]] 
     "TES exact frames Poisson(0.3)": (
         lambda: et.TemporalEventShift(-2, 0.5),
         lambda b: torch.poisson(torch.full((b, 36, 2, 70, 75), 0.3), generator=torch.Generator().manual_seed(0))),
+    # counts above the expansion limit (8): the whole-count binomial draws (issue 25 item 3)
+    "TES exact frames counts to ~20": (
+        lambda: et.TemporalEventShift(-2, 0.5),
+        lambda b: synthetic_frames((b, 36, 2, 70, 75), mean_count=8.0, seed=0)),
+    "AddPoissonNoise dense frames": (
+        lambda: et.AddPoissonNoise(200.0), lambda b: torch.zeros(b, 20, 2, 32, 32, dtype=torch.int16)),
 }
 
 

@@ -66,3 +66,76 @@ def stream_uniform(seed: int, counter: int, purpose: int) -> float:
     """``_random.uniform(sample_salts(seed), counter (int64), purpose)``."""
     x = mix((counter & M32) ^ salt(seed)) ^ ((counter >> 32) & M32)
     return (((mix(x ^ purpose_word(purpose)) + 2**31) & M32) + 0.5) * 2.0**-32
+
+
+def entry_key(seed: int, counter: int) -> int:
+    """``entry_keys(sample_salts(seed), counter)`` (int64 counter, purpose 0)."""
+    x = mix((counter & M32) ^ salt(seed)) ^ ((counter >> 32) & M32)
+    return mix(x ^ purpose_word(0))
+
+
+def key_uniform(key: int, within: int, purpose: int, bits: int = 32) -> float:
+    """``sub_uniform(key, within, purpose, bits=bits)`` of an entry key."""
+    first = mix(key ^ ((within * 0x61C88647 + purpose_word(purpose)) & M32))
+    if bits == 53:
+        second = mix(first ^ GOLDEN)
+        return ((first >> 6) * 2**27 + (second >> 5)) * 2.0**-53
+    return (((first + 2**31) & M32) + 0.5) * 2.0**-32
+
+
+def _stirling_tail(k: float) -> float:
+    if k < 10:
+        return math.lgamma(k + 1) - ((k + 0.5) * math.log(k + 1) - (k + 1) + 0.5 * math.log(2 * math.pi))
+    square = (k + 1) ** 2
+    return (1.0 / 12 - (1.0 / 360 - 1.0 / 1260 / square) / square) / (k + 1)
+
+
+def binomial_large(key: int, n: int, prob: float, purpose: int) -> int:
+    """``_random.binomial_large`` for one entry, one number at a time: inversion of the CDF
+    (64 terms) when ``n min(p, 1 - p) < 10``, else BTRS over candidates 0, 1, 2, ... (16 per
+    round in the library: the same counters, so the first accepted candidate is the same)."""
+    flip = prob > 0.5
+    p = 1.0 - prob if flip else prob
+    q = 1.0 - p
+    r = p / q
+    if n * p < 10.0:
+        u = key_uniform(key, 0, purpose, 53)
+        pmf0 = math.exp(n * math.log1p(-p))
+        cdf, k, product = pmf0, 0, 1.0
+        while cdf < u and k < 63:  # the library: pmf0 times the running product of the ratios
+            product *= max(n - k, 0) / (k + 1) * r
+            cdf += pmf0 * product
+            k += 1
+        k = min(k, n)
+    else:
+        spq = math.sqrt(n * p * q)
+        b = 1.15 + 2.53 * spq
+        a = -0.0873 + 0.0248 * b + 0.01 * p
+        c = n * p + 0.5
+        v_r = 0.92 - 4.2 / b
+        alpha = (2.83 + 5.1 / b) * spq
+        m = math.floor((n + 1) * p)
+        h = _stirling_tail(m) + _stirling_tail(n - m)
+        within = 0
+        while True:
+            us_ = key_uniform(key, within, purpose + 1, 53) - 0.5
+            v = key_uniform(key, within, purpose + 2)
+            within += 1
+            us = 0.5 - abs(us_)
+            if us == 0.0:
+                continue
+            k = math.floor((2 * a / us + b) * us_ + c)
+            if k < 0 or k > n:
+                continue
+            if us >= 0.07 and v <= v_r:
+                break
+            log_v = math.log(v * alpha / (a / (us * us) + b))
+            bound = (
+                (m + 0.5) * math.log((m + 1) / (r * (n - m + 1)))
+                + (n + 1) * math.log1p((k - m) / (n - k + 1))
+                + (k + 0.5) * math.log(r * (n - k + 1) / (k + 1))
+                + h - _stirling_tail(k) - _stirling_tail(n - k)
+            )
+            if log_v <= bound:
+                break
+    return n - k if flip else k

@@ -26,17 +26,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 import torch
 from torch import Tensor
 
 from .._validation import read_host
-from ._random import draw_seeds, entry_keys, generator_for, sample_salts, sub_uniform, uniform53
+from ._random import binomial_large, draw_seeds, entry_keys, sample_salts, sub_uniform, uniform53
 
 __all__ = ["segment_sum", "Stream", "binomial_counts", "multivariate_hypergeometric"]
 
 # Up to this many events of an entry are drawn one by one (one uniform each); larger counts
-# go to ``torch.binomial``. Residual subsets of at most _SMALL events per row are drawn
+# are drawn whole (``_random.binomial_large``: inversion or BTRS, counter-based). Residual subsets of at most _SMALL events per row are drawn
 # directly as distinct event positions.
 _EXPAND_MAX = 8
 _SMALL = 64
@@ -121,11 +120,13 @@ def binomial_counts(
     event frames) are drawn one by one: one uniform each, a hash of the entry's sample
     salt and the event's position in the sample (``stream``; ``level`` names the draw),
     kept if below the probability, summed back per entry (``index_add_``). Larger counts
-    use ``torch.binomial`` in float64 (exact integers up to 2**53) for the whole count,
-    one call per sample holding such counts, with a generator seeded from that sample's
-    seed. Host synchronisations: none when ``largest`` and ``events`` (from
-    :func:`expansion_stats`) are given, else one; plus two to gather the counts above
-    ``_EXPAND_MAX`` and their samples when there are any.
+    are drawn whole by :func:`~._random.binomial_large` (exact inversion for
+    ``n min(p, 1 - p) < 10``, Hörmann's BTRS otherwise), from the same per-entry key and
+    the purposes ``_LARGE_PURPOSE + 4 level`` (+1, +2), all such entries of the batch in one
+    vectorised call. Host synchronisations: none when ``largest`` and ``events`` (from
+    :func:`expansion_stats`) are given, else one; plus, when there are counts above
+    ``_EXPAND_MAX``, one to gather them (``nonzero``) and one flag per BTRS round plus one
+    (one in all when no such entry has ``n min(p, 1 - p) >= 10``, two almost always otherwise).
 
     Args:
         counts: int64 (n,), non-negative.
@@ -161,24 +162,21 @@ def binomial_counts(
     return out
 
 
+#: Purposes of the whole-count draws (:func:`~._random.binomial_large`), four per level.
+_LARGE_PURPOSE = 1_000_000
+
+
 def _large_counts(out: Tensor, counts: Tensor, prob: Tensor, key: Tensor, stream: Stream, level: int) -> None:
-    """Overwrite the entries above ``_EXPAND_MAX`` with ``torch.binomial`` draws, one call
-    per sample, from a generator seeded by that sample's seed and ``level`` (pure per sample)."""
+    """Overwrite the entries above ``_EXPAND_MAX`` with whole-count binomial draws
+    (:func:`~._random.binomial_large`), keyed by each entry's sample salt and position in
+    its sample and by ``level``: one vectorised call for the batch, pure per sample."""
     large = (counts > _EXPAND_MAX).nonzero().squeeze(1)
-    owners = np.asarray(read_host(stream.entry_sample.index_select(0, large)), dtype=np.int64)
-    seeds = stream.seeds.tolist() if stream.seeds.device.type == "cpu" else read_host(stream.seeds)
-    bounds = np.flatnonzero(np.diff(owners)) + 1  # entries are sorted by sample
-    for part in np.split(np.arange(owners.size), bounds):
-        if not part.size:
-            continue
-        index = large.index_select(0, torch.from_numpy(part).to(large.device))
-        generator = generator_for(seeds[int(owners[part[0]])], level, counts.device)
-        drawn = torch.binomial(
-            counts.index_select(0, index).to(torch.float64),
-            prob.index_select(0, key.index_select(0, index)),
-            generator=generator,
-        )
-        out.index_copy_(0, index, drawn.to(out.dtype))
+    keys = entry_keys(stream.entry_salt.index_select(0, large), stream.entry_counter.index_select(0, large))
+    drawn = binomial_large(
+        keys, counts.index_select(0, large), prob.index_select(0, key.index_select(0, large)),
+        _LARGE_PURPOSE + 4 * level,
+    )
+    out.index_copy_(0, large, drawn.to(out.dtype))
 
 
 def level_stats(size: Tensor, total: Tensor) -> list[Tensor]:

@@ -26,8 +26,8 @@ if TYPE_CHECKING:  # the batch imports functional; a runtime import here would b
     from ..events.batch import EventBatch
 
 __all__ = [
-    "sample_salts", "uniform", "uniform53", "entry_keys", "sub_uniform", "sub_uniform32", "sub_normal_pair", "draw_seeds", "generator_for",
-    "EventStream", "poisson_counts",
+    "sample_salts", "uniform", "uniform53", "entry_keys", "sub_uniform", "sub_uniform32", "sub_normal_pair", "draw_seeds",
+    "EventStream", "poisson_counts", "binomial_large", "poisson_cells",
 ]
 
 _MULTIPLIER = 0x45D9F3B  # the 32-bit integer mix of Thomas Mueller's hash
@@ -245,11 +245,146 @@ def draw_seeds(batch: int, generator: torch.Generator | None) -> Tensor:
     return torch.randint(0, 2**63 - 1, (batch,), generator=generator, device=device, dtype=torch.int64)
 
 
-def generator_for(seed: int, purpose: int, device: torch.device | str) -> torch.Generator:
-    """A ``torch.Generator`` on ``device`` for one sample's draw that has no counter-based
-    form (``torch.binomial`` of counts above the expansion limit), from a host seed."""
-    value = (int(seed) * 0x9E3779B97F4A7C15 + purpose * 0xBF58476D1CE4E5B9) % 2**64
-    value ^= value >> 31
-    generator = torch.Generator(device=device)
-    generator.manual_seed(value & (2**63 - 1))
-    return generator
+#: :func:`binomial_large` inverts the CDF when ``n min(p, 1 - p)`` is below this, else BTRS.
+_INVERSION_MEAN = 10.0
+#: CDF terms of the inversion (the mass above 63 of a binomial of mean < 10 is below 1e-25).
+_INVERSION_TERMS = 64
+#: BTRS candidates per entry and round (each accepted with probability above about 0.8, so
+#: a second round is needed for about one entry in 10**11).
+_BTRS_CANDIDATES = 16
+
+
+def _stirling_tail(k: Tensor) -> Tensor:
+    """``lgamma(k + 1) - ((k + 1/2) log(k + 1) - (k + 1) + log(2 pi) / 2)`` for float64 k >= 0:
+    exact (lgamma) below 10, the Stirling series above (error below 1e-16 there)."""
+    k1 = k + 1.0
+    small = torch.lgamma(k1) - ((k + 0.5) * k1.log() - k1 + 0.5 * math.log(2 * math.pi))
+    square = k1 * k1
+    series = (1.0 / 12 - (1.0 / 360 - 1.0 / 1260 / square) / square) / k1
+    return torch.where(k < 10, small, series)
+
+
+def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> Tensor:
+    """Exact ``Binomial(counts[i], prob[i])`` draws, counter-based: one per entry, vectorised.
+
+    Entry i's numbers are hashes of its key ``keys[i]`` (:func:`entry_keys` of its sample's
+    salt and its position in the sample), ``purpose`` and a counter within the entry, so a
+    draw depends on its own entry only (a sample alone equals the sample in any batch) and
+    is the same on every device up to the last bits of float64 ``log``/``lgamma``. With
+    ``p' = min(p, 1 - p)`` (the draw is mirrored, ``n - k``, when ``p > 1/2``):
+
+    * ``n p' < 10``: inversion. The CDF of the first 64 values (the pmf by its ratio
+      recurrence, summed in float64) is searched at one 53-bit uniform (purpose
+      ``purpose``); the mass above is under 1e-25.
+    * otherwise Hörmann's BTRS (transformed rejection with squeeze, 1993): 16 candidates
+      per entry and round (uniforms of purposes ``purpose + 1``, ``purpose + 2``, counter
+      ``16 round + candidate``), the first accepted one taken. Rounds run until every entry
+      has one; a second round is needed about once in 10**11 entries.
+
+    Host synchronisations: one flag read before each round ("does any entry still need
+    BTRS?"): one in all when every entry is inverted (small means, as the event counts of
+    pooled frames), two when BTRS runs one round. Ops do not depend on the number of entries.
+
+    Args:
+        keys: (m,) int32 entry keys.
+        counts: (m,) integer counts ``n >= 0`` (exact in float64: below 2**53).
+        prob: (m,) float64 probabilities in [0, 1].
+        purpose: names the draw; ``purpose``, ``purpose + 1`` and ``purpose + 2`` are used.
+
+    Returns:
+        (m,) int64, ``0 <= out <= counts``.
+
+    Example:
+        >>> keys = entry_keys(sample_salts(torch.tensor([3]), "cpu"), torch.arange(4000))
+        >>> k = binomial_large(keys, torch.full((4000,), 1000), torch.full((4000,), 0.3), 7)
+        >>> round(k.double().mean().item() / 10) * 10, round(k.double().var().item() / 10) * 10
+        (300, 210)
+    """
+    n = counts.to(torch.float64)
+    prob = prob.to(torch.float64)
+    flip = prob > 0.5
+    p = torch.where(flip, 1.0 - prob, prob)
+    q = 1.0 - p
+    r = p / q
+    mean = n * p
+    # inversion, for every entry (the BTRS ones are overwritten below)
+    u = sub_uniform(keys, torch.zeros_like(keys), purpose, bits=53).unsqueeze(1)
+    terms = torch.arange(_INVERSION_TERMS - 1, dtype=torch.float64, device=n.device)
+    ratio = (n.unsqueeze(1) - terms).clamp_min_(0.0).div_(terms + 1.0).mul_(r.unsqueeze(1))
+    pmf0 = torch.exp(n * torch.log1p(-p)).unsqueeze(1)
+    pmf = torch.cat([pmf0, pmf0 * ratio.cumprod(1)], 1)
+    out = (pmf.cumsum(1) < u).sum(1).clamp_max_(_INVERSION_TERMS - 1).to(torch.float64)
+    pending = mean >= _INVERSION_MEAN
+    # BTRS (valid for n p' >= 10), the parameters per entry
+    spq = (mean * q).sqrt()
+    b = 1.15 + 2.53 * spq
+    a = -0.0873 + 0.0248 * b + 0.01 * p
+    c = mean + 0.5
+    v_r = 0.92 - 4.2 / b
+    alpha = (2.83 + 5.1 / b) * spq
+    m = ((n + 1.0) * p).floor()
+    h = _stirling_tail(m) + _stirling_tail(n - m)
+    column = torch.arange(_BTRS_CANDIDATES, device=n.device)
+    rounds = 0
+    while bool(pending.any()):  # one flag per round, and one to skip BTRS when no entry needs it
+        within = (column + rounds * _BTRS_CANDIDATES).unsqueeze(0)
+        key = keys.unsqueeze(1)
+        us_ = sub_uniform(key, within, purpose + 1, bits=53) - 0.5
+        v = sub_uniform(key, within, purpose + 2)
+        us = 0.5 - us_.abs()
+        k = ((2.0 * a.unsqueeze(1) / us + b.unsqueeze(1)) * us_ + c.unsqueeze(1)).floor()
+        inside = (k >= 0) & (k <= n.unsqueeze(1))
+        squeeze = (us >= 0.07) & (v <= v_r.unsqueeze(1))
+        kc = k.clamp(min=0.0).minimum(n.unsqueeze(1))
+        log_v = (v * alpha.unsqueeze(1) / (a.unsqueeze(1) / (us * us) + b.unsqueeze(1))).log()
+        nm = (n - m).unsqueeze(1)
+        bound = (
+            (m.unsqueeze(1) + 0.5) * ((m.unsqueeze(1) + 1.0) / (r.unsqueeze(1) * (nm + 1.0))).log()
+            + (n.unsqueeze(1) + 1.0) * torch.log1p((kc - m.unsqueeze(1)) / (n.unsqueeze(1) - kc + 1.0))
+            + (kc + 0.5) * (r.unsqueeze(1) * (n.unsqueeze(1) - kc + 1.0) / (kc + 1.0)).log()
+            + h.unsqueeze(1) - _stirling_tail(kc) - _stirling_tail(n.unsqueeze(1) - kc)
+        )
+        accept = inside & (squeeze | (log_v <= bound))
+        first = torch.where(accept, column, _BTRS_CANDIDATES).amin(1)
+        chosen = kc.gather(1, first.clamp_max(_BTRS_CANDIDATES - 1).unsqueeze(1)).squeeze(1)
+        found = pending & (first < _BTRS_CANDIDATES)
+        out = torch.where(found, chosen, out)
+        pending = pending & ~found
+        rounds += 1
+    out = out.minimum(n)
+    return torch.where(flip, n - out, out).to(torch.int64)
+
+
+def poisson_cells(keys: Tensor, lam: Tensor, cells: int, purpose: int) -> Tensor:
+    """(B, cells) int64 Poisson(``lam[b]``) counts, one per cell of each sample, counter-based.
+
+    Sample b's cell j inverts the Poisson CDF at the 53-bit uniform named (``keys[b]``, j,
+    ``purpose``): the CDF is tabulated once per sample (``P(N <= k) = Q(k + 1, λ)``, the
+    regularised upper incomplete gamma, over ``λ ± 10 sqrt(λ) + 11``: the mass outside is
+    under 1e-20) and searched per cell (``searchsorted``). Exact up to that mass and to the
+    float64 rounding of the table; the same ops whatever B; a sample's counts depend on its
+    key only. ``lam`` is a CPU tensor (the table's width is decided on the host).
+
+    Args:
+        keys: (B,) int32 sample keys (:func:`entry_keys`).
+        lam: (B,) float64 CPU means >= 0.
+        cells: cells per sample (below 2**31).
+        purpose: names the draw.
+
+    Example:
+        >>> keys = entry_keys(sample_salts(torch.tensor([1, 2]), "cpu"), torch.zeros(1, dtype=torch.int64))
+        >>> counts = poisson_cells(keys, torch.tensor([2.0, 30.0]), 20000, purpose=1)
+        >>> [round(v) for v in counts.double().mean(1).tolist()], [round(v) for v in counts.double().var(1).tolist()]
+        ([2, 30], [2, 30])
+    """
+    device = keys.device
+    lam = lam.to(torch.float64).cpu()
+    spread = lam.sqrt().mul_(10.0)
+    low = (lam - spread - 11.0).floor_().clamp_min_(0.0)
+    width = int(math.ceil(max((2.0 * spread + 24.0).tolist(), default=1.0)))
+    values = low.unsqueeze(1) + torch.arange(width, dtype=torch.float64)
+    cdf = torch.special.gammaincc(values + 1.0, lam.unsqueeze(1)).to(device, non_blocking=True)
+    within = torch.arange(cells, dtype=torch.int32, device=device).unsqueeze(0)
+    u = sub_uniform(keys.unsqueeze(1), within, purpose, bits=53)
+    index = torch.searchsorted(cdf, u).clamp_max_(width - 1)
+    return index.add_(low.to(device=device, dtype=torch.int64, non_blocking=True).unsqueeze(1))

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from ._random import EventStream, draw_seeds, entry_keys, generator_for, poisson_counts, sample_salts, sub_uniform
+from ._random import EventStream, draw_seeds, entry_keys, poisson_cells, poisson_counts, sample_salts, sub_uniform
 from .._validation import (
     check_counts,
     check_frames,
@@ -34,6 +34,10 @@ __all__ = [
 
 _SMALL_INTEGERS = (torch.uint8, torch.int8, torch.int16, torch.int32)
 Scalars = float | Sequence[float] | Tensor
+
+
+#: Purpose of the dense per-cell Poisson draws (the sparse path's positions use purpose 0).
+_POISSON_CELLS = 1
 
 
 def _add_counts(frames: Tensor, counts: Tensor, name: str) -> Tensor:
@@ -226,7 +230,8 @@ def add_poisson_noise(
     For sparse noise (λ < 1, the usual 0.1–10 Hz) the total per sample is drawn from
     Poisson(λ·n) and its events placed uniformly at random among the n cells; this is
     exactly independent Poisson(λ) per cell (Poissonisation) and costs O(events), not
-    O(n). Denser noise draws every cell with ``torch.poisson``. On an EventBatch
+    O(n). Denser noise draws every cell by inverting the Poisson CDF at a counter-based
+    uniform of the sample's seed and the cell. On an EventBatch
     (:func:`add_poisson_noise_events`) uniform events are added over the window of the
     batch's grid (whose bin width replaces ``frame_ms``).
 
@@ -338,9 +343,9 @@ def _add_poisson_noise(batch: Tensor, lam: Tensor, *, totals: Tensor | None = No
     With ``totals`` (B,) (CPU int64, from :func:`_poisson_totals`) the events are placed
     uniformly among the cells: exactly independent Poisson(λ) per cell (Poissonisation), in
     O(events) work and with no host synchronisation; event k of sample b lands in the cell
-    named by a counter-based uniform of (seed b, k). Without, every cell is drawn with
-    ``torch.poisson``, one call per sample with a generator seeded by that sample's seed.
-    Either way a sample's noise depends on its own seed only, never on its batch.
+    named by a counter-based uniform of (seed b, k). Without, every cell is drawn by
+    inversion of the Poisson(λ_b) CDF at a counter-based uniform of (seed b, cell)
+    (:func:`~._random.poisson_cells`), all samples in one vectorised call. Either way a sample's noise depends on its own seed only, never on its batch.
     """
     if batch.numel() == 0:
         return batch.clone()
@@ -357,12 +362,8 @@ def _add_poisson_noise(batch: Tensor, lam: Tensor, *, totals: Tensor | None = No
         position = (sub_uniform(keys.index_select(0, sample), within, 0, bits=53) * cells).to(torch.int64)
         position = position.clamp_max_(cells - 1)
         return _add_events(batch, sample * cells + position)
-    rates = lam.to(dtype=torch.float64).tolist()
-    host_seeds = seeds.tolist() if seeds.device.type == "cpu" else read_host(seeds)
-    noise = torch.empty(batch.shape, dtype=torch.float64, device=device)
-    for b, rate in enumerate(rates):
-        generator = generator_for(host_seeds[b], 0, device)
-        noise[b] = torch.poisson(torch.full(batch.shape[1:], rate, dtype=torch.float64, device=device), generator=generator)
+    keys = entry_keys(sample_salts(seeds, device), torch.zeros(1, dtype=torch.int64, device=device))
+    noise = poisson_cells(keys, lam, cells, _POISSON_CELLS).view(batch.shape)
     return _add_counts(batch, noise, "Poisson noise")
 
 

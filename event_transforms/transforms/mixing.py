@@ -38,7 +38,8 @@ from typing import Any
 
 from collections.abc import Sequence
 
-import numpy as np
+import math
+
 import torch
 from torch import Tensor
 
@@ -76,10 +77,56 @@ def _box_spec(shape: Sequence[int]) -> dict[str, Param]:
     }
 
 
+#: Marsaglia-Tsang candidates per draw and round (each accepted with probability above 0.95).
+_GAMMA_CANDIDATES = 4
+#: Rounds after which :func:`_log_gamma` gives up (never reached in practice: 0.05**(4 * 64)).
+_GAMMA_ROUNDS = 64
+
+
+def _log_gamma(alpha: float, size: int, generator: torch.Generator | None) -> Tensor:
+    """``log`` of ``size`` Gamma(alpha, 1) draws (float64, CPU) from ``generator``.
+
+    Marsaglia & Tsang (2000) for shape ``a = max(alpha, alpha + 1)``: ``d = a - 1/3``,
+    ``c = 1 / sqrt(9 d)``, candidate ``d v`` with ``v = (1 + c x)**3`` for a standard normal x,
+    accepted when ``log u < x**2 / 2 + d - d v + d log v``; ``_GAMMA_CANDIDATES`` candidates per
+    draw and round, the first accepted kept, rounds until all are accepted (CPU tensors, no
+    device read). For ``alpha < 1`` the draw of shape ``alpha + 1`` is boosted by
+    ``U**(1 / alpha)``, added as ``log U / alpha`` (logs, so tiny draws do not underflow).
+    """
+    shape = alpha if alpha >= 1.0 else alpha + 1.0
+    d = shape - 1.0 / 3.0
+    c = 1.0 / math.sqrt(9.0 * d)
+    device = _draw_device(generator)
+    out = torch.zeros(size, dtype=torch.float64)
+    pending = torch.ones(size, dtype=torch.bool)
+    column = torch.arange(_GAMMA_CANDIDATES)
+    for _ in range(_GAMMA_ROUNDS):
+        x = torch.randn(size, _GAMMA_CANDIDATES, generator=generator, device=device, dtype=torch.float64).cpu()
+        u = torch.rand(size, _GAMMA_CANDIDATES, generator=generator, device=device, dtype=torch.float64).cpu()
+        v = (1.0 + c * x) ** 3
+        log_v = v.clamp_min(1e-300).log()
+        accept = (v > 0) & (u.log() < 0.5 * x * x + d - d * v + d * log_v)
+        first = torch.where(accept, column, _GAMMA_CANDIDATES).amin(1)
+        chosen = (math.log(d) + log_v).gather(1, first.clamp_max(_GAMMA_CANDIDATES - 1).unsqueeze(1)).squeeze(1)
+        found = pending & (first < _GAMMA_CANDIDATES)
+        out = torch.where(found, chosen, out)
+        pending &= ~found
+        if not bool(pending.any()):
+            break
+    else:  # pragma: no cover - probability below 1e-300
+        raise RuntimeError("Gamma sampling did not finish")
+    if alpha < 1.0:
+        boost = torch.rand(size, generator=generator, device=device, dtype=torch.float64).cpu()
+        out = out + boost.log() / alpha
+    return out
+
+
 def _beta(alpha: float, batch: int, generator: torch.Generator | None) -> Tensor:
-    """``batch`` Beta(alpha, alpha) draws (float64, CPU), seeded from ``generator`` (or torch's RNG)."""
-    seed = int(seeds(1, generator)[0])
-    return torch.from_numpy(np.random.default_rng(seed).beta(alpha, alpha, batch))
+    """``batch`` Beta(alpha, alpha) draws (float64, CPU) from ``generator`` (or torch's RNG):
+    ``X / (X + Y)`` for independent Gamma(alpha) draws X, Y (:func:`_log_gamma`), computed
+    as ``sigmoid(log X - log Y)``."""
+    log_xy = _log_gamma(alpha, 2 * batch, generator)
+    return torch.sigmoid(log_xy[:batch] - log_xy[batch:])
 
 
 class Cutout(EventTransform):
