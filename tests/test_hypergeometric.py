@@ -102,7 +102,7 @@ class TestBinomialCounts:
         z = hg.binomial_counts(counts, torch.tensor([0.0, 1.0], dtype=torch.float64), key)
         assert torch.equal(z, torch.where(key == 1, 5, 0))
 
-    def test_many_probabilities_fall_back_to_torch_binomial(self):
+    def test_many_probabilities_on_the_expanded_route(self):
         """A table per probability would outgrow the entries: same law, no big table."""
         n = 3000
         prob = torch.linspace(0, 1, n, dtype=torch.float64)

@@ -571,7 +571,7 @@ class TestPerSamplePurity:
     @pytest.mark.parametrize("mode", ["exact", "binomial"])
     def test_sample_alone_equals_sample_in_any_batch(self, mode):
         frames = sparse_frames(6, 5, 2, H, W, high=9, density=0.5, dtype=torch.int64)
-        frames[2, 1, 0, 0, 0] = 10**6  # a count for torch.binomial's per-sample route
+        frames[2, 1, 0, 0, 0] = 10**6  # a count for the whole-count (BTRS) route
         seeds = torch.arange(6, dtype=torch.int64) * 7919 + 3
         shifts, fractions = torch.full((6,), -1), torch.linspace(0.1, 0.9, 6, dtype=torch.float64)
         batched = temporal_event_shift_frames(frames, shifts, fractions, mode, seeds)
