@@ -410,7 +410,7 @@ class EventBatch:
         rows = [i % b for i in rows] if b else rows
         bounds = self.offsets.tolist()
         spans = [(bounds[i], bounds[i + 1]) for i in rows]
-        cols = {k: _gather_spans(getattr(self, k), spans) for k in _FIELDS}
+        cols = dict(zip(_FIELDS, _gather_spans([getattr(self, k) for k in _FIELDS], spans)))
         lengths = [hi - lo for lo, hi in spans]
         offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
         t_start = None if self.t_start is None else self.t_start[torch.tensor(rows, dtype=torch.int64)]
@@ -539,39 +539,70 @@ def _fill_from_columns(out: tuple[Tensor, ...], columns: tuple[Tensor, ...], i: 
     p.copy_(columns[3] > 0)
 
 
-def _gather_spans(column: Tensor, spans: list[tuple[int, int]]) -> Tensor:
-    """The concatenation of ``column[lo:hi]`` for each span (one ``cat``; sizes known on the host)."""
-    if len(spans) == 1:
-        lo, hi = spans[0]
-        return column[lo:hi]
+def _span_index(spans: Sequence[tuple[int, int]]) -> np.ndarray:
+    """The positions ``lo, lo + 1, ..., hi - 1`` of every span, concatenated (host arithmetic)."""
     if not spans:
-        return column[:0]
-    return torch.cat([column[lo:hi] for lo, hi in spans])
+        return np.zeros(0, dtype=np.int64)
+    bounds = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
+    lengths = bounds[:, 1] - bounds[:, 0]
+    starts = np.repeat(bounds[:, 0] - np.concatenate(([0], np.cumsum(lengths)[:-1])), lengths)
+    return starts + np.arange(int(lengths.sum()), dtype=np.int64)
+
+
+def _on(index: Tensor, device: torch.device) -> Tensor:
+    """``index`` (a CPU tensor) on ``device``; no op when it is there already."""
+    return index if device.type == "cpu" else index.to(device)
+
+
+def _gather_spans(columns: Sequence[Tensor], spans: list[tuple[int, int]]) -> list[Tensor]:
+    """For each column, the concatenation of ``column[lo:hi]`` over the spans: one
+    ``index_select`` whatever the number of spans (positions computed on the host)."""
+    index = torch.from_numpy(_span_index(spans))
+    return [column.index_select(0, _on(index, column.device)) for column in columns]
 
 
 def merge_streams(parts: Sequence[tuple[Sequence[int], EventBatch]], batch: int, like: EventBatch) -> EventBatch:
     """Reassemble B streams from pieces: ``parts`` gives, for some batches, the stream
-    positions their streams go to. Every position must be covered once."""
-    owner: list[tuple[EventBatch, int] | None] = [None] * batch
-    for positions, part in parts:
-        for j, i in enumerate(positions):
-            owner[i] = (part, j)
-    if any(o is None for o in owner):
+    positions their streams go to. Every position must be covered once. One ``cat`` and one
+    ``index_select`` per field, whatever B (the offsets are read on the host)."""
+    owner = np.full(batch, -1, dtype=np.int64)  # which part, and which stream of it
+    row = np.zeros(batch, dtype=np.int64)
+    for k, (positions, _) in enumerate(parts):
+        owner[np.asarray(positions, dtype=np.int64)] = k
+        row[np.asarray(positions, dtype=np.int64)] = np.arange(len(positions))
+    if (owner < 0).any():
         raise ValueError("merge_streams: every stream position must be covered")
-    bounds_of = {id(part): part.offsets.tolist() for _, part in parts}
+    return _assemble([part for _, part in parts], owner, row, like)
+
+
+def replace_streams(batch: EventBatch, positions: np.ndarray, part: EventBatch) -> EventBatch:
+    """``batch`` with its streams ``positions`` (host indices, in ``part``'s order) replaced
+    by ``part``'s streams: one ``cat`` and one ``index_select`` per field, whatever B."""
+    owner = np.zeros(len(batch), dtype=np.int64)
+    row = np.arange(len(batch), dtype=np.int64)
+    owner[positions] = 1
+    row[positions] = np.arange(len(positions))
+    return _assemble([batch, part], owner, row, batch)
+
+
+def _assemble(sources: Sequence[EventBatch], owner: np.ndarray, row: np.ndarray, like: EventBatch) -> EventBatch:
+    """Streams ``row[i]`` of ``sources[owner[i]]``, in order, on ``like``'s grid."""
+    bounds = [np.asarray(source.offsets.tolist(), dtype=np.int64) for source in sources]
+    base = np.cumsum([0] + [int(b[-1]) for b in bounds[:-1]]).astype(np.int64)
+    lo = np.array([base[k] + bounds[k][j] for k, j in zip(owner.tolist(), row.tolist())], dtype=np.int64)
+    hi = np.array([base[k] + bounds[k][j + 1] for k, j in zip(owner.tolist(), row.tolist())], dtype=np.int64)
+    index = torch.from_numpy(_span_index(list(zip(lo.tolist(), hi.tolist()))))
+    dtype = like.t.dtype
+    for source in sources:
+        dtype = torch.promote_types(dtype, source.t.dtype)
     cols = {}
     for k in _FIELDS:
-        pieces = []
-        for part, j in owner:  # type: ignore[misc]
-            lo, hi = bounds_of[id(part)][j], bounds_of[id(part)][j + 1]
-            pieces.append(getattr(part, k)[lo:hi])
-        cols[k] = torch.cat(pieces) if pieces else getattr(like, k)[:0]
-    lengths = [bounds_of[id(part)][j + 1] - bounds_of[id(part)][j] for part, j in owner]  # type: ignore[misc]
-    offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
-    dtype = like.t.dtype
-    for _, part in parts:
-        dtype = torch.promote_types(dtype, part.t.dtype)
-    cols["t"] = cols["t"].to(dtype)
+        pieces = [getattr(source, k) for source in sources]
+        if k == "t":
+            pieces = [piece if piece.dtype == dtype else piece.to(dtype) for piece in pieces]
+        column = pieces[0] if len(pieces) == 1 else torch.cat(pieces) if pieces else getattr(like, k)[:0]
+        cols[k] = column.index_select(0, _on(index, column.device))
+    offsets = torch.from_numpy(np.concatenate(([0], np.cumsum(hi - lo))).astype(np.int64))
     return like._replace(**cols, offsets=offsets, _sample=None)
 
 
