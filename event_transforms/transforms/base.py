@@ -34,7 +34,7 @@ from __future__ import annotations
 import functools
 import sys
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, overload
+from typing import Any, cast, overload
 
 import numpy as np
 import torch
@@ -43,7 +43,7 @@ from torch import Tensor, nn
 from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape
 from ..events.batch import EventBatch, merge_streams, replace_streams
 from ..functional._dispatch import NoKernelError
-from ._params import CHECK_RANGE, Param, Params, Spec, _CheckedParams, check_tree, slice_params
+from ._params import CHECK_RANGE, Param, Params, Spec, check_tree, slice_params
 
 __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY"]
 
@@ -589,10 +589,10 @@ class EventTransform(nn.Module):
         runs on the whole batch and the gate selects, sample by sample, its result or the
         input (equal results, by per-sample purity; no data-dependent shapes)."""
         gate = params.get("apply")
-        if gate is not None and not isinstance(frames, EventBatch) and (
+        if gate is not None and isinstance(frames, Tensor) and (
             torch.compiler.is_compiling() or gate.device.type != "cpu"
         ):
-            return _select(gate, self._dispatch(frames, params), frames)
+            return _select(gate, cast(Tensor, self._dispatch(frames, params)), frames)
         kept = self._kept(params)
         if kept is None:
             return self._dispatch(frames, params)
