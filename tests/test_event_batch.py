@@ -15,6 +15,7 @@ import event_transforms as et
 from event_transforms.functional import EventBatch, bin_events, collate_events, events_to_frames
 from event_transforms import functional as F
 from event_transforms.functional import to_voxel_grid
+from event_transforms.events import batch as batch_module
 from event_transforms.events.batch import merge_streams, replace_streams
 from event_transforms.transforms.base import slice_params
 
@@ -77,8 +78,10 @@ class TestEventBatch:
         assert batches[1][1].tolist() == [2.0, 3.0]
         assert batches[0][0].n_frames == T
 
+    @pytest.mark.parametrize("slices", [True, False], ids=["cpu-slices", "index"])
     @pytest.mark.parametrize("positions", [[], [2], [0, 3], [1, 2, 3, 0], [3, 1]])
-    def test_replace_streams_against_a_loop(self, positions):
+    def test_replace_streams_against_a_loop(self, positions, slices, monkeypatch):
+        monkeypatch.setattr(batch_module, "SLICES_ON_CPU", slices)
         batch = make_batch(4)
         part = make_batch(len(positions), seed=5)
         out = replace_streams(batch, np.asarray(positions, dtype=np.int64), part)
@@ -87,8 +90,20 @@ class TestEventBatch:
             expected = part[positions.index(i)] if i in positions else batch[i]
             assert rows(out, i) == rows(expected, 0)
 
-    def test_gathers_do_not_grow_with_the_batch(self):
-        """index_select, merge_streams and replace_streams: one index_select per field at any B."""
+    @pytest.mark.parametrize("slices", [True, False], ids=["cpu-slices", "index"])
+    def test_gathers_agree_on_both_paths(self, slices, monkeypatch):
+        monkeypatch.setattr(batch_module, "SLICES_ON_CPU", slices)
+        batch, part = make_batch(6), make_batch(3, seed=3)
+        picked = batch.index_select(torch.tensor([4, 0, 4, 5]))
+        assert [rows(picked, i) for i in range(4)] == [rows(batch, i) for i in (4, 0, 4, 5)]
+        merged = merge_streams([([1, 3, 5], part), ([0, 2, 4], batch.index_select(torch.tensor([0, 2, 4])))], 6, batch)
+        expected = [rows(batch, 0), rows(part, 0), rows(batch, 2), rows(part, 1), rows(batch, 4), rows(part, 2)]
+        assert [rows(merged, i) for i in range(6)] == expected
+
+    def test_gathers_do_not_grow_with_the_batch(self, monkeypatch):
+        """index_select, merge_streams and replace_streams on the accelerator path: one
+        index_select per field at any B (the CPU copies runs of events as slices)."""
+        monkeypatch.setattr(batch_module, "SLICES_ON_CPU", False)
         from benchmarks._common import count_ops
         from .event_data import OP_COUNTS_CHECKED
 
