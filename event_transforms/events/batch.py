@@ -625,7 +625,7 @@ def _gather_sources(pieces: Sequence[Tensor], owner: np.ndarray, lo: np.ndarray,
     """The spans ``[lo, hi)`` of the sources' concatenation, sliced from each source (CPU)."""
     source_lo = lo - base[owner]
     source_hi = hi - base[owner]
-    slices = []
+    slices: list[tuple[int, int, int]] = []
     for k, a, b in zip(owner.tolist(), source_lo.tolist(), source_hi.tolist()):
         if b > a:
             if slices and slices[-1][0] == k and slices[-1][2] == a:
