@@ -584,10 +584,11 @@ class EventTransform(nn.Module):
         :attr:`partner_key`), the kernel runs once on them, and they are put back; the
         others come back unchanged (promoted to the output dtype). Kernels never see the
         gate. The gate is a CPU tensor from ``make_params``, read on the host: no sync.
-        Where it cannot be read (frames traced by ``torch.compile``, or a gate the caller
-        moved to an accelerator) the same rule is evaluated without reading it: the kernel
-        runs on the whole batch and the gate selects, sample by sample, its result or the
-        input (equal results, by per-sample purity; no data-dependent shapes)."""
+        Where it should not be read (frames traced by ``torch.compile``, or frames with a
+        gate the caller moved to an accelerator) the same rule is evaluated without reading
+        it: the kernel runs on the whole batch and the gate selects, sample by sample, its
+        result or the input (equal results, by per-sample purity; no data-dependent shapes).
+        An EventBatch's gate is always read (once, a sync if it is on an accelerator)."""
         gate = params.get("apply")
         if gate is not None and isinstance(frames, Tensor) and (
             torch.compiler.is_compiling() or gate.device.type != "cpu"
