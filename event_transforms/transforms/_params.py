@@ -53,13 +53,10 @@ class Param:
         low, high: closed bounds (``None``: unbounded).
         choices: the only values allowed (integers), if not every value in range is.
         optional: the entry may be absent.
-        neutral: the value that leaves a sample unchanged (an angle of 0, a fraction of 0),
-            if there is one: a gated call (``p < 1``) on an EventBatch runs the kernel once
-            on the whole batch with it for the samples the gate skips.
 
     Example:
-        >>> Param("float", low=0.0, high=1.0, neutral=0.0)
-        Param(kind='float', shape=(), low=0.0, high=1.0, choices=None, optional=False, neutral=0.0)
+        >>> Param("float", low=0.0, high=1.0)
+        Param(kind='float', shape=(), low=0.0, high=1.0, choices=None, optional=False)
     """
 
     kind: str
@@ -68,7 +65,6 @@ class Param:
     high: float | None = None
     choices: tuple[int, ...] | None = None
     optional: bool = False
-    neutral: float | None = None
 
 
 #: A module's description of its params dict: a :class:`Param` per own entry and a

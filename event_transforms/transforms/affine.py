@@ -63,7 +63,7 @@ class _Affine(_Warp):
 
 class _Rotation(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"angle": Param("float", neutral=0.0)}
+        return {"angle": Param("float")}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.rotate, inputs, params["angle"], center=self.center, mode=self.mode)
@@ -71,7 +71,7 @@ class _Rotation(_Affine):
 
 class _Zoom(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"scale": Param("float", low=float.fromhex("0x1p-1022"), neutral=1.0)}
+        return {"scale": Param("float", low=float.fromhex("0x1p-1022"))}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.resize, inputs, params["scale"], center=self.center, mode=self.mode)
@@ -235,8 +235,8 @@ class _AffineWarp(_Affine):
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {
-            "angle": Param("float", neutral=0.0), "scale": Param("float", low=float.fromhex("0x1p-1022"), neutral=1.0),
-            "translate": Param("float", shape=(2,), neutral=0.0), "shear": Param("float", shape=(2,), neutral=0.0),
+            "angle": Param("float"), "scale": Param("float", low=float.fromhex("0x1p-1022")),
+            "translate": Param("float", shape=(2,)), "shear": Param("float", shape=(2,)),
         }
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply

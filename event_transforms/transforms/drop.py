@@ -96,10 +96,10 @@ class RandomEventDrop(EventTransform):
         b, t, _, h, w = shape
         return {
             "method": Param("int", choices=tuple(_DROPS.index(m) for m in self.methods)),
-            "fraction": Param("float", low=0.0, high=1.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1),
-            "start": Param("int", low=0, high=t), "length": Param("int", low=0, high=t, neutral=0),
-            "top": Param("int", low=0, high=h), "height": Param("int", low=0, high=h, neutral=0),
-            "left": Param("int", low=0, high=w), "width": Param("int", low=0, high=w, neutral=0),
+            "fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1),
+            "start": Param("int", low=0, high=t), "length": Param("int", low=0, high=t),
+            "top": Param("int", low=0, high=h), "height": Param("int", low=0, high=h),
+            "left": Param("int", low=0, high=w), "width": Param("int", low=0, high=w),
         }
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
@@ -224,7 +224,7 @@ class RandomDropPixel(EventTransform):
         return {"fraction": uniform(*self.fraction, b, generator), "seed": seeds(b, generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"fraction": Param("float", low=0.0, high=1.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
+        return {"fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1)}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         # the same counter-based mask over the pixels of the frames or of the sensor
@@ -272,7 +272,7 @@ class RefractoryPeriod(EventTransform):
         return {"period_us": uniform(*self.period_us, shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"period_us": Param("float", low=0.0, neutral=0.0)}
+        return {"period_us": Param("float", low=0.0)}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.refractory_period, inputs, params["period_us"])
@@ -313,7 +313,7 @@ class Decimation(EventTransform):
         return {"n": integers(self.n[1] - self.n[0] + 1, shape[0], generator) + self.n[0]}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"n": Param("int", low=1, neutral=1)}
+        return {"n": Param("int", low=1)}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.decimation, inputs, params["n"])

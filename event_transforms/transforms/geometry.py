@@ -35,7 +35,7 @@ __all__ = [
 
 class _Roll(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"shift": Param("int", shape=(2,), neutral=0)}
+        return {"shift": Param("int", shape=(2,))}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.translate, inputs, params["shift"])
@@ -255,10 +255,8 @@ class HorizontalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    _gates_itself = True
-
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        return call_kernel(F.horizontal_flip, inputs, params.get("apply"))
+        return call_kernel(F.horizontal_flip, inputs)
 
 class VerticalFlip(EventTransform):
     """Mirror every frame top-bottom. Counts and dtype are kept.
@@ -275,10 +273,8 @@ class VerticalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    _gates_itself = True
-
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        return call_kernel(F.vertical_flip, inputs, params.get("apply"))
+        return call_kernel(F.vertical_flip, inputs)
 
 class RandomHorizontalFlip(HorizontalFlip):
     """Mirror each sequence left-right with probability ``p`` (per sample; default 0.5).
@@ -362,7 +358,7 @@ class SpatialJitter(EventTransform):
         return {"sigma": uniform(*self.sigma, shape[0], generator), "seed": seeds(shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"sigma": Param("float", low=0.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
+        return {"sigma": Param("float", low=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.spatial_jitter, inputs, params["sigma"], params["seed"])

@@ -52,7 +52,7 @@ class _Shift(EventTransform):
     """Frame shifting: ``params["shift"]`` (B,) int64."""
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"shift": Param("int", neutral=0)}
+        return {"shift": Param("int")}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.frame_shift, inputs, params["shift"])
@@ -64,7 +64,7 @@ class _EventShift(EventTransform):
     mode: str
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        spec = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0, neutral=0.0)}
+        spec = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0)}
         if self.mode != "expected":
             spec["seed"] = Param("int", low=0, high=2**63 - 1)
         return spec
@@ -266,10 +266,8 @@ class TimeReversal(EventTransform):
         [[0.0, 0.0], [0.0, 0.0], [4.0, 0.0]]
     """
 
-    _gates_itself = True
-
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        return call_kernel(F.time_reversal, inputs, params.get("apply"))
+        return call_kernel(F.time_reversal, inputs)
 
 class RandomTimeReversal(TimeReversal):
     """Reverse each sequence in time (and swap polarities) with probability ``p`` (default 0.5).
@@ -414,7 +412,7 @@ class TimeJitter(EventTransform):
         return {"std_us": uniform(*self.std_us, shape[0], generator), "seed": seeds(shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"std_us": Param("float", low=0.0, neutral=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
+        return {"std_us": Param("float", low=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.time_jitter, inputs, params["std_us"], params["seed"])
@@ -460,7 +458,7 @@ class TimeSkew(EventTransform):
         }
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"coefficient": Param("float", low=1e-12, neutral=1.0), "offset_us": Param("float", neutral=0.0)}
+        return {"coefficient": Param("float", low=1e-12), "offset_us": Param("float")}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.time_skew, inputs, params["coefficient"], params["offset_us"])
