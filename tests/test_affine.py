@@ -469,7 +469,7 @@ class TestElastic:
             ({"noise": np.zeros((2, H, W))}, TypeError, "noise must be a tensor"),
             ({"noise": torch.zeros(2, W, H)}, ValueError, r"noise must be a float tensor \(2, 17, 11\)"),
             ({"noise": torch.zeros(2, H, W, dtype=torch.int64)}, ValueError, "noise must be a float tensor"),
-            ({"alpha": -1.0}, ValueError, "alpha must be finite and >= 0"),
+            ({"alpha": -1.0}, ValueError, r"elastic: alpha must lie in \[0.0, inf\], got -1.0"),
             ({"sigma": 0.0}, ValueError, "sigma must be finite and > 0"),
             ({"mode": "bicubic"}, ValueError, "mode"),
         ],

@@ -23,7 +23,7 @@ from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, c
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.affine import Center, _check_center, _image_corners
+from ..functional.affine import AFFINE, PERSPECTIVE, RESIZE, ROTATE, Center, _check_center, _image_corners, elastic_spec
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [
@@ -63,7 +63,7 @@ class _Affine(_Warp):
 
 class _Rotation(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"angle": Param("float", neutral=0.0)}
+        return ROTATE
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.rotate, inputs, params["angle"], center=self.center, mode=self.mode)
@@ -71,7 +71,7 @@ class _Rotation(_Affine):
 
 class _Zoom(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"scale": Param("float", low=float.fromhex("0x1p-1022"), neutral=1.0)}
+        return RESIZE
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.resize, inputs, params["scale"], center=self.center, mode=self.mode)
@@ -234,10 +234,7 @@ class _AffineWarp(_Affine):
     """Applies ``params`` angle (B,), scale (B,), translate (B, 2) and shear (B, 2)."""
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {
-            "angle": Param("float", neutral=0.0), "scale": Param("float", low=float.fromhex("0x1p-1022"), neutral=1.0),
-            "translate": Param("float", shape=(2,), neutral=0.0), "shear": Param("float", shape=(2,), neutral=0.0),
-        }
+        return AFFINE
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(
@@ -435,7 +432,7 @@ class RandomPerspective(_Warp):
         return {"corners": _image_corners(height, width) + moves}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"corners": Param("float", shape=(4, 2))}
+        return PERSPECTIVE
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.perspective, inputs, params["corners"].detach().to("cpu", torch.float64), self.mode)
@@ -492,7 +489,7 @@ class RandomElastic(_Warp):
         return {"alpha": uniform(*self.alpha, b, generator), "noise": noise}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"alpha": Param("float", low=0.0), "noise": Param("float", shape=(2, *shape[-2:]), low=-1.0, high=1.0)}
+        return elastic_spec(shape)
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         alpha = params["alpha"].detach().to("cpu", torch.float64)
