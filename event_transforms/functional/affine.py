@@ -67,16 +67,16 @@ def _convex(corners: Tensor) -> str | None:
 
 
 #: :func:`rotate`: degrees, counter-clockwise.
-ROTATE = {"angle": Param("float", neutral=0.0)}
+ROTATE_SPEC = {"angle": Param("float", neutral=0.0)}
 #: :func:`resize`: a zoom factor > 0.
-RESIZE = {"scale": Param("float", low=0.0, low_open=True, neutral=1.0)}
+RESIZE_SPEC = {"scale": Param("float", low=0.0, low_open=True, neutral=1.0)}
 #: :func:`affine`: rotation, zoom, translation (dy, dx) and shear (x, y) in (-90, 90) degrees.
-AFFINE = {
-    **ROTATE, **RESIZE, "translate": Param("float", shape=(2,), neutral=0.0),
+AFFINE_SPEC = {
+    **ROTATE_SPEC, **RESIZE_SPEC, "translate": Param("float", shape=(2,), neutral=0.0),
     "shear": Param("float", shape=(2,), low=-90.0, high=90.0, low_open=True, high_open=True, neutral=0.0),
 }
 #: :func:`perspective`: where the frame's four corners go, (y, x), a convex quadrilateral.
-PERSPECTIVE = {"corners": Param("float", shape=(4, 2), rule=_convex)}
+PERSPECTIVE_SPEC = {"corners": Param("float", shape=(4, 2), rule=_convex)}
 
 
 def elastic_spec(shape: Sequence[int]) -> dict[str, Param]:
@@ -403,7 +403,7 @@ def rotate(
     """
     batch, b, restore = batch_of(inputs)
     center = _check_center(center, b)
-    angle_t = check_args("rotate", ROTATE, b, angle=angle)["angle"]
+    angle_t = check_args("rotate", ROTATE_SPEC, b, angle=angle)["angle"]
     return restore(call_kernel(rotate, batch, angle_t, center=center, mode=check_choice(mode, "mode", INTERPOLATIONS)))
 
 
@@ -441,7 +441,7 @@ def resize(
     """
     batch, b, restore = batch_of(inputs)
     center = _check_center(center, b)
-    scale_t = check_args("resize", RESIZE, b, scale=scale)["scale"]
+    scale_t = check_args("resize", RESIZE_SPEC, b, scale=scale)["scale"]
     return restore(call_kernel(resize, batch, scale_t, center=center, mode=check_choice(mode, "mode", INTERPOLATIONS)))
 
 
@@ -489,7 +489,7 @@ def affine(
         (torch.int16, [[3, 0]])
     """
     batch, b, restore = batch_of(inputs)
-    args = check_args("affine", AFFINE, b, angle=angle, scale=scale, translate=translate, shear=shear)
+    args = check_args("affine", AFFINE_SPEC, b, angle=angle, scale=scale, translate=translate, shear=shear)
     check_choice(mode, "mode", INTERPOLATIONS)
     center = _check_center(center, b)
     return restore(call_kernel(
@@ -886,7 +886,7 @@ def perspective(
     kernel = kernel_for(perspective, frames)
     check_choice(mode, "mode", INTERPOLATIONS)
     batch, b, unbatch = batch_of(frames)
-    return unbatch(kernel(batch, check_args("perspective", PERSPECTIVE, b, corners=corners)["corners"].contiguous(), mode))
+    return unbatch(kernel(batch, check_args("perspective", PERSPECTIVE_SPEC, b, corners=corners)["corners"].contiguous(), mode))
 
 
 def _gaussian_kernel(sigma: float, device: torch.device, dtype: torch.dtype) -> Tensor:

@@ -44,13 +44,13 @@ Scalars = float | Sequence[float] | Tensor
 # against it (check_args), the module's params_spec returns it (check_tree).
 
 #: :func:`drop_random`: the probability of dropping an event.
-DROP_RANDOM = {"fraction": Param("float", low=0.0, high=1.0, neutral=0.0)}
+DROP_RANDOM_SPEC = {"fraction": Param("float", low=0.0, high=1.0, neutral=0.0)}
 #: :func:`random_pixel_mask`: the share of pixels dropped and the seed of the draw.
-RANDOM_PIXEL_MASK = {"fraction": Param("float", low=0.0, high=1.0, neutral=0.0), "seed": SEED}
+RANDOM_PIXEL_MASK_SPEC = {"fraction": Param("float", low=0.0, high=1.0, neutral=0.0), "seed": SEED}
 #: :func:`refractory_period`: the dead time in µs.
-REFRACTORY_PERIOD = {"period_us": Param("float", low=0.0, neutral=0.0)}
+REFRACTORY_PERIOD_SPEC = {"period_us": Param("float", low=0.0, neutral=0.0)}
 #: :func:`decimation`: keep one event in n.
-DECIMATION = {"n": Param("int", low=1, neutral=1)}
+DECIMATION_SPEC = {"n": Param("int", low=1, neutral=1)}
 
 
 def drop_by_time_spec(shape: Sequence[int]) -> dict[str, Param]:
@@ -106,7 +106,7 @@ def drop_random(
     batch, b, restore = batch_of(inputs)
     check_choice(mode, "mode", DROP_MODES)
     check_generator(generator, batch.device)
-    fraction_t = check_args("drop_random", DROP_RANDOM, b, fraction=fraction)["fraction"]
+    fraction_t = check_args("drop_random", DROP_RANDOM_SPEC, b, fraction=fraction)["fraction"]
     seeds = draw_seeds(b, generator) if mode == "binomial" else None
     return restore(call_kernel(drop_random, batch, fraction_t, mode, seeds))
 
@@ -525,7 +525,7 @@ def refractory_period(batch: EventBatch, period_us: Scalars) -> EventBatch:
         [0, 2000, 100]
     """
     kernel = kernel_for(refractory_period, batch)
-    return kernel(batch, check_args("refractory_period", REFRACTORY_PERIOD, len(batch), period_us=period_us)["period_us"])
+    return kernel(batch, check_args("refractory_period", REFRACTORY_PERIOD_SPEC, len(batch), period_us=period_us)["period_us"])
 
 
 def decimation(batch: EventBatch, n: int | Sequence[int] | Tensor) -> EventBatch:
@@ -548,7 +548,7 @@ def decimation(batch: EventBatch, n: int | Sequence[int] | Tensor) -> EventBatch
         [2, 5]
     """
     kernel = kernel_for(decimation, batch)
-    return kernel(batch, check_args("decimation", DECIMATION, len(batch), n=n)["n"])
+    return kernel(batch, check_args("decimation", DECIMATION_SPEC, len(batch), n=n)["n"])
 
 
 def _pixel_runs(batch: EventBatch) -> tuple[Tensor, Tensor, Tensor]:

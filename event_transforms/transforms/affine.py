@@ -23,7 +23,7 @@ from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, c
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.affine import AFFINE, PERSPECTIVE, RESIZE, ROTATE, Center, _check_center, _image_corners, elastic_spec
+from ..functional.affine import AFFINE_SPEC, PERSPECTIVE_SPEC, RESIZE_SPEC, ROTATE_SPEC, Center, _check_center, _image_corners, elastic_spec
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [
@@ -63,7 +63,7 @@ class _Affine(_Warp):
 
 class _Rotation(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return ROTATE
+        return ROTATE_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.rotate, inputs, params["angle"], center=self.center, mode=self.mode)
@@ -71,7 +71,7 @@ class _Rotation(_Affine):
 
 class _Zoom(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return RESIZE
+        return RESIZE_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.resize, inputs, params["scale"], center=self.center, mode=self.mode)
@@ -234,7 +234,7 @@ class _AffineWarp(_Affine):
     """Applies ``params`` angle (B,), scale (B,), translate (B, 2) and shear (B, 2)."""
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return AFFINE
+        return AFFINE_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(
@@ -432,7 +432,7 @@ class RandomPerspective(_Warp):
         return {"corners": _image_corners(height, width) + moves}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return PERSPECTIVE
+        return PERSPECTIVE_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.perspective, inputs, params["corners"].detach().to("cpu", torch.float64), self.mode)

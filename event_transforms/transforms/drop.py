@@ -21,7 +21,7 @@ from ..functional._dispatch import call_kernel
 from ..functional.cleaning import _hot_pixels
 from .._params import SEED
 from ..functional.drop import (
-    DECIMATION, DROP_RANDOM, RANDOM_PIXEL_MASK, REFRACTORY_PERIOD, _pixel_mask, drop_by_area_spec, drop_by_time_spec,
+    DECIMATION_SPEC, DROP_RANDOM_SPEC, RANDOM_PIXEL_MASK_SPEC, REFRACTORY_PERIOD_SPEC, _pixel_mask, drop_by_area_spec, drop_by_time_spec,
     random_pixel_mask,
 )
 from .base import EventTransform, Param, Params, apply_by_group, choice, integers, seeds, slice_params, uniform
@@ -99,7 +99,7 @@ class RandomEventDrop(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {
             "method": Param("int", choices=tuple(_DROPS.index(m) for m in self.methods)),
-            **DROP_RANDOM, "seed": SEED, **drop_by_time_spec(shape), **drop_by_area_spec(shape),
+            **DROP_RANDOM_SPEC, "seed": SEED, **drop_by_time_spec(shape), **drop_by_area_spec(shape),
         }
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
@@ -224,7 +224,7 @@ class RandomDropPixel(EventTransform):
         return {"fraction": uniform(*self.fraction, b, generator), "seed": seeds(b, generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return RANDOM_PIXEL_MASK
+        return RANDOM_PIXEL_MASK_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         # the same counter-based mask over the pixels of the frames or of the sensor
@@ -272,7 +272,7 @@ class RefractoryPeriod(EventTransform):
         return {"period_us": uniform(*self.period_us, shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return REFRACTORY_PERIOD
+        return REFRACTORY_PERIOD_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.refractory_period, inputs, params["period_us"])
@@ -313,7 +313,7 @@ class Decimation(EventTransform):
         return {"n": integers(self.n[1] - self.n[0] + 1, shape[0], generator) + self.n[0]}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return DECIMATION
+        return DECIMATION_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.decimation, inputs, params["n"])
