@@ -23,7 +23,7 @@ import math
 from .._params import SEED, Param, check_args
 from .._validation import DROP_MODES, check_choice, check_generator, count_stats, describe
 from ..events.batch import EventBatch
-from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel, shape_of
+from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
 from ._event_ops import DROP_KEYS, _compact, _keys, _per_event, _require_grid
 from ._hypergeometric import _EXPAND_MAX, Stream, binomial_counts
 from ._random import draw_seeds, sample_salts, uniform
@@ -53,19 +53,15 @@ REFRACTORY_PERIOD_SPEC = {"period_us": Param("float", low=0.0, neutral=0.0)}
 DECIMATION_SPEC = {"n": Param("int", low=1, neutral=1)}
 
 
-def drop_by_time_spec(shape: Sequence[int]) -> dict[str, Param]:
-    """:func:`drop_by_time`'s window for a batch ``shape`` (B, T, 2, H, W): start and length in [0, T]."""
-    t = shape[1]
-    return {"start": Param("int", low=0, high=t), "length": Param("int", low=0, high=t, neutral=0)}
-
-
-def drop_by_area_spec(shape: Sequence[int]) -> dict[str, Param]:
-    """:func:`drop_by_area`'s rectangle for a batch ``shape`` (B, T, 2, H, W): rows in [0, H], columns in [0, W]."""
-    h, w = shape[-2], shape[-1]
-    return {
-        "top": Param("int", low=0, high=h), "left": Param("int", low=0, high=w),
-        "height": Param("int", low=0, high=h, neutral=0), "width": Param("int", low=0, high=w, neutral=0),
-    }
+#: :func:`drop_by_time`'s window: first frame and number of frames, non-negative (a window past
+#: the end stops at the end).
+DROP_BY_TIME_SPEC = {"start": Param("int", low=0), "length": Param("int", low=0, neutral=0)}
+#: :func:`drop_by_area`'s rectangle: first row and column, height and width, non-negative (a
+#: rectangle past the border stops there).
+DROP_BY_AREA_SPEC = {
+    "top": Param("int", low=0), "left": Param("int", low=0),
+    "height": Param("int", low=0, neutral=0), "width": Param("int", low=0, neutral=0),
+}
 
 
 # --------------------------------------------------------------------------- events
@@ -228,7 +224,7 @@ def drop_by_time(inputs: Tensor | EventBatch, start: Scalars, length: Scalars) -
         [1, 0, 0, 1, 1]
     """
     batch, b, restore = batch_of(inputs)
-    window = check_args("drop_by_time", drop_by_time_spec(shape_of(batch)), b, start=start, length=length)
+    window = check_args("drop_by_time", DROP_BY_TIME_SPEC, b, start=start, length=length)
     return restore(call_kernel(drop_by_time, batch, window["start"], window["length"]))
 
 
@@ -306,7 +302,7 @@ def drop_by_area(
         [[1.0, 1.0, 1.0, 1.0], [1.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 1.0]]
     """
     batch, b, restore = batch_of(inputs)
-    box = check_args("drop_by_area", drop_by_area_spec(shape_of(batch)), b, top=top, left=left, height=height, width=width)
+    box = check_args("drop_by_area", DROP_BY_AREA_SPEC, b, top=top, left=left, height=height, width=width)
     return restore(call_kernel(drop_by_area, batch, box["top"], box["left"], box["height"], box["width"]))
 
 

@@ -21,8 +21,8 @@ from ..functional._dispatch import call_kernel
 from ..functional.cleaning import _hot_pixels
 from .._params import SEED
 from ..functional.drop import (
-    DECIMATION_SPEC, DROP_RANDOM_SPEC, RANDOM_PIXEL_MASK_SPEC, REFRACTORY_PERIOD_SPEC, _pixel_mask, drop_by_area_spec, drop_by_time_spec,
-    random_pixel_mask,
+    DECIMATION_SPEC, DROP_BY_AREA_SPEC, DROP_BY_TIME_SPEC, DROP_RANDOM_SPEC, RANDOM_PIXEL_MASK_SPEC, REFRACTORY_PERIOD_SPEC,
+    _pixel_mask, random_pixel_mask,
 )
 from .base import EventTransform, Param, Params, apply_by_group, choice, integers, seeds, slice_params, uniform
 
@@ -99,7 +99,7 @@ class RandomEventDrop(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {
             "method": Param("int", choices=tuple(_DROPS.index(m) for m in self.methods)),
-            **DROP_RANDOM_SPEC, "seed": SEED, **drop_by_time_spec(shape), **drop_by_area_spec(shape),
+            **DROP_RANDOM_SPEC, "seed": SEED, **DROP_BY_TIME_SPEC, **DROP_BY_AREA_SPEC,
         }
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
