@@ -23,7 +23,7 @@ from torch import Tensor
 
 from .._params import SEED, Param, check_args
 from .._validation import (
-    TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, describe, on_host, read_host,
+    TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, on_host, read_host,
 )
 from ..events.batch import EventBatch
 from ..events.binning import _frame_us
