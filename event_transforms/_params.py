@@ -134,7 +134,7 @@ def _as_tensor(op: str, name: str, value: object, spec: Param, batch: int) -> Te
     if isinstance(value, (Real, np.generic)) and not isinstance(value, np.bool_):
         if spec.shape:
             raise TypeError(f"{where} must be {spec.shape} or {(batch, *spec.shape)} values, got {value!r}")
-        number = as_number(value, where, finite=False, integer=integer) if spec.kind != "bool" else bool(value)
+        number = float(value) if spec.kind == "float" else as_number(value, where, integer=True) if integer else bool(value)
         return torch.full((batch,), number, dtype=_KINDS[spec.kind])
     if not isinstance(value, (Tensor, Sequence, np.ndarray)) or isinstance(value, (str, bytes)):
         raise TypeError(f"{where} must be a number or a ({batch}, ...) tensor, got {type(value).__name__}")
@@ -148,9 +148,9 @@ def _as_tensor(op: str, name: str, value: object, spec: Param, batch: int) -> Te
     if tuple(out.shape) == spec.shape:
         out = out.expand(batch, *spec.shape)
     if tuple(out.shape) != (batch, *spec.shape):
-        expected = f"a scalar or have shape ({batch},) to match the batch" if not spec.shape else \
-            f"{spec.shape} or {(batch, *spec.shape)}"
-        raise ValueError(f"{where} must be {expected}, got {describe(value)}")
+        expected = f"be a scalar or have shape ({batch},) to match the batch" if not spec.shape else \
+            f"have shape {spec.shape} or {(batch, *spec.shape)}"
+        raise ValueError(f"{where} must {expected}, got {describe(value)}")
     if integer and out.is_floating_point():
         if out.numel() and not bool((out.isfinite() & (out == out.round())).all()):
             raise TypeError(f"{where} must hold integers, got {describe(value)}")
