@@ -420,7 +420,7 @@ class TestPerspective:
     @pytest.mark.parametrize(
         "corners, error, message",
         [
-            ([[0, 0], [0, 10], [16, 10]], ValueError, r"corners must be \(4, 2\)"),
+            ([[0, 0], [0, 10], [16, 10]], ValueError, r"perspective: corners must have shape \(4, 2\) or \(1, 4, 2\)"),
             ([[0, 0], [16, 10], [0, 10], [16, 0]], ValueError, "convex quadrilateral"),  # crossed
             ([[0, 0], [0, 10], [16, 10], [16, float("nan")]], ValueError, "finite"),
             ("corners", TypeError, "corners must be"),

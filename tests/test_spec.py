@@ -23,13 +23,13 @@ import event_transforms as et
 from event_transforms import functional as F
 from event_transforms._params import Param, check_args
 
+from .event_data import make_batch
+
 # the topic files (``functional.affine`` is also the name of the ``affine`` dispatcher)
 affine, drop, geometry, mixing, stretch, temporal = (
     importlib.import_module(f"event_transforms.functional.{topic}")
     for topic in ("affine", "drop", "geometry", "mixing", "stretch", "temporal")
 )
-
-from .event_data import make_batch
 
 B, T, H, W = 3, 6, 11, 17  # events: tests/event_data's sensor (11, 17) and T = 6
 SHAPE = torch.Size((B, T, 2, H, W))

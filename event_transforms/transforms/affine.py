@@ -20,6 +20,7 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, per_sample_pairs
+from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
@@ -281,14 +282,11 @@ class Affine(_AffineWarp):
         p: float = 1.0,
     ) -> None:
         super().__init__(center=center, mode=mode, p=p)
-        self.angle = as_number(angle, "angle")
-        self.scale = as_number(scale, "scale")
-        if self.scale <= 0:
-            raise ValueError(f"scale must be > 0, got {scale!r}")
-        self.translate = tuple(per_sample_pairs(translate, 1, "translate")[0].tolist())
-        self.shear = tuple(per_sample_pairs(shear, 1, "shear")[0].tolist())
-        if max(abs(s) for s in self.shear) >= 90:
-            raise ValueError(f"shear must lie in (-90, 90) degrees, got {shear!r}")
+        # one value for every sample, checked against the operation's declaration
+        settings = check_args("Affine", AFFINE_SPEC, 1, angle=angle, scale=scale, translate=translate, shear=shear)
+        self.angle, self.scale = float(settings["angle"][0]), float(settings["scale"][0])
+        self.translate = tuple(settings["translate"][0].tolist())
+        self.shear = tuple(settings["shear"][0].tolist())
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]

@@ -21,6 +21,7 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, per_sample_pairs
+from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
@@ -59,7 +60,7 @@ class Translate(_Roll):
 
     def __init__(self, shift: Sequence[int], *, p: float = 1.0) -> None:
         super().__init__(p=p)
-        self.shift = tuple(per_sample_pairs(shift, 1, "shift", dtype=torch.int64)[0].tolist())
+        self.shift = tuple(check_args("Translate", TRANSLATE_SPEC, 1, shift=shift)["shift"][0].tolist())
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"shift": torch.tensor(self.shift, dtype=torch.int64).expand(shape[0], 2).clone()}
