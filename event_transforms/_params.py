@@ -54,6 +54,10 @@ class Param:
             (corners that make a convex quadrilateral): called with the ``(B, *shape)``
             float64/int64 CPU values, returns ``None`` or what the values must be.
 
+    Shape:
+        - a checked value: ``(B, *shape)``; a dispatcher also takes ``shape`` (one value for
+          every sample) or a number where ``shape`` is ``()``.
+
     Example:
         >>> Param("float", low=0.0, high=1.0, neutral=0.0)
         Param(kind='float', shape=(), low=0.0, high=1.0, choices=None, optional=False, neutral=0.0, low_open=False, high_open=False, rule=None)
