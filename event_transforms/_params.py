@@ -97,35 +97,38 @@ def _check_leaf(value: object, spec: Param, batch: int, owner: str, where: str, 
     """
     if not isinstance(value, Tensor):
         raise TypeError(f"{owner}: {where} must be a tensor, got {type(value).__name__}")
-    seen = describe(value) if shown is None else shown
+
+    def seen() -> str:  # described only for a message (no host read of a value that passes)
+        return describe(value) if shown is None else shown
+
     want = (batch, *spec.shape)
     if tuple(value.shape) != want:
-        raise ValueError(f"{owner}: {where} must have shape {want} (one entry per sample), got {seen}")
+        raise ValueError(f"{owner}: {where} must have shape {want} (one entry per sample), got {seen()}")
     dtype = _KINDS[spec.kind]
     if spec.kind == "bool":
         if value.dtype != torch.bool:
-            raise TypeError(f"{owner}: {where} must be a bool tensor (a per-sample gate), got {seen}")
+            raise TypeError(f"{owner}: {where} must be a bool tensor (a per-sample gate), got {seen()}")
         return value
     if value.dtype == torch.bool or value.is_complex():
-        raise TypeError(f"{owner}: {where} must hold {spec.kind} numbers, got {seen}")
+        raise TypeError(f"{owner}: {where} must hold {spec.kind} numbers, got {seen()}")
     if spec.kind == "int" and value.is_floating_point():
-        raise TypeError(f"{owner}: {where} must be an integer tensor, got {seen}")
+        raise TypeError(f"{owner}: {where} must be an integer tensor, got {seen()}")
     if value.device.type == "cpu" and value.numel() and not torch.compiler.is_compiling():
         numbers = _values(value)
         if spec.kind == "float" and not np.isfinite(numbers).all():
-            raise ValueError(f"{owner}: {where} must be finite, got {seen}")
+            raise ValueError(f"{owner}: {where} must be finite, got {seen()}")
         low = -math.inf if spec.low is None else spec.low
         high = math.inf if spec.high is None else spec.high
         below = numbers <= low if spec.low_open else numbers < low
         above = numbers >= high if spec.high_open else numbers > high
         if (below | above).any():
-            raise ValueError(f"{owner}: {where} must lie in {spec.range_text()}, got {seen}")
+            raise ValueError(f"{owner}: {where} must lie in {spec.range_text()}, got {seen()}")
         if spec.choices is not None and not np.isin(numbers, spec.choices).all():
-            raise ValueError(f"{owner}: {where} must hold values in {list(spec.choices)}, got {seen}")
+            raise ValueError(f"{owner}: {where} must hold values in {list(spec.choices)}, got {seen()}")
         if spec.rule is not None:
             problem = spec.rule(value.to(dtype))
             if problem is not None:
-                raise ValueError(f"{owner}: {where} must {problem}, got {seen}")
+                raise ValueError(f"{owner}: {where} must {problem}, got {seen()}")
     return value if value.dtype == dtype else value.to(dtype)
 
 
