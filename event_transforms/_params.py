@@ -1,8 +1,8 @@
 """The one declaration of an operation's per-sample arguments, and its one check.
 
 An operation's per-sample arguments are declared once, beside its dispatcher in
-``functional/<topic>.py``, as a dict of :class:`Param` (kind, trailing shape, range,
-neutral value), or as a function of the batch shape where a range depends on T, H, W or
+``functional/<topic>.py``, as a dict of :class:`Param` (kind, trailing shape, range),
+or as a function of the batch shape where a range depends on T, H, W or
 B (a window inside T, a box inside H×W, a partner in [0, B)). Both paths check against
 that declaration with the same leaf check:
 
@@ -46,9 +46,6 @@ class Param:
         low, high: bounds (``None``: unbounded), closed unless ``low_open``/``high_open``.
         choices: the only values allowed (integers), if not every value in range is.
         optional: the entry may be absent.
-        neutral: the value that leaves a sample unchanged (an angle of 0, a fraction of 0),
-            if there is one: a gated call (``p < 1``) on an EventBatch runs the kernel once
-            on the whole batch with it for the samples the gate skips.
         low_open, high_open: the bound itself is excluded (a zoom factor > 0).
         rule: a check of a relation between one sample's entries that a range cannot say
             (corners that make a convex quadrilateral): called with the ``(B, *shape)``
@@ -59,8 +56,8 @@ class Param:
           every sample) or a number where ``shape`` is ``()``.
 
     Example:
-        >>> Param("float", low=0.0, high=1.0, neutral=0.0)
-        Param(kind='float', shape=(), low=0.0, high=1.0, choices=None, optional=False, neutral=0.0, low_open=False, high_open=False, rule=None)
+        >>> Param("float", low=0.0, high=1.0)
+        Param(kind='float', shape=(), low=0.0, high=1.0, choices=None, optional=False, low_open=False, high_open=False, rule=None)
     """
 
     kind: str
@@ -69,7 +66,6 @@ class Param:
     high: float | None = None
     choices: tuple[int, ...] | None = None
     optional: bool = False
-    neutral: float | None = None
     low_open: bool = False
     high_open: bool = False
     rule: Optional[Callable[[Tensor], Optional[str]]] = None

@@ -218,7 +218,11 @@ class TestBattery:
         assert gate.dtype == torch.bool and gate.shape == (6,) and 0 < int(gate.sum()) < 6
         out = module(frames, params=params)
         chosen = gate.nonzero().squeeze(1)
-        if name in COUPLED:  # the gate is folded in: unchosen samples are their own partners
+        if name in COUPLED:  # chosen samples as in the ungated call (partners read unchanged)
+            always = FACTORIES[name](6, H, W)
+            always.p = 1.0
+            ungated = always(frames, params={k: v for k, v in params.items() if k != "apply"})
+            assert torch.equal(out[chosen], ungated[chosen].to(out.dtype))
             assert torch.equal(out[~gate], frames[~gate].to(out.dtype))
             return
         # the gated samples are the transform of that sub-batch with its slice of the tree
@@ -229,6 +233,20 @@ class TestBattery:
         assert torch.equal(out[~gate], frames[~gate].to(out.dtype))
         module.p = 0.0
         assert torch.equal(module(frames).to(frames.dtype), frames)
+
+    def test_gate_read_or_not_gives_the_same_result(self, name, monkeypatch):
+        """The one gating rule has two evaluations: gather the kept samples (a CPU gate, read
+        on the host) and select over the whole batch (traced calls and accelerator gates,
+        which cannot be read); they agree on every module."""
+        frames = sparse_frames(6, 6, 2, H, W, density=0.2)
+        module = FACTORIES[name](6, H, W)
+        module.p = 0.5
+        params = module.make_params(frames.shape, generator=torch.Generator().manual_seed(6))
+        gathered = module(frames, params=params)
+        monkeypatch.setattr(torch.compiler, "is_compiling", lambda: True)
+        selected = module(frames, params=params)
+        assert selected.dtype == gathered.dtype
+        torch.testing.assert_close(selected, gathered, rtol=1e-5, atol=1e-5)
 
     def test_named_errors_for_bad_params(self, name):
         module = FACTORIES[name](6, H, W)

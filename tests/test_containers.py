@@ -223,3 +223,21 @@ def test_torch_module_apply_reaches_every_submodule():
     params = et.RandomRotation(10.0).make_params(frames.shape, generator=torch.Generator().manual_seed(0))
     rotation = et.RandomRotation(10.0)
     assert torch.equal(rotation(frames, params=params), rotation(frames, params=params))  # the transform path is untouched
+
+
+def test_a_gated_coupled_transform_must_name_its_partners():
+    """The gate gathers a coupled transform's kept samples with their partners, so a coupled
+    subclass with p < 1 and no partner_key is refused by name (not run ungated)."""
+
+    class Swap(et.EventTransform):
+        couples_samples = True
+
+        def apply(self, inputs, params):  # type: ignore[override]
+            return inputs.flip(0)
+
+    frames = torch.ones(4, 2, 2, 3, 3)
+    gate = {"apply": torch.tensor([True, False, True, False])}
+    with pytest.raises(TypeError, match=r"Swap couples samples and has p=0.5 < 1, so it must name .* partner_key"):
+        Swap(p=0.5)(frames, params=gate)
+    assert torch.equal(Swap()(frames), frames.flip(0))
+

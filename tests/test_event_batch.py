@@ -15,7 +15,8 @@ import event_transforms as et
 from event_transforms.functional import EventBatch, bin_events, collate_events, events_to_frames
 from event_transforms import functional as F
 from event_transforms.functional import to_voxel_grid
-from event_transforms.events.batch import merge_streams
+from event_transforms.events import batch as batch_module
+from event_transforms.events.batch import merge_streams, replace_streams
 from event_transforms.transforms.base import slice_params
 
 from ._topics import collect
@@ -76,6 +77,50 @@ class TestEventBatch:
         assert [len(b) for b, _ in batches] == [2, 2, 1]
         assert batches[1][1].tolist() == [2.0, 3.0]
         assert batches[0][0].n_frames == T
+
+    @pytest.mark.parametrize("slices", [True, False], ids=["cpu-slices", "index"])
+    @pytest.mark.parametrize("positions", [[], [2], [0, 3], [1, 2, 3, 0], [3, 1]])
+    def test_replace_streams_against_a_loop(self, positions, slices, monkeypatch):
+        monkeypatch.setattr(batch_module, "SLICES_ON_CPU", slices)
+        batch = make_batch(4)
+        part = make_batch(len(positions), seed=5)
+        out = replace_streams(batch, np.asarray(positions, dtype=np.int64), part)
+        assert len(out) == 4 and out.sensor_size == batch.sensor_size
+        for i in range(4):
+            expected = part[positions.index(i)] if i in positions else batch[i]
+            assert rows(out, i) == rows(expected, 0)
+
+    @pytest.mark.parametrize("slices", [True, False], ids=["cpu-slices", "index"])
+    def test_gathers_agree_on_both_paths(self, slices, monkeypatch):
+        monkeypatch.setattr(batch_module, "SLICES_ON_CPU", slices)
+        batch, part = make_batch(6), make_batch(3, seed=3)
+        picked = batch.index_select(torch.tensor([4, 0, 4, 5]))
+        assert [rows(picked, i) for i in range(4)] == [rows(batch, i) for i in (4, 0, 4, 5)]
+        merged = merge_streams([([1, 3, 5], part), ([0, 2, 4], batch.index_select(torch.tensor([0, 2, 4])))], 6, batch)
+        expected = [rows(batch, 0), rows(part, 0), rows(batch, 2), rows(part, 1), rows(batch, 4), rows(part, 2)]
+        assert [rows(merged, i) for i in range(6)] == expected
+
+    def test_gathers_do_not_grow_with_the_batch(self, monkeypatch):
+        """index_select, merge_streams and replace_streams on the accelerator path: one
+        index_select per field at any B (the CPU copies runs of events as slices)."""
+        monkeypatch.setattr(batch_module, "SLICES_ON_CPU", False)
+        from benchmarks._common import count_ops
+        from .event_data import OP_COUNTS_CHECKED
+
+        if not OP_COUNTS_CHECKED:
+            pytest.skip("op counts are budgeted on torch >= 2.14")
+        def ops(b):
+            batch, part = make_batch(b), make_batch(b // 2, seed=3)
+            index = torch.arange(0, b, 2)
+            picked = np.arange(1, b, 2)
+            return [count_ops(call).ops for call in (
+                lambda: batch.index_select(index),
+                lambda: merge_streams([(list(range(0, b, 2)), batch.index_select(index)), (picked.tolist(), part)], b, batch),
+                lambda: replace_streams(batch, picked, part),
+            )]
+
+        small, large = ops(4), ops(32)
+        assert small == large, (small, large)
 
     def test_merge_streams_restores_order(self):
         batch = make_batch(4)
@@ -223,18 +268,25 @@ class TestBattery:
             FACTORIES[name]()(torch.zeros(2, T, 2, *SENSOR))
 
 
-@pytest.mark.parametrize("name", ["RandomRotation p", "TES exact p", "RandomEventDrop p", "SpatialJitter p", "Decimation p",
-                                  "RandomDropPixel p"])
+@pytest.mark.parametrize("name", list(FACTORIES))
 def test_gate_leaves_skipped_streams_unchanged(name):
+    """The one gating rule on events, for every module: the kept streams are the ungated
+    call's (same params), the others the input's, and the output is one EventBatch."""
     batch = make_batch(6)
     transform = FACTORIES[name]()
+    if transform.output_shape(batch.frame_shape) != batch.frame_shape:
+        pytest.skip("changes the grid (Downsample): a skipped stream could not keep its own grid")
+    transform.p = 0.5
     params = transform.make_params(batch.frame_shape, generator=torch.Generator().manual_seed(4))
     out = transform(batch, params=params)
     gate = params["apply"].tolist()
     assert any(gate) and not all(gate)
+    transform.p = 1.0
+    ungated = transform(batch, params={k: v for k, v in params.items() if k != "apply"})
+    if isinstance(out, tuple):  # CutMix/MixUp hand back (events, labels) only with labels
+        out, ungated = out[0], ungated[0]
     for i, applied in enumerate(gate):
-        if not applied:
-            assert same(out[i], batch[i])
+        assert same(out[i], ungated[i] if applied else batch[i]), (i, applied)
 
 
 def test_frame_only_transform_refuses_events():

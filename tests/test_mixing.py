@@ -121,6 +121,33 @@ class TestMixUp:
 
 
 @pytest.mark.parametrize("name", ["CutMix", "MixUp"])
+@pytest.mark.parametrize("labels", ["force", "classes"])
+def test_gated_labels_follow_the_one_gating_rule(name, labels, monkeypatch):
+    """The gate gathers the chosen samples with their partners: chosen labels are the ungated
+    call's, the others their own (one-hot for class indices), on frames, on events and in
+    the select evaluation (traced calls, accelerator gates)."""
+    frames = sparse_frames(8, 3, 2, H, W, density=0.4)
+    target = torch.rand(8, 3) if labels == "force" else torch.tensor([0, 2, 1, 1, 0, 2, 2, 1])
+    module = getattr(et, name)(num_classes=3 if labels == "classes" else None, p=0.5)
+    params = module.make_params(frames.shape, generator=_g(11))
+    gate = params["apply"]
+    assert 0 < int(gate.sum()) < 8
+    ungated_module = getattr(et, name)(num_classes=3 if labels == "classes" else None)
+    ungated, ungated_labels = ungated_module(frames, target, params={k: v for k, v in params.items() if k != "apply"})
+    own = target if labels == "force" else torch.nn.functional.one_hot(target, 3).to(ungated_labels.dtype)
+    out, mixed = module(frames, target, params=params)
+    assert torch.equal(mixed[gate], ungated_labels[gate]) and torch.equal(mixed[~gate], own[~gate])
+    assert torch.equal(out[gate], ungated[gate].to(out.dtype))
+    batch = make_event_batch(8)
+    event_params = module.make_params(batch.frame_shape, generator=_g(11))
+    _, from_events = module(batch, target, params=event_params)
+    assert torch.equal(from_events, module(frames_of(batch), target, params=event_params)[1])
+    monkeypatch.setattr(torch.compiler, "is_compiling", lambda: True)
+    selected, selected_labels = module(frames, target, params=params)
+    assert torch.equal(selected, out) and torch.equal(selected_labels, mixed)
+
+
+@pytest.mark.parametrize("name", ["CutMix", "MixUp"])
 class TestMixingBattery:
     @staticmethod
     def build(name):

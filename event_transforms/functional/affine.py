@@ -67,13 +67,13 @@ def _convex(corners: Tensor) -> str | None:
 
 
 #: :func:`rotate`: degrees, counter-clockwise.
-ROTATE_SPEC = {"angle": Param("float", neutral=0.0)}
+ROTATE_SPEC = {"angle": Param("float")}
 #: :func:`resize`: a zoom factor > 0.
-RESIZE_SPEC = {"scale": Param("float", low=0.0, low_open=True, neutral=1.0)}
+RESIZE_SPEC = {"scale": Param("float", low=0.0, low_open=True)}
 #: :func:`affine`: rotation, zoom, translation (dy, dx) and shear (x, y) in (-90, 90) degrees.
 AFFINE_SPEC = {
-    **ROTATE_SPEC, **RESIZE_SPEC, "translate": Param("float", shape=(2,), neutral=0.0),
-    "shear": Param("float", shape=(2,), low=-90.0, high=90.0, low_open=True, high_open=True, neutral=0.0),
+    **ROTATE_SPEC, **RESIZE_SPEC, "translate": Param("float", shape=(2,)),
+    "shear": Param("float", shape=(2,), low=-90.0, high=90.0, low_open=True, high_open=True),
 }
 #: :func:`perspective`: where the frame's four corners go, (y, x), a convex quadrilateral.
 PERSPECTIVE_SPEC = {"corners": Param("float", shape=(4, 2), rule=_convex)}

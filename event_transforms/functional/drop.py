@@ -44,23 +44,23 @@ Scalars = float | Sequence[float] | Tensor
 # against it (check_args), the module's params_spec returns it (check_tree).
 
 #: :func:`drop_random`: the probability of dropping an event.
-DROP_RANDOM_SPEC = {"fraction": Param("float", low=0.0, high=1.0, neutral=0.0)}
+DROP_RANDOM_SPEC = {"fraction": Param("float", low=0.0, high=1.0)}
 #: :func:`random_pixel_mask`: the share of pixels dropped and the seed of the draw.
-RANDOM_PIXEL_MASK_SPEC = {"fraction": Param("float", low=0.0, high=1.0, neutral=0.0), "seed": SEED}
+RANDOM_PIXEL_MASK_SPEC = {"fraction": Param("float", low=0.0, high=1.0), "seed": SEED}
 #: :func:`refractory_period`: the dead time in µs.
-REFRACTORY_PERIOD_SPEC = {"period_us": Param("float", low=0.0, neutral=0.0)}
+REFRACTORY_PERIOD_SPEC = {"period_us": Param("float", low=0.0)}
 #: :func:`decimation`: keep one event in n.
-DECIMATION_SPEC = {"n": Param("int", low=1, neutral=1)}
+DECIMATION_SPEC = {"n": Param("int", low=1)}
 
 
 #: :func:`drop_by_time`'s window: first frame and number of frames, non-negative (a window past
 #: the end stops at the end).
-DROP_BY_TIME_SPEC = {"start": Param("int", low=0), "length": Param("int", low=0, neutral=0)}
+DROP_BY_TIME_SPEC = {"start": Param("int", low=0), "length": Param("int", low=0)}
 #: :func:`drop_by_area`'s rectangle: first row and column, height and width, non-negative (a
 #: rectangle past the border stops there).
 DROP_BY_AREA_SPEC = {
     "top": Param("int", low=0), "left": Param("int", low=0),
-    "height": Param("int", low=0, neutral=0), "width": Param("int", low=0, neutral=0),
+    "height": Param("int", low=0), "width": Param("int", low=0),
 }
 
 

@@ -49,9 +49,9 @@ REMAINDERS = ("drop", "keep")
 # against it (check_args), the module's params_spec returns it (check_tree).
 
 #: :func:`translate`: whole pixels (dy, dx).
-TRANSLATE_SPEC = {"shift": Param("int", shape=(2,), neutral=0)}
+TRANSLATE_SPEC = {"shift": Param("int", shape=(2,))}
 #: :func:`spatial_jitter`: the standard deviation in pixels and the seed of the noise.
-SPATIAL_JITTER_SPEC = {"sigma": Param("float", low=0.0, neutral=0.0), "seed": SEED}
+SPATIAL_JITTER_SPEC = {"sigma": Param("float", low=0.0), "seed": SEED}
 
 
 def crop_spec(shape: Sequence[int], size: tuple[int, int]) -> dict[str, Param]:

@@ -66,14 +66,14 @@ _BITS = {
 # against it (check_args), the module's params_spec returns it (check_tree).
 
 #: :func:`frame_shift`: whole frames j.
-FRAME_SHIFT_SPEC = {"shift": Param("int", neutral=0)}
+FRAME_SHIFT_SPEC = {"shift": Param("int")}
 #: :func:`temporal_event_shift`: whole frames j and the fraction ζ of the events moved.
-TEMPORAL_EVENT_SHIFT_SPEC = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0, neutral=0.0)}
+TEMPORAL_EVENT_SHIFT_SPEC = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0)}
 #: :func:`time_jitter`: the standard deviation in µs and the seed of the noise.
-TIME_JITTER_SPEC = {"std_us": Param("float", low=0.0, neutral=0.0), "seed": SEED}
+TIME_JITTER_SPEC = {"std_us": Param("float", low=0.0), "seed": SEED}
 #: :func:`time_skew`: the coefficient (> 0) and the offset in µs.
 TIME_SKEW_SPEC = {
-    "coefficient": Param("float", low=0.0, low_open=True, neutral=1.0), "offset_us": Param("float", neutral=0.0),
+    "coefficient": Param("float", low=0.0, low_open=True), "offset_us": Param("float"),
 }
 
 

@@ -34,16 +34,16 @@ from __future__ import annotations
 import functools
 import sys
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, overload
+from typing import Any, cast, overload
 
 import numpy as np
 import torch
 from torch import Tensor, nn
 
 from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape
-from ..events.batch import EventBatch, merge_streams
+from ..events.batch import EventBatch, merge_streams, replace_streams
 from ..functional._dispatch import NoKernelError
-from ._params import CHECK_RANGE, Param, Params, Spec, _CheckedParams, check_tree, slice_params
+from ._params import CHECK_RANGE, Param, Params, Spec, check_tree, slice_params
 
 __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY"]
 
@@ -63,22 +63,6 @@ def _also_module_apply(apply: Callable[..., Any]) -> Callable[..., Any]:
 
     both._takes_module_apply = True  # type: ignore[attr-defined]
     return both
-
-
-def _gated(params: Params, gate: Tensor, spec: Spec) -> Params:
-    """``params`` with each entry whose :class:`Param` has a ``neutral`` value set to it where
-    ``gate`` is off (a gated EventBatch call runs its kernel once on the whole batch)."""
-    out = type(params)()
-    if isinstance(params, _CheckedParams) and isinstance(out, _CheckedParams):
-        out.owner = params.owner
-    out.update(params)
-    off_samples = ~gate.to(torch.bool)
-    for key, entry in spec.items():
-        if isinstance(entry, Param) and entry.neutral is not None and key in params:
-            leaf = params[key]
-            off = off_samples.view(-1, *([1] * (leaf.dim() - 1)))
-            out[key] = torch.where(off, torch.as_tensor(entry.neutral, dtype=leaf.dtype), leaf)
-    return out
 
 
 def _numpy_frames(frames: object) -> Any:
@@ -261,6 +245,42 @@ def _apply_by_group_events(batch: EventBatch, group: Tensor, functions: Sequence
     return merge_streams(parts, size, batch)
 
 
+def _take(inputs: Tensor | EventBatch, index: np.ndarray) -> Any:
+    """Samples ``index`` (host indices) of frames or an EventBatch; the whole batch is not copied."""
+    if index.size == len(inputs) and (index == np.arange(index.size)).all():
+        return inputs
+    rows = torch.from_numpy(np.ascontiguousarray(index, dtype=np.int64))
+    if isinstance(inputs, EventBatch):
+        return inputs.index_select(rows)
+    return inputs.index_select(0, _to_device(rows, inputs.device))
+
+
+def _put_back(inputs: Tensor | EventBatch, kept: np.ndarray, result: Any) -> Any:
+    """``inputs`` with samples ``kept`` replaced by ``result`` (promoted to a common dtype)."""
+    b = len(inputs)
+    if kept.size == b:
+        return result
+    if isinstance(inputs, EventBatch):
+        return replace_streams(inputs, kept, result)
+    dtype = torch.promote_types(inputs.dtype, result.dtype)
+    out = inputs.to(dtype, copy=True)
+    if kept.size:
+        out.index_copy_(0, _to_device(torch.from_numpy(kept), inputs.device), result if result.dtype == dtype else result.to(dtype))
+    return out
+
+
+def _select(gate: Tensor, result: Tensor, inputs: Tensor) -> Tensor:
+    """``result`` where ``gate`` (B,) is on, ``inputs`` elsewhere, in the promoted dtype (no host read)."""
+    dtype = torch.promote_types(inputs.dtype, result.dtype)
+    on = gate.to(device=result.device, dtype=torch.bool).view(-1, *([1] * (result.dim() - 1)))
+    return torch.where(on, result if result.dtype == dtype else result.to(dtype), inputs if inputs.dtype == dtype else inputs.to(dtype))
+
+
+def _to_device(index: Tensor, device: torch.device) -> Tensor:
+    """A CPU ``index`` on ``device`` (no op on the CPU)."""
+    return index if device.type == "cpu" else index.to(device)
+
+
 # --------------------------------------------------------------------------- base
 
 
@@ -292,10 +312,6 @@ class EventTransform(nn.Module):
         True
     """
 
-    #: Set by transforms whose :meth:`apply` honours ``params["apply"]`` itself (in one
-    #: pass, e.g. flips), so the base class does not gather the gated samples.
-    _gates_itself = False
-
     #: Declared by transforms that read other samples of the batch or the labels (CutMix,
     #: MixUp) and by containers holding one. A coupled transform is applied to the whole
     #: batch (its :meth:`apply` honours ``params["apply"]`` itself) and its labels go
@@ -303,6 +319,11 @@ class EventTransform(nn.Module):
     #: because they hand their members sub-batches. It is exempt from per-sample purity
     #: (a sample alone cannot equal the sample mixed with a partner of its batch).
     couples_samples: bool = False
+
+    #: For a coupled transform, the params entry that names each sample's partner (an
+    #: index into the batch). The gate gathers the samples it keeps together with the
+    #: partners they read, so a partner that is itself gated off is still read, unchanged.
+    partner_key: str | None = None
 
     #: For a dict input, the entry holding the labels a coupled transform mixes (``None``:
     #: dict inputs pass their labels through). Ignored by transforms that are not coupled.
@@ -441,7 +462,7 @@ class EventTransform(nn.Module):
             raise ValueError(
                 f"{type(self).__name__}: labels must have the batch size {size} first, got shape {tuple(labels.shape)}"
             )
-        mixed = self.apply_labels(batch, params)
+        mixed = self._run_labels(batch, params)
         return mixed.squeeze(0) if single else mixed
 
     def apply_labels(self, labels: Tensor, params: Params) -> Tensor:
@@ -467,7 +488,7 @@ class EventTransform(nn.Module):
         """Override (required with :meth:`sample_params`): describe this module's params dict.
 
         Returns a dict mapping each key :meth:`sample_params` returns for a batch ``shape``
-        to a :class:`Param` (kind, trailing shape, range, neutral value), and each child's
+        to a :class:`Param` (kind, trailing shape, range), and each child's
         key to ``(child, child_shape)`` for containers. The gate ``"apply"`` is added by the
         base class. A module that draws nothing inherits ``{}`` (it takes only the gate); a
         subclass that overrides :meth:`sample_params` without this is refused when the class
@@ -558,21 +579,84 @@ class EventTransform(nn.Module):
     def _run(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         """Apply to a checked batch, honouring the per-sample gate ``params["apply"]``.
 
-        A coupled transform gets the whole batch (partners lie outside any sub-batch) and
-        honours its gate itself."""
-        gate = params["apply"] if self.p < 1 else params.get("apply")
-        if gate is None or self._gates_itself or self.couples_samples:
+        The one gating rule, for every module and both input types: the samples the gate
+        keeps are gathered (with the partners they read, for a transform with a
+        :attr:`partner_key`), the kernel runs once on them, and they are put back; the
+        others come back unchanged (promoted to the output dtype). Kernels never see the
+        gate. The gate is a CPU tensor from ``make_params``, read on the host: no sync.
+        Where it should not be read (frames traced by ``torch.compile``, or frames with a
+        gate the caller moved to an accelerator) the same rule is evaluated without reading
+        it: the kernel runs on the whole batch and the gate selects, sample by sample, its
+        result or the input (equal results, by per-sample purity; no data-dependent shapes).
+        An EventBatch's gate is always read (once, a sync if it is on an accelerator)."""
+        gate = params.get("apply")
+        if gate is not None and isinstance(frames, Tensor) and (
+            torch.compiler.is_compiling() or gate.device.type != "cpu"
+        ):
+            return _select(gate, cast(Tensor, self._dispatch(frames, params)), frames)
+        kept = self._kept(params)
+        if kept is None:
             return self._dispatch(frames, params)
-        if all(gate.tolist()):  # a CPU tensor from make_params: read on the host, no sync
-            return self._dispatch(frames, params)
-        if isinstance(frames, EventBatch):
-            spec = self.params_spec(frames.frame_shape) or {}
-            if any(isinstance(e, Param) and e.neutral is not None for e in spec.values()):
-                # one pass over the batch with neutral values for the skipped streams
-                return self._dispatch(frames, _gated(params, gate, spec))
-        return apply_by_group(
-            frames, gate.long(), [None, lambda sub, index: self._dispatch(sub, slice_params(params, index))]
-        )
+        if self.couples_samples:
+            needed, sub_params, rows = self._with_partners(params, kept)
+        else:
+            needed, sub_params, rows = kept, slice_params(params, torch.from_numpy(kept)), None
+        result = self._dispatch(_take(frames, needed), sub_params)
+        return _put_back(frames, kept, result if rows is None else _take(result, rows))
+
+    def _kept(self, params: Params) -> np.ndarray | None:
+        """The samples the gate keeps (host indices), or ``None`` when it keeps every one."""
+        gate = params.get("apply")
+        if gate is None:
+            return None
+        on = np.asarray(gate.tolist(), dtype=bool).reshape(-1)
+        return None if on.all() else np.flatnonzero(on)
+
+    def _with_partners(self, params: Params, kept: np.ndarray) -> tuple[np.ndarray, Params, np.ndarray]:
+        """For a gated coupled call: the samples to gather (kept and their partners, in batch
+        order), their params with the partners renumbered into that sub-batch (a sample
+        gathered only as a partner is its own partner: its result is not used), and the
+        rows of the kept samples in the sub-batch."""
+        if self.partner_key is None:
+            raise TypeError(
+                f"{type(self).__name__} couples samples and has p={self.p} < 1, so it must name the params entry of its "
+                "partners in partner_key (the gate gathers the kept samples with the partners they read)"
+            )
+        partner = np.asarray(params[self.partner_key].tolist(), dtype=np.int64).reshape(-1)
+        needed = np.union1d(kept, partner[kept]).astype(np.int64)
+        position = np.full(partner.shape[0], -1, dtype=np.int64)
+        position[needed] = np.arange(needed.size)
+        renumbered = position[partner[needed]]
+        is_kept = np.zeros(partner.shape[0], dtype=bool)
+        is_kept[kept] = True
+        renumbered = np.where(is_kept[needed], renumbered, np.arange(needed.size))
+        sub_params = slice_params(params, torch.from_numpy(needed))
+        sub_params[self.partner_key] = torch.from_numpy(renumbered)
+        return needed, sub_params, position[kept]
+
+    def _run_labels(self, labels: Tensor, params: Params) -> Tensor:
+        """:meth:`apply_labels` under the gate, by the rule of :meth:`_run`: the kept samples'
+        labels mixed with their partners', the others' as :meth:`keep_labels` gives them."""
+        gate = params.get("apply")
+        if gate is not None and (torch.compiler.is_compiling() or gate.device.type != "cpu"):
+            return _select(gate, self.apply_labels(labels, params), self.keep_labels(labels))
+        kept = self._kept(params)
+        if kept is None:
+            return self.apply_labels(labels, params)
+        needed, sub_params, rows = self._with_partners(params, kept)
+        index = torch.from_numpy(needed).to(labels.device)
+        mixed = self.apply_labels(labels.index_select(0, index), sub_params)
+        out = self.keep_labels(labels)
+        dtype = torch.promote_types(out.dtype, mixed.dtype)
+        out = out.to(dtype, copy=True)
+        out.index_copy_(0, torch.from_numpy(kept).to(labels.device), mixed.index_select(0, torch.from_numpy(rows).to(labels.device)).to(dtype))
+        return out
+
+    def keep_labels(self, labels: Tensor) -> Tensor:
+        """Hook: the labels ``(B, ...)`` of samples the gate skips, in the form
+        :meth:`apply_labels` returns (unchanged by default; CutMix/MixUp turn class indices
+        into one-hot targets)."""
+        return labels
 
     def extra_repr(self) -> str:
         settings = self._settings()

@@ -109,7 +109,7 @@ class Compose(EventTransform):
     def apply_labels(self, labels: Tensor, params: Params) -> Tensor:
         for i, transform in enumerate(self.transforms):
             if transform.couples_samples:
-                labels = transform.apply_labels(labels, params[str(i)])
+                labels = transform._run_labels(labels, params[str(i)])
         return labels
 
     def params_spec(self, shape: torch.Size) -> dict[str, Any]:

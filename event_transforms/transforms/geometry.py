@@ -256,10 +256,8 @@ class HorizontalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    _gates_itself = True
-
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        return call_kernel(F.horizontal_flip, inputs, params.get("apply"))
+        return call_kernel(F.horizontal_flip, inputs)
 
 class VerticalFlip(EventTransform):
     """Mirror every frame top-bottom. Counts and dtype are kept.
@@ -276,10 +274,8 @@ class VerticalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    _gates_itself = True
-
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        return call_kernel(F.vertical_flip, inputs, params.get("apply"))
+        return call_kernel(F.vertical_flip, inputs)
 
 class RandomHorizontalFlip(HorizontalFlip):
     """Mirror each sequence left-right with probability ``p`` (per sample; default 0.5).

@@ -118,13 +118,14 @@ class Cutout(EventTransform):
 class _Mixing(EventTransform):
     """Mixes each sample with ``params["partner"]`` of the same batch; mixes the labels too.
 
-    Declares :attr:`~EventTransform.couples_samples`: the base class applies it to the
-    whole batch and hands it the labels through :meth:`apply_labels`. The per-sample gate
-    ``p`` is folded into the mixing (an unchosen sample is its own partner with weight 1),
-    because a partner lies outside any sub-batch.
+    Declares :attr:`~EventTransform.couples_samples` and its :attr:`~EventTransform.partner_key`:
+    the base class hands it the labels through :meth:`apply_labels`, and its per-sample
+    gate ``p`` gathers the chosen samples with the partners they read (an unchosen sample
+    and its labels stay, and is still read as a partner, unchanged).
     """
 
     couples_samples = True
+    partner_key = "partner"
 
     def __init__(
         self, alpha: float, *, num_classes: int | None, label_key: str | None, p: float
@@ -139,19 +140,14 @@ class _Mixing(EventTransform):
     def _partners(self, b: int, generator: torch.Generator | None) -> Tensor:
         return torch.randperm(b, generator=generator, device=_draw_device(generator)).cpu()
 
-    def _effective(self, params: Params) -> tuple[Tensor, Tensor]:
-        """Partner and weight with the gate applied (unchosen samples: themselves, weight 1)."""
-        partner, weight = params["partner"], params["weight"]
-        gate = params.get("apply")
-        if gate is not None:
-            partner = torch.where(gate, partner, torch.arange(partner.shape[0]))
-            weight = torch.where(gate, weight, torch.ones_like(weight))
-        return partner, weight
-
     def apply_labels(self, labels: Tensor, params: Params) -> Tensor:
         """Mix ``labels`` (B, ...) with the partners and weights of ``params`` (the base-class hook)."""
-        partner, weight = self._effective(params)
-        return _mix_labels(labels, partner, weight, _check_classes(labels, self.num_classes))
+        return _mix_labels(labels, params["partner"], params["weight"], _check_classes(labels, self.num_classes))
+
+    def keep_labels(self, labels: Tensor) -> Tensor:
+        """Labels of samples the gate skips: their own, as one-hot targets for class indices."""
+        own = torch.arange(labels.shape[0])
+        return _mix_labels(labels, own, torch.ones(labels.shape[0], dtype=torch.float64), _check_classes(labels, self.num_classes))
 
     def _common(self) -> str:
         settings = f"alpha={self.alpha}"
@@ -212,8 +208,7 @@ class CutMix(_Mixing):
         return {**cutmix_spec(shape), "weight": mix_labels_spec(shape[0])["weight"]}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        partner, _ = self._effective(params)
-        return call_kernel(F.cutmix, inputs, partner, params["top"], params["left"], params["height"], params["width"])
+        return call_kernel(F.cutmix, inputs, params["partner"], params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
         return self._common()
@@ -258,8 +253,7 @@ class MixUp(_Mixing):
         return mixup_spec(shape)
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        partner, weight = self._effective(params)
-        return call_kernel(F.mixup, inputs, partner, weight, params["seed"])
+        return call_kernel(F.mixup, inputs, params["partner"], params["weight"], params["seed"])
 
     def _settings(self) -> str:
         return self._common()

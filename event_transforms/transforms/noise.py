@@ -164,7 +164,7 @@ class AddPoissonNoise(EventTransform):
         return params
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"rate_hz": Param("float", low=0.0, neutral=0.0), "count": Param("int", low=0, optional=True), "seed": Param("int", low=0, high=2**63 - 1)}
+        return {"rate_hz": Param("float", low=0.0), "count": Param("int", low=0, optional=True), "seed": Param("int", low=0, high=2**63 - 1)}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(

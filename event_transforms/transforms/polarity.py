@@ -33,10 +33,8 @@ class FlipPolarity(EventTransform):
         [5, 1]
     """
 
-    _gates_itself = True
-
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        return call_kernel(F.flip_polarity, inputs, params.get("apply"))
+        return call_kernel(F.flip_polarity, inputs)
 
 
 class RandomFlipPolarity(FlipPolarity):

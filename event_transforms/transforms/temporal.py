@@ -267,10 +267,8 @@ class TimeReversal(EventTransform):
         [[0.0, 0.0], [0.0, 0.0], [4.0, 0.0]]
     """
 
-    _gates_itself = True
-
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
-        return call_kernel(F.time_reversal, inputs, params.get("apply"))
+        return call_kernel(F.time_reversal, inputs)
 
 class RandomTimeReversal(TimeReversal):
     """Reverse each sequence in time (and swap polarities) with probability ``p`` (default 0.5).
