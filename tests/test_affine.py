@@ -420,7 +420,7 @@ class TestPerspective:
     @pytest.mark.parametrize(
         "corners, error, message",
         [
-            ([[0, 0], [0, 10], [16, 10]], ValueError, r"corners must be \(4, 2\)"),
+            ([[0, 0], [0, 10], [16, 10]], ValueError, r"perspective: corners must have shape \(4, 2\) or \(1, 4, 2\)"),
             ([[0, 0], [16, 10], [0, 10], [16, 0]], ValueError, "convex quadrilateral"),  # crossed
             ([[0, 0], [0, 10], [16, 10], [16, float("nan")]], ValueError, "finite"),
             ("corners", TypeError, "corners must be"),
@@ -469,7 +469,7 @@ class TestElastic:
             ({"noise": np.zeros((2, H, W))}, TypeError, "noise must be a tensor"),
             ({"noise": torch.zeros(2, W, H)}, ValueError, r"noise must be a float tensor \(2, 17, 11\)"),
             ({"noise": torch.zeros(2, H, W, dtype=torch.int64)}, ValueError, "noise must be a float tensor"),
-            ({"alpha": -1.0}, ValueError, "alpha must be finite and >= 0"),
+            ({"alpha": -1.0}, ValueError, r"elastic: alpha must lie in \[0.0, inf\], got -1.0"),
             ({"sigma": 0.0}, ValueError, "sigma must be finite and > 0"),
             ({"mode": "bicubic"}, ValueError, "mode"),
         ],

@@ -238,7 +238,7 @@ class TestOnEvents:
         batch = make_batch(1)
         with pytest.raises(ValueError, match=r"Decimation: params\['n'\] must lie in \[1, inf\]"):
             et.Decimation(2)(batch, params={"n": torch.tensor([0])})
-        with pytest.raises(ValueError, match="n must be >= 1"):
+        with pytest.raises(ValueError, match=r"decimation: n must lie in \[1, inf\], got 0"):
             F.decimation(batch, 0)
         with pytest.raises(ValueError, match=r"RefractoryPeriod: params\['period_us'\] must lie in \[0.0, inf\]"):
             et.RefractoryPeriod(10.0)(batch, params={"period_us": torch.tensor([-1.0])})

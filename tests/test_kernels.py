@@ -125,7 +125,7 @@ class TestKernelBattery:
         if not values:
             return
         frames = sparse_frames(2, 6, 2, H, W)
-        with pytest.raises(ValueError, match=r"must be a scalar or have shape \(2,\)|must be \(4, 2\) or \(2, 4, 2\)"):
+        with pytest.raises(ValueError, match=r"must be a scalar or have shape \(2,\)|must have shape \(4, 2\) or \(2, 4, 2\)"):
             kernel(frames, [torch.tensor(v) for v in values], gen())
 
 

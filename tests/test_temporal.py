@@ -19,7 +19,8 @@ import event_transforms as et
 from event_transforms import functional as F
 from event_transforms._validation import as_batch
 from event_transforms.functional._random import draw_seeds
-from event_transforms.functional.temporal import _draw_moved, _entries, _fractions, temporal_event_shift_frames
+from event_transforms._params import check_args
+from event_transforms.functional.temporal import TEMPORAL_EVENT_SHIFT_SPEC, _draw_moved, _entries, temporal_event_shift_frames
 from event_transforms.transforms import (
     FrameShift,
     RandomFrameShift,
@@ -49,7 +50,7 @@ def _moved_counts(frames, fraction, *, mode="exact", generator=None):
     ``frames - Z + frame_shift(Z, j)``.
     """
     batch, unbatch = as_batch(frames)
-    fractions = _fractions(fraction, batch.shape[0])
+    fractions = check_args("temporal_event_shift", TEMPORAL_EVENT_SHIFT_SPEC, batch.shape[0], fraction=fraction)["fraction"]
     index, sample, values = _entries(batch)
     seeds = draw_seeds(batch.shape[0], generator)  # as temporal_event_shift draws them
     moved, _ = _draw_moved(batch.shape, index, sample, values, fractions, mode, seeds)

@@ -160,5 +160,10 @@ def batch_of(inputs: object, name: str = "frames") -> tuple[Any, int, Callable[[
     return batch, batch.shape[0], unbatch
 
 
+def shape_of(batch: Any) -> tuple[int, ...]:
+    """The ``(B, T, 2, H, W)`` a batch of frames or an EventBatch draws parameters for."""
+    return tuple(batch.frame_shape if isinstance(batch, EventBatch) else batch.shape)
+
+
 def _same(value: Any) -> Any:
     return value

@@ -29,9 +29,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import (
-    INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, on_host, per_sample, per_sample_pairs,
-)
+from .._params import Param, check_args
+from .._validation import INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, on_host
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
 from ._event_ops import _compact, _round_to, warn_dropped
@@ -49,6 +48,41 @@ __all__ = [
 Center = str | Sequence[float] | Tensor
 Scalars = float | Sequence[float] | Tensor
 Pairs = Sequence[float] | Tensor
+
+
+# --------------------------------------------------------------------------- declarations
+# Each operation's per-sample arguments, declared once: the dispatcher checks its arguments
+# against it (check_args), the module's params_spec returns it (check_tree).
+
+
+def _convex(corners: Tensor) -> str | None:
+    """Whether (B, 4, 2) (y, x) corners make convex quadrilaterals in the frame's corner order."""
+    edges = corners.roll(-1, dims=1) - corners  # (B, 4, 2) as (dy, dx)
+    after = edges.roll(-1, dims=1)
+    turns = edges[..., 1] * after[..., 0] - edges[..., 0] * after[..., 1]
+    if bool((turns > 0).all()):
+        return None
+    return ("make a convex quadrilateral in the order top-left, top-right, bottom-right, bottom-left "
+            "(as the frame's corners do)")
+
+
+#: :func:`rotate`: degrees, counter-clockwise.
+ROTATE_SPEC = {"angle": Param("float")}
+#: :func:`resize`: a zoom factor > 0.
+RESIZE_SPEC = {"scale": Param("float", low=0.0, low_open=True)}
+#: :func:`affine`: rotation, zoom, translation (dy, dx) and shear (x, y) in (-90, 90) degrees.
+AFFINE_SPEC = {
+    **ROTATE_SPEC, **RESIZE_SPEC, "translate": Param("float", shape=(2,)),
+    "shear": Param("float", shape=(2,), low=-90.0, high=90.0, low_open=True, high_open=True),
+}
+#: :func:`perspective`: where the frame's four corners go, (y, x), a convex quadrilateral.
+PERSPECTIVE_SPEC = {"corners": Param("float", shape=(4, 2), rule=_convex)}
+
+
+def elastic_spec(shape: Sequence[int]) -> dict[str, Param]:
+    """:func:`elastic`'s per-sample arguments for a batch ``shape`` (B, T, 2, H, W): the
+    strength ``alpha`` >= 0 and the displacement noise in [-1, 1]."""
+    return {"alpha": Param("float", low=0.0), "noise": Param("float", shape=(2, *shape[-2:]), low=-1.0, high=1.0)}
 
 
 def center_of_mass(frames: Tensor) -> Tensor:
@@ -335,22 +369,6 @@ def _sampling_matrices(
     return matrix.reshape(-1, 6, 3)
 
 
-def _angles(angle: object, batch: int) -> Tensor:
-    """(B,) float64 CPU angles in degrees, finite."""
-    angle_t = per_sample(angle, batch, "angle")
-    if not bool(angle_t.isfinite().all()):
-        raise ValueError(f"angle must be finite, got {describe(angle)}")
-    return angle_t
-
-
-def _scales(scale: object, batch: int) -> Tensor:
-    """(B,) float64 CPU zoom factors, finite and > 0."""
-    scale_t = per_sample(scale, batch, "scale")
-    if not bool((scale_t.isfinite() & (scale_t > 0)).all()):
-        raise ValueError(f"scale must be finite and > 0, got {describe(scale)}")
-    return scale_t
-
-
 def rotate(
     inputs: Tensor | EventBatch, angle: Scalars, *, center: Center = "mass", mode: str = "bilinear"
 ) -> Tensor | EventBatch:
@@ -385,7 +403,8 @@ def rotate(
     """
     batch, b, restore = batch_of(inputs)
     center = _check_center(center, b)
-    return restore(call_kernel(rotate, batch, _angles(angle, b), center=center, mode=check_choice(mode, "mode", INTERPOLATIONS)))
+    angle_t = check_args("rotate", ROTATE_SPEC, b, angle=angle)["angle"]
+    return restore(call_kernel(rotate, batch, angle_t, center=center, mode=check_choice(mode, "mode", INTERPOLATIONS)))
 
 
 def resize(
@@ -422,7 +441,8 @@ def resize(
     """
     batch, b, restore = batch_of(inputs)
     center = _check_center(center, b)
-    return restore(call_kernel(resize, batch, _scales(scale, b), center=center, mode=check_choice(mode, "mode", INTERPOLATIONS)))
+    scale_t = check_args("resize", RESIZE_SPEC, b, scale=scale)["scale"]
+    return restore(call_kernel(resize, batch, scale_t, center=center, mode=check_choice(mode, "mode", INTERPOLATIONS)))
 
 
 def affine(
@@ -469,14 +489,12 @@ def affine(
         (torch.int16, [[3, 0]])
     """
     batch, b, restore = batch_of(inputs)
-    angle_t, scale_t = _angles(angle, b), _scales(scale, b)
-    translate_t = per_sample_pairs(translate, b, "translate")
-    shear_t = per_sample_pairs(shear, b, "shear")
-    if not bool((shear_t.abs() < 90).all()):
-        raise ValueError(f"shear must lie in (-90, 90) degrees, got {describe(shear)}")
+    args = check_args("affine", AFFINE_SPEC, b, angle=angle, scale=scale, translate=translate, shear=shear)
     check_choice(mode, "mode", INTERPOLATIONS)
     center = _check_center(center, b)
-    return restore(call_kernel(affine, batch, angle_t, scale_t, shear=shear_t, translate=translate_t, center=center, mode=mode))
+    return restore(call_kernel(
+        affine, batch, args["angle"], args["scale"], shear=args["shear"], translate=args["translate"], center=center, mode=mode
+    ))
 
 
 @register_kernel(rotate, Tensor)
@@ -753,34 +771,6 @@ def _image_corners(height: int, width: int) -> Tensor:
     return torch.tensor([[0.0, 0.0], [0.0, right], [bottom, right], [bottom, 0.0]], dtype=torch.float64)
 
 
-def _check_corners(corners: object, batch: int) -> Tensor:
-    """(B, 4, 2) float64 CPU (y, x) corners that make a convex quadrilateral in the given order."""
-    if isinstance(corners, (str, bytes)) or not isinstance(corners, (Sequence, Tensor)) and not hasattr(corners, "__array__"):
-        raise TypeError(f"corners must be (4, 2) or ({batch}, 4, 2) (y, x) positions, got {describe(corners)}")
-    try:
-        value = torch.as_tensor(corners).detach().cpu()
-    except (TypeError, ValueError, RuntimeError):
-        raise TypeError(f"corners must hold real numbers, got {corners!r}") from None
-    if value.dtype == torch.bool or value.is_complex():
-        raise TypeError(f"corners must hold real numbers, got dtype {value.dtype}")
-    value = value.to(torch.float64)
-    if tuple(value.shape) == (4, 2):
-        value = value.expand(batch, 4, 2)
-    if tuple(value.shape) != (batch, 4, 2):
-        raise ValueError(f"corners must be (4, 2) or ({batch}, 4, 2) (y, x) positions, got {describe(corners)}")
-    if not bool(value.isfinite().all()):
-        raise ValueError(f"corners must be finite, got {describe(corners)}")
-    edges = value.roll(-1, dims=1) - value  # (B, 4, 2) as (dy, dx)
-    after = edges.roll(-1, dims=1)
-    turns = edges[..., 1] * after[..., 0] - edges[..., 0] * after[..., 1]
-    if not bool((turns > 0).all()):
-        raise ValueError(
-            "corners must make a convex quadrilateral in the order top-left, top-right, bottom-right, "
-            f"bottom-left (as the frame's corners do), got {describe(corners)}"
-        )
-    return value.contiguous()
-
-
 def _normalisation(height: int, width: int) -> np.ndarray:
     """3×3 map from pixel (x, y, 1) to ``grid_sample``'s ``align_corners=True`` coordinates
     (D = 2 / (n - 1), e = -1; D = 1, e = 0 on a singleton axis, as in :func:`_sampling_matrices`)."""
@@ -895,10 +885,8 @@ def perspective(
     """
     kernel = kernel_for(perspective, frames)
     check_choice(mode, "mode", INTERPOLATIONS)
-    if isinstance(frames, EventBatch):
-        return kernel(frames, _check_corners(corners, len(frames)), mode)
-    batch, unbatch = as_batch(check_frames(frames))
-    return unbatch(kernel(batch, _check_corners(corners, batch.shape[0]), mode))
+    batch, b, unbatch = batch_of(frames)
+    return unbatch(kernel(batch, check_args("perspective", PERSPECTIVE_SPEC, b, corners=corners)["corners"].contiguous(), mode))
 
 
 def _gaussian_kernel(sigma: float, device: torch.device, dtype: torch.dtype) -> Tensor:
@@ -1012,9 +1000,7 @@ def elastic(
             f"noise must be a float tensor (2, {height}, {width}) or ({b}, 2, {height}, {width}), "
             f"got {describe(noise)} of dtype {noise.dtype}"
         )
-    alpha_t = per_sample(alpha, b, "alpha")
-    if not bool((alpha_t.isfinite() & (alpha_t >= 0)).all()):
-        raise ValueError(f"alpha must be finite and >= 0, got {describe(alpha)}")
+    alpha_t = check_args("elastic", elastic_spec((height, width)), b, alpha=alpha)["alpha"]
     sigma = as_number(sigma, "sigma")
     if not 0 < sigma < math.inf:
         raise ValueError(f"sigma must be finite and > 0, got {sigma!r}")

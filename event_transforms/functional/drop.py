@@ -20,7 +20,8 @@ from torch import Tensor
 
 import math
 
-from .._validation import DROP_MODES, check_choice, check_generator, count_stats, describe, per_sample
+from .._params import SEED, Param, check_args
+from .._validation import DROP_MODES, check_choice, check_generator, count_stats, describe
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
 from ._event_ops import DROP_KEYS, _compact, _keys, _per_event, _require_grid
@@ -36,6 +37,31 @@ __all__ = [
 ]
 
 Scalars = float | Sequence[float] | Tensor
+
+
+# --------------------------------------------------------------------------- declarations
+# Each operation's per-sample arguments, declared once: the dispatcher checks its arguments
+# against it (check_args), the module's params_spec returns it (check_tree).
+
+#: :func:`drop_random`: the probability of dropping an event.
+DROP_RANDOM_SPEC = {"fraction": Param("float", low=0.0, high=1.0)}
+#: :func:`random_pixel_mask`: the share of pixels dropped and the seed of the draw.
+RANDOM_PIXEL_MASK_SPEC = {"fraction": Param("float", low=0.0, high=1.0), "seed": SEED}
+#: :func:`refractory_period`: the dead time in µs.
+REFRACTORY_PERIOD_SPEC = {"period_us": Param("float", low=0.0)}
+#: :func:`decimation`: keep one event in n.
+DECIMATION_SPEC = {"n": Param("int", low=1)}
+
+
+#: :func:`drop_by_time`'s window: first frame and number of frames, non-negative (a window past
+#: the end stops at the end).
+DROP_BY_TIME_SPEC = {"start": Param("int", low=0), "length": Param("int", low=0)}
+#: :func:`drop_by_area`'s rectangle: first row and column, height and width, non-negative (a
+#: rectangle past the border stops there).
+DROP_BY_AREA_SPEC = {
+    "top": Param("int", low=0), "left": Param("int", low=0),
+    "height": Param("int", low=0), "width": Param("int", low=0),
+}
 
 
 # --------------------------------------------------------------------------- events
@@ -76,9 +102,7 @@ def drop_random(
     batch, b, restore = batch_of(inputs)
     check_choice(mode, "mode", DROP_MODES)
     check_generator(generator, batch.device)
-    fraction_t = per_sample(fraction, b, "fraction")
-    if fraction_t.numel() and bool(((fraction_t < 0) | (fraction_t > 1)).any()):
-        raise ValueError(f"fraction must lie in [0, 1], got {describe(fraction)}")
+    fraction_t = check_args("drop_random", DROP_RANDOM_SPEC, b, fraction=fraction)["fraction"]
     seeds = draw_seeds(b, generator) if mode == "binomial" else None
     return restore(call_kernel(drop_random, batch, fraction_t, mode, seeds))
 
@@ -177,12 +201,6 @@ def _window_mask(start: Tensor, length: Tensor, size: int, device: torch.device)
     start = start.to(device).unsqueeze(1)
     return (position >= start) & (position < start + length.to(device).unsqueeze(1))
 
-def _check_window(value: Scalars, batch: int, name: str) -> Tensor:
-    t = per_sample(value, batch, name, dtype=torch.int64)
-    if t.numel() and bool((t < 0).any()):
-        raise ValueError(f"{name} must be non-negative integers, got {describe(value)}")
-    return t
-
 def drop_by_time(inputs: Tensor | EventBatch, start: Scalars, length: Scalars) -> Tensor | EventBatch:
     """Remove every event in frames ``[start, start + length)`` of each sample (EventDrop's *drop by time*).
 
@@ -206,7 +224,8 @@ def drop_by_time(inputs: Tensor | EventBatch, start: Scalars, length: Scalars) -
         [1, 0, 0, 1, 1]
     """
     batch, b, restore = batch_of(inputs)
-    return restore(call_kernel(drop_by_time, batch, _check_window(start, b, "start"), _check_window(length, b, "length")))
+    window = check_args("drop_by_time", DROP_BY_TIME_SPEC, b, start=start, length=length)
+    return restore(call_kernel(drop_by_time, batch, window["start"], window["length"]))
 
 
 @register_kernel(drop_by_time, Tensor)
@@ -283,8 +302,8 @@ def drop_by_area(
         [[1.0, 1.0, 1.0, 1.0], [1.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 1.0]]
     """
     batch, b, restore = batch_of(inputs)
-    window = [_check_window(v, b, n) for v, n in ((top, "top"), (left, "left"), (height, "height"), (width, "width"))]
-    return restore(call_kernel(drop_by_area, batch, *window))
+    box = check_args("drop_by_area", DROP_BY_AREA_SPEC, b, top=top, left=left, height=height, width=width)
+    return restore(call_kernel(drop_by_area, batch, box["top"], box["left"], box["height"], box["width"]))
 
 
 @register_kernel(drop_by_area, Tensor)
@@ -502,10 +521,7 @@ def refractory_period(batch: EventBatch, period_us: Scalars) -> EventBatch:
         [0, 2000, 100]
     """
     kernel = kernel_for(refractory_period, batch)
-    period = per_sample(period_us, len(batch), "period_us")
-    if not bool((period.isfinite() & (period >= 0)).all()):
-        raise ValueError(f"period_us must be finite and >= 0, got {describe(period_us)}")
-    return kernel(batch, period)
+    return kernel(batch, check_args("refractory_period", REFRACTORY_PERIOD_SPEC, len(batch), period_us=period_us)["period_us"])
 
 
 def decimation(batch: EventBatch, n: int | Sequence[int] | Tensor) -> EventBatch:
@@ -528,10 +544,7 @@ def decimation(batch: EventBatch, n: int | Sequence[int] | Tensor) -> EventBatch
         [2, 5]
     """
     kernel = kernel_for(decimation, batch)
-    every = per_sample(n, len(batch), "n", dtype=torch.int64)
-    if every.numel() and bool((every < 1).any()):
-        raise ValueError(f"n must be >= 1, got {describe(n)}")
-    return kernel(batch, every)
+    return kernel(batch, check_args("decimation", DECIMATION_SPEC, len(batch), n=n)["n"])
 
 
 def _pixel_runs(batch: EventBatch) -> tuple[Tensor, Tensor, Tensor]:

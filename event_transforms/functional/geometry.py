@@ -22,9 +22,8 @@ from torch import Tensor
 
 import numpy as np
 
-from .._validation import (
-    INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, on_host, per_sample, per_sample_pairs,
-)
+from .._params import SEED, Param, check_args
+from .._validation import INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, on_host
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
 from ._event_ops import JITTER, _per_event, _round_to
@@ -44,6 +43,22 @@ Scalars = float | Sequence[float] | Tensor
 Pairs = Sequence[float] | Tensor
 #: How :func:`downsample` treats the rows and columns left over when H or W is not a multiple.
 REMAINDERS = ("drop", "keep")
+
+# --------------------------------------------------------------------------- declarations
+# Each operation's per-sample arguments, declared once: the dispatcher checks its arguments
+# against it (check_args), the module's params_spec returns it (check_tree).
+
+#: :func:`translate`: whole pixels (dy, dx).
+TRANSLATE_SPEC = {"shift": Param("int", shape=(2,))}
+#: :func:`spatial_jitter`: the standard deviation in pixels and the seed of the noise.
+SPATIAL_JITTER_SPEC = {"sigma": Param("float", low=0.0), "seed": SEED}
+
+
+def crop_spec(shape: Sequence[int], size: tuple[int, int]) -> dict[str, Param]:
+    """:func:`crop`'s window corner for a batch ``shape`` (B, T, 2, H, W) and a window ``size``
+    (h, w) that fits: ``top`` in [0, H - h], ``left`` in [0, W - w]."""
+    return {"top": Param("int", low=0, high=shape[-2] - size[0]), "left": Param("int", low=0, high=shape[-1] - size[1])}
+
 _NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
 
 
@@ -115,7 +130,7 @@ def translate(inputs: Tensor | EventBatch, shift: Pairs) -> Tensor | EventBatch:
         [[0, 0, 0], [2, 3, 0]]
     """
     batch, b, restore = batch_of(inputs)
-    return restore(call_kernel(translate, batch, per_sample_pairs(shift, b, "shift", dtype=torch.int64)))
+    return restore(call_kernel(translate, batch, check_args("translate", TRANSLATE_SPEC, b, shift=shift)["shift"]))
 
 
 register_kernel(translate, Tensor)(translate_frames)
@@ -204,13 +219,6 @@ def crop_frames(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int],
     return grown.reshape(b, t, p, height, width).to(out_dtype)
 
 
-def _check_corner(value: Scalars, batch: int, name: str, room: int) -> Tensor:
-    corner = per_sample(value, batch, name, dtype=torch.int64)
-    if corner.numel() and bool(((corner < 0) | (corner > room)).any()):
-        raise ValueError(f"{name} must lie in [0, {room}] for the crop to fit, got {describe(value)}")
-    return corner
-
-
 def _check_fits(size: tuple[int, int], height: int, width: int) -> None:
     if size[0] > height or size[1] > width:
         raise ValueError(f"size must fit in the frames' (H, W) = ({height}, {width}), got {size}")
@@ -259,9 +267,8 @@ def crop(
     hw = _size(size, "size")
     _check_fits(hw, height, width)
     check_choice(mode, "mode", INTERPOLATIONS)
-    top_t = _check_corner(top, b, "top", height - hw[0])
-    left_t = _check_corner(left, b, "left", width - hw[1])
-    return restore(call_kernel(crop, batch, top_t, left_t, hw, bool(resize), mode))
+    corner = check_args("crop", crop_spec((height, width), hw), b, top=top, left=left)
+    return restore(call_kernel(crop, batch, corner["top"], corner["left"], hw, bool(resize), mode))
 
 
 register_kernel(crop, Tensor)(crop_frames)
@@ -692,14 +699,8 @@ def spatial_jitter(batch: EventBatch, sigma: Tensor | float, seed: Tensor | int)
     """
     kernel = kernel_for(spatial_jitter, batch)
     b = len(batch)
-    return kernel(batch, _nonnegative(sigma, b, "sigma"), per_sample(seed, b, "seed", dtype=torch.int64))
-
-
-def _nonnegative(value: object, batch: int, name: str) -> Tensor:
-    values = per_sample(value, batch, name)
-    if not bool((values.isfinite() & (values >= 0)).all()):
-        raise ValueError(f"{name} must be finite and >= 0, got {describe(value)}")
-    return values
+    args = check_args("spatial_jitter", SPATIAL_JITTER_SPEC, b, sigma=sigma, seed=seed)
+    return kernel(batch, args["sigma"], args["seed"])
 
 
 @register_kernel(spatial_jitter, EventBatch)

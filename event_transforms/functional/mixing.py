@@ -25,9 +25,10 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from .._validation import as_batch, as_number, check_frames, describe, per_sample
+from .._params import SEED, Param, check_args
+from .._validation import as_number, describe
 from ..events.batch import EventBatch
-from ._dispatch import kernel_for, register_kernel
+from ._dispatch import batch_of, kernel_for, register_kernel, shape_of
 from ._event_ops import _compact
 from ._random import draw_seeds, sample_salts, uniform
 
@@ -52,22 +53,29 @@ def _box_mask(
     return (inside_rows.unsqueeze(2) & inside_cols.unsqueeze(1)).unsqueeze(1).unsqueeze(1)
 
 
-def _check_box(batch: Tensor | EventBatch, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> list[Tensor]:
-    b = len(batch) if isinstance(batch, EventBatch) else batch.shape[0]
-    box = []
-    for value, name in ((top, "top"), (left, "left"), (height, "height"), (width, "width")):
-        t = per_sample(value, b, name, dtype=torch.int64)
-        if t.numel() and bool((t < 0).any()):
-            raise ValueError(f"{name} must be non-negative integers, got {describe(value)}")
-        box.append(t)
-    return box
+# --------------------------------------------------------------------------- declarations
+# Each operation's per-sample arguments, declared once: the dispatcher checks its arguments
+# against it (check_args), the module's params_spec returns it (check_tree).
 
 
-def _check_partner(partner: object, batch: int) -> Tensor:
-    index = per_sample(partner, batch, "partner", dtype=torch.int64)
-    if index.numel() and bool(((index < 0) | (index >= batch)).any()):
-        raise ValueError(f"partner must hold sample indices in [0, {batch}), got {describe(partner)}")
-    return index
+#: :func:`cutout`'s box: first row and column, height and width, non-negative (a box past the
+#: border stops there).
+CUTOUT_SPEC = {name: Param("int", low=0) for name in ("top", "left", "height", "width")}
+
+
+def mix_labels_spec(batch: int) -> dict[str, Param]:
+    """:func:`mix_labels`'s partner (a sample index in [0, B)) and the sample's own share ``weight`` in [0, 1]."""
+    return {"partner": Param("int", low=0, high=batch - 1), "weight": Param("float", low=0.0, high=1.0)}
+
+
+def cutmix_spec(shape: Sequence[int]) -> dict[str, Param]:
+    """:func:`cutmix`'s partner in [0, B) and box (as :data:`CUTOUT_SPEC`) for a batch ``shape``."""
+    return {"partner": mix_labels_spec(shape[0])["partner"], **CUTOUT_SPEC}
+
+
+def mixup_spec(shape: Sequence[int]) -> dict[str, Param]:
+    """:func:`mixup`'s partner, weight (as :func:`mix_labels_spec`) and, on events, seed."""
+    return {**mix_labels_spec(shape[0]), "seed": SEED}
 
 
 def cutout(frames: Tensor | EventBatch, top: Scalars, left: Scalars, height: Scalars, width: Scalars) -> Tensor | EventBatch:
@@ -92,10 +100,9 @@ def cutout(frames: Tensor | EventBatch, top: Scalars, left: Scalars, height: Sca
         [[1, 1, 1, 1], [1, 0, 0, 1], [1, 0, 0, 1]]
     """
     kernel = kernel_for(cutout, frames)
-    if isinstance(frames, EventBatch):
-        return kernel(frames, *_check_box(frames, top, left, height, width))
-    batch, unbatch = as_batch(check_frames(frames))
-    return unbatch(kernel(batch, *_check_box(batch, top, left, height, width)))
+    batch, b, unbatch = batch_of(frames)
+    box = check_args("cutout", CUTOUT_SPEC, b, top=top, left=left, height=height, width=width)
+    return unbatch(kernel(batch, box["top"], box["left"], box["height"], box["width"]))
 
 
 @register_kernel(cutout, Tensor)
@@ -149,11 +156,9 @@ def cutmix(
         [[0.0, 1.0, 0.0], [0.0, 1.0, 0.0]]
     """
     kernel = kernel_for(cutmix, frames)
-    if isinstance(frames, EventBatch):
-        return kernel(frames, _check_partner(partner, len(frames)), *_check_box(frames, top, left, height, width))
-    batch, unbatch = as_batch(check_frames(frames))
-    partner_t = _check_partner(partner, batch.shape[0])
-    return unbatch(kernel(batch, partner_t, *_check_box(batch, top, left, height, width)))
+    batch, b, unbatch = batch_of(frames)
+    args = check_args("cutmix", cutmix_spec(shape_of(batch)), b, partner=partner, top=top, left=left, height=height, width=width)
+    return unbatch(kernel(batch, args["partner"], args["top"], args["left"], args["height"], args["width"]))
 
 
 @register_kernel(cutmix, Tensor)
@@ -217,23 +222,13 @@ def mixup(
         [0.25, 0.25, 0.5, 0.5]
     """
     kernel = kernel_for(mixup, frames)
-    if isinstance(frames, EventBatch):
-        b = len(frames)
-        seeds = draw_seeds(b, generator).cpu() if seed is None else per_sample(seed, b, "seed", dtype=torch.int64)
-        if seeds.numel() and bool((seeds < 0).any()):
-            raise ValueError(f"seed must lie in [0, 2**63), got {describe(seed)}")
-        return kernel(frames, _check_partner(partner, b), _check_weight(weight, b), seeds)
-    batch, unbatch = as_batch(check_frames(frames))
-    partner_t = _check_partner(partner, batch.shape[0])
-    weight_t = _check_weight(weight, batch.shape[0])
-    return unbatch(kernel(batch, partner_t, weight_t))
-
-
-def _check_weight(weight: object, batch: int) -> Tensor:
-    weight_t = per_sample(weight, batch, "weight")
-    if weight_t.numel() and not bool(((weight_t >= 0) & (weight_t <= 1)).all()):
-        raise ValueError(f"weight must lie in [0, 1], got {describe(weight)}")
-    return weight_t
+    batch, b, unbatch = batch_of(frames)
+    spec = mixup_spec(shape_of(batch))
+    args = check_args("mixup", spec, b, partner=partner, weight=weight)
+    if isinstance(batch, EventBatch):
+        seeds = draw_seeds(b, generator).cpu() if seed is None else check_args("mixup", spec, b, seed=seed)["seed"]
+        return kernel(batch, args["partner"], args["weight"], seeds)
+    return unbatch(kernel(batch, args["partner"], args["weight"]))
 
 
 @register_kernel(mixup, Tensor)
@@ -435,7 +430,8 @@ def mix_labels(labels: Tensor, partner: Scalars, weight: Scalars, *, num_classes
     if labels.dim() == 0:
         raise ValueError(f"labels must have a batch axis (B, ...), got {describe(labels)}")
     b = labels.shape[0]
-    return _mix_labels(labels, _check_partner(partner, b), _check_weight(weight, b), _check_classes(labels, num_classes))
+    args = check_args("mix_labels", mix_labels_spec(b), b, partner=partner, weight=weight)
+    return _mix_labels(labels, args["partner"], args["weight"], _check_classes(labels, num_classes))
 
 
 def _check_classes(labels: Tensor, num_classes: int | None) -> int | None:

@@ -15,7 +15,8 @@ import math
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, describe, per_sample
+from .._params import Param, check_args
+from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, kernel_for, register_kernel
 from ._event_ops import _round_to
@@ -158,21 +159,10 @@ def stretch_frames(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Ce
     return _warp(batch, theta, mode)
 
 
-def _check_axis(axis: object, batch: int) -> str | Tensor:
-    """``"contact"`` or degrees (a number or ``(B,)``) as a (B,) float64 CPU tensor."""
-    if isinstance(axis, str):
-        return check_choice(axis, "axis", (CONTACT,))
-    angle = per_sample(axis, batch, "axis")
-    if not bool(angle.isfinite().all()):
-        raise ValueError(f"axis must be finite degrees or 'contact', got {describe(axis)}")
-    return angle
-
-
-def _check_factor(factor: object, batch: int, name: str = "factor") -> Tensor:
-    factor_t = per_sample(factor, batch, name)
-    if not bool((factor_t.isfinite() & (factor_t > 0)).all()):
-        raise ValueError(f"{name} must be finite and > 0, got {describe(factor)}")
-    return factor_t
+#: :func:`stretch`'s per-sample arguments, declared once (the dispatcher checks against it,
+#: ``Stretch``/``RandomStretch`` return its ``factor``): the stretch factor k > 0 and, when
+#: not ``"contact"``, the axis's angle in degrees.
+STRETCH_SPEC = {"factor": Param("float", low=0.0, low_open=True), "axis": Param("float")}
 
 
 def stretch(
@@ -236,8 +226,9 @@ def stretch(
     """
     kernel = kernel_for(stretch, frames)
     batch, b, unbatch = batch_of(frames)
-    factor_t = _check_factor(factor, b)
-    axis_t = _check_axis(axis, b)
+    factor_t = check_args("stretch", STRETCH_SPEC, b, factor=factor)["factor"]
+    axis_t = check_choice(axis, "axis", (CONTACT,)) if isinstance(axis, str) else \
+        check_args("stretch", STRETCH_SPEC, b, axis=axis)["axis"]
     check_choice(mode, "mode", INTERPOLATIONS)
     center = _check_center(center, b)
     return unbatch(kernel(batch, factor_t, axis_t, center, mode))

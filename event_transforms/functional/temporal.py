@@ -21,13 +21,13 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from .._params import SEED, Param, check_args
 from .._validation import (
-    TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, describe, on_host,
-    per_sample, read_host,
+    TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, on_host, read_host,
 )
 from ..events.batch import EventBatch
 from ..events.binning import _frame_us
-from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
+from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel, shape_of
 from ._event_ops import TES_KEYS, TIME_JITTER, _kept, _keys, _per_event, _require_grid, warn_dropped
 from ._random import EventStream
 from ._random import draw_seeds
@@ -61,22 +61,26 @@ _BITS = {
 }
 
 
-# --------------------------------------------------------------------------- parameters
+# --------------------------------------------------------------------------- declarations
+# Each operation's per-sample arguments, declared once: the dispatcher checks its arguments
+# against it (check_args), the module's params_spec returns it (check_tree).
+
+#: :func:`frame_shift`: whole frames j.
+FRAME_SHIFT_SPEC = {"shift": Param("int")}
+#: :func:`temporal_event_shift`: whole frames j and the fraction ζ of the events moved.
+TEMPORAL_EVENT_SHIFT_SPEC = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0)}
+#: :func:`time_jitter`: the standard deviation in µs and the seed of the noise.
+TIME_JITTER_SPEC = {"std_us": Param("float", low=0.0), "seed": SEED}
+#: :func:`time_skew`: the coefficient (> 0) and the offset in µs.
+TIME_SKEW_SPEC = {
+    "coefficient": Param("float", low=0.0, low_open=True), "offset_us": Param("float"),
+}
 
 
-def _shifts(shift: ShiftArg, batch: int) -> Tensor:
-    """(B,) int64 CPU tensor of whole-frame shifts (ints, numpy integers, whole floats)."""
-    if isinstance(shift, float) or (isinstance(shift, Tensor) and shift.dtype == torch.bool):
-        raise TypeError(f"shift must be an integer number of frames, got {describe(shift)}")
-    return per_sample(shift, batch, "shift", dtype=torch.int64)
-
-
-def _fractions(fraction: FractionArg, batch: int) -> Tensor:
-    """(B,) float64 CPU tensor of fractions in [0, 1]."""
-    values = per_sample(fraction, batch, "fraction", dtype=torch.float64)
-    if values.numel() and bool(((values < 0) | (values > 1)).any()):
-        raise ValueError(f"fraction must lie in [0, 1], got {describe(fraction)}")
-    return values
+def crop_time_spec(shape: Sequence[int], length: int) -> dict[str, Param]:
+    """:func:`crop_time`'s first frame for a batch ``shape`` (B, T, 2, H, W) and a window of
+    ``length`` frames (in [1, T]): ``start`` in [0, T - length]."""
+    return {"start": Param("int", low=0, high=shape[1] - length)}
 
 
 # --------------------------------------------------------------------------- frame shift
@@ -116,7 +120,7 @@ def frame_shift(inputs: Tensor | EventBatch, shift: ShiftArg) -> Tensor | EventB
                 [0, 0, 0, 0]])
     """
     batch, b, restore = batch_of(inputs)
-    return restore(call_kernel(frame_shift, batch, _shifts(shift, b)))
+    return restore(call_kernel(frame_shift, batch, check_args("frame_shift", FRAME_SHIFT_SPEC, b, shift=shift)["shift"]))
 
 
 @register_kernel(frame_shift, Tensor)
@@ -244,11 +248,10 @@ def temporal_event_shift(
     """
     batch, b, restore = batch_of(inputs)
     check_choice(mode, "mode", TES_MODES)
-    shifts = _shifts(shift, b)
-    fractions = _fractions(fraction, b)
+    args = check_args("temporal_event_shift", TEMPORAL_EVENT_SHIFT_SPEC, b, shift=shift, fraction=fraction)
     check_generator(generator, batch.device)
     seeds = None if mode == "expected" else draw_seeds(b, generator)
-    return restore(call_kernel(temporal_event_shift, batch, shifts, fractions, mode, seeds))
+    return restore(call_kernel(temporal_event_shift, batch, args["shift"], args["fraction"], mode, seeds))
 
 
 @register_kernel(temporal_event_shift, Tensor)
@@ -533,11 +536,9 @@ def crop_time(inputs: Tensor | EventBatch, start: Scalars, length: int) -> Tenso
         [1, 2, 3]
     """
     batch, b, restore = batch_of(inputs)
-    t = batch.frame_shape[1] if isinstance(batch, EventBatch) else batch.shape[1]
-    size = _check_length(length, t)
-    start_t = per_sample(start, b, "start", dtype=torch.int64)
-    if start_t.numel() and bool(((start_t < 0) | (start_t > t - size)).any()):
-        raise ValueError(f"start must lie in [0, {t - size}] for a window of {size} of {t} frames, got {describe(start)}")
+    shape = shape_of(batch)
+    size = _check_length(length, shape[1])
+    start_t = check_args("crop_time", crop_time_spec(shape, size), b, start=start)["start"]
     return restore(call_kernel(crop_time, batch, start_t, size))
 
 
@@ -809,11 +810,9 @@ def time_jitter(batch: EventBatch, std_us: Scalars, seed: ShiftArg) -> EventBatc
         >>> time_jitter(batch, 0.0, 3).t.tolist()
         [1000]
     """
-    from .geometry import _nonnegative
-
     kernel = kernel_for(time_jitter, batch)
-    b = len(batch)
-    return kernel(batch, _nonnegative(std_us, b, "std_us"), per_sample(seed, b, "seed", dtype=torch.int64))
+    args = check_args("time_jitter", TIME_JITTER_SPEC, len(batch), std_us=std_us, seed=seed)
+    return kernel(batch, args["std_us"], args["seed"])
 
 
 @register_kernel(time_jitter, EventBatch)
@@ -870,14 +869,8 @@ def time_skew(batch: EventBatch, coefficient: Scalars, offset_us: Scalars = 0.0)
         [110, 510]
     """
     kernel = kernel_for(time_skew, batch)
-    b = len(batch)
-    factor = per_sample(coefficient, b, "coefficient")
-    if not bool((factor.isfinite() & (factor > 0)).all()):
-        raise ValueError(f"coefficient must be finite and > 0, got {describe(coefficient)}")
-    offset = per_sample(offset_us, b, "offset_us")
-    if not bool(offset.isfinite().all()):
-        raise ValueError(f"offset_us must be finite, got {describe(offset_us)}")
-    return kernel(batch, factor, offset)
+    args = check_args("time_skew", TIME_SKEW_SPEC, len(batch), coefficient=coefficient, offset_us=offset_us)
+    return kernel(batch, args["coefficient"], args["offset_us"])
 
 
 @register_kernel(time_skew, EventBatch)

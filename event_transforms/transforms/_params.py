@@ -1,7 +1,10 @@
 """What a module's parameters are, and the one check of a user-given parameters tree.
 
 Every module describes the entries of its params dict with :meth:`EventTransform.params_spec`
-(key -> :class:`Param`: kind, trailing shape, closed range); containers describe their
+(key -> :class:`Param`: kind, trailing shape, range); an operation's declaration lives once,
+beside its dispatcher in ``functional/<topic>.py``, and the module returns it, so
+``F.rotate(x, angle)`` (:func:`event_transforms._params.check_args`) and
+``RandomRotation()(x, params=tree)`` are checked by the same objects. Containers describe their
 children as ``(child, shape)`` pairs. ``module(frames, params=tree)`` checks ``tree``
 against that description once, at the entry (:func:`check_tree`), recursively through the
 containers, and raises a ``ValueError``/``TypeError`` naming the module, the key and the
@@ -15,16 +18,13 @@ dtypes and shapes are checked, their ranges are not. The reads run inside the pr
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Union
 
-import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import describe
+from .._params import Param, _check_leaf
 
 if TYPE_CHECKING:  # pragma: no cover
     from .base import EventTransform
@@ -39,69 +39,9 @@ Params = dict[str, Any]
 #: device work; ``benchmarks._common.count_ops`` leaves them out of a call's launches).
 CHECK_RANGE = "event_transforms::check_params"
 
-_KINDS = {"bool": torch.bool, "int": torch.int64, "float": torch.float64}
-
-
-@dataclass(frozen=True)
-class Param:
-    """One entry of a params dict: ``(B, *shape)`` values of ``kind`` within ``[low, high]``.
-
-    Args:
-        kind: ``"bool"``, ``"int"`` (any integer dtype, stored int64) or ``"float"`` (any
-            float dtype, stored float64; must be finite).
-        shape: the trailing shape after the batch dimension.
-        low, high: closed bounds (``None``: unbounded).
-        choices: the only values allowed (integers), if not every value in range is.
-        optional: the entry may be absent.
-
-    Example:
-        >>> Param("float", low=0.0, high=1.0)
-        Param(kind='float', shape=(), low=0.0, high=1.0, choices=None, optional=False)
-    """
-
-    kind: str
-    shape: tuple[int, ...] = ()
-    low: float | None = None
-    high: float | None = None
-    choices: tuple[int, ...] | None = None
-    optional: bool = False
-
-
 #: A module's description of its params dict: a :class:`Param` per own entry and a
 #: ``(child, shape)`` pair per child of a container.
 Spec = Mapping[str, Union[Param, "tuple[EventTransform, torch.Size]"]]
-
-
-def _values(tensor: Tensor) -> np.ndarray:
-    return np.asarray(tensor.tolist(), dtype=np.float64 if tensor.is_floating_point() else np.int64)
-
-
-def _check_leaf(value: object, spec: Param, batch: int, owner: str, where: str) -> Tensor:
-    if not isinstance(value, Tensor):
-        raise TypeError(f"{owner}: {where} must be a tensor, got {type(value).__name__}")
-    want = (batch, *spec.shape)
-    if tuple(value.shape) != want:
-        raise ValueError(f"{owner}: {where} must have shape {want} (one entry per sample), got {describe(value)}")
-    dtype = _KINDS[spec.kind]
-    if spec.kind == "bool":
-        if value.dtype != torch.bool:
-            raise TypeError(f"{owner}: {where} must be a bool tensor (a per-sample gate), got {describe(value)}")
-        return value
-    if value.dtype == torch.bool or value.is_complex():
-        raise TypeError(f"{owner}: {where} must hold {spec.kind} numbers, got {describe(value)}")
-    if spec.kind == "int" and value.is_floating_point():
-        raise TypeError(f"{owner}: {where} must be an integer tensor, got {describe(value)}")
-    if value.device.type == "cpu" and value.numel() and not torch.compiler.is_compiling():
-        numbers = _values(value)
-        if spec.kind == "float" and not np.isfinite(numbers).all():
-            raise ValueError(f"{owner}: {where} must be finite, got {describe(value)}")
-        low = -math.inf if spec.low is None else spec.low
-        high = math.inf if spec.high is None else spec.high
-        if ((numbers < low) | (numbers > high)).any():
-            raise ValueError(f"{owner}: {where} must lie in [{low}, {high}], got {describe(value)}")
-        if spec.choices is not None and not np.isin(numbers, spec.choices).all():
-            raise ValueError(f"{owner}: {where} must hold values in {list(spec.choices)}, got {describe(value)}")
-    return value if value.dtype == dtype else value.to(dtype)
 
 
 def check_tree(module: EventTransform, params: object, shape: torch.Size, path: str = "params") -> dict[str, Any]:

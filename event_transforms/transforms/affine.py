@@ -20,10 +20,11 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, per_sample_pairs
+from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.affine import Center, _check_center, _image_corners
+from ..functional.affine import AFFINE_SPEC, PERSPECTIVE_SPEC, RESIZE_SPEC, ROTATE_SPEC, Center, _check_center, _image_corners, elastic_spec
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [
@@ -63,7 +64,7 @@ class _Affine(_Warp):
 
 class _Rotation(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"angle": Param("float")}
+        return ROTATE_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.rotate, inputs, params["angle"], center=self.center, mode=self.mode)
@@ -71,7 +72,7 @@ class _Rotation(_Affine):
 
 class _Zoom(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"scale": Param("float", low=float.fromhex("0x1p-1022"))}
+        return RESIZE_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.resize, inputs, params["scale"], center=self.center, mode=self.mode)
@@ -234,10 +235,7 @@ class _AffineWarp(_Affine):
     """Applies ``params`` angle (B,), scale (B,), translate (B, 2) and shear (B, 2)."""
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {
-            "angle": Param("float"), "scale": Param("float", low=float.fromhex("0x1p-1022")),
-            "translate": Param("float", shape=(2,)), "shear": Param("float", shape=(2,)),
-        }
+        return AFFINE_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(
@@ -284,14 +282,11 @@ class Affine(_AffineWarp):
         p: float = 1.0,
     ) -> None:
         super().__init__(center=center, mode=mode, p=p)
-        self.angle = as_number(angle, "angle")
-        self.scale = as_number(scale, "scale")
-        if self.scale <= 0:
-            raise ValueError(f"scale must be > 0, got {scale!r}")
-        self.translate = tuple(per_sample_pairs(translate, 1, "translate")[0].tolist())
-        self.shear = tuple(per_sample_pairs(shear, 1, "shear")[0].tolist())
-        if max(abs(s) for s in self.shear) >= 90:
-            raise ValueError(f"shear must lie in (-90, 90) degrees, got {shear!r}")
+        # one value for every sample, checked against the operation's declaration
+        settings = check_args("Affine", AFFINE_SPEC, 1, angle=angle, scale=scale, translate=translate, shear=shear)
+        self.angle, self.scale = float(settings["angle"][0]), float(settings["scale"][0])
+        self.translate = tuple(settings["translate"][0].tolist())
+        self.shear = tuple(settings["shear"][0].tolist())
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
@@ -435,7 +430,7 @@ class RandomPerspective(_Warp):
         return {"corners": _image_corners(height, width) + moves}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"corners": Param("float", shape=(4, 2))}
+        return PERSPECTIVE_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.perspective, inputs, params["corners"].detach().to("cpu", torch.float64), self.mode)
@@ -492,7 +487,7 @@ class RandomElastic(_Warp):
         return {"alpha": uniform(*self.alpha, b, generator), "noise": noise}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"alpha": Param("float", low=0.0), "noise": Param("float", shape=(2, *shape[-2:]), low=-1.0, high=1.0)}
+        return elastic_spec(shape)
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         alpha = params["alpha"].detach().to("cpu", torch.float64)

@@ -19,7 +19,11 @@ from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
 from ..functional.cleaning import _hot_pixels
-from ..functional.drop import _pixel_mask, random_pixel_mask
+from .._params import SEED
+from ..functional.drop import (
+    DECIMATION_SPEC, DROP_BY_AREA_SPEC, DROP_BY_TIME_SPEC, DROP_RANDOM_SPEC, RANDOM_PIXEL_MASK_SPEC, REFRACTORY_PERIOD_SPEC,
+    _pixel_mask, random_pixel_mask,
+)
 from .base import EventTransform, Param, Params, apply_by_group, choice, integers, seeds, slice_params, uniform
 
 __all__ = ["RandomEventDrop", "DropPixel", "RandomDropPixel", "RefractoryPeriod", "Decimation"]
@@ -93,13 +97,9 @@ class RandomEventDrop(EventTransform):
         }
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        b, t, _, h, w = shape
         return {
             "method": Param("int", choices=tuple(_DROPS.index(m) for m in self.methods)),
-            "fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1),
-            "start": Param("int", low=0, high=t), "length": Param("int", low=0, high=t),
-            "top": Param("int", low=0, high=h), "height": Param("int", low=0, high=h),
-            "left": Param("int", low=0, high=w), "width": Param("int", low=0, high=w),
+            **DROP_RANDOM_SPEC, "seed": SEED, **DROP_BY_TIME_SPEC, **DROP_BY_AREA_SPEC,
         }
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
@@ -224,7 +224,7 @@ class RandomDropPixel(EventTransform):
         return {"fraction": uniform(*self.fraction, b, generator), "seed": seeds(b, generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"fraction": Param("float", low=0.0, high=1.0), "seed": Param("int", low=0, high=2**63 - 1)}
+        return RANDOM_PIXEL_MASK_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         # the same counter-based mask over the pixels of the frames or of the sensor
@@ -272,7 +272,7 @@ class RefractoryPeriod(EventTransform):
         return {"period_us": uniform(*self.period_us, shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"period_us": Param("float", low=0.0)}
+        return REFRACTORY_PERIOD_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.refractory_period, inputs, params["period_us"])
@@ -313,7 +313,7 @@ class Decimation(EventTransform):
         return {"n": integers(self.n[1] - self.n[0] + 1, shape[0], generator) + self.n[0]}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"n": Param("int", low=1)}
+        return DECIMATION_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.decimation, inputs, params["n"])

@@ -21,10 +21,11 @@ import torch
 from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, per_sample_pairs
+from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.geometry import REMAINDERS, _factor, _size, downsampled_size
+from ..functional.geometry import SPATIAL_JITTER_SPEC, TRANSLATE_SPEC, REMAINDERS, _factor, _size, crop_spec, downsampled_size
 from .base import EventTransform, Param, Params, integers, seeds, uniform
 
 __all__ = [
@@ -35,7 +36,7 @@ __all__ = [
 
 class _Roll(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"shift": Param("int", shape=(2,))}
+        return TRANSLATE_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.translate, inputs, params["shift"])
@@ -59,7 +60,7 @@ class Translate(_Roll):
 
     def __init__(self, shift: Sequence[int], *, p: float = 1.0) -> None:
         super().__init__(p=p)
-        self.shift = tuple(per_sample_pairs(shift, 1, "shift", dtype=torch.int64)[0].tolist())
+        self.shift = tuple(check_args("Translate", TRANSLATE_SPEC, 1, shift=shift)["shift"][0].tolist())
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         return {"shift": torch.tensor(self.shift, dtype=torch.int64).expand(shape[0], 2).clone()}
@@ -133,8 +134,8 @@ class _Crop(EventTransform):
         return height - self.size[0], width - self.size[1]
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        rows, cols = self._room(shape)
-        return {"top": Param("int", low=0, high=rows), "left": Param("int", low=0, high=cols)}
+        self._room(shape)
+        return crop_spec(shape, self.size)
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         if isinstance(inputs, EventBatch) and self.resize:
@@ -358,7 +359,7 @@ class SpatialJitter(EventTransform):
         return {"sigma": uniform(*self.sigma, shape[0], generator), "seed": seeds(shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"sigma": Param("float", low=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
+        return SPATIAL_JITTER_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.spatial_jitter, inputs, params["sigma"], params["seed"])

@@ -48,7 +48,7 @@ from ..events.batch import EventBatch
 from ..functional.geometry import _size
 from .. import functional as F
 from ..functional._dispatch import call_kernel
-from ..functional.mixing import _check_classes, _mix_labels
+from ..functional.mixing import _check_classes, _mix_labels, CUTOUT_SPEC, cutmix_spec, mix_labels_spec, mixup_spec
 from .base import EventTransform, Param, Params, _draw_device, integers, seeds
 
 __all__ = ["Cutout", "CutMix", "MixUp"]
@@ -66,15 +66,6 @@ def _centred_box(
     bottom = (cy - size_h // 2 + size_h).clamp(0, height)
     right = (cx - size_w // 2 + size_w).clamp(0, width)
     return {"top": top, "left": left, "height": bottom - top, "width": right - left}
-
-
-def _box_spec(shape: Sequence[int]) -> dict[str, Param]:
-    """The params of a box clipped to the frame (see :func:`_centred_box`)."""
-    height, width = shape[-2], shape[-1]
-    return {
-        "top": Param("int", low=0, high=height), "left": Param("int", low=0, high=width),
-        "height": Param("int", low=0, high=height), "width": Param("int", low=0, high=width),
-    }
 
 
 #: Marsaglia-Tsang candidates per draw and round (each accepted with probability above 0.95).
@@ -162,7 +153,7 @@ class Cutout(EventTransform):
         return _centred_box(h, w, shape, generator)
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return _box_spec(shape)
+        return CUTOUT_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.cutout, inputs, params["top"], params["left"], params["height"], params["width"])
@@ -261,10 +252,7 @@ class CutMix(_Mixing):
         return {"partner": partner, "weight": weight, **box}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        b = shape[0]
-        return {
-            "partner": Param("int", low=0, high=b - 1), "weight": Param("float", low=0.0, high=1.0), **_box_spec(shape)
-        }
+        return {**cutmix_spec(shape), "weight": mix_labels_spec(shape[0])["weight"]}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.cutmix, inputs, params["partner"], params["top"], params["left"], params["height"], params["width"])
@@ -309,10 +297,7 @@ class MixUp(_Mixing):
         return {"partner": partner, "weight": weight, "seed": seeds(b, generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {
-            "partner": Param("int", low=0, high=shape[0] - 1), "weight": Param("float", low=0.0, high=1.0),
-            "seed": Param("int", low=0, high=2**63 - 1),
-        }
+        return mixup_spec(shape)
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.mixup, inputs, params["partner"], params["weight"], params["seed"])

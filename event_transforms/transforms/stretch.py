@@ -20,7 +20,7 @@ from ..events.batch import EventBatch
 from ..functional.affine import Center, _check_center
 from .. import functional as F
 from ..functional._dispatch import call_kernel
-from ..functional.stretch import CONTACT, _check_axis
+from ..functional.stretch import CONTACT, STRETCH_SPEC
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = ["Stretch", "RandomStretch"]
@@ -32,14 +32,14 @@ class _StretchWarp(EventTransform):
     def __init__(self, *, axis: str | float, center: Center, mode: str, p: float) -> None:
         super().__init__(p=p)
         if isinstance(axis, str):
-            self.axis: str | float = _check_axis(axis, 1)  # type: ignore[assignment]
+            self.axis: str | float = check_choice(axis, "axis", (CONTACT,))
         else:
             self.axis = as_number(axis, "axis")
         self.center = _check_center(center)
         self.mode = check_choice(mode, "mode", INTERPOLATIONS)
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"factor": Param("float", low=float.fromhex("0x1p-1022"))}
+        return {"factor": STRETCH_SPEC["factor"]}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         b = len(inputs) if isinstance(inputs, EventBatch) else inputs.shape[0]

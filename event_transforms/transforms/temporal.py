@@ -10,6 +10,7 @@ best settings are FS-1 = ``FrameShift(-1)`` and TES-2(0.50) =
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from collections.abc import Sequence
@@ -21,7 +22,10 @@ from .._validation import TES_MODES, as_number, check_choice, check_pair, check_
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.temporal import _check_length
+from .._params import SEED
+from ..functional.temporal import (
+    FRAME_SHIFT_SPEC, TEMPORAL_EVENT_SHIFT_SPEC, TIME_JITTER_SPEC, TIME_SKEW_SPEC, _check_length, crop_time_spec,
+)
 from .base import EventTransform, Param, Params, choice, integers, seeds, uniform
 
 __all__ = [
@@ -52,7 +56,7 @@ class _Shift(EventTransform):
     """Frame shifting: ``params["shift"]`` (B,) int64."""
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"shift": Param("int")}
+        return FRAME_SHIFT_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.frame_shift, inputs, params["shift"])
@@ -64,10 +68,7 @@ class _EventShift(EventTransform):
     mode: str
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        spec = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0)}
-        if self.mode != "expected":
-            spec["seed"] = Param("int", low=0, high=2**63 - 1)
-        return spec
+        return TEMPORAL_EVENT_SHIFT_SPEC if self.mode == "expected" else {**TEMPORAL_EVENT_SHIFT_SPEC, "seed": SEED}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         hint = (
@@ -144,7 +145,7 @@ class RandomFrameShift(_Shift):
         return {"shift": choice(self._choices, shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"shift": Param("int", choices=self.shifts)}
+        return {"shift": dataclasses.replace(FRAME_SHIFT_SPEC["shift"], choices=self.shifts)}
 
     def _settings(self) -> str:
         return f"shifts={self.shifts}"
@@ -303,7 +304,8 @@ class _CropTime(EventTransform):
         return shape[1] - _check_length(self.length, shape[1])
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"start": Param("int", low=0, high=self._room(shape))}
+        self._room(shape)
+        return crop_time_spec(shape, self.length)
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         self._room(inputs.frame_shape if isinstance(inputs, EventBatch) else inputs.shape)
@@ -412,7 +414,7 @@ class TimeJitter(EventTransform):
         return {"std_us": uniform(*self.std_us, shape[0], generator), "seed": seeds(shape[0], generator)}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"std_us": Param("float", low=0.0), "seed": Param("int", low=0, high=2**63 - 1)}
+        return TIME_JITTER_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.time_jitter, inputs, params["std_us"], params["seed"])
@@ -458,7 +460,7 @@ class TimeSkew(EventTransform):
         }
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"coefficient": Param("float", low=1e-12), "offset_us": Param("float")}
+        return TIME_SKEW_SPEC
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(F.time_skew, inputs, params["coefficient"], params["offset_us"])
