@@ -26,9 +26,9 @@ from event_transforms._params import Param, check_args
 from .event_data import make_batch
 
 # the topic files (``functional.affine`` is also the name of the ``affine`` dispatcher)
-affine, drop, geometry, mixing, stretch, temporal = (
+affine, drop, geometry, mixing, noise, stretch, temporal = (
     importlib.import_module(f"event_transforms.functional.{topic}")
-    for topic in ("affine", "drop", "geometry", "mixing", "stretch", "temporal")
+    for topic in ("affine", "drop", "geometry", "mixing", "noise", "stretch", "temporal")
 )
 
 B, T, H, W = 3, 6, 11, 17  # events: tests/event_data's sensor (11, 17) and T = 6
@@ -75,6 +75,7 @@ OPS = [
     Op("time_jitter", lambda s: temporal.TIME_JITTER_SPEC, lambda: et.TimeJitter(), events=True),
     Op("time_skew", lambda s: temporal.TIME_SKEW_SPEC, lambda: et.TimeSkew(), events=True),
     Op("cutout", lambda s: mixing.CUTOUT_SPEC, lambda: et.Cutout(3)),
+    Op("add_poisson_noise", lambda s: noise.ADD_POISSON_NOISE_SPEC, lambda: et.AddPoissonNoise((0.1, 10.0)), fixed={"frame_ms": 1.0}),
     Op("cutmix", lambda s: mixing.cutmix_spec(s), lambda: et.CutMix()),
     Op("mixup", lambda s: mixing.mixup_spec(s), lambda: et.MixUp(), events=True),
     Op("stretch", lambda s: stretch.STRETCH_SPEC, lambda: et.Stretch(1.3), defaults={"axis": 30.0},

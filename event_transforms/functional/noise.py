@@ -18,13 +18,12 @@ from .._validation import (
     check_frames,
     check_generator,
     check_positive,
-    describe,
-    per_sample,
     read_host,
 )
 
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, register_kernel
+from .._params import Param, check_args
 from ._event_ops import POISSON_COUNT, POISSON_P, POISSON_T, POISSON_X, POISSON_Y, _append, _require_grid
 
 __all__ = [
@@ -215,6 +214,10 @@ def add_noise_events(batch: EventBatch, bank: Tensor, offset: Tensor) -> EventBa
     return _append(batch, columns, added)
 
 
+#: :func:`add_poisson_noise`: the per-sample rate in Hz per pixel and polarity (finite, >= 0);
+#: :class:`~event_transforms.AddPoissonNoise` adds its per-sample seed and sparse totals.
+ADD_POISSON_NOISE_SPEC = {"rate_hz": Param("float", low=0.0)}
+
 
 def add_poisson_noise(
     inputs: Tensor | EventBatch,
@@ -258,9 +261,7 @@ def add_poisson_noise(
     batch, b, restore = batch_of(inputs)
     frame_ms = check_positive(frame_ms, "frame_ms")
     check_generator(generator, batch.device)
-    rate = per_sample(rate_hz, b, "rate_hz")
-    if rate.numel() and not bool((rate.isfinite() & (rate >= 0)).all()):
-        raise ValueError(f"rate_hz must be finite and >= 0, got {describe(rate_hz)}")
+    rate = check_args("add_poisson_noise", ADD_POISSON_NOISE_SPEC, b, rate_hz=rate_hz)["rate_hz"]
     lam = rate * (frame_ms / 1000.0)
     totals = None
     if isinstance(batch, Tensor) and lam.numel() and max(lam.tolist()) < 1.0:

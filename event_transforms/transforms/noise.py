@@ -17,7 +17,8 @@ from .._validation import check_counts, check_frames, check_pair, check_positive
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.noise import _add_entries, _poisson_totals
+from .._params import SEED
+from ..functional.noise import ADD_POISSON_NOISE_SPEC, _add_entries, _poisson_totals
 from .base import EventTransform, Param, Params, integers, seeds, uniform
 
 __all__ = ["AddNoise", "AddPoissonNoise"]
@@ -164,7 +165,7 @@ class AddPoissonNoise(EventTransform):
         return params
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {"rate_hz": Param("float", low=0.0), "count": Param("int", low=0, optional=True), "seed": Param("int", low=0, high=2**63 - 1)}
+        return {**ADD_POISSON_NOISE_SPEC, "count": Param("int", low=0, optional=True), "seed": SEED}
 
     def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
         return call_kernel(
