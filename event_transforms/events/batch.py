@@ -408,11 +408,12 @@ class EventBatch:
             if not -b <= i < b:
                 raise IndexError(f"stream index {i} out of range for a batch of {b}")
         rows = [i % b for i in rows] if b else rows
-        bounds = self.offsets.tolist()
-        spans = [(bounds[i], bounds[i + 1]) for i in rows]
-        cols = dict(zip(_FIELDS, _gather_spans([getattr(self, k) for k in _FIELDS], spans)))
-        lengths = [hi - lo for lo, hi in spans]
-        offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
+        bounds = np.asarray(self.offsets.tolist(), dtype=np.int64)
+        picked = np.asarray(rows, dtype=np.int64)
+        lo, hi = bounds[picked], bounds[picked + 1]
+        spans = _Spans(np.zeros(picked.size, dtype=np.int64), lo, hi, [int(bounds[-1])], self.x.device)
+        cols = {k: spans.gather([getattr(self, k)]) for k in _FIELDS}
+        offsets = torch.from_numpy(np.concatenate(([0], np.cumsum(hi - lo))).astype(np.int64))
         t_start = None if self.t_start is None else self.t_start[torch.tensor(rows, dtype=torch.int64)]
         return self._replace(**cols, offsets=offsets, t_start=t_start)
 
@@ -539,16 +540,6 @@ def _fill_from_columns(out: tuple[Tensor, ...], columns: tuple[Tensor, ...], i: 
     p.copy_(columns[3] > 0)
 
 
-def _span_index(spans: Sequence[tuple[int, int]]) -> np.ndarray:
-    """The positions ``lo, lo + 1, ..., hi - 1`` of every span, concatenated (host arithmetic)."""
-    if not spans:
-        return np.zeros(0, dtype=np.int64)
-    bounds = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
-    lengths = bounds[:, 1] - bounds[:, 0]
-    starts = np.repeat(bounds[:, 0] - np.concatenate(([0], np.cumsum(lengths)[:-1])), lengths)
-    return starts + np.arange(int(lengths.sum()), dtype=np.int64)
-
-
 def _on(index: Tensor, device: torch.device) -> Tensor:
     """``index`` (a CPU tensor) on ``device``; no op when it is there already."""
     return index if device.type == "cpu" else index.to(device)
@@ -561,40 +552,41 @@ def _on(index: Tensor, device: torch.device) -> Tensor:
 SLICES_ON_CPU = True
 
 
-def _runs(lo: np.ndarray, hi: np.ndarray) -> list[tuple[int, int]]:
-    """The spans ``[lo, hi)`` with adjacent ones joined (fewer, longer copies)."""
-    keep = hi > lo
-    lo, hi = lo[keep], hi[keep]
-    if lo.size == 0:
-        return []
-    starts = np.flatnonzero(np.concatenate(([True], lo[1:] != hi[:-1])))
-    ends = np.concatenate((starts[1:], [lo.size])) - 1
-    return list(zip(lo[starts].tolist(), hi[ends].tolist()))
+class _Spans:
+    """How to gather the spans ``[lo[i], hi[i])`` of sources ``owner[i]``, in order, computed
+    once on the host and applied to every field: the spans with adjacent ones of the same
+    source joined (slices, on the CPU), or the events' positions in the sources' concatenation
+    (one ``index_select``, elsewhere)."""
 
+    def __init__(self, owner: np.ndarray, lo: np.ndarray, hi: np.ndarray, sizes: Sequence[int], device: torch.device) -> None:
+        self.index: Tensor | None = None
+        if SLICES_ON_CPU and device.type == "cpu":
+            keep = hi > lo
+            owner, lo, hi = owner[keep], lo[keep], hi[keep]
+            if lo.size == 0:
+                self.runs: list[tuple[int, int, int]] = []
+                return
+            new = np.ones(lo.size, dtype=bool)
+            new[1:] = (owner[1:] != owner[:-1]) | (lo[1:] != hi[:-1])
+            starts = np.flatnonzero(new)
+            ends = np.append(starts[1:], lo.size) - 1
+            self.runs = list(zip(owner[starts].tolist(), lo[starts].tolist(), hi[ends].tolist()))
+            return
+        base = np.concatenate(([0], np.cumsum(sizes, dtype=np.int64)[:-1])).astype(np.int64)
+        first, last = lo + base[owner], hi + base[owner]
+        lengths = last - first
+        shift = np.repeat(first - (np.cumsum(lengths) - lengths), lengths)
+        self.index = torch.from_numpy(shift + np.arange(int(lengths.sum()), dtype=np.int64))
 
-def _gather(column: Tensor, lo: np.ndarray, hi: np.ndarray, index: Tensor | None) -> Tensor:
-    """The concatenation of ``column[lo[i]:hi[i]]``: slices on the CPU, else ``index``."""
-    if index is None:
-        runs = _runs(lo, hi)
-        if len(runs) == 1:
-            return column[runs[0][0] : runs[0][1]]
-        return torch.cat([column[a:b] for a, b in runs]) if runs else column[:0]
-    return column.index_select(0, _on(index, column.device))
-
-
-def _span_positions(device: torch.device, lo: np.ndarray, hi: np.ndarray) -> Tensor | None:
-    """The positions of every span's events as one index (``None``: the CPU's slices are used)."""
-    if SLICES_ON_CPU and device.type == "cpu":
-        return None
-    return torch.from_numpy(_span_index(list(zip(lo.tolist(), hi.tolist()))))
-
-
-def _gather_spans(columns: Sequence[Tensor], spans: list[tuple[int, int]]) -> list[Tensor]:
-    """For each column, the concatenation of ``column[lo:hi]`` over the spans."""
-    bounds = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
-    lo, hi = bounds[:, 0], bounds[:, 1]
-    index = _span_positions(columns[0].device, lo, hi)
-    return [_gather(column, lo, hi, index) for column in columns]
+    def gather(self, pieces: Sequence[Tensor]) -> Tensor:
+        """The spans of ``pieces`` (one column per source, in ``owner``'s numbering)."""
+        if self.index is None:
+            if len(self.runs) == 1:
+                k, a, b = self.runs[0]
+                return pieces[k][a:b]
+            return torch.cat([pieces[k][a:b] for k, a, b in self.runs]) if self.runs else pieces[0][:0]
+        column = pieces[0] if len(pieces) == 1 else torch.cat(list(pieces))
+        return column.index_select(0, _on(self.index, column.device))
 
 
 def merge_streams(parts: Sequence[tuple[Sequence[int], EventBatch]], batch: int, like: EventBatch) -> EventBatch:
@@ -621,32 +613,14 @@ def replace_streams(batch: EventBatch, positions: np.ndarray, part: EventBatch) 
     return _assemble([batch, part], owner, row, batch)
 
 
-def _gather_sources(pieces: Sequence[Tensor], owner: np.ndarray, lo: np.ndarray, hi: np.ndarray, base: np.ndarray) -> Tensor:
-    """The spans ``[lo, hi)`` of the sources' concatenation, sliced from each source (CPU)."""
-    source_lo = lo - base[owner]
-    source_hi = hi - base[owner]
-    slices: list[tuple[int, int, int]] = []
-    for k, a, b in zip(owner.tolist(), source_lo.tolist(), source_hi.tolist()):
-        if b > a:
-            if slices and slices[-1][0] == k and slices[-1][2] == a:
-                slices[-1] = (k, slices[-1][1], b)
-            else:
-                slices.append((k, a, b))
-    if not slices:
-        return pieces[0][:0]
-    if len(slices) == 1:
-        k, a, b = slices[0]
-        return pieces[k][a:b]
-    return torch.cat([pieces[k][a:b] for k, a, b in slices])
-
-
 def _assemble(sources: Sequence[EventBatch], owner: np.ndarray, row: np.ndarray, like: EventBatch) -> EventBatch:
     """Streams ``row[i]`` of ``sources[owner[i]]``, in order, on ``like``'s grid."""
     bounds = [np.asarray(source.offsets.tolist(), dtype=np.int64) for source in sources]
-    base = np.cumsum([0] + [int(b[-1]) for b in bounds[:-1]]).astype(np.int64)
-    lo = np.array([base[k] + bounds[k][j] for k, j in zip(owner.tolist(), row.tolist())], dtype=np.int64)
-    hi = np.array([base[k] + bounds[k][j + 1] for k, j in zip(owner.tolist(), row.tolist())], dtype=np.int64)
-    index = _span_positions(like.x.device, lo, hi)
+    first = np.concatenate(([0], np.cumsum([b.size - 1 for b in bounds])[:-1])).astype(np.int64)
+    which = first[owner] + row
+    lo = np.concatenate([b[:-1] for b in bounds])[which]
+    hi = np.concatenate([b[1:] for b in bounds])[which]
+    spans = _Spans(owner, lo, hi, [int(b[-1]) for b in bounds], like.x.device)
     dtype = like.t.dtype
     for source in sources:
         dtype = torch.promote_types(dtype, source.t.dtype)
@@ -655,11 +629,7 @@ def _assemble(sources: Sequence[EventBatch], owner: np.ndarray, row: np.ndarray,
         pieces = [getattr(source, k) for source in sources]
         if k == "t":
             pieces = [piece if piece.dtype == dtype else piece.to(dtype) for piece in pieces]
-        if index is None and len(pieces) > 1:  # slices of each source, no concatenated copy
-            cols[k] = _gather_sources(pieces, owner, lo, hi, base)
-            continue
-        column = pieces[0] if len(pieces) == 1 else torch.cat(pieces) if pieces else getattr(like, k)[:0]
-        cols[k] = _gather(column, lo, hi, index)
+        cols[k] = spans.gather(pieces)
     offsets = torch.from_numpy(np.concatenate(([0], np.cumsum(hi - lo))).astype(np.int64))
     return like._replace(**cols, offsets=offsets, _sample=None)
 

@@ -41,7 +41,7 @@ import torch
 from torch import Tensor, nn
 
 from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape
-from ..events.batch import EventBatch, merge_streams, replace_streams
+from ..events.batch import EventBatch, _on, merge_streams, replace_streams
 from ..functional._dispatch import NoKernelError
 from ._params import CHECK_RANGE, Param, Params, Spec, check_tree, slice_params
 
@@ -252,7 +252,7 @@ def _take(inputs: Tensor | EventBatch, index: np.ndarray) -> Any:
     rows = torch.from_numpy(np.ascontiguousarray(index, dtype=np.int64))
     if isinstance(inputs, EventBatch):
         return inputs.index_select(rows)
-    return inputs.index_select(0, _to_device(rows, inputs.device))
+    return inputs.index_select(0, _on(rows, inputs.device))
 
 
 def _put_back(inputs: Tensor | EventBatch, kept: np.ndarray, result: Any) -> Any:
@@ -265,7 +265,7 @@ def _put_back(inputs: Tensor | EventBatch, kept: np.ndarray, result: Any) -> Any
     dtype = torch.promote_types(inputs.dtype, result.dtype)
     out = inputs.to(dtype, copy=True)
     if kept.size:
-        out.index_copy_(0, _to_device(torch.from_numpy(kept), inputs.device), result if result.dtype == dtype else result.to(dtype))
+        out.index_copy_(0, _on(torch.from_numpy(kept), inputs.device), result if result.dtype == dtype else result.to(dtype))
     return out
 
 
@@ -274,11 +274,6 @@ def _select(gate: Tensor, result: Tensor, inputs: Tensor) -> Tensor:
     dtype = torch.promote_types(inputs.dtype, result.dtype)
     on = gate.to(device=result.device, dtype=torch.bool).view(-1, *([1] * (result.dim() - 1)))
     return torch.where(on, result if result.dtype == dtype else result.to(dtype), inputs if inputs.dtype == dtype else inputs.to(dtype))
-
-
-def _to_device(index: Tensor, device: torch.device) -> Tensor:
-    """A CPU ``index`` on ``device`` (no op on the CPU)."""
-    return index if device.type == "cpu" else index.to(device)
 
 
 # --------------------------------------------------------------------------- base
@@ -313,8 +308,8 @@ class EventTransform(nn.Module):
     """
 
     #: Declared by transforms that read other samples of the batch or the labels (CutMix,
-    #: MixUp) and by containers holding one. A coupled transform is applied to the whole
-    #: batch (its :meth:`apply` honours ``params["apply"]`` itself) and its labels go
+    #: MixUp) and by containers holding one. A coupled transform sees the whole batch (or,
+    #: gated, the kept samples with their partners: :attr:`partner_key`) and its labels go
     #: through :meth:`apply_labels`; ``OneOf`` and ``RandomApply`` refuse it by name,
     #: because they hand their members sub-batches. It is exempt from per-sample purity
     #: (a sample alone cannot equal the sample mixed with a partner of its batch).
@@ -644,13 +639,8 @@ class EventTransform(nn.Module):
         if kept is None:
             return self.apply_labels(labels, params)
         needed, sub_params, rows = self._with_partners(params, kept)
-        index = torch.from_numpy(needed).to(labels.device)
-        mixed = self.apply_labels(labels.index_select(0, index), sub_params)
-        out = self.keep_labels(labels)
-        dtype = torch.promote_types(out.dtype, mixed.dtype)
-        out = out.to(dtype, copy=True)
-        out.index_copy_(0, torch.from_numpy(kept).to(labels.device), mixed.index_select(0, torch.from_numpy(rows).to(labels.device)).to(dtype))
-        return out
+        mixed = self.apply_labels(_take(labels, needed), sub_params)
+        return _put_back(self.keep_labels(labels), kept, _take(mixed, rows))
 
     def keep_labels(self, labels: Tensor) -> Tensor:
         """Hook: the labels ``(B, ...)`` of samples the gate skips, in the form
