@@ -295,7 +295,7 @@ class _Probe(et.EventTransform):
     def params_spec(self, shape):
         return {}
 
-    def apply(self, frames, params):
+    def apply_transform(self, frames, params):
         return frames
 
 

@@ -106,7 +106,7 @@ class TimedTransform(EventTransform):
     def output_shape(self, shape: torch.Size) -> torch.Size:
         return self.transform.output_shape(shape)
 
-    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         with self.stopwatch:
             return self.transform(frames, params=params)
 

@@ -66,7 +66,7 @@ class _Rotation(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return ROTATE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.rotate, inputs, params["angle"], center=self.center, mode=self.mode)
 
 
@@ -74,7 +74,7 @@ class _Zoom(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return RESIZE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.resize, inputs, params["scale"], center=self.center, mode=self.mode)
 
 
@@ -237,7 +237,7 @@ class _AffineWarp(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return AFFINE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(
             F.affine, inputs, params["angle"], params["scale"], shear=params["shear"], translate=params["translate"],
             center=self.center, mode=self.mode,
@@ -432,7 +432,7 @@ class RandomPerspective(_Warp):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return PERSPECTIVE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.perspective, inputs, params["corners"].detach().to("cpu", torch.float64), self.mode)
 
     def _settings(self) -> str:
@@ -489,7 +489,7 @@ class RandomElastic(_Warp):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return elastic_spec(shape)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         alpha = params["alpha"].detach().to("cpu", torch.float64)
         return call_kernel(F.elastic, inputs, params["noise"], alpha, self.sigma, self.mode)
 

@@ -102,7 +102,7 @@ class RandomEventDrop(EventTransform):
             **DROP_RANDOM_SPEC, "seed": SEED, **DROP_BY_TIME_SPEC, **DROP_BY_AREA_SPEC,
         }
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         def by_random(sub: Tensor | EventBatch, index: Tensor) -> Tensor | EventBatch:
             part = slice_params(params, index)
             return call_kernel(F.drop_random, sub, part["fraction"], "binomial", part["seed"], _HINT)
@@ -170,7 +170,7 @@ class DropPixel(EventTransform):
         self.rate_hz = None if rate_hz is None else check_positive(rate_hz, "rate_hz")
         self.frame_ms = check_positive(frame_ms, "frame_ms")
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         if isinstance(inputs, EventBatch):
             if self.pixels is None:
                 raise TypeError(
@@ -226,7 +226,7 @@ class RandomDropPixel(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return RANDOM_PIXEL_MASK_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         # the same counter-based mask over the pixels of the frames or of the sensor
         height, width = inputs.sensor_size if isinstance(inputs, EventBatch) else inputs.shape[-2:]
         mask = random_pixel_mask(params["seed"], params["fraction"], height, width, inputs.device)
@@ -274,7 +274,7 @@ class RefractoryPeriod(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return REFRACTORY_PERIOD_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.refractory_period, inputs, params["period_us"])
 
     def _settings(self) -> str:
@@ -315,7 +315,7 @@ class Decimation(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return DECIMATION_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.decimation, inputs, params["n"])
 
     def _settings(self) -> str:

@@ -138,7 +138,7 @@ class EventsToFrames(EventTransform):
             columns=self.columns,
         )
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor:
         if isinstance(inputs, EventBatch):  # anywhere in a Compose after event transforms
             return self._bin(inputs)
         return inputs  # made from the events in forward, before the parameters were drawn

@@ -38,7 +38,7 @@ class _Roll(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return TRANSLATE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.translate, inputs, params["shift"])
 
 
@@ -137,7 +137,7 @@ class _Crop(EventTransform):
         self._room(shape)
         return crop_spec(shape, self.size)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         if isinstance(inputs, EventBatch) and self.resize:
             raise ValueError(f"{type(self).__name__}(resize=True) interpolates frames; on events crop with resize=False")
         self._room(inputs.frame_shape if isinstance(inputs, EventBatch) else inputs.shape)
@@ -231,7 +231,7 @@ class Downsample(EventTransform):
         self.factor = _factor(factor)
         self.remainder = check_choice(remainder, "remainder", REMAINDERS)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.downsample, inputs, self.factor, self.remainder)
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
@@ -256,7 +256,7 @@ class HorizontalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.horizontal_flip, inputs)
 
 class VerticalFlip(EventTransform):
@@ -274,7 +274,7 @@ class VerticalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.vertical_flip, inputs)
 
 class RandomHorizontalFlip(HorizontalFlip):
@@ -361,7 +361,7 @@ class SpatialJitter(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return SPATIAL_JITTER_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.spatial_jitter, inputs, params["sigma"], params["seed"])
 
     def _settings(self) -> str:

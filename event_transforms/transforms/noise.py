@@ -98,7 +98,7 @@ class AddNoise(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"offset": Param("int", low=0, high=max(self.bank.shape[0] - shape[1], 0))}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         if isinstance(inputs, EventBatch):
             return call_kernel(F.add_noise, inputs, self.bank, params["offset"])
         frames = inputs
@@ -167,7 +167,7 @@ class AddPoissonNoise(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {**ADD_POISSON_NOISE_SPEC, "count": Param("int", low=0, optional=True), "seed": SEED}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(
             F.add_poisson_noise, inputs, params["rate_hz"], params["seed"], frame_ms=self.frame_ms, count=params.get("count")
         )
