@@ -47,7 +47,7 @@ import torch
 from torch import Tensor
 
 from ._validation import check_positive, describe, per_sample
-from .functional.affine import Center
+from .functional._warp import Center
 from .transforms.base import EventTransform, Params
 from .transforms.containers import Compose, OneOf
 from .transforms.noise import AddNoise, AddPoissonNoise

@@ -26,9 +26,9 @@ from event_transforms._params import Param, check_args
 from .event_data import make_batch
 
 # the topic files (``functional.affine`` is also the name of the ``affine`` dispatcher)
-affine, drop, geometry, mixing, noise, stretch, temporal = (
+affine, drop, elastic, geometry, mixing, noise, perspective, stretch, temporal = (
     importlib.import_module(f"event_transforms.functional.{topic}")
-    for topic in ("affine", "drop", "geometry", "mixing", "noise", "stretch", "temporal")
+    for topic in ("affine", "drop", "elastic", "geometry", "mixing", "noise", "perspective", "stretch", "temporal")
 )
 
 B, T, H, W = 3, 6, 11, 17  # events: tests/event_data's sensor (11, 17) and T = 6
@@ -57,8 +57,8 @@ OPS = [
     Op("rotate", lambda s: affine.ROTATE_SPEC, lambda: et.Rotate(10.0)),
     Op("resize", lambda s: affine.RESIZE_SPEC, lambda: et.Resize(1.2)),
     Op("affine", lambda s: affine.AFFINE_SPEC, lambda: et.Affine(angle=5.0, scale=1.1, shear=(10.0, 0.0))),
-    Op("perspective", lambda s: affine.PERSPECTIVE_SPEC, lambda: et.RandomPerspective(0.3)),
-    Op("elastic", lambda s: {"alpha": affine.elastic_spec(s)["alpha"]}, lambda: et.RandomElastic(),
+    Op("perspective", lambda s: perspective.PERSPECTIVE_SPEC, lambda: et.RandomPerspective(0.3)),
+    Op("elastic", lambda s: {"alpha": elastic.elastic_spec(s)["alpha"]}, lambda: et.RandomElastic(),
        fixed={"noise": _elastic_noise()}),
     Op("drop_random", lambda s: drop.DROP_RANDOM_SPEC, lambda: et.RandomEventDrop(),
        fixed={"generator": torch.Generator().manual_seed(0)}),

@@ -12,6 +12,10 @@ from __future__ import annotations
 
 from .affine import *  # noqa: F401,F403
 from .affine import __all__ as _affine
+from .perspective import *  # noqa: F401,F403
+from .perspective import __all__ as _perspective
+from .elastic import *  # noqa: F401,F403
+from .elastic import __all__ as _elastic
 from .stretch import *  # noqa: F401,F403
 from .stretch import __all__ as _stretch
 from .temporal import *  # noqa: F401,F403
@@ -41,6 +45,6 @@ from ..events.batch import __all__ as _event_batch
 from ._dispatch import call_kernel, has_kernel, kernel_for, register_kernel
 
 __all__ = [
-    *_affine, *_stretch, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop,
+    *_affine, *_perspective, *_elastic, *_stretch, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop,
     *_representations, *_event_batch, "register_kernel", "kernel_for", "call_kernel", "has_kernel",
 ]

@@ -439,7 +439,7 @@ def time_reversal(inputs: Tensor | EventBatch, reverse: Tensor | None = None) ->
         >>> time_reversal(frames)[:, :, 0, 0].tolist()
         [[0, 0], [0, 0], [4, 0]]
     """
-    from .geometry import _flags
+    from ._frame_ops import _flags
 
     batch, b, restore = batch_of(inputs)
     return restore(call_kernel(time_reversal, batch, _flags(reverse, b, "reverse")))

@@ -24,7 +24,10 @@ from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.affine import AFFINE_SPEC, PERSPECTIVE_SPEC, RESIZE_SPEC, ROTATE_SPEC, Center, _check_center, _image_corners, elastic_spec
+from ..functional.affine import AFFINE_SPEC, RESIZE_SPEC, ROTATE_SPEC
+from ..functional.elastic import elastic_spec
+from ..functional.perspective import PERSPECTIVE_SPEC
+from ..functional._warp import Center, _check_center, _image_corners
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [

@@ -17,7 +17,7 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
 from ..events.batch import EventBatch
-from ..functional.affine import Center, _check_center
+from ..functional._warp import Center, _check_center
 from .. import functional as F
 from ..functional._dispatch import call_kernel
 from ..functional.stretch import CONTACT, STRETCH_SPEC
