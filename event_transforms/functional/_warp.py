@@ -19,7 +19,8 @@ from torch import Tensor
 
 from .._validation import as_batch, check_choice, check_frames, describe
 from ..events.batch import EventBatch
-from ._event_ops import _compact, _round_to, warn_dropped
+from ..events.drops import counting, record_dropped
+from ._event_ops import _compact, _round_to
 from ._frame_ops import _output_dtype, _work_dtype
 
 
@@ -284,7 +285,8 @@ def _keep_on_sensor(batch: EventBatch, x: Tensor, y: Tensor, valid: Tensor | Non
     outside = (moved.x < 0) | (moved.x >= width) | (moved.y < 0) | (moved.y >= height)
     if valid is not None:
         outside |= ~valid
-    warn_dropped(moved, outside_sensor=outside, stacklevel=5)
+    if counting():  # dropped by design: counted in a count_dropped block, never warned
+        record_dropped("off_sensor", outside)
     return _compact(moved, ~outside)
 
 

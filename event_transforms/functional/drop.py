@@ -269,7 +269,7 @@ def drop_by_time_events(batch: EventBatch, start: Tensor, length: Tensor) -> Eve
         >>> drop_by_time_events(batch, torch.tensor([1, 0]), torch.tensor([1, 1])).t.tolist()
         [100]
     """
-    from ..events.batch import _relative_times
+    from ..events.binning import _relative_times
     from ..events.binning import _bins_of
 
     starts, frame_us, n_frames = _require_grid(batch, "RandomEventDrop (time)")

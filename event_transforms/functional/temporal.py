@@ -26,9 +26,10 @@ from .._validation import (
     TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, on_host, read_host,
 )
 from ..events.batch import EventBatch
-from ..events.binning import _frame_us
+from ..events.ingest import _frame_us
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel, shape_of
-from ._event_ops import TES_KEYS, TIME_JITTER, _kept, _keys, _per_event, _require_grid, warn_dropped
+from ..events.drops import counting, record_dropped
+from ._event_ops import TES_KEYS, TIME_JITTER, _kept, _keys, _per_event, _require_grid
 from ._random import EventStream
 from ._random import draw_seeds
 from ._hypergeometric import (
@@ -669,7 +670,7 @@ def _groups(batch: EventBatch) -> tuple[Tensor, int]:
     """Per event its group ``(sample * T + bin) * 2 + p`` (int32; ``G`` outside the grid's
     window) and the number of groups G."""
     starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
-    from ..events.batch import _relative_times
+    from ..events.binning import _relative_times
     from ..events.binning import _bins_of
 
     sample = batch.sample_index()
@@ -728,7 +729,8 @@ def _shift_events(
     leaving = torch.cat([(leaving < 0) | (leaving >= n_frames), torch.zeros(1, dtype=torch.bool)]).to(device)
     keep = leaving.index_select(0, group).logical_and_(moved).logical_not_()
     del group
-    warn_dropped(batch, outside_window=~keep, window=_window_of(batch), stacklevel=4)
+    if counting():  # shifted out of the window by design: counted in a count_dropped block, never warned
+        record_dropped("out_of_window", ~keep)
     # compact first, then move the kept events' times (the temporaries are the output's size)
     index, offsets = _kept(batch, keep)
     del keep
@@ -907,7 +909,3 @@ def time_skew_events(batch: EventBatch, coefficient: Tensor, offset_us: Tensor) 
     skewed = origin + _per_event(coefficient.to(torch.float64), batch) * (t - origin) + _per_event(
         offset_us.to(torch.float64), batch)
     return batch._replace(t=skewed if batch.t.is_floating_point() else torch.round(skewed).to(torch.int64))
-
-
-def _window_of(batch: EventBatch) -> str:
-    return f"of the batch's grid (n_frames={batch.n_frames} of frame_ms={batch.frame_ms}), shifted out of it"

@@ -177,7 +177,7 @@ class RecordingSettings:
 
     def __post_init__(self) -> None:
         from .._validation import check_positive
-        from ..events.binning import _time_unit
+        from ..events.ingest import _time_unit
 
         _time_unit(self.time_unit)  # ValueError naming time_unit and the value
 
@@ -508,7 +508,7 @@ class _Scan:
 def _scan(source: _EventFile, sensor: tuple[int, int], where: str, time_unit: str | None = None) -> _Scan:
     """Check an event file chunk by chunk (sorted, inside the sensor, polarity, units) and
     count events per pixel; ``t_min``/``t_max`` in microseconds (read in ``time_unit``)."""
-    from ..events.binning import _SECONDS_SPAN, _to_microseconds
+    from ..events.ingest import _SECONDS_SPAN, _to_microseconds
 
     height, width = sensor
     totals = np.zeros(height * width, dtype=np.int64)

@@ -9,10 +9,11 @@ import torch
 from torch import Tensor
 
 from .._validation import FRAME_DTYPES
-from ..events.batch import EventBatch, bin_events
-from ..events.binning import (
-    CHUNK_EVENTS, _explicit_starts, _grid, _integer, _order_names, _T_STARTS, _time_unit, events_to_frames,
-)
+from ..events.batch import EventBatch
+from ..events.binning import bin_events
+from ..events.binning import CHUNK_EVENTS, _grid, events_to_frames
+from ..events.ingest import _explicit_starts
+from ..events.ingest import _integer, _order_names, _T_STARTS, _time_unit
 from .base import EventTransform, Params
 
 __all__ = ["EventsToFrames"]
