@@ -148,6 +148,15 @@ class TestBinning:
             t = single.shape[0]
             assert torch.equal(out[b, :t], single)
             assert out[b, t:].sum() == 0
+        # events_to_frames dispatches on the batch like every other operation
+        assert torch.equal(events_to_frames(batch, frame_ms=1.0, t_start=t_start, n_frames=n_frames, crop=crop,
+                                            pool=pool), out)
+
+    def test_events_to_frames_of_a_batch_refuses_reading_options_by_name(self):
+        batch = make_batch(2)
+        assert torch.equal(events_to_frames(batch), bin_events(batch))  # the batch's own grid
+        with pytest.raises(TypeError, match="takes no sensor_size, time_unit"):
+            events_to_frames(batch, sensor_size=SENSOR, time_unit="us")
 
     def test_grid_is_used_and_module_matches(self):
         batch = make_batch(3)

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .binning import _accumulate, _as_dtype, _empty_window_error, _exact_count, _Grid, _grid, _pixels, _Tally, _tally_outside, _time_bins, _to_spare, _warn_outside
+from ._kernel import _accumulate, _as_dtype, _empty_window_error, _exact_count, _Grid, _grid, _pixels, _Tally, _tally_outside, _time_bins, _to_spare, _warn_outside
 from .ingest import _explicit_starts, _floor_to_grid
 from .ingest import _FIELDS, _T_STARTS, _check_polarity, _integer, _order_names, _Source, _source, _time_unit
 

@@ -269,8 +269,8 @@ def drop_by_time_events(batch: EventBatch, start: Tensor, length: Tensor) -> Eve
         >>> drop_by_time_events(batch, torch.tensor([1, 0]), torch.tensor([1, 1])).t.tolist()
         [100]
     """
-    from ..events.binning import _relative_times
-    from ..events.binning import _bins_of
+    from ..events._kernel import _relative_times
+    from ..events._kernel import _bins_of
 
     starts, frame_us, n_frames = _require_grid(batch, "RandomEventDrop (time)")
     bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)

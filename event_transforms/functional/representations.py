@@ -19,7 +19,8 @@ from torch import Tensor
 
 from .._validation import check_choice, per_sample
 from ..events.batch import EventBatch
-from ..events.binning import _polarity_channel, _valid_mask
+from ..events.binning import _valid_mask
+from ..events._kernel import _polarity_channel
 from ..events.ingest import _columns, _pair, _positive_int
 
 __all__ = ["to_voxel_grid", "to_time_surface"]

@@ -670,8 +670,8 @@ def _groups(batch: EventBatch) -> tuple[Tensor, int]:
     """Per event its group ``(sample * T + bin) * 2 + p`` (int32; ``G`` outside the grid's
     window) and the number of groups G."""
     starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
-    from ..events.binning import _relative_times
-    from ..events.binning import _bins_of
+    from ..events._kernel import _relative_times
+    from ..events._kernel import _bins_of
 
     sample = batch.sample_index()
     bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)

@@ -11,7 +11,8 @@ from torch import Tensor
 from .._validation import FRAME_DTYPES
 from ..events.batch import EventBatch
 from ..events.binning import bin_events
-from ..events.binning import CHUNK_EVENTS, _grid, events_to_frames
+from ..events.binning import CHUNK_EVENTS, events_to_frames
+from ..events._kernel import _grid
 from ..events.ingest import _explicit_starts
 from ..events.ingest import _integer, _order_names, _T_STARTS, _time_unit
 from .base import EventTransform, Params
