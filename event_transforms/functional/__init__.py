@@ -20,6 +20,8 @@ from .stretch import *  # noqa: F401,F403
 from .stretch import __all__ as _stretch
 from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
+from .timestamps import *  # noqa: F401,F403
+from .timestamps import __all__ as _timestamps
 from .noise import *  # noqa: F401,F403
 from .noise import __all__ as _noise
 from ..events.binning import *  # noqa: F401,F403
@@ -45,6 +47,6 @@ from ..events.batch import __all__ as _event_batch
 from ._dispatch import call_kernel, has_kernel, kernel_for, register_kernel
 
 __all__ = [
-    *_affine, *_perspective, *_elastic, *_stretch, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop,
+    *_affine, *_perspective, *_elastic, *_stretch, *_temporal, *_timestamps, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop,
     *_representations, *_event_batch, "register_kernel", "kernel_for", "call_kernel", "has_kernel",
 ]

@@ -67,3 +67,17 @@ def _flags(flip: object, batch: int, name: str = "flip") -> Tensor | None:
     if value is None or value.dtype != torch.bool or tuple(value.shape) not in ((), (batch,)):
         raise ValueError(f"{name} must be a bool or a ({batch},) bool tensor, got {describe(flip)}")
     return value.detach().cpu().expand(batch)
+
+
+def _size(value: object, name: str) -> tuple[int, int]:
+    """``n`` or ``(h, w)`` positive integers as (h, w)."""
+    if isinstance(value, (Sequence, Tensor)) and not isinstance(value, (str, bytes)):
+        if len(value) != 2:
+            raise ValueError(f"{name} must be a positive integer or an (h, w) pair, got {describe(value)}")
+        pair = tuple(as_number(v, name, integer=True) for v in value)
+    else:
+        number = as_number(value, name, integer=True)
+        pair = (number, number)
+    if min(pair) < 1:
+        raise ValueError(f"{name} must be positive, got {describe(value)}")
+    return pair

@@ -23,13 +23,14 @@ from torch import Tensor
 import numpy as np
 
 from .._params import SEED, Param, check_args
-from .._validation import INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, on_host
+from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, on_host
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
 from ._event_ops import JITTER, _per_event, _round_to
 from ._random import EventStream
 from ._frame_ops import _output_dtype, _work_dtype
 from ._frame_ops import _flags, _sum_in
+from ._frame_ops import _size
 
 __all__ = [
     "horizontal_flip", "horizontal_flip_frames", "horizontal_flip_events",
@@ -59,7 +60,6 @@ def crop_spec(shape: Sequence[int], size: tuple[int, int]) -> dict[str, Param]:
     """:func:`crop`'s window corner for a batch ``shape`` (B, T, 2, H, W) and a window ``size``
     (h, w) that fits: ``top`` in [0, H - h], ``left`` in [0, W - w]."""
     return {"top": Param("int", low=0, high=shape[-2] - size[0]), "left": Param("int", low=0, high=shape[-1] - size[1])}
-
 
 
 # --------------------------------------------------------------------------- translate
@@ -165,20 +165,6 @@ def translate_events(batch: EventBatch, shift: Tensor) -> EventBatch:
 
 
 # --------------------------------------------------------------------------- crop
-
-
-def _size(value: object, name: str) -> tuple[int, int]:
-    """``n`` or ``(h, w)`` positive integers as (h, w)."""
-    if isinstance(value, (Sequence, Tensor)) and not isinstance(value, (str, bytes)):
-        if len(value) != 2:
-            raise ValueError(f"{name} must be a positive integer or an (h, w) pair, got {describe(value)}")
-        pair = tuple(as_number(v, name, integer=True) for v in value)
-    else:
-        number = as_number(value, name, integer=True)
-        pair = (number, number)
-    if min(pair) < 1:
-        raise ValueError(f"{name} must be positive, got {describe(value)}")
-    return pair
 
 
 def crop_frames(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool = False, mode: str = "bilinear") -> Tensor:

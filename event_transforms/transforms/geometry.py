@@ -25,7 +25,8 @@ from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.geometry import SPATIAL_JITTER_SPEC, TRANSLATE_SPEC, REMAINDERS, _factor, _size, crop_spec, downsampled_size
+from ..functional.geometry import SPATIAL_JITTER_SPEC, TRANSLATE_SPEC, REMAINDERS, _factor, crop_spec, downsampled_size
+from ..functional._frame_ops import _size
 from .base import EventTransform, Param, Params, integers, seeds, uniform
 
 __all__ = [

@@ -45,7 +45,7 @@ from torch import Tensor
 
 from .._validation import as_number, check_positive
 from ..events.batch import EventBatch
-from ..functional.geometry import _size
+from ..functional._frame_ops import _size
 from .. import functional as F
 from ..functional._dispatch import call_kernel
 from ..functional.mixing import _check_classes, _mix_labels, CUTOUT_SPEC, cutmix_spec, mix_labels_spec, mixup_spec

@@ -23,9 +23,8 @@ from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
 from .._params import SEED
-from ..functional.temporal import (
-    FRAME_SHIFT_SPEC, TEMPORAL_EVENT_SHIFT_SPEC, TIME_JITTER_SPEC, TIME_SKEW_SPEC, _check_length, crop_time_spec,
-)
+from ..functional.temporal import FRAME_SHIFT_SPEC, TEMPORAL_EVENT_SHIFT_SPEC, _check_length, crop_time_spec
+from ..functional.timestamps import TIME_JITTER_SPEC, TIME_SKEW_SPEC
 from .base import EventTransform, Param, Params, choice, integers, seeds, uniform
 
 __all__ = [
