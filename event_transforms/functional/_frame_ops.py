@@ -1,12 +1,14 @@
 """Small frame helpers shared by the topic files (private): the work and output dtypes of the
-warps, the flags of the flips, and count sums in a wide dtype."""
+warps, the flags of the flips, count sums in a wide dtype, and the ``n`` or ``(h, w)`` size check."""
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import torch
 from torch import Tensor
 
-from .._validation import describe
+from .._validation import as_number, describe
 
 #: Integer frame dtypes whose sums are checked against their range.
 _NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
