@@ -59,6 +59,15 @@ class DroppedEvents:
 
     Counts are kept on the device as they come (no host synchronisation inside the block);
     :meth:`counts` reads them.
+
+    Example:
+        >>> import torch
+        >>> import event_transforms as et
+        >>> batch = et.EventBatch.from_streams([torch.tensor([[2, 2, 0, 1]])], sensor_size=(4, 4))
+        >>> with et.count_dropped() as dropped:
+        ...     _ = et.functional.bin_events(et.functional.translate(batch, torch.tensor([[0.0, 5.0]])), frame_ms=10.0)
+        >>> dropped.counts(), dropped.total
+        ({'off_sensor': 1}, 1)
     """
 
     def __init__(self) -> None:

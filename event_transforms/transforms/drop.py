@@ -18,7 +18,6 @@ from .._validation import check_pair, check_positive
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.cleaning import _hot_pixels
 from .._params import SEED
 from ..functional.drop import (
     DECIMATION_SPEC, DROP_BY_AREA_SPEC, DROP_BY_TIME_SPEC, DROP_RANDOM_SPEC, RANDOM_PIXEL_MASK_SPEC, REFRACTORY_PERIOD_SPEC,
@@ -183,8 +182,8 @@ class DropPixel(EventTransform):
         if self.pixels is not None:
             mask = _pixel_mask(self.pixels, b, height, width, inputs.device)
         else:
-            assert isinstance(inputs, Tensor)  # an EventBatch without pixels was refused above
-            mask = _hot_pixels(inputs, self.rate_hz * self.frame_ms / 1000.0)
+            assert isinstance(inputs, Tensor) and self.rate_hz is not None  # refused above / set without pixels
+            mask = F.hot_pixels(inputs, self.rate_hz, frame_ms=self.frame_ms)
         return call_kernel(F.drop_pixel, inputs, mask)
 
     def _settings(self) -> str:

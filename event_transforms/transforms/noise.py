@@ -5,6 +5,7 @@ EventDrop and pixel removal are in :mod:`event_transforms.transforms.drop`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -165,7 +166,10 @@ class AddPoissonNoise(EventTransform):
         return params
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {**ADD_POISSON_NOISE_SPEC, "count": Param("int", low=0, optional=True), "seed": SEED}
+        # count: the sparse path's event totals, drawn at under one expected event per cell; a
+        # replayed tree may not ask for more than 16 events per cell (the kernel places each one)
+        cells = math.prod(shape[1:])
+        return {**ADD_POISSON_NOISE_SPEC, "count": Param("int", low=0, high=16 * cells + 1024, optional=True), "seed": SEED}
 
     def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(
