@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, per_sample_pairs
+from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
 from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
@@ -349,7 +349,8 @@ class RandomAffine(_AffineWarp):
         self.degrees = check_pair(degrees, "degrees", symmetric=True)
         self.translate = None
         if translate is not None:
-            fractions = per_sample_pairs(translate, 1, "translate")[0].tolist()
+            fractions = check_args(type(self).__name__, {"translate": Param("float", shape=(2,))}, 1,
+                                   translate=translate)["translate"][0].tolist()
             if not all(0 <= f <= 1 for f in fractions):
                 raise ValueError(f"translate fractions must lie in [0, 1], got {translate!r}")
             self.translate = tuple(fractions)

@@ -43,6 +43,7 @@ from torch import Tensor, nn
 from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape
 from ..events.batch import EventBatch, _on, merge_streams, replace_streams
 from ..functional._dispatch import NoKernelError
+from ..functional._random import draw_seeds
 from ._params import CHECK_RANGE, Param, Params, Spec, check_tree, slice_params
 
 __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY"]
@@ -134,9 +135,7 @@ def integers(high: Tensor | int, batch: int, generator: torch.Generator | None) 
 
 def seeds(batch: int, generator: torch.Generator | None) -> Tensor:
     """``batch`` independent 63-bit seeds (int64, CPU), one per sample."""
-    return _cpu(
-        torch.randint(0, 2**63 - 1, (batch,), generator=generator, device=_draw_device(generator), dtype=torch.int64)
-    )
+    return _cpu(draw_seeds(batch, generator))  # the one seed draw, also the dispatchers' (functional._random)
 
 
 def _cpu(tensor: Tensor) -> Tensor:

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, per_sample_pairs
+from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair
 from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
@@ -95,7 +95,8 @@ class RandomTranslate(_Roll):
     def __init__(self, max_shift: int | Sequence[int], *, p: float = 1.0) -> None:
         super().__init__(p=p)
         if isinstance(max_shift, (Sequence, Tensor)) and not isinstance(max_shift, (str, bytes)):
-            pair = tuple(per_sample_pairs(max_shift, 1, "max_shift", dtype=torch.int64)[0].tolist())
+            pair = tuple(check_args(type(self).__name__, {"max_shift": Param("int", shape=(2,))}, 1,
+                                    max_shift=max_shift)["max_shift"][0].tolist())
         else:
             pair = (as_number(max_shift, "max_shift", integer=True),) * 2
         if min(pair) < 0:
