@@ -10,7 +10,8 @@ import pytest
 import torch
 
 import event_transforms as et
-from event_transforms.tactile import cli, experiment, protocol
+from event_transforms.tactile import cli, experiment, figures, protocol
+from event_transforms.tactile.protocol import run as protocol_run
 from event_transforms.tactile.protocol import (
     PAPER_METHODS,
     QUICK_METHODS,
@@ -377,11 +378,11 @@ class TestRunProtocol:
                 raise KeyboardInterrupt
             return real(*args, **kwargs)
 
-        monkeypatch.setattr(experiment, "run_unit", killed_after_two)
+        monkeypatch.setattr(protocol_run, "run_unit", killed_after_two)
         with pytest.raises(KeyboardInterrupt):
             run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods, data=scene_data,
                          group="method")
-        monkeypatch.setattr(experiment, "run_unit", real)
+        monkeypatch.setattr(protocol_run, "run_unit", real)
         resumed = run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods,
                                data=scene_data, group="method")
         for scene in self.scenes:
@@ -463,7 +464,7 @@ class TestRunProtocol:
 
 class TestCommandLine:
     def test_reproduce_smoke(self, tmp_path, monkeypatch, capsys):
-        monkeypatch.setattr(experiment, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
+        monkeypatch.setattr(protocol_run, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
         out = tmp_path / "res"
         code = cli.main([
             "reproduce", "--scenes", "control", "--methods", "none", "fs-1", "--seeds", "0,1", "--steps", "2",
@@ -496,7 +497,7 @@ class TestCommandLine:
                 parser.parse_args(bad)
 
     def test_plan_prints_the_cost_without_training(self, tmp_path, capsys, monkeypatch):
-        monkeypatch.setattr(experiment, "run_unit", lambda *a, **k: pytest.fail("--plan trained"))
+        monkeypatch.setattr(protocol_run, "run_unit", lambda *a, **k: pytest.fail("--plan trained"))
         assert cli.main(["reproduce", "--plan", "--scenes", "control", "timing", "--seeds", "0-7",
                          "--steps", "100", "--out", str(tmp_path)]) == 0
         printed = capsys.readouterr().out
@@ -568,7 +569,7 @@ class TestCommandLineErrors:
         blocker = tmp_path / "a-file"
         blocker.write_text("")
         called = []
-        monkeypatch.setattr(experiment, "load_scene_data", lambda *a, **k: called.append(a))
+        monkeypatch.setattr(protocol_run, "load_scene_data", lambda *a, **k: called.append(a))
         argv = ["reproduce", "--scenes", "control", "--methods", "none", "--out", str(tmp_path / "out")]
         line = self._error([*argv, flag, str(blocker / "sub")], capsys)
         assert flag in line and "a-file" in line and not called
@@ -682,9 +683,9 @@ class TestEqualTime:
         timing = {"single_model_wall_s": {"median": 10.0, "min": 9.0, "max": 11.0, "repeats": 3},
                   "single_model_scene": "paper",
                   "online_aug_s_per_epoch": {"paper": {"none": None, "stretch": 10.0 / epochs, "fs-1": 0.0}}}
-        monkeypatch.setattr(experiment, "_timing", lambda *a, **k: timing)
+        monkeypatch.setattr(protocol_run, "measure_timing", lambda *a, **k: timing)
         commits = iter(["a" * 40, "b" * 40, "b" * 40])  # the checkout moves during the run
-        monkeypatch.setattr(experiment, "git_commit", lambda: next(commits))
+        monkeypatch.setattr(protocol_run, "git_commit", lambda: next(commits))
         results = run_protocol(["paper"], [0, 1], tmp_path, config=config, methods=["none", "stretch", "fs-1"],
                                data=data, budget_check=False, equal_time=True)
         methods = results["scenes"]["paper"]["methods"]
@@ -707,7 +708,7 @@ class TestEqualTime:
         assert results["config"]["equal_time"] is True
         assert results["commit"] == "a" * 40  # the commit that trained, read when the run started
         pytest.importorskip("matplotlib")
-        paths = cli._plots(results, tmp_path)
+        paths = figures.plot_results(results, tmp_path)
         assert tmp_path / "accuracy_at_equal_time.png" in paths
         assert (tmp_path / "accuracy_at_equal_time.png").stat().st_size > 0
 
