@@ -717,3 +717,37 @@ class TestEqualTime:
         assert plan["equal_time_member_steps_max"] == 1 * 2 * TINY.steps
         assert experiment.plan_run(["paper"], {"paper": ["none"]}, [0], TINY)["equal_time_member_steps_max"] == 0
         assert cli.QUICK["equal_time"] and not cli.FULL["equal_time"]
+
+
+class TestProgressOutput:
+    """Long loops show one progress bar, not a line per item (issue 34): binning 192 recordings
+    printed 192 'binned ...' lines."""
+
+    def test_binning_recordings_prints_one_summary_line(self, tmp_path, monkeypatch, capsys):
+        from types import SimpleNamespace
+
+        from event_transforms.tactile import commands, recordings
+
+        def fake_load(root, settings, *, cache=None, log=None):
+            log("crop: the contact area of 4 training recordings")
+            for k in range(192):
+                log(f"binned events/g{k:03d}.npy: 1,000 events into 40 frames in 0.0 s")
+            dataset = {"folder": str(root), "files": 384, "content_hash": "0" * 64, "recordings": {"test": 96},
+                       "windows": {"test": 96}, "settings": {"stride": 36}, "crop": (0, 0, 10, 10),
+                       "crop_source": "given", "left_out_frames": 0}
+            return SimpleNamespace(dataset=dataset)
+
+        monkeypatch.setattr(recordings, "load_recording_data", fake_load)
+        args = cli.build_parser().parse_args(["infer-scene", "--data", str(tmp_path)])
+        commands.load_recordings(args)
+        lines = capsys.readouterr().out.splitlines()
+        assert not [line for line in lines if line.startswith("binned ")]
+        assert lines[0] == "crop: the contact area of 4 training recordings"  # other lines pass through
+        assert lines[1].startswith("binning recordings: 192 recordings in ")
+        assert lines[2].startswith("data: ") and len(lines) == 3
+
+    def test_item_progress_without_items_says_nothing(self, capsys):
+        from event_transforms.tactile.commands import ItemProgress
+
+        log = ItemProgress("binned ", "binning recordings", "recordings")
+        assert log.close() is None and capsys.readouterr().out == ""

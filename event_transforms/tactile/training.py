@@ -683,8 +683,14 @@ def train(
             (:class:`~event_transforms.tactile.copies.SceneData`).
         methods: method names (:func:`~event_transforms.tactile.methods.parse_method`).
         seeds: one member per method and seed.
-        steps, batch_size, lr, clip, eval_every: the optimiser's settings.
-        hidden_channels, input_pool, cumulative: the model's size and inputs.
+        steps: optimiser steps of every member.
+        batch_size: sequences per member per step.
+        lr: peak learning rate of the one-cycle schedule.
+        clip: gradient-norm limit per member.
+        eval_every: steps between passes over the hold-out sequences (the stopping rule).
+        hidden_channels: ConvLSTM channels per layer of every member.
+        input_pool: the members' first average-pool factor.
+        cumulative: the members also read running event totals.
         fixed: copies made once before training; ``False``: on the training device per batch.
         copies: synthetic copies per item for method names without ``x<k>``.
         paired: the paired batch order across methods.
