@@ -25,7 +25,9 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
   :class:`~event_transforms.tactile.recordings.RecordingSet`, the simulator's export);
 - :mod:`~event_transforms.tactile.deployment`: train a model on recordings, stream force estimates;
 - :mod:`~event_transforms.tactile.runs`: the protocol's run store (resume keys);
-- :mod:`~event_transforms.tactile.cli`: the ``event-transforms`` command.
+- :mod:`~event_transforms.tactile.cli`: the ``event-transforms`` command's arguments (the commands'
+  bodies in :mod:`~event_transforms.tactile.commands`, the run's figures in
+  :mod:`~event_transforms.tactile.figures`).
 
 Results obtained on the simulated scenes are results on synthetic data, never the paper's.
 """
