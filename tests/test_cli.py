@@ -746,6 +746,15 @@ class TestProgressOutput:
         assert lines[1].startswith("binning recordings: 192 recordings in ")
         assert lines[2].startswith("data: ") and len(lines) == 3
 
+    def test_infer_scene_on_a_folder_prints_no_line_per_recording(self, tmp_path, capsys):
+        from tests.test_recordings import make_folder
+
+        root = make_folder(tmp_path / "d", train=6, deploy=5, unlabeled=1)
+        assert cli.main(["infer-scene", "--data", str(root), "--sensor-size", "30", "40", "--frames", "12"]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        assert not [line for line in lines if line.startswith("binned ")], lines
+        assert [line for line in lines if line.startswith("binning recordings: 12 recordings in ")]
+
     def test_item_progress_without_items_says_nothing(self, capsys):
         from event_transforms.tactile.commands import ItemProgress
 

@@ -39,7 +39,8 @@ from typing import Any
 
 _SUBMODULES = (
     "simulation", "scenes", "datasets", "models", "ensemble", "baselines", "training", "methods",
-    "copies", "experiment", "stats", "report", "distributed", "protocol", "cli", "recordings", "deployment", "runs",
+    "copies", "experiment", "stats", "report", "distributed", "protocol", "cli", "commands", "figures", "recordings",
+    "deployment", "runs",
 )
 
 #: Public names of the protocol, importable from here (loaded on first use).
