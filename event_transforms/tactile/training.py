@@ -66,120 +66,183 @@ __all__ = [
 ]
 
 
-class Stopwatch:
-    """Accumulates seconds spent in timed sections (``with stopwatch: ...``).
+# ----------------------------------------------------------------------------- the entry point
 
-    Example:
-        >>> watch = Stopwatch()
-        >>> with watch:
-        ...     _ = sum(range(10))
-        >>> watch.calls, watch.seconds >= 0
-        (1, True)
+
+@dataclass
+class TrainedEnsemble:
+    """What :func:`train` made. Lists run over the members, method-major (member
+    ``i`` is method ``i // len(seeds)``, seed ``seeds[i % len(seeds)]``).
+
+    Attributes:
+        model: the ensemble, holding the kept weights (on the training device).
+        result: the trainer's record (losses, hold-out history, kept step, times).
+        methods: each member's parsed method.
+        seeds: each member's seed.
+        train_items: each member's training-set size (originals and copies).
+        aug_s_once: seconds spent making each member's fixed copies before training.
+        augment: each member's on-device augmentation (its ``stopwatch`` holds the time), or ``None``.
+        force_offset: the training forces' mean (every member's output offset).
+        force_scale: their standard deviation (at least 1e-6; every member's output scale).
+        holdout: the stopping rule had hold-out data (else the final weights were kept).
     """
 
-    def __init__(self) -> None:
-        self.seconds = 0.0
-        self.calls = 0
-        self._start: float | None = None
-
-    def __enter__(self) -> Stopwatch:
-        self._start = time.perf_counter()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self._start is None:
-            raise RuntimeError("Stopwatch exited without being entered")
-        self.seconds += time.perf_counter() - self._start
-        self.calls += 1
-        self._start = None
-
-    def __repr__(self) -> str:
-        return f"Stopwatch(seconds={self.seconds:.6f}, calls={self.calls})"
+    model: EnsembleForceRegressor
+    result: EnsembleResult
+    methods: list[Method]
+    seeds: list[int]
+    train_items: list[int]
+    aug_s_once: list[float]
+    augment: list[DeviceAugment | None]
+    force_offset: float
+    force_scale: float
+    holdout: bool
 
 
-class TimedTransform(EventTransform):
-    """Wrap a transform so the time spent inside it is added to ``stopwatch``.
+def train(
+    data: SceneData,
+    methods: Sequence[str],
+    seeds: Sequence[int],
+    *,
+    steps: int = 1500,
+    batch_size: int = 8,
+    lr: float = 1e-2,
+    clip: float = 1.0,
+    eval_every: int = 100,
+    hidden_channels: Sequence[int] = (8, 16),
+    input_pool: int = 4,
+    cumulative: bool = True,
+    fixed: bool = True,
+    copies: int = 1,
+    paired: bool = True,
+    scene: BenchmarkScene | None = None,
+    device: str | torch.device = "cpu",
+    progress: bool | None = None,
+    description: str | None = None,
+    on_validation: Callable[[dict[str, Any]], None] | None = None,
+) -> TrainedEnsemble:
+    """Train ``methods`` × ``seeds`` on ``data`` as one ensemble: the protocol's rules, in one place.
 
-    A measuring device, not a transform: it draws and applies exactly what the wrapped
-    transform does (its parameter tree is the wrapped one's), timing both steps. The
-    stopwatch counts only calls made in this process (load data with ``num_workers=0``).
+    Member (method, seed) starts from the weights ``ForceRegressor`` draws after
+    ``torch.manual_seed(seed)`` (the same for every method), reads the batches of
+    :func:`~event_transforms.tactile.copies.paired_batches` for ``seed`` (the same originals
+    at the same steps for every method; ``paired=False``: its own :func:`shuffled_batches`)
+    and makes its copies with ``seed``. Every member takes ``steps`` Adam steps with a
+    one-cycle learning rate peaking at ``lr`` and gradients clipped to ``clip`` per member,
+    its output scaled by the training forces' mean and standard deviation; the weights with
+    the lowest MSE on ``data.holdout`` (checked every ``eval_every`` steps) are kept, the
+    final ones without a hold-out set. The defaults are
+    :class:`~event_transforms.tactile.protocol.config.ProtocolConfig`'s.
 
     Args:
-        transform: an event transform, or a callable ``frames -> frames``.
-        stopwatch: where the seconds go; a new one if ``None``.
+        data: the scene's training, hold-out, validation and test sets and noise bank
+            (:class:`~event_transforms.tactile.copies.SceneData`).
+        methods: method names (:func:`~event_transforms.tactile.methods.parse_method`).
+        seeds: one member per method and seed.
+        steps: optimiser steps of every member.
+        batch_size: sequences per member per step.
+        lr: peak learning rate of the one-cycle schedule.
+        clip: gradient-norm limit per member.
+        eval_every: steps between passes over the hold-out sequences (the stopping rule).
+        hidden_channels: ConvLSTM channels per layer of every member.
+        input_pool: the members' first average-pool factor.
+        cumulative: the members also read running event totals.
+        fixed: copies made once before training; ``False``: on the training device per batch.
+        copies: synthetic copies per item for method names without ``x<k>``.
+        paired: the paired batch order across methods.
+        scene: the scene the method names are read for; default ``data.scene``.
+        device: where to train.
+        progress: a progress bar (``None``: when stderr is a terminal).
+        description: the progress label; default the scene and method names.
+        on_validation: called after every validation pass (see :func:`fit_ensemble`).
 
     Example:
-        >>> import event_transforms as et
-        >>> timed = TimedTransform(et.FrameShift(-1))
-        >>> out = timed(torch.ones(3, 2, 4, 5))
-        >>> timed.stopwatch.calls, out[:, 0, 0, 0].tolist()
-        (2, [1.0, 1.0, 0.0])
+        >>> from event_transforms.tactile.copies import SceneData
+        >>> from event_transforms.tactile.scenes import get_scene
+        >>> g = torch.Generator().manual_seed(0)
+        >>> def items(n):
+        ...     frames = torch.poisson(torch.full((n, 12, 2, 8, 8), 0.5), generator=g)
+        ...     return [(f, f.sum((1, 2, 3)) / 20, {"diameter_mm": 15.0}) for f in frames]
+        >>> data = SceneData(get_scene("paper"), items(6), items(3), items(3), holdout=items(2))
+        >>> trained = train(data, ["none", "fs1"], [0, 1], steps=4, batch_size=2, eval_every=2,
+        ...                 hidden_channels=(2,), input_pool=4, progress=False)
+        >>> trained.model.members, trained.train_items, trained.seeds
+        (4, [6, 6, 12, 12], [0, 1, 0, 1])
+        >>> pred, measured = evaluate(trained.model, data.test)
+        >>> tuple(pred.shape), tuple(measured.shape)
+        ((4, 3, 12), (3, 12))
     """
+    from .copies import DeviceAugment, OnlineCopies, build_training_set, paired_batches
+    from .methods import parse_method
+    from .models import ForceRegressor
 
-    def __init__(self, transform: nn.Module, stopwatch: Stopwatch | None = None) -> None:
-        super().__init__()
-        self.transform = as_transform(transform)
-        self.stopwatch = Stopwatch() if stopwatch is None else stopwatch
+    if isinstance(methods, str) or not methods:
+        raise ValueError(f"methods must be a non-empty sequence of method names, got {methods!r}")
+    if isinstance(seeds, (str, bytes)) or not seeds:
+        raise ValueError(f"seeds must be a non-empty sequence of ints, got {seeds!r}")
+    seeds = [check_seed(seed, "seeds") for seed in seeds]
+    scene = data.scene if scene is None else scene
+    parsed = [parse_method(m, copies=copies, scene=scene) for m in methods]
+    offset, scale = force_stats(data.train)
+    augment: list[DeviceAugment | None]
+    models, train_sets, member_seeds, aug_once, augment, batches = [], [], [], [], [], []
+    watch = Stopwatch()
+    for method in parsed:
+        for seed in seeds:
+            torch.manual_seed(seed)
+            models.append(ForceRegressor(hidden_channels=tuple(hidden_channels), input_pool=input_pool,
+                                         cumulative=cumulative))
+            before = watch.seconds
+            transform = method.build(data.noise_bank)
+            if fixed or transform is None:
+                train_sets.append(build_training_set(method, data, seed=seed, fixed=True, stopwatch=watch))
+                augment.append(None)
+            else:  # on the fly: copies are transformed batch by batch on the training device
+                train_sets.append(OnlineCopies(data.train, method.copies))
+                augment.append(DeviceAugment(transform.to(device), seed))
+            aug_once.append(watch.seconds - before)
+            member_seeds.append(int(seed))
+            member_copies = method.copies if transform is not None else 0
+            if paired:
+                batches.append(paired_batches(len(data.train), member_copies, batch_size, steps, seed=seed))
+    scale = max(scale, 1e-6)
+    ensemble = EnsembleForceRegressor.from_models(models).to(device)
+    ensemble.set_force_scaling([offset] * len(models), [scale] * len(models))
+    holdout = data.holdout is not None
+    result = fit_ensemble(
+        ensemble, train_sets, data.holdout if holdout else data.train, steps=steps,
+        batch_size=batch_size, seeds=member_seeds, lr_max=lr, clip=clip, schedule="one-cycle",
+        eval_every=eval_every, select="best" if holdout else "final", device=device, progress=progress,
+        augment=augment, batches=batches if paired else None, on_validation=on_validation,
+        fixed_data=True,  # every training set here is fixed (on-the-fly copies go through augment)
+        description=description or f"{scene.name}: {', '.join(methods)}",
+    )
+    return TrainedEnsemble(
+        model=ensemble, result=result, methods=[parsed[i // len(seeds)] for i in range(len(models))],
+        seeds=member_seeds, train_items=[len(s) for s in train_sets], aug_s_once=aug_once, augment=augment,
+        force_offset=offset, force_scale=scale, holdout=holdout,
+    )
 
-    def sample_params(
-        self,
-        shape: torch.Size,
-        *,
-        generator: torch.Generator | None = None,
-        metadata: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
-    ) -> Params:
-        with self.stopwatch:
-            return self.transform.make_params(shape, generator=generator, metadata=metadata)
 
-    def params_spec(self, shape: torch.Size) -> Spec:
-        # the wrapped transform's tree, as it is (its own gate included)
-        return {**self.transform.params_spec(shape), "apply": Param("bool", optional=True)}
+def evaluate(model: EnsembleForceRegressor, data: Any, batch_size: int = 16) -> tuple[Tensor, Tensor]:
+    """Predicted and measured force ``(M, N, T)`` / ``(N, T)`` (float64, CPU) of every member on ``data``
+    (a Dataset of ``(frames, force, ...)`` items or a ``(frames, force)`` pair), through
+    :func:`~event_transforms.tactile.ensemble.predict_ensemble`."""
+    from .baselines import stack_items
 
-    def output_shape(self, shape: torch.Size) -> torch.Size:
-        return self.transform.output_shape(shape)
-
-    def apply_transform(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
-        with self.stopwatch:
-            return self.transform(frames, params=params)
+    frames, force = stack_items(data)
+    return predict_ensemble(model, frames, batch_size=batch_size).double().cpu(), force.double()
 
 
-def collate(items: Sequence[tuple]) -> tuple[Tensor, Tensor, list]:
-    """Stack ``(frames, force, meta)`` items into ``(B, T, 2, H, W)``, ``(B, T)``, metas."""
-    frames = torch.stack([torch.as_tensor(item[0]) for item in items])
-    force = torch.stack([torch.as_tensor(item[1]) for item in items]).float()
-    metas = [item[2] if len(item) > 2 else {} for item in items]
-    return frames, force, metas
-
-
-def mse(pred: Tensor, target: Tensor) -> float:
-    """Mean squared error over every frame of every sequence, in float64."""
-    return float((pred.double() - target.double()).square().mean())
-
-
-def phase_mse(pred: Tensor, target: Tensor, *, edge: int = 5) -> dict[str, float]:
-    """MSE per grasp phase: ``grasp`` (first ``edge`` frames), ``hold``, ``release`` (last).
-
-    Args:
-        pred: predicted force ``(N, T)``.
-        target: measured force ``(N, T)``.
-        edge: frames in the grasp and release phases; needs ``T > 2 * edge``.
+def force_stats(data: SizedDataset) -> tuple[float, float]:
+    """Mean and standard deviation (1.0 for a single value) of every force of ``data``'s items.
 
     Example:
-        >>> target = torch.zeros(1, 12)
-        >>> pred = torch.tensor([[1.0] * 5 + [0.0] * 2 + [2.0] * 5])
-        >>> phase_mse(pred, target)
-        {'grasp': 1.0, 'hold': 0.0, 'release': 4.0, 'all': 2.0833333333333335}
+        >>> force_stats([(None, torch.tensor([1.0, 3.0])), (None, torch.tensor([5.0, 7.0]))])
+        (4.0, 2.581988897471611)
     """
-    steps = pred.shape[-1]
-    if steps <= 2 * edge:
-        raise ValueError(f"phase_mse needs more than 2 * edge = {2 * edge} frames, got {steps}")
-    err = (pred.double() - target.double()).square()
-    return {
-        "grasp": float(err[..., :edge].mean()),
-        "hold": float(err[..., edge:-edge].mean()),
-        "release": float(err[..., -edge:].mean()),
-        "all": float(err.mean()),
-    }
+    forces = torch.stack([torch.as_tensor(data[i][1]).double() for i in range(len(data))])
+    return float(forces.mean()), float(forces.std()) if forces.numel() > 1 else 1.0
 
 
 # ----------------------------------------------------------------------------- the optimiser loop
@@ -589,180 +652,120 @@ def fit_ensemble(
     )
 
 
-# ----------------------------------------------------------------------------- the entry point
+# ----------------------------------------------------------------------------- shared with the protocol
 
 
-def force_stats(data: SizedDataset) -> tuple[float, float]:
-    """Mean and standard deviation (1.0 for a single value) of every force of ``data``'s items.
+class Stopwatch:
+    """Accumulates seconds spent in timed sections (``with stopwatch: ...``).
 
     Example:
-        >>> force_stats([(None, torch.tensor([1.0, 3.0])), (None, torch.tensor([5.0, 7.0]))])
-        (4.0, 2.581988897471611)
-    """
-    forces = torch.stack([torch.as_tensor(data[i][1]).double() for i in range(len(data))])
-    return float(forces.mean()), float(forces.std()) if forces.numel() > 1 else 1.0
-
-
-def evaluate(model: EnsembleForceRegressor, data: Any, batch_size: int = 16) -> tuple[Tensor, Tensor]:
-    """Predicted and measured force ``(M, N, T)`` / ``(N, T)`` (float64, CPU) of every member on ``data``
-    (a Dataset of ``(frames, force, ...)`` items or a ``(frames, force)`` pair), through
-    :func:`~event_transforms.tactile.ensemble.predict_ensemble`."""
-    from .baselines import stack_items
-
-    frames, force = stack_items(data)
-    return predict_ensemble(model, frames, batch_size=batch_size).double().cpu(), force.double()
-
-
-@dataclass
-class TrainedEnsemble:
-    """What :func:`train` made. Lists run over the members, method-major (member
-    ``i`` is method ``i // len(seeds)``, seed ``seeds[i % len(seeds)]``).
-
-    Attributes:
-        model: the ensemble, holding the kept weights (on the training device).
-        result: the trainer's record (losses, hold-out history, kept step, times).
-        methods: each member's parsed method.
-        seeds: each member's seed.
-        train_items: each member's training-set size (originals and copies).
-        aug_s_once: seconds spent making each member's fixed copies before training.
-        augment: each member's on-device augmentation (its ``stopwatch`` holds the time), or ``None``.
-        force_offset: the training forces' mean (every member's output offset).
-        force_scale: their standard deviation (at least 1e-6; every member's output scale).
-        holdout: the stopping rule had hold-out data (else the final weights were kept).
+        >>> watch = Stopwatch()
+        >>> with watch:
+        ...     _ = sum(range(10))
+        >>> watch.calls, watch.seconds >= 0
+        (1, True)
     """
 
-    model: EnsembleForceRegressor
-    result: EnsembleResult
-    methods: list[Method]
-    seeds: list[int]
-    train_items: list[int]
-    aug_s_once: list[float]
-    augment: list[DeviceAugment | None]
-    force_offset: float
-    force_scale: float
-    holdout: bool
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self.calls = 0
+        self._start: float | None = None
+
+    def __enter__(self) -> Stopwatch:
+        self._start = time.perf_counter()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._start is None:
+            raise RuntimeError("Stopwatch exited without being entered")
+        self.seconds += time.perf_counter() - self._start
+        self.calls += 1
+        self._start = None
+
+    def __repr__(self) -> str:
+        return f"Stopwatch(seconds={self.seconds:.6f}, calls={self.calls})"
 
 
-def train(
-    data: SceneData,
-    methods: Sequence[str],
-    seeds: Sequence[int],
-    *,
-    steps: int = 1500,
-    batch_size: int = 8,
-    lr: float = 1e-2,
-    clip: float = 1.0,
-    eval_every: int = 100,
-    hidden_channels: Sequence[int] = (8, 16),
-    input_pool: int = 4,
-    cumulative: bool = True,
-    fixed: bool = True,
-    copies: int = 1,
-    paired: bool = True,
-    scene: BenchmarkScene | None = None,
-    device: str | torch.device = "cpu",
-    progress: bool | None = None,
-    description: str | None = None,
-    on_validation: Callable[[dict[str, Any]], None] | None = None,
-) -> TrainedEnsemble:
-    """Train ``methods`` × ``seeds`` on ``data`` as one ensemble: the protocol's rules, in one place.
+class TimedTransform(EventTransform):
+    """Wrap a transform so the time spent inside it is added to ``stopwatch``.
 
-    Member (method, seed) starts from the weights ``ForceRegressor`` draws after
-    ``torch.manual_seed(seed)`` (the same for every method), reads the batches of
-    :func:`~event_transforms.tactile.copies.paired_batches` for ``seed`` (the same originals
-    at the same steps for every method; ``paired=False``: its own :func:`shuffled_batches`)
-    and makes its copies with ``seed``. Every member takes ``steps`` Adam steps with a
-    one-cycle learning rate peaking at ``lr`` and gradients clipped to ``clip`` per member,
-    its output scaled by the training forces' mean and standard deviation; the weights with
-    the lowest MSE on ``data.holdout`` (checked every ``eval_every`` steps) are kept, the
-    final ones without a hold-out set. The defaults are
-    :class:`~event_transforms.tactile.protocol.config.ProtocolConfig`'s.
+    A measuring device, not a transform: it draws and applies exactly what the wrapped
+    transform does (its parameter tree is the wrapped one's), timing both steps. The
+    stopwatch counts only calls made in this process (load data with ``num_workers=0``).
 
     Args:
-        data: the scene's training, hold-out, validation and test sets and noise bank
-            (:class:`~event_transforms.tactile.copies.SceneData`).
-        methods: method names (:func:`~event_transforms.tactile.methods.parse_method`).
-        seeds: one member per method and seed.
-        steps: optimiser steps of every member.
-        batch_size: sequences per member per step.
-        lr: peak learning rate of the one-cycle schedule.
-        clip: gradient-norm limit per member.
-        eval_every: steps between passes over the hold-out sequences (the stopping rule).
-        hidden_channels: ConvLSTM channels per layer of every member.
-        input_pool: the members' first average-pool factor.
-        cumulative: the members also read running event totals.
-        fixed: copies made once before training; ``False``: on the training device per batch.
-        copies: synthetic copies per item for method names without ``x<k>``.
-        paired: the paired batch order across methods.
-        scene: the scene the method names are read for; default ``data.scene``.
-        device: where to train.
-        progress: a progress bar (``None``: when stderr is a terminal).
-        description: the progress label; default the scene and method names.
-        on_validation: called after every validation pass (see :func:`fit_ensemble`).
+        transform: an event transform, or a callable ``frames -> frames``.
+        stopwatch: where the seconds go; a new one if ``None``.
 
     Example:
-        >>> from event_transforms.tactile.copies import SceneData
-        >>> from event_transforms.tactile.scenes import get_scene
-        >>> g = torch.Generator().manual_seed(0)
-        >>> def items(n):
-        ...     frames = torch.poisson(torch.full((n, 12, 2, 8, 8), 0.5), generator=g)
-        ...     return [(f, f.sum((1, 2, 3)) / 20, {"diameter_mm": 15.0}) for f in frames]
-        >>> data = SceneData(get_scene("paper"), items(6), items(3), items(3), holdout=items(2))
-        >>> trained = train(data, ["none", "fs1"], [0, 1], steps=4, batch_size=2, eval_every=2,
-        ...                 hidden_channels=(2,), input_pool=4, progress=False)
-        >>> trained.model.members, trained.train_items, trained.seeds
-        (4, [6, 6, 12, 12], [0, 1, 0, 1])
-        >>> pred, measured = evaluate(trained.model, data.test)
-        >>> tuple(pred.shape), tuple(measured.shape)
-        ((4, 3, 12), (3, 12))
+        >>> import event_transforms as et
+        >>> timed = TimedTransform(et.FrameShift(-1))
+        >>> out = timed(torch.ones(3, 2, 4, 5))
+        >>> timed.stopwatch.calls, out[:, 0, 0, 0].tolist()
+        (2, [1.0, 1.0, 0.0])
     """
-    from .copies import DeviceAugment, OnlineCopies, build_training_set, paired_batches
-    from .methods import parse_method
-    from .models import ForceRegressor
 
-    if isinstance(methods, str) or not methods:
-        raise ValueError(f"methods must be a non-empty sequence of method names, got {methods!r}")
-    if isinstance(seeds, (str, bytes)) or not seeds:
-        raise ValueError(f"seeds must be a non-empty sequence of ints, got {seeds!r}")
-    seeds = [check_seed(seed, "seeds") for seed in seeds]
-    scene = data.scene if scene is None else scene
-    parsed = [parse_method(m, copies=copies, scene=scene) for m in methods]
-    offset, scale = force_stats(data.train)
-    augment: list[DeviceAugment | None]
-    models, train_sets, member_seeds, aug_once, augment, batches = [], [], [], [], [], []
-    watch = Stopwatch()
-    for method in parsed:
-        for seed in seeds:
-            torch.manual_seed(seed)
-            models.append(ForceRegressor(hidden_channels=tuple(hidden_channels), input_pool=input_pool,
-                                         cumulative=cumulative))
-            before = watch.seconds
-            transform = method.build(data.noise_bank)
-            if fixed or transform is None:
-                train_sets.append(build_training_set(method, data, seed=seed, fixed=True, stopwatch=watch))
-                augment.append(None)
-            else:  # on the fly: copies are transformed batch by batch on the training device
-                train_sets.append(OnlineCopies(data.train, method.copies))
-                augment.append(DeviceAugment(transform.to(device), seed))
-            aug_once.append(watch.seconds - before)
-            member_seeds.append(int(seed))
-            member_copies = method.copies if transform is not None else 0
-            if paired:
-                batches.append(paired_batches(len(data.train), member_copies, batch_size, steps, seed=seed))
-    scale = max(scale, 1e-6)
-    ensemble = EnsembleForceRegressor.from_models(models).to(device)
-    ensemble.set_force_scaling([offset] * len(models), [scale] * len(models))
-    holdout = data.holdout is not None
-    result = fit_ensemble(
-        ensemble, train_sets, data.holdout if holdout else data.train, steps=steps,
-        batch_size=batch_size, seeds=member_seeds, lr_max=lr, clip=clip, schedule="one-cycle",
-        eval_every=eval_every, select="best" if holdout else "final", device=device, progress=progress,
-        augment=augment, batches=batches if paired else None, on_validation=on_validation,
-        fixed_data=True,  # every training set here is fixed (on-the-fly copies go through augment)
-        description=description or f"{scene.name}: {', '.join(methods)}",
-    )
-    return TrainedEnsemble(
-        model=ensemble, result=result, methods=[parsed[i // len(seeds)] for i in range(len(models))],
-        seeds=member_seeds, train_items=[len(s) for s in train_sets], aug_s_once=aug_once, augment=augment,
-        force_offset=offset, force_scale=scale, holdout=holdout,
-    )
+    def __init__(self, transform: nn.Module, stopwatch: Stopwatch | None = None) -> None:
+        super().__init__()
+        self.transform = as_transform(transform)
+        self.stopwatch = Stopwatch() if stopwatch is None else stopwatch
+
+    def sample_params(
+        self,
+        shape: torch.Size,
+        *,
+        generator: torch.Generator | None = None,
+        metadata: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
+    ) -> Params:
+        with self.stopwatch:
+            return self.transform.make_params(shape, generator=generator, metadata=metadata)
+
+    def params_spec(self, shape: torch.Size) -> Spec:
+        # the wrapped transform's tree, as it is (its own gate included)
+        return {**self.transform.params_spec(shape), "apply": Param("bool", optional=True)}
+
+    def output_shape(self, shape: torch.Size) -> torch.Size:
+        return self.transform.output_shape(shape)
+
+    def apply_transform(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
+        with self.stopwatch:
+            return self.transform(frames, params=params)
+
+
+def collate(items: Sequence[tuple]) -> tuple[Tensor, Tensor, list]:
+    """Stack ``(frames, force, meta)`` items into ``(B, T, 2, H, W)``, ``(B, T)``, metas."""
+    frames = torch.stack([torch.as_tensor(item[0]) for item in items])
+    force = torch.stack([torch.as_tensor(item[1]) for item in items]).float()
+    metas = [item[2] if len(item) > 2 else {} for item in items]
+    return frames, force, metas
+
+
+def mse(pred: Tensor, target: Tensor) -> float:
+    """Mean squared error over every frame of every sequence, in float64."""
+    return float((pred.double() - target.double()).square().mean())
+
+
+def phase_mse(pred: Tensor, target: Tensor, *, edge: int = 5) -> dict[str, float]:
+    """MSE per grasp phase: ``grasp`` (first ``edge`` frames), ``hold``, ``release`` (last).
+
+    Args:
+        pred: predicted force ``(N, T)``.
+        target: measured force ``(N, T)``.
+        edge: frames in the grasp and release phases; needs ``T > 2 * edge``.
+
+    Example:
+        >>> target = torch.zeros(1, 12)
+        >>> pred = torch.tensor([[1.0] * 5 + [0.0] * 2 + [2.0] * 5])
+        >>> phase_mse(pred, target)
+        {'grasp': 1.0, 'hold': 0.0, 'release': 4.0, 'all': 2.0833333333333335}
+    """
+    steps = pred.shape[-1]
+    if steps <= 2 * edge:
+        raise ValueError(f"phase_mse needs more than 2 * edge = {2 * edge} frames, got {steps}")
+    err = (pred.double() - target.double()).square()
+    return {
+        "grasp": float(err[..., :edge].mean()),
+        "hold": float(err[..., edge:-edge].mean()),
+        "release": float(err[..., -edge:].mean()),
+        "all": float(err.mean()),
+    }
