@@ -154,7 +154,7 @@ class DeviceAugment:
     """Transform the copies of a batch on its device, per sample, with a seeded CPU generator.
 
     Called as ``(frames (B, T, 2, H, W), metas) -> frames`` by
-    :func:`~event_transforms.tactile.ensemble.fit_ensemble`: the rows whose metadata say
+    :func:`~event_transforms.tactile.training.fit_ensemble`: the rows whose metadata say
     ``copy >= 1`` go through ``transform`` (its parameters drawn from a CPU generator seeded
     with ``seed``, so a run is reproducible and the device never waits for a draw), the
     originals pass unchanged.
@@ -186,7 +186,7 @@ class DeviceAugment:
 def paired_batches(items: int, copies: int, batch_size: int, steps: int, *, seed: int) -> Tensor:
     """Indices ``(steps, batch_size)`` into ``items`` originals followed by ``copies`` copies of each.
 
-    The originals' order is :func:`~event_transforms.tactile.ensemble.shuffled_batches` of
+    The originals' order is :func:`~event_transforms.tactile.training.shuffled_batches` of
     ``items`` with ``seed``, the same for every method of that seed. Each slot then holds the
     original or one of its copies: visit ``v`` of item ``i`` takes variant
     ``(v + r_i) mod (1 + copies)`` (variant 0 is the original, ``c`` the copy at index
@@ -201,7 +201,7 @@ def paired_batches(items: int, copies: int, batch_size: int, steps: int, *, seed
         >>> torch.equal(doubled % 4, none), sorted(set((doubled // 4).flatten().tolist()))
         (True, [0, 1])
     """
-    from .ensemble import shuffled_batches
+    from .training import shuffled_batches
 
     if isinstance(copies, bool) or not isinstance(copies, int) or copies < 0:
         raise ValueError(f"copies must be a non-negative int, got {copies!r}")
