@@ -29,7 +29,7 @@ from event_transforms.tactile.protocol import (
 from event_transforms.tactile.runs import folder_name
 from event_transforms.tactile.scenes import SCENES, get_scene
 from event_transforms.tactile.stats import holm, paired_t
-from event_transforms.tactile.training import Stopwatch
+from event_transforms.tactile.stopwatch import Stopwatch
 from tests.test_training import FakeGrasps
 
 

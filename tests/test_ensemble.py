@@ -15,7 +15,7 @@ from event_transforms.tactile.ensemble import (
     shuffled_batches,
 )
 from event_transforms.tactile.models import ForceRegressor
-from event_transforms.tactile.training import Stopwatch
+from event_transforms.tactile.stopwatch import Stopwatch
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # see conftest.py
 

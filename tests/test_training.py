@@ -17,14 +17,8 @@ from torch.utils.data import Dataset
 
 import event_transforms as et
 
-from event_transforms.tactile.training import (
-    Stopwatch,
-    TimedTransform,
-    collate,
-    mse,
-    phase_mse,
-    write_json_atomic,
-)
+from event_transforms.tactile.training import collate, mse, phase_mse, write_json_atomic
+from event_transforms.tactile.stopwatch import Stopwatch, TimedTransform
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # see conftest.py

@@ -28,18 +28,18 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import torch
-from torch import Tensor, nn
+from torch import Tensor
 
 from .._validation import check_positive, check_seed
-from ..events.batch import EventBatch
-from ..transforms.base import EventTransform, Param, Params, Spec, as_transform
 from ._files import write_json_atomic
 from .ensemble import EnsembleForceRegressor, predict_ensemble
+from .copies import shuffled_batches
+from .stopwatch import Stopwatch, TimedTransform
 
 if TYPE_CHECKING:
     from ..data import SizedDataset
@@ -246,27 +246,6 @@ def force_stats(data: SizedDataset) -> tuple[float, float]:
 
 
 # ----------------------------------------------------------------------------- the optimiser loop
-
-
-def shuffled_batches(length: int, batch_size: int, steps: int, *, seed: int) -> Tensor:
-    """Indices ``(steps, batch_size)`` of ``steps`` batches drawn from ``length`` items.
-
-    The items are visited in passes; each pass is a fresh ``torch.randperm`` from one
-    ``torch.Generator`` seeded with ``seed``, and batches run on across the end of a pass
-    (no item is dropped, no batch is short), so a data set with copies gives more distinct
-    data to the same number of steps.
-
-    Example:
-        >>> batches = shuffled_batches(5, 2, 4, seed=0)
-        >>> tuple(batches.shape), sorted(batches.flatten()[:5].tolist())
-        ((4, 2), [0, 1, 2, 3, 4])
-    """
-    for name, value in (("length", length), ("batch_size", batch_size), ("steps", steps)):
-        check_positive(value, name, integer=True)
-    generator = torch.Generator().manual_seed(seed)
-    needed = steps * batch_size
-    passes = [torch.randperm(length, generator=generator) for _ in range(-(-needed // length))]
-    return torch.cat(passes)[:needed].view(steps, batch_size)
 
 
 def clip_grad_norm_per_member_(parameters: Sequence[Tensor], max_norm: float) -> Tensor:
@@ -653,83 +632,6 @@ def fit_ensemble(
 
 
 # ----------------------------------------------------------------------------- shared with the protocol
-
-
-class Stopwatch:
-    """Accumulates seconds spent in timed sections (``with stopwatch: ...``).
-
-    Example:
-        >>> watch = Stopwatch()
-        >>> with watch:
-        ...     _ = sum(range(10))
-        >>> watch.calls, watch.seconds >= 0
-        (1, True)
-    """
-
-    def __init__(self) -> None:
-        self.seconds = 0.0
-        self.calls = 0
-        self._start: float | None = None
-
-    def __enter__(self) -> Stopwatch:
-        self._start = time.perf_counter()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self._start is None:
-            raise RuntimeError("Stopwatch exited without being entered")
-        self.seconds += time.perf_counter() - self._start
-        self.calls += 1
-        self._start = None
-
-    def __repr__(self) -> str:
-        return f"Stopwatch(seconds={self.seconds:.6f}, calls={self.calls})"
-
-
-class TimedTransform(EventTransform):
-    """Wrap a transform so the time spent inside it is added to ``stopwatch``.
-
-    A measuring device, not a transform: it draws and applies exactly what the wrapped
-    transform does (its parameter tree is the wrapped one's), timing both steps. The
-    stopwatch counts only calls made in this process (load data with ``num_workers=0``).
-
-    Args:
-        transform: an event transform, or a callable ``frames -> frames``.
-        stopwatch: where the seconds go; a new one if ``None``.
-
-    Example:
-        >>> import event_transforms as et
-        >>> timed = TimedTransform(et.FrameShift(-1))
-        >>> out = timed(torch.ones(3, 2, 4, 5))
-        >>> timed.stopwatch.calls, out[:, 0, 0, 0].tolist()
-        (2, [1.0, 1.0, 0.0])
-    """
-
-    def __init__(self, transform: nn.Module, stopwatch: Stopwatch | None = None) -> None:
-        super().__init__()
-        self.transform = as_transform(transform)
-        self.stopwatch = Stopwatch() if stopwatch is None else stopwatch
-
-    def sample_params(
-        self,
-        shape: torch.Size,
-        *,
-        generator: torch.Generator | None = None,
-        metadata: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
-    ) -> Params:
-        with self.stopwatch:
-            return self.transform.make_params(shape, generator=generator, metadata=metadata)
-
-    def params_spec(self, shape: torch.Size) -> Spec:
-        # the wrapped transform's tree, as it is (its own gate included)
-        return {**self.transform.params_spec(shape), "apply": Param("bool", optional=True)}
-
-    def output_shape(self, shape: torch.Size) -> torch.Size:
-        return self.transform.output_shape(shape)
-
-    def apply_transform(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
-        with self.stopwatch:
-            return self.transform(frames, params=params)
 
 
 def collate(items: Sequence[tuple]) -> tuple[Tensor, Tensor, list]:
