@@ -53,7 +53,7 @@ def replace_summary_table(page: str, printed: str) -> str:
     Example:
         >>> head = "| " + " | ".join(SUMMARY_COLUMNS) + " |\\n|---|\\n"
         >>> replace_summary_table("intro\\n" + head + "| old |\\nafter\\n", "x\\n" + head + "| new |\\n")
-        'intro\\n| scene | method | test MSE | Δ vs none [family 95 % CI] | unpaired CI | r | family p: t / Wilcoxon | Δ vs matched [family 95 % CI] | budget check |\\n|---|\\n| new |\\nafter\\n'
+        'intro\\n| scene | method | test MSE | Δ vs none [Bonferroni 95 % CI] | r | Bonferroni p: t / Wilcoxon | Δ vs matched [Bonferroni 95 % CI] | budget check (headline) |\\n|---|\\n| new |\\nafter\\n'
     """
     new_lines, old_lines = printed.splitlines(), page.splitlines()
     new, old = _table_span(new_lines), _table_span(old_lines)

@@ -235,12 +235,17 @@ def _check_shape(saved: dict, scenes: list[str], methods: list[str], seeds: list
                 assert set(delta) >= {"mean", "ci95", "p_value", "p_holm", "t_p_holm", "significant", "ci95_welch",
                                       "correlation"}
                 assert len(delta["ci95"]) == 2
-        if scene["gaps"] and "none" in methods and len(methods) > 1 and saved["config"].get("budget_check", True):
+        if (scene["gaps"] and "none" in methods and any(m in methods for m in get_scene(name).matched_methods)
+                and saved["config"].get("budget_check", True)):
             check = scene["budget_check"]
-            assert set(check) >= {"method", "steps", "steps_2n", "delta", "delta_2n", "ci95_halfwidth", "robust"}
+            assert set(check) >= {"method", "steps", "steps_2n", "delta", "delta_2n", "ci_family_halfwidth", "robust"}
             assert check["steps_2n"] == 2 * check["steps"] and check["method"] in methods
+            # the pre-declared headline: the scene's first matched method the run trains, never the largest |Δ|
+            assert check["method"] == next(m for m in get_scene(name).matched_methods if m in methods)
+            family = scene["methods"][check["method"]]["delta_vs_none"]["ci_family"]
+            assert check["ci_family_halfwidth"] == pytest.approx((family[1] - family[0]) / 2)
             assert check["robust"] == ((check["delta"] > 0) == (check["delta_2n"] > 0)
-                                       and abs(check["delta"] - check["delta_2n"]) < check["ci95_halfwidth"])
+                                       and abs(check["delta"] - check["delta_2n"]) < check["ci_family_halfwidth"])
         else:
             assert "budget_check" not in scene
 
@@ -303,7 +308,8 @@ class TestRunProtocol:
         report = (out / "results.md").read_text()
         assert "### control" in report and "*cumulative-count-ridge* (baseline)" in report
         assert "6 + 6 split" in report and f"commit `{saved['commit']}`" in report
-        assert "budget check: " in report and "unpaired CI" in report and "converged" not in report
+        assert "budget check of the headline: " in report and "unpaired 95 % CI (unadjusted)" in report
+        assert "best row: " in report and "converged" not in report
 
     def test_summary_table_repeats_the_scene_tables(self, clean):
         from tests.test_readme_table import markdown_tables, summary_table

@@ -66,8 +66,9 @@ def work_units(
 def budget_scenes(
     scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], data: dict[str, SceneData] | None = None
 ) -> list[str]:
-    """The scenes whose verdicts get a budget check: a gap, ``none`` and another method."""
-    return [s for s in scenes if resolve_scene(s, data).gaps and "none" in chosen[s] and len(chosen[s]) > 1]
+    """The scenes whose headline gets a budget check: a gap, ``none`` and a matched method."""
+    return [s for s in scenes if resolve_scene(s, data).gaps and "none" in chosen[s]
+            and any(m in chosen[s] and m != "none" for m in resolve_scene(s, data).matched_methods)]
 
 
 def choose_methods(

@@ -174,31 +174,25 @@ def _per_method(units: list[Unit], results: dict[str, Any], scene: str, names: S
     return collect({u.slug: u.scene for u in units}, results, scene, names)
 
 
-def _budget_choices(units: list[Unit], results: dict[str, Any], scenes: list[str],
-                    chosen: Mapping[str, Sequence[str]]) -> dict[str, str]:
-    """Per checked scene, the method with the largest |Δ test MSE| vs ``none``."""
-    choices = {}
-    for scene in scenes:
-        per_method = _per_method(units, results, scene, chosen[scene])
-        methods = {m: {"seeds": [r["seed"] for r in rs], "test_mse": [r["test_mse"] for r in rs]}
-                   for m, rs in per_method.items()}
-        deltas = deltas_vs_none(methods, "test_mse")
-        if deltas:
-            choices[scene] = max(deltas, key=lambda m: abs(deltas[m]["mean"]))
-    return choices
+def headline(scene: str, chosen: Mapping[str, Sequence[str]], data: Mapping[str, SceneData]) -> str | None:
+    """The scene's pre-declared headline: its first matched method that the run trains (``None``
+    without one). Declared by the scene before any result, so the budget check never re-checks
+    the largest |Δ| (which regresses toward the mean at twice the steps)."""
+    return next((m for m in data[scene].scene.matched_methods if m in chosen[scene] and m != "none"), None)
 
 
 def _budget_check(method: str, steps: int, delta: dict[str, Any], runs_2n: dict[str, list]) -> dict[str, Any]:
-    """Δ at ``steps`` and at twice the steps; robust when the sign agrees and the change is
-    smaller than the CI half-width at ``steps``."""
+    """The headline's Δ at ``steps`` and at twice the steps; robust when the sign agrees and the
+    change is smaller than the half-width of its Bonferroni interval at ``steps`` (the interval
+    the table shows)."""
     none = {r["seed"]: r["test_mse"] for r in runs_2n["none"]}
     pairs = [(none[r["seed"]], r["test_mse"]) for r in runs_2n[method] if r["seed"] in none]
     test = paired_t([a for a, _ in pairs], [b for _, b in pairs])
-    ci = delta.get("ci95")
+    ci = delta.get("ci_family") or delta.get("ci95")
     half = (ci[1] - ci[0]) / 2 if ci else math.nan
     robust = bool(ci) and (delta["mean"] > 0) == (test.mean > 0) and abs(delta["mean"] - test.mean) < half
     return {"method": method, "steps": steps, "steps_2n": 2 * steps, "delta": delta["mean"],
-            "delta_2n": test.mean, "ci95_2n": list(test.ci) if test.ci else None, "ci95_halfwidth": half,
+            "delta_2n": test.mean, "ci95_2n": list(test.ci) if test.ci else None, "ci_family_halfwidth": half,
             "robust": robust}
 
 
@@ -268,11 +262,12 @@ def run_protocol(
     ``out/runs/<settings hash>/`` so an interrupted run resumes; rank 0 gathers everything
     and writes the results.
 
-    With ``budget_check``, every scene with a gap then trains ``none`` and the method with
-    the largest |Δ| again at twice the steps (its units kept under their own settings hash)
-    and records ``scenes.NAME.budget_check = {"method", "steps", "steps_2n", "delta",
-    "delta_2n", "ci95_halfwidth", "robust"}``: robust when Δ keeps its sign and moves by less
-    than the CI half-width.
+    With ``budget_check``, every scene with a gap then trains ``none`` and its pre-declared
+    headline (the first matched method the run trains, :func:`headline`) again at twice the
+    steps (its units kept under their own settings hash) and records
+    ``scenes.NAME.budget_check = {"method", "steps", "steps_2n", "delta", "delta_2n",
+    "ci_family_halfwidth", "robust"}``: robust when Δ keeps its sign and moves by less than the
+    half-width of its Bonferroni interval.
 
     With ``measure_time``, rank 0 then measures the time columns: one model trained alone
     for ``config.steps`` steps, three times (:func:`single_model_wall`), and per method the
@@ -337,14 +332,9 @@ def run_protocol(
     options = (root, device, threads, log, progress, given)
     results = _runwork_units(units, seeds, config, out, jobs, options, "unit", plan["budget_member_steps"], data_keys)
 
-    # The budget check: none and the method with the largest |Δ|, at twice the steps.
+    # The budget check: none and the scene's pre-declared headline (its matched method), at twice the steps.
     checked = plan["budget_check_scenes"]
-    choices: dict[str, str] = {}
-    if checked:
-        if results is not None:
-            choices = _budget_choices(units, results, checked, chosen)
-        if distributed.current_group() is not None:
-            choices = distributed.broadcast_from_rank0(choices)
+    choices = {s: m for s in checked if (m := headline(s, chosen, data)) is not None}
     double = ProtocolConfig(**{**asdict(config), "steps": 2 * config.steps})
     budget_methods = {s: ("none", m) for s, m in choices.items()}
     budget_units = work_units(list(choices), budget_methods, group, given, plan_sharing(budget_methods, data))
