@@ -38,7 +38,7 @@ def table(*rows: tuple[str, str, str, str]) -> str:
     """A summary table with (scene, method, Δ vs none cell, Δ vs matched cell) rows."""
     lines = ["| " + " | ".join(SUMMARY_COLUMNS) + " |", "|" + "---|" * len(SUMMARY_COLUMNS)]
     for scene, method, vs_none, vs_matched in rows:
-        lines.append(f"| {scene} | {method} | 1.00 ± 0.10 | {vs_none} | — | — | — | {vs_matched} | — |")
+        lines.append(f"| {scene} | {method} | 1.00 ± 0.10 | {vs_none} | — | — | {vs_matched} | — |")
     return "intro\n\n" + "\n".join(lines) + "\n\nafter\n"
 
 

@@ -19,6 +19,13 @@ __all__ = ["format_summary_table", "format_scene_table", "format_budget_check", 
            "format_findings", "format_environment",
            "format_report", "Verdict", "summary_verdicts", "compare_verdicts", "format_verdict_comparison"]
 
+#: The summary table's columns before the statistics standard was named (runs committed then):
+#: the same Bonferroni intervals called "family", and an unadjusted unpaired interval beside them.
+LEGACY_SUMMARY_COLUMNS = ("scene", "method", "test MSE", "Δ vs none [family 95 % CI]", "unpaired CI", "r",
+                          "family p: t / Wilcoxon", "Δ vs matched [family 95 % CI]", "budget check")
+_LEGACY_NAMES = {"Δ vs none [family 95 % CI]": "Δ vs none [Bonferroni 95 % CI]",
+                 "Δ vs matched [family 95 % CI]": "Δ vs matched [Bonferroni 95 % CI]"}
+
 #: The columns of the summary table (the README's table), in order.
 #: One family-wise standard throughout: Bonferroni within each scene's family (its methods' Δ vs
 #: none), for every interval and p-value the summary shows; the unadjusted unpaired interval is
@@ -340,18 +347,19 @@ def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
         ValueError: ``text`` holds no summary table, or a Δ cell cannot be read.
 
     Example:
-        >>> table = "\\n".join(["| " + " | ".join(SUMMARY_COLUMNS) + " |", "|---" * 9 + "|",
-        ...     "| paper | stretch | 1.07 | **-0.92 [-1.24, -0.60]** | — | — | — | — | — |"])
+        >>> table = "\\n".join(["| " + " | ".join(SUMMARY_COLUMNS) + " |", "|---" * 8 + "|",
+        ...     "| paper | stretch | 1.07 | **-0.92 [-1.24, -0.60]** | — | — | — | — |"])
         >>> summary_verdicts(table)
         {('paper', 'stretch', 'vs none'): Verdict(mean=-0.92, significant=True)}
     """
     rows: list[list[str]] | None = None
+    columns = SUMMARY_COLUMNS
     for line in text.splitlines() + [""]:
         line = line.strip()
         if line.startswith("|") and line.endswith("|"):
             cells = [cell.strip() for cell in line[1:-1].split("|")]
-            if rows is None and tuple(cells) == SUMMARY_COLUMNS:
-                rows = []
+            if rows is None and tuple(cells) in (SUMMARY_COLUMNS, LEGACY_SUMMARY_COLUMNS):
+                rows, columns = [], tuple(cells)
             elif rows is not None and not all(re.fullmatch(r":?-{3,}:?", c) for c in cells):
                 rows.append(cells)
         elif rows is not None:
@@ -360,9 +368,11 @@ def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
         raise ValueError("text holds no summary table (a table whose header is SUMMARY_COLUMNS)")
     verdicts: dict[tuple[str, str, str], Verdict] = {}
     for cells in rows:
-        if len(cells) != len(SUMMARY_COLUMNS):
-            raise ValueError(f"summary table row has {len(cells)} cells, expected {len(SUMMARY_COLUMNS)}: {cells!r}")
-        row = dict(zip(SUMMARY_COLUMNS, cells))
+        if len(cells) != len(columns):
+            raise ValueError(f"summary table row has {len(cells)} cells, expected {len(columns)}: {cells!r}")
+        row = dict(zip(columns, cells))
+        if columns == LEGACY_SUMMARY_COLUMNS:  # the same intervals under their former names
+            row = {_LEGACY_NAMES.get(k, k): v for k, v in row.items()}
         method = row["method"].removesuffix(" (matched)")
         for column, short in VERDICT_COLUMNS.items():
             cell = row[column]
