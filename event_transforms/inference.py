@@ -48,6 +48,12 @@ while a 20 ms delay is found in most blocks; orientation, background-rate and ho
 gaps of the sizes in RESULTS.md are found reliably, and no gap was declared where none
 existed.
 
+**Small samples.** A test with fewer than 2 windows on a side, or whose standard error is 0
+(every value alike) with fewer than ``MIN_WINDOWS`` windows on a side, cannot declare
+anything: its verdict is "not resolvable" with what would resolve it, never "gap" (a zero
+standard error made any difference infinitely significant) nor "no gap". Below ``MIN_WINDOWS`` (8) windows on a side, :func:`infer_scene` warns
+(:class:`SmallSampleWarning`): the standard errors are then themselves unreliable.
+
 **Size is not identifiable from unlabeled frames.** The strip's half-width grows as √(F·D)
 (Hertz line contact): without force labels, a bolt of another size hides in the force
 distribution (with forces over 1–24 N, a 12 + 18 mm mixture and a 15 mm set differ mostly in
@@ -58,9 +64,10 @@ the variance of log-width, by a few per cent). The user knows the bolt sizes; gi
 
 from __future__ import annotations
 
-__all__ = ["infer_scene", "sequence_statistics", "FACTOR_TESTS"]
+__all__ = ["infer_scene", "sequence_statistics", "FACTOR_TESTS", "MIN_WINDOWS", "SmallSampleWarning"]
 
 import math
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -83,6 +90,23 @@ FACTOR_TESTS: dict[str, tuple[str, float]] = {
 _UNITS = {"orientation": "°", "timing": " ms", "noise": " (log background rate)"}
 #: A hot-pixel gap: at least this ratio of hot pixels per sequence, and one more.
 _HOT_RATIO = 1.5
+#: Windows per side below which :func:`infer_scene` warns that its standard errors are unreliable.
+MIN_WINDOWS = 8
+
+
+class SmallSampleWarning(UserWarning):
+    """:func:`infer_scene` compared fewer than :data:`MIN_WINDOWS` windows on a side: its
+    standard errors, and so its verdicts, are unreliable (the message says how many).
+
+    Example:
+        >>> import warnings
+        >>> frames = torch.poisson(torch.full((3, 12, 2, 8, 8), 0.3), generator=torch.Generator().manual_seed(0))
+        >>> with warnings.catch_warnings(record=True) as caught:
+        ...     warnings.simplefilter("always")
+        ...     _ = infer_scene(frames, frames)
+        >>> type(caught[0].message).__name__
+        'SmallSampleWarning'
+    """
 
 _QUIET_FRAMES = 4
 _ONSET_FRACTION = 0.2
@@ -246,14 +270,19 @@ def _compare(train: Tensor, deploy: Tensor, min_effect: float, z_gap: float) -> 
     a, b = _summary(train), _summary(deploy)
     difference = b["mean"] - a["mean"]
     se = math.sqrt(a["se"] ** 2 + b["se"] ** 2)
-    z = difference / se if se > 0 else (math.inf if difference else 0.0)
+    # a zero standard error resolves nothing from a few windows (one window, or a handful that happen
+    # to agree): no z, no gap; from MIN_WINDOWS a side, every window agreeing is evidence itself
+    resolvable = a["n"] >= 2 and b["n"] >= 2 and (se > 0 or min(a["n"], b["n"]) >= MIN_WINDOWS)
+    z = (difference / se if se > 0 else math.copysign(math.inf, difference) if difference else 0.0) \
+        if resolvable else math.nan
     return {
         "train": a,
         "deploy": b,
         "difference": difference,
         "se": se,
         "z": z,
-        "gap": abs(z) > z_gap and abs(difference) >= min_effect,
+        "resolvable": resolvable,
+        "gap": resolvable and abs(z) > z_gap and abs(difference) >= min_effect,
     }
 
 
@@ -264,7 +293,11 @@ def _verdicts(evidence: dict[str, Any], z_gap: float, n_deploy: int) -> dict[str
         test = evidence[factor]
         limit = z_gap * test["se"]
         test["resolvable_limit"] = limit
-        if test["gap"]:
+        if not test["resolvable"]:
+            out[factor] = (f"not resolvable from {test['train']['n']} training and {test['deploy']['n']} deployment "
+                           f"windows: the standard error is {test['se']:.3g}; give at least 2 windows a side with "
+                           "different values (more recordings, or more windows per recording with fewer frames each)")
+        elif test["gap"]:
             out[factor] = "gap"
         elif limit > min_effect and abs(test["difference"]) < limit:
             out[factor] = (f"not resolvable from {n_deploy} unlabeled recordings: a difference below "
@@ -352,6 +385,12 @@ def infer_scene(
         raise ValueError(f"frame_ms must be a positive number, got {frame_ms!r}")
     if not (isinstance(z_gap, (int, float)) and z_gap > 0):
         raise ValueError(f"z_gap must be a positive number, got {z_gap!r}")
+    fewest = min(train_frames.shape[0], deploy_frames.shape[0])
+    if fewest < MIN_WINDOWS:
+        warnings.warn(SmallSampleWarning(
+            f"infer_scene compares {train_frames.shape[0]} training and {deploy_frames.shape[0]} deployment "
+            f"windows; below {MIN_WINDOWS} a side the standard errors, and so the verdicts, are unreliable"),
+            stacklevel=2)
     a = sequence_statistics(train_frames, frame_ms=frame_ms)
     b = sequence_statistics(deploy_frames, frame_ms=frame_ms)
     evidence: dict[str, Any] = {}

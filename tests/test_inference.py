@@ -221,3 +221,36 @@ class TestSimulatedScenes:
         blind = infer_scene(train.frames, deploy.frames)
         assert blind.gaps == ()
         assert blind.evidence["size"]["width_px"]["ratio"] == pytest.approx(1.0, abs=0.1)
+
+
+class TestSmallSamples:
+    """Honest at small scale (issue 33, item 8): a zero standard error from a few windows declares
+    nothing, and fewer than MIN_WINDOWS windows a side warns."""
+
+    def test_a_zero_standard_error_from_few_windows_is_not_resolvable(self):
+        import warnings
+
+        from event_transforms.inference import SmallSampleWarning
+
+        train = _strips(4, 3, seed=1)
+        deploy = _strips(2, 3, seed=2)
+        deploy[:, :, 1, 0, :6] += 1.0  # six hot pixels: constant on each side, so a standard error of 0
+        with pytest.warns(SmallSampleWarning, match="4 training and 2 deployment windows"):
+            scene = infer_scene(train, deploy)
+        hot = scene.evidence["noise"]["hot_pixels"]
+        assert hot["se"] == 0 and not hot["resolvable"] and not hot["gap"] and math.isnan(hot["z"])
+        assert "noise" not in scene.gaps or scene.evidence["noise"]["background_gap"]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            infer_scene(_strips(8, 3, seed=1), _strips(8, 3, seed=2))  # MIN_WINDOWS a side: no warning
+
+    def test_identical_windows_say_what_would_resolve_it(self):
+        """Two copies of one window a side: every statistic has a standard error of 0."""
+        one, other = _strips(1, 3, seed=1), _strips(1, 5, seed=2)
+        with pytest.warns(UserWarning):
+            scene = infer_scene(torch.cat([one, one]), torch.cat([other, other]))
+        for factor in ("timing", "orientation", "noise"):
+            verdict = scene.evidence["verdicts"][factor]
+            assert verdict.startswith("not resolvable from 2 training and 2 deployment windows"), verdict
+            assert "at least 2 windows a side with different values" in verdict
+        assert scene.gaps == ()

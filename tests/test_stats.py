@@ -160,3 +160,28 @@ class TestFamilies:
         vs = out["prior"]["delta_vs_matched"]
         assert vs["mean"] < 0 and vs["family_size"] == 1
         assert out["none"]["stopped_before_cap"] == 1.0
+
+
+def test_a_verdict_from_models_still_falling_at_the_cap_is_not_resolved():
+    """Honest at small scale (issue 33, item 8): when most members' hold-out MSE was still falling
+    at the step cap, the Δ keeps its interval but prints no resolved verdict, and says why."""
+    from event_transforms.tactile.report import _ci_text
+    from event_transforms.tactile.scenes import get_scene
+    from event_transforms.tactile.stats import still_falling, summarize_scene
+
+    def runs(test_mse, falling):
+        history = {"steps": [10, 20, 30, 40], "mse": [4.0, 3.0, 2.5, 1.0 if falling else 2.45]}
+        return [{"seed": s, "test_mse": v, "val_mse": v, "test_mse_paper_split": v, "val_mse_paper_split": v,
+                 "best_step": 40, "holdout_mse": 1.0, "holdout_history": history, "steps": 40, "copies": 1,
+                 "train_items": 6, "aug_s_once": 0.0, "aug_s_per_epoch": 0.0, "train_s": 1.0,
+                 "test_phase_mse": {"grasp": v, "hold": v, "release": v}} for s, v in enumerate(test_mse)]
+
+    none, better = [2.0, 2.1, 2.2, 2.05, 2.15], [1.0, 1.1, 1.2, 1.05, 1.15]
+    settled = summarize_scene(get_scene("timing"), {"none": runs(none, False), "fs2": runs(better, False)}, {}, {})
+    falling = summarize_scene(get_scene("timing"), {"none": runs(none, True), "fs2": runs(better, False)}, {}, {})
+    assert settled["methods"]["none"]["converged"] and not falling["methods"]["none"]["converged"]
+    assert settled["methods"]["fs2"]["delta_vs_none"]["significant"]
+    delta = falling["methods"]["fs2"]["delta_vs_none"]
+    assert not delta["significant"] and delta["not_converged"]
+    assert _ci_text(delta).endswith("(not converged)") and "**" not in _ci_text(delta)
+    assert not still_falling(None, 40)

@@ -7,6 +7,7 @@ presets :data:`QUICK` and :data:`FULL` that ``reproduce`` reads. Figures are dra
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import time
 from pathlib import Path
@@ -398,10 +399,19 @@ def _format_evidence(scene: Any) -> list[str]:
     for factor in ("timing", "orientation", "noise"):
         e = evidence.get(factor)
         if e:
-            verdict = "GAP" if e["gap"] else "no gap"
+            # the verdict as infer_scene states it: gap, no gap, or not resolvable (with what would resolve it)
+            said = evidence.get("verdicts", {}).get(factor, "gap" if e["gap"] else "no gap")
+            verdict = "GAP" if said == "gap" else said
+            z = "z n/a" if math.isnan(e["z"]) else f"z {e['z']:+.1f}"
             lines.append(f"  {factor}: {e['statistic']} train {e['train']['mean']:.3g} ± {e['train']['se']:.2g} "
                          f"(n {e['train']['n']}), deploy {e['deploy']['mean']:.3g} ± {e['deploy']['se']:.2g} "
-                         f"(n {e['deploy']['n']}), difference {e['difference']:+.3g} (z {e['z']:+.1f}): {verdict}")
+                         f"(n {e['deploy']['n']}), difference {e['difference']:+.3g} ({z}): {verdict}")
+            hot = e.get("hot_pixels")
+            if hot:  # the noise gap's second trace, with its own standard error
+                hot_z = "z n/a" if math.isnan(hot["z"]) else f"z {hot['z']:+.1f}"
+                lines.append(f"    hot pixels per window: train {hot['train']['mean']:.3g} ± {hot['train']['se']:.2g}, "
+                             f"deploy {hot['deploy']['mean']:.3g} ± {hot['deploy']['se']:.2g} ({hot_z}): "
+                             f"{'GAP' if hot['gap'] else 'no gap' if hot['resolvable'] else 'not resolvable (standard error 0)'}")
     size = evidence.get("size")
     if size:
         width = size["width_px"]

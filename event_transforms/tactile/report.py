@@ -47,7 +47,8 @@ def _ci_text(delta: dict[str, Any] | None) -> str:
     if not ci:
         return f"{delta['mean']:+.2f}"
     mark = "**" if significant(delta) else ""
-    return f"{mark}{delta['mean']:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}]{mark}"
+    note = " (not converged)" if delta.get("not_converged") else ""
+    return f"{mark}{delta['mean']:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}]{mark}{note}"
 
 
 def _p_text(delta: dict[str, Any]) -> str:
@@ -334,7 +335,7 @@ class Verdict:
 #: The summary table's columns that carry a verdict, and the short name used in comparisons.
 VERDICT_COLUMNS = {"Δ vs none [Bonferroni 95 % CI]": "vs none", "Δ vs matched [Bonferroni 95 % CI]": "vs matched"}
 _CELL = re.compile(r"^(?:(?P<ref>[^:\[\]*]+): )?(?P<bold>\*\*)?(?P<mean>[+-]?\d+\.\d+) "
-                   r"\[[+-]?\d+\.\d+, [+-]?\d+\.\d+\](?P=bold)?$")
+                   r"\[[+-]?\d+\.\d+, [+-]?\d+\.\d+\](?P=bold)?(?: \(not converged\))?$")
 
 
 def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
@@ -353,7 +354,7 @@ def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
         {('paper', 'stretch', 'vs none'): Verdict(mean=-0.92, significant=True)}
     """
     rows: list[list[str]] | None = None
-    columns = SUMMARY_COLUMNS
+    columns: tuple[str, ...] = SUMMARY_COLUMNS
     for line in text.splitlines() + [""]:
         line = line.strip()
         if line.startswith("|") and line.endswith("|"):

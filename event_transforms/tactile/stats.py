@@ -48,6 +48,8 @@ __all__ = [
     "paired_t",
     "wilcoxon_signed_rank",
     "holm",
+    "still_falling",
+    "STILL_FALLING",
     "welch_interval",
     "correlation",
     "mean_sd",
@@ -286,7 +288,7 @@ def significant(delta: dict[str, Any] | None, alpha: float = 0.05) -> bool:
     excludes 0 (equivalently: m × the t-test's p ≤ α). Results without a family interval
     (older files) fall back to the unadjusted 95 % interval with the Holm-corrected p.
     """
-    if not delta:
+    if not delta or delta.get("not_converged"):  # the models had not converged: no resolved verdict
         return False
     ci = delta.get("ci_family")
     if ci is not None:
@@ -296,6 +298,31 @@ def significant(delta: dict[str, Any] | None, alpha: float = 0.05) -> bool:
     lo, hi = delta["ci95"]
     p = delta.get("t_p_holm")
     return bool((hi < 0 or lo > 0) and p is not None and not math.isnan(p) and p <= alpha)
+
+
+#: A member whose hold-out MSE at the step cap is this much below its best before 3/4 of the
+#: steps was still falling: the run stopped it, not the stopping rule.
+STILL_FALLING = 0.05
+
+
+def still_falling(history: dict[str, Any] | None, steps: int, *, tolerance: float = STILL_FALLING) -> bool:
+    """Whether a member's hold-out MSE was still falling at the step cap: its last check is more
+    than ``tolerance`` (relative) below its best check in the first three quarters of the run.
+    A member without a history (no hold-out set) is not judged (``False``).
+
+    Example:
+        >>> still_falling({"steps": [100, 200, 300, 400], "mse": [4.0, 3.0, 2.9, 2.0]}, 400)
+        True
+        >>> still_falling({"steps": [100, 200, 300, 400], "mse": [4.0, 3.0, 2.9, 2.85]}, 400)
+        False
+    """
+    if not history or not history.get("mse"):
+        return False
+    pairs = [(s_, m) for s_, m in zip(history["steps"], history["mse"]) if m is not None and math.isfinite(m)]
+    early = [m for s_, m in pairs if s_ <= 0.75 * steps]
+    if not early or not pairs:
+        return False
+    return pairs[-1][1] < (1.0 - tolerance) * min(early)
 
 
 def wilcoxon_floor(n: int, family: int = 1) -> float:
@@ -416,6 +443,9 @@ def summarize_scene(
                 1.0 if (r.get("best_step") is not None and r["best_step"] < r["steps"]) else 0.0 for r in runs
             ),
             "holdout_mse": [r.get("holdout_mse") for r in runs],
+            # members whose hold-out MSE was still falling at the step cap (the run was too short for them)
+            "still_falling": statistics.fmean(1.0 if still_falling(r.get("holdout_history"), r["steps"]) else 0.0
+                                              for r in runs),
             "steps": runs[0]["steps"],
             "copies": runs[0]["copies"],
             "train_items": runs[0]["train_items"],
@@ -431,8 +461,14 @@ def summarize_scene(
     dupes = duplicates(methods)
     for name, original in dupes.items():
         methods[name]["duplicate_of"] = original
+    converged = {name: m["still_falling"] <= 0.5 for name, m in methods.items()}
+    for name in methods:
+        methods[name]["converged"] = converged[name]
     for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
         for name, delta in deltas_vs_none(methods, key, exclude=tuple(dupes)).items():
+            if not (converged[name] and converged.get("none", True)):  # no resolved verdict from unconverged models
+                delta["not_converged"] = True
+                delta["significant"] = False
             methods[name][field_name] = delta
     # the policy rows against the scene's matched row (the first matched method that ran)
     matched = next((m for m in scene.matched_methods if m in methods and m not in dupes), None)
@@ -440,7 +476,10 @@ def summarize_scene(
     for name in policies:
         methods[name]["matched_row"] = matched
         if matched is not None:
-            methods[name]["delta_vs_matched"] = paired_delta(methods[matched], methods[name], "test_mse", len(policies))
+            vs = paired_delta(methods[matched], methods[name], "test_mse", len(policies))
+            if vs is not None and not (converged[name] and converged[matched]):
+                vs["not_converged"] = True
+            methods[name]["delta_vs_matched"] = vs
     for name in dupes:
         if name in POLICY_ROWS:
             methods[name]["matched_row"] = matched

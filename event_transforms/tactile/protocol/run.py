@@ -28,7 +28,7 @@ from ..copies import SceneData, load_scene_data
 from ..report import format_report
 from ..runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
 from ..scenes import SCENES
-from ..stats import deltas_vs_none, paired_t, summarize_scene
+from ..stats import deltas_vs_none, paired_t, still_falling, summarize_scene
 from .config import ProtocolConfig
 from .environment import environment, git_commit
 from .plan import Unit, choose_methods, plan_run, work_units
@@ -211,8 +211,14 @@ def _attach_equal_time(summary: dict[str, Any], steps_of: dict[str, int], runs: 
                              "test_mse": [r["test_mse"] for r in runs[method]]}
     deltas = deltas_vs_none(table, "test_mse")
     for method, n in steps_of.items():
+        records = runs.get(method, []) if n < steps else []
+        falling = statistics.fmean(1.0 if still_falling(r.get("holdout_history"), r["steps"]) else 0.0
+                                   for r in records) if records else 1.0 - float(methods[method].get("converged", True))
+        delta = deltas.get(method)
+        if delta is not None and (falling > 0.5 or not none.get("converged", True)):
+            delta["not_converged"], delta["significant"] = True, False  # no resolved verdict from unconverged models
         methods[method]["equal_time"] = {"steps": n, "test_mse": table[method]["test_mse"],
-                                         "delta_vs_none": deltas.get(method)}
+                                         "delta_vs_none": delta}
     for method, s_ in methods.items():
         original = s_.get("duplicate_of")
         if original and "equal_time" in methods.get(original, {}):
