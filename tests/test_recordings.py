@@ -456,7 +456,7 @@ class TestTimeUnit:
 class TestCache:
     def test_read_back_without_binning(self, folder, tmp_path, monkeypatch):
         first = RecordingSet(folder, split="val", cache=tmp_path, **SMALL)
-        monkeypatch.setattr(recordings, "_bin_recording", lambda *a: pytest.fail("binned again"))
+        monkeypatch.setattr(recordings.dataset, "_bin_recording", lambda *a: pytest.fail("binned again"))
         second = RecordingSet(folder, split="val", cache=tmp_path, **SMALL)
         torch.testing.assert_close(first[1][0], second[1][0])
 
@@ -522,7 +522,7 @@ class TestProtocolOnRecordings:
         root = make_folder(tmp_path / "d", train=6, deploy=5, unlabeled=1, lag_us=20_000)
         read = []
         real = recordings.read_force
-        monkeypatch.setattr(recordings, "read_force", lambda path, **k: (read.append(Path(path).name), real(path, **k))[1])
+        monkeypatch.setattr(recordings.dataset, "read_force", lambda path, **k: (read.append(Path(path).name), real(path, **k))[1])
         data = recordings.load_recording_data(root, RecordingSettings(**{**SMALL, "frames": 24}), cache=tmp_path / "c")
         deploy_forces = {r.force.name for r in read_table(root) if r.role == "deploy" and r.force is not None}
         # every labelled file is read once to label its windows, never for the inference: binning order

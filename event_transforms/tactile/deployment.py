@@ -111,7 +111,8 @@ def predict_stream(
         ``frames``, ``events``, and the per-step latency ``p50_ms``/``p99_ms``/``mean_ms``.
     """
     from ..functional import iter_frames
-    from .recordings import _EventFile, _scan
+    from ..events.io import EventFile
+    from .recordings.scan import scan_events
 
     settings = getattr(model, "preprocessing", None) or {}
     missing = [k for k in ("frame_ms", "crop", "pool", "sensor_size") if k not in settings]
@@ -121,9 +122,9 @@ def predict_stream(
     if not path.is_file():
         raise ValueError(f"events file {str(path)!r} does not exist")
     sensor = tuple(settings["sensor_size"])
-    source = _EventFile(path)
+    source = EventFile(path)
     time_unit = settings.get("time_unit")  # the training recordings' unit (None: microseconds)
-    scan = _scan(source, sensor, str(path), time_unit)  # checked first: sorted, inside the sensor, units
+    scan = scan_events(source, sensor, str(path), time_unit)  # checked first: sorted, inside the sensor, units
     frame_ms = float(settings["frame_ms"])
     frame_us = frame_ms * 1000.0
     t0 = (scan.t_min // frame_us) * frame_us

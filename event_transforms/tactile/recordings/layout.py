@@ -1,0 +1,248 @@
+"""The layout's table and settings: ``recordings.csv`` read and checked, each recording's split.
+
+See :mod:`event_transforms.tactile.recordings` for the layout.
+"""
+
+from __future__ import annotations
+
+__all__ = ["SPLITS", "RecordingSettings", "Recording", "read_table"]
+
+import csv
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: The splits a recording can belong to.
+SPLITS = ("train", "holdout", "val", "test", "unlabeled")
+_ROLES = ("train", "deploy")
+_REQUIRED = ("events", "force", "role")
+_KNOWN = (*_REQUIRED, "diameter_mm", "object", "session", "split", "crop_top", "crop_left", "crop_height", "crop_width")
+_CROP_COLUMNS = ("crop_top", "crop_left", "crop_height", "crop_width")
+
+
+@dataclass(frozen=True)
+class RecordingSettings:
+    """How recordings become items (every setting has a command-line option and is recorded).
+
+    Attributes:
+        sensor_size: ``(H, W)`` of the sensor; events outside it are refused.
+        frame_ms: bin width in milliseconds.
+        frames: frames T per window.
+        stride: frames between window starts (``None``: T, windows do not overlap).
+        crop: ``(top, left, height, width)`` for every recording; ``None``: the crop columns
+            of ``recordings.csv`` where given, else the contact area of the training data.
+        pool: side of the sum-pooled blocks.
+        force_offset_ms: the force clock's lag behind the events' clock.
+        time_unit: unit of the event files' timestamps: ``"us"``, ``"ms"``, ``"s"`` or
+            ``"ns"`` (``None``: microseconds, float timestamps that look like seconds
+            refused). Force files stay in ``t_us``.
+
+    Example:
+        >>> RecordingSettings(frames=36).window_stride
+        36
+        >>> RecordingSettings(time_unit="s").as_dict()["time_unit"]
+        's'
+    """
+
+    sensor_size: tuple[int, int] = (180, 240)
+    frame_ms: float = 10.0
+    frames: int = 36
+    stride: int | None = None
+    crop: tuple[int, int, int, int] | None = None
+    pool: int = 2
+    force_offset_ms: float = 0.0
+    time_unit: str | None = None
+
+    def __post_init__(self) -> None:
+        from ..._validation import check_positive
+        from ...events.binning import _time_unit
+
+        _time_unit(self.time_unit)  # ValueError naming time_unit and the value
+
+        size = tuple(self.sensor_size)
+        if len(size) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1 for v in size):
+            raise ValueError(f"sensor_size must be two positive integers (H, W), got {self.sensor_size!r}")
+        object.__setattr__(self, "sensor_size", (int(size[0]), int(size[1])))
+        check_positive(self.frame_ms, "frame_ms")
+        check_positive(self.frames, "frames", integer=True)
+        check_positive(self.pool, "pool", integer=True)
+        if self.stride is not None:
+            check_positive(self.stride, "stride", integer=True)
+        if not (isinstance(self.force_offset_ms, (int, float)) and math.isfinite(self.force_offset_ms)):
+            raise ValueError(f"force_offset_ms must be a finite number, got {self.force_offset_ms!r}")
+        if self.crop is not None:
+            object.__setattr__(self, "crop", _check_crop(self.crop, self.sensor_size, self.pool, "crop"))
+
+    @property
+    def window_stride(self) -> int:
+        """The stride in frames (T when none is given)."""
+        return int(self.stride or self.frames)
+
+    @property
+    def frame_us(self) -> float | int:
+        """The bin width in microseconds (an int when whole)."""
+        width = float(self.frame_ms) * 1000.0
+        return int(round(width)) if abs(width - round(width)) < 1e-9 * width else width
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as plain JSON values (``time_unit`` only when given, so that the
+        keys of data binned before the setting existed stay valid)."""
+        out = dataclasses.asdict(self)
+        out["sensor_size"] = list(self.sensor_size)
+        out["crop"] = None if self.crop is None else list(self.crop)
+        out["stride"] = self.window_stride
+        if self.time_unit is None:
+            del out["time_unit"]
+        return out
+
+
+def _check_crop(crop: Any, sensor: tuple[int, int], pool: int, where: str) -> tuple[int, int, int, int]:
+    try:
+        values = tuple(int(v) for v in crop)
+        if len(values) != 4 or any(float(v) != int(float(v)) for v in crop):
+            raise ValueError
+    except (TypeError, ValueError):
+        raise ValueError(f"{where} must be four integers (top, left, height, width), got {crop!r}") from None
+    top, left, height, width = values
+    if top < 0 or left < 0 or height < 1 or width < 1 or top + height > sensor[0] or left + width > sensor[1]:
+        raise ValueError(f"{where} {values} must lie inside the sensor {sensor} (H, W)")
+    if height % pool or width % pool:
+        raise ValueError(f"{where} {values}: height and width must be multiples of pool={pool}")
+    return values
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One row of ``recordings.csv``.
+
+    Attributes:
+        row: the row's line number in ``recordings.csv`` (the header is line 1).
+        events: the event file.
+        force: the force CSV, ``None`` for an unlabeled recording.
+        role: ``"train"`` or ``"deploy"``.
+        split: the split the rule (or the ``split`` column) gives it, one of :data:`SPLITS`.
+        diameter_mm: the object's size, ``None`` without a ``diameter_mm`` column.
+        crop: the row's crop columns, ``None`` without them.
+        meta: ``object``, ``session`` and the extra columns, as text.
+    """
+
+    row: int
+    events: Path
+    force: Path | None
+    role: str
+    split: str
+    diameter_mm: float | None = None
+    crop: tuple[int, int, int, int] | None = None
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def where(self) -> str:
+        """``recordings.csv row N (events file)``, for error messages."""
+        return f"recordings.csv row {self.row} ({self.events.name})"
+
+
+def read_table(root: str | os.PathLike[str]) -> list[Recording]:
+    """Read and check ``root/recordings.csv``; every recording with its split.
+
+    Raises:
+        ValueError: a missing table or column, a missing file, a role other than train or
+            deploy, a bad ``diameter_mm``, ``split`` or crop cell (each naming the row), no
+            labelled training recording, fewer than two labelled deployment recordings.
+
+    Example:
+        >>> import tempfile
+        >>> root = Path(tempfile.mkdtemp())
+        >>> _ = (root / "a.npy").write_bytes(b"")
+        >>> _ = (root / "recordings.csv").write_text("events,force,role\\na.npy,,tain\\n")
+        >>> read_table(root)
+        Traceback (most recent call last):
+        ...
+        ValueError: recordings.csv row 2: role must be 'train' or 'deploy', got 'tain'
+    """
+    root = Path(root)
+    table = root / "recordings.csv"
+    if not table.is_file():
+        raise ValueError(f"{root} holds no recordings.csv (the recording-set layout needs one)")
+    with open(table, newline="") as handle:
+        reader = csv.DictReader(handle)
+        header = [name.strip() for name in (reader.fieldnames or [])]
+        missing = [c for c in _REQUIRED if c not in header]
+        if missing:
+            raise ValueError(f"{table}: missing column(s) {missing}; the header is {header}")
+        rows = [{(k or "").strip(): (v or "").strip() for k, v in row.items()} for row in reader]
+    has_crop = [c for c in _CROP_COLUMNS if c in header]
+    if has_crop and len(has_crop) != 4:
+        raise ValueError(f"{table}: give all four crop columns {list(_CROP_COLUMNS)} or none, got {has_crop}")
+    recordings = []
+    for number, row in enumerate(rows, start=2):
+        where = f"recordings.csv row {number}"
+        if not row.get("events"):
+            raise ValueError(f"{where}: the events cell is empty")
+        events = root / row["events"]
+        if not events.is_file():
+            raise ValueError(f"{where}: events file {str(events)!r} does not exist")
+        force = root / row["force"] if row.get("force") else None
+        if force is not None and not force.is_file():
+            raise ValueError(f"{where}: force file {str(force)!r} does not exist")
+        role = row.get("role", "").lower()
+        if role not in _ROLES:
+            raise ValueError(f"{where}: role must be 'train' or 'deploy', got {row.get('role')!r}")
+        diameter = None
+        if "diameter_mm" in header:
+            try:
+                diameter = float(row["diameter_mm"])
+                if not (math.isfinite(diameter) and diameter > 0):
+                    raise ValueError
+            except ValueError:
+                raise ValueError(f"{where}: diameter_mm must be a positive number, got {row['diameter_mm']!r}") from None
+        crop: tuple[int, int, int, int] | None = None
+        if has_crop:
+            texts = tuple(row[c] for c in _CROP_COLUMNS)
+            try:
+                top, left, height, width = (int(v) for v in texts)
+            except ValueError:
+                raise ValueError(f"{where}: crop columns must be integers, got {texts}") from None
+            crop = (top, left, height, width)
+        split = row.get("split", "").lower()
+        allowed = {"train": ("train", "holdout"), "deploy": ("val", "test")}[role]
+        if split and (split not in allowed or force is None):
+            raise ValueError(
+                f"{where}: split {split!r} is not one of {allowed} for a "
+                f"{'labelled' if force is not None else 'unlabeled'} {role} recording"
+                + ("" if force is not None else " (an unlabeled recording is never split)")
+            )
+        if role == "train" and force is None:
+            raise ValueError(f"{where}: a training recording needs a force file")
+        meta = {k: v for k, v in row.items() if k not in _KNOWN or k in ("object", "session")}
+        recordings.append(Recording(number, events, force, role, split or "", diameter, crop, meta))
+    return _assign_splits(recordings, table)
+
+
+def _assign_splits(recordings: list[Recording], table: Path) -> list[Recording]:
+    train = [r for r in recordings if r.role == "train"]
+    deploy = [r for r in recordings if r.role == "deploy" and r.force is not None]
+    if not train:
+        raise ValueError(f"{table}: no training recording (role 'train')")
+    if not [r for r in recordings if r.role == "deploy"]:
+        raise ValueError(f"{table}: no deployment recording (role 'deploy')")
+    if len(deploy) < 2:
+        raise ValueError(
+            f"{table}: {len(deploy)} labelled deployment recording(s); validation and test need at least 2 "
+            "(unlabeled ones only feed the scene inference)"
+        )
+    holdout = len(train) // 3
+    val = max(1, math.ceil(len(deploy) / 5))
+    splits = {}
+    for k, r in enumerate(train):
+        splits[r.row] = r.split or ("holdout" if k >= len(train) - holdout else "train")
+    for k, r in enumerate(deploy):
+        splits[r.row] = r.split or ("val" if k < val else "test")
+    out = [dataclasses.replace(r, split=splits.get(r.row, "unlabeled")) for r in recordings]
+    for name in ("train", "val", "test"):
+        if not any(r.split == name for r in out):
+            raise ValueError(f"{table}: the split column leaves no {name!r} recording")
+    return out
