@@ -95,7 +95,7 @@ from __future__ import annotations
 __all__ = [
     "SPLITS",
     "EventScan",
-    "Recording",
+    "RecordingEntry",
     "RecordingScene",
     "RecordingSet",
     "RecordingSettings",
@@ -110,15 +110,28 @@ __all__ = [
     "scan_events",
 ]
 
+import warnings
 from pathlib import Path
+from typing import Any
 
 from ...events.io import read_events  # re-export: the readers live in event_transforms.events.io
 from .cache import content_hash
 from .dataset import RecordingSet
 from .export import export_scene
 from .labels import frame_labels, read_force
-from .layout import SPLITS, Recording, RecordingSettings, read_table
+from .layout import SPLITS, RecordingEntry, RecordingSettings, read_table
 from .scan import EventScan, contact_crop, scan_events
 from .scene import RecordingScene, load_recording_data
 
 _ = Path  # the module docstring's example uses Path
+
+
+def __getattr__(name: str) -> Any:
+    if name == "Recording":  # deprecated: the one Recording is the simulator's
+        warnings.warn(
+            "event_transforms.tactile.recordings.Recording is renamed RecordingEntry (a row of recordings.csv; "
+            "Recording is the simulator's grasp recording); the old name goes in the next release",
+            DeprecationWarning, stacklevel=2,
+        )
+        return RecordingEntry
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -18,7 +18,7 @@ from torch.utils.data import Dataset
 from ...events.io import EventFile
 from .cache import _CACHE_FORMAT, _cache_dir, _hashes, _key, _load_cached, _save_atomic, content_hash
 from .labels import frame_labels, read_force
-from .layout import _ROLES, SPLITS, Recording, RecordingSettings, _check_crop, read_table
+from .layout import _ROLES, SPLITS, RecordingEntry, RecordingSettings, _check_crop, read_table
 from .scan import EventScan, contact_crop, scan_events
 
 
@@ -98,7 +98,7 @@ class RecordingSet(Dataset):
             self._data.append(data)
 
     # ------------------------------------------------------------------ building
-    def _crop_of(self, recording: Recording) -> tuple[int, int, int, int]:
+    def _crop_of(self, recording: RecordingEntry) -> tuple[int, int, int, int]:
         if self.settings.crop is not None:
             return self.settings.crop
         if recording.crop is not None:
@@ -106,7 +106,7 @@ class RecordingSet(Dataset):
                                f"{recording.where()}: crop")
         return self.crop
 
-    def _choose_crop(self, table: list[Recording], log: Any) -> tuple[tuple[int, int, int, int], str]:
+    def _choose_crop(self, table: list[RecordingEntry], log: Any) -> tuple[tuple[int, int, int, int], str]:
         settings = self.settings
         if settings.crop is not None:
             return settings.crop, "given"
@@ -124,7 +124,7 @@ class RecordingSet(Dataset):
         crop = contact_crop(totals, settings.pool)  # type: ignore[arg-type]
         return crop, f"contact area of {len(training)} training recordings"
 
-    def _scan(self, recording: Recording) -> EventScan:
+    def _scan(self, recording: RecordingEntry) -> EventScan:
         settings = self.settings
         described: dict[str, Any] = {"events": self._hashes[recording.row][0], "sensor": settings.sensor_size}
         if settings.time_unit is not None:  # t_min, t_max are microseconds converted from that unit
@@ -141,7 +141,7 @@ class RecordingSet(Dataset):
             _save_atomic(data, path)
         return EventScan(int(data["events"]), data["t_min"], data["t_max"], data["totals"].numpy())
 
-    def _binned(self, recording: Recording, log: Any) -> dict[str, Any]:
+    def _binned(self, recording: RecordingEntry, log: Any) -> dict[str, Any]:
         settings = self.settings
         crop = self._crop_of(recording)
         events_hash, force_hash = self._hashes[recording.row]
@@ -223,12 +223,12 @@ class RecordingSet(Dataset):
                 f"recordings={len(self.recordings)}, windows={len(self)})")
 
 
-def _named(error: Exception, recording: Recording) -> ValueError:
+def _named(error: Exception, recording: RecordingEntry) -> ValueError:
     message = str(error)
     return ValueError(message if "recordings.csv row" in message else f"{recording.where()}: {message}")
 
 
-def _bin_recording(recording: Recording, scan: EventScan, settings: RecordingSettings,
+def _bin_recording(recording: RecordingEntry, scan: EventScan, settings: RecordingSettings,
                    crop: tuple[int, int, int, int]) -> dict[str, Any]:
     """Bin one recording through ``iter_frames`` (chunked) and label its frames."""
     from ...functional import iter_frames

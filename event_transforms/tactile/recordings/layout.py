@@ -5,7 +5,7 @@ See :mod:`event_transforms.tactile.recordings` for the layout.
 
 from __future__ import annotations
 
-__all__ = ["SPLITS", "RecordingSettings", "Recording", "read_table"]
+__all__ = ["SPLITS", "RecordingSettings", "RecordingEntry", "read_table"]
 
 import csv
 import dataclasses
@@ -117,7 +117,7 @@ def _check_crop(crop: Any, sensor: tuple[int, int], pool: int, where: str) -> tu
 
 
 @dataclass(frozen=True)
-class Recording:
+class RecordingEntry:
     """One row of ``recordings.csv``.
 
     Attributes:
@@ -145,7 +145,7 @@ class Recording:
         return f"recordings.csv row {self.row} ({self.events.name})"
 
 
-def read_table(root: str | os.PathLike[str]) -> list[Recording]:
+def read_table(root: str | os.PathLike[str]) -> list[RecordingEntry]:
     """Read and check ``root/recordings.csv``; every recording with its split.
 
     Raises:
@@ -218,11 +218,11 @@ def read_table(root: str | os.PathLike[str]) -> list[Recording]:
         if role == "train" and force is None:
             raise ValueError(f"{where}: a training recording needs a force file")
         meta = {k: v for k, v in row.items() if k not in _KNOWN or k in ("object", "session")}
-        recordings.append(Recording(number, events, force, role, split or "", diameter, crop, meta))
+        recordings.append(RecordingEntry(number, events, force, role, split or "", diameter, crop, meta))
     return _assign_splits(recordings, table)
 
 
-def _assign_splits(recordings: list[Recording], table: Path) -> list[Recording]:
+def _assign_splits(recordings: list[RecordingEntry], table: Path) -> list[RecordingEntry]:
     train = [r for r in recordings if r.role == "train"]
     deploy = [r for r in recordings if r.role == "deploy" and r.force is not None]
     if not train:
