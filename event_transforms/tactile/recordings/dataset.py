@@ -11,14 +11,15 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 from torch import Tensor
 from torch.utils.data import Dataset
 
-from ...events.io import EventFile
+from ...events.io import EventFile, stated_sensor_size
 from .cache import _CACHE_FORMAT, _cache_dir, _hashes, _key, _load_cached, _save_atomic, content_hash
-from .labels import frame_labels, read_force
-from .layout import _ROLES, SPLITS, RecordingEntry, RecordingSettings, _check_crop, read_table
+from .labels import force_triggers, frame_labels, read_force, trigger_offset
+from .layout import _ROLES, DEFAULT_SENSOR_SIZE, SPLITS, RecordingEntry, RecordingSettings, _check_crop, read_table
 from .scan import EventScan, contact_crop, scan_events
 
 
@@ -37,9 +38,14 @@ class RecordingSet(Dataset):
         role: ``"train"`` or ``"deploy"`` (with ``split=None``), ``None`` for every recording.
         settings: a :class:`RecordingSettings`; keyword arguments override its fields.
         cache: cache folder (default ``default_cache_dir() / "recordings"``).
-        log: called with one line per recording binned (not per one read from the cache).
+        log: called with one line per recording binned (not per one read from the cache) and
+            once per conversion made (force units and columns, trigger offsets).
+        deployment: whether the folder must hold deployment recordings (``None``: when
+            ``split`` or ``role`` asks for them; a folder of training recordings only loads
+            with ``split="train"``).
         **overrides: fields of :class:`RecordingSettings` (``sensor_size``, ``frame_ms``,
-            ``frames``, ``stride``, ``crop``, ``pool``, ``force_offset_ms``, ``time_unit``).
+            ``frames``, ``stride``, ``crop``, ``pool``, ``force_offset_ms``, ``time_unit``,
+            ``columns``, ``force_time_unit``, ``force_column``, ``sync``).
 
     Attributes:
         recordings: the rows of the chosen recordings.
@@ -61,6 +67,7 @@ class RecordingSet(Dataset):
         settings: RecordingSettings | None = None,
         cache: str | os.PathLike[str] | None = None,
         log: Any = None,
+        deployment: bool | None = None,
         **overrides: Any,
     ) -> None:
         self.root = Path(root)
@@ -71,11 +78,15 @@ class RecordingSet(Dataset):
             raise ValueError(f"role must be 'train', 'deploy' or None, got {role!r}")
         self.split, self.role = split, role
         self.cache = _cache_dir(cache)
-        table = read_table(self.root)
+        if deployment is None:
+            deployment = split in ("val", "test", "unlabeled") or (split is None and role != "train")
+        table = read_table(self.root, deployment=deployment)
         self.all_recordings = table
         self.recordings = [
             r for r in table if (split is None or r.split == split) and (role is None or r.role == role)
         ]
+        self.settings = self._resolve_sensor(table, self.settings)
+        self._log = _once(log)
         self._hashes = _hashes(self.root, table, self.cache)
         self.dataset_hash = _key({"table": content_hash(self.root / "recordings.csv"),
                                   "files": [self._hashes[r.row] for r in table]})
@@ -90,7 +101,7 @@ class RecordingSet(Dataset):
             if frames < length:
                 raise ValueError(
                     f"{recording.where()}: {frames} frames of {self.settings.frame_ms:g} ms, fewer than one window of "
-                    f"--frames {length}"
+                    f"frames={length}; lower frames= (or frame_ms=)"
                 )
             starts = range(0, frames - length + 1, stride)
             self.left_out_frames += frames - (starts[-1] + length)
@@ -98,11 +109,34 @@ class RecordingSet(Dataset):
             self._data.append(data)
 
     # ------------------------------------------------------------------ building
+    @staticmethod
+    def _resolve_sensor(table: list[RecordingEntry], settings: RecordingSettings) -> RecordingSettings:
+        """The settings with the sensor size: given, else the one the files state, else the default."""
+        stated: dict[tuple[int, int], RecordingEntry] = {}
+        for recording in table:
+            try:
+                size = stated_sensor_size(recording.events)
+            except ValueError as error:
+                raise _named(error, recording) from None
+            if size is not None:
+                stated.setdefault(size, recording)
+        if settings.sensor_size is not None:
+            for size, recording in stated.items():
+                if size != settings.sensor_size:
+                    raise ValueError(f"{recording.where()}: the file states a sensor of (H, W) = {size}, but "
+                                     f"sensor_size={settings.sensor_size}; leave sensor_size out to use the file's")
+            return settings
+        if len(stated) > 1:
+            found = "; ".join(f"{size} ({r.where()})" for size, r in stated.items())
+            raise ValueError(f"recordings.csv: the event files state different sensor sizes: {found}; one folder "
+                             "holds one camera's recordings")
+        return dataclasses.replace(settings, sensor_size=next(iter(stated), DEFAULT_SENSOR_SIZE))
+
     def _crop_of(self, recording: RecordingEntry) -> tuple[int, int, int, int]:
         if self.settings.crop is not None:
             return self.settings.crop
         if recording.crop is not None:
-            return _check_crop(recording.crop, self.settings.sensor_size, self.settings.pool,
+            return _check_crop(recording.crop, self.sensor_size, self.settings.pool,
                                f"{recording.where()}: crop")
         return self.crop
 
@@ -115,7 +149,7 @@ class RecordingSet(Dataset):
             if len(sizes) != 1:
                 raise ValueError(f"recordings.csv: every row's crop must have one size, got {sorted(sizes)}")
             first = table[0]
-            return _check_crop(first.crop, settings.sensor_size, settings.pool, f"{first.where()}: crop"), "recordings.csv"
+            return _check_crop(first.crop, self.sensor_size, settings.pool, f"{first.where()}: crop"), "recordings.csv"
         if any(r.crop is not None for r in table):
             rows = [r.row for r in table if r.crop is None]
             raise ValueError(f"recordings.csv: crop columns are empty on rows {rows[:5]}; fill every row or none")
@@ -129,11 +163,14 @@ class RecordingSet(Dataset):
         described: dict[str, Any] = {"events": self._hashes[recording.row][0], "sensor": settings.sensor_size}
         if settings.time_unit is not None:  # t_min, t_max are microseconds converted from that unit
             described["time_unit"] = settings.time_unit
+        if settings.columns is not None:
+            described["columns"] = settings.columns
         path = self.cache / f"scan-{_key(described)}.pt"
         data = _load_cached(path)
         if data is None:
             try:
-                scan = scan_events(EventFile(recording.events), settings.sensor_size, recording.where(), settings.time_unit)
+                scan = scan_events(EventFile(recording.events, columns=settings.columns), self.sensor_size,
+                                   recording.where(), settings.time_unit)
             except ValueError as error:
                 raise _named(error, recording) from None
             data = {"format": _CACHE_FORMAT, "events": scan.events, "t_min": scan.t_min, "t_max": scan.t_max,
@@ -148,21 +185,28 @@ class RecordingSet(Dataset):
         description = {"format": _CACHE_FORMAT, "events": events_hash, "force": force_hash,
                        "sensor": settings.sensor_size, "frame_ms": settings.frame_ms, "crop": crop,
                        "pool": settings.pool, "force_offset_ms": settings.force_offset_ms}
-        if settings.time_unit is not None:
-            description["time_unit"] = settings.time_unit
+        for name in ("time_unit", "columns", "force_time_unit", "force_column", "sync"):
+            if getattr(settings, name) is not None:
+                description[name] = getattr(settings, name)
         path = self.cache / f"recording-{_key(description)}.pt"
         data = _load_cached(path)
         if data is not None:
             return data
         tick = time.perf_counter()
         scan = self._scan(recording)
-        data = _bin_recording(recording, scan, settings, crop)
+        data = _bin_recording(recording, scan, settings, crop, self._log)
         _save_atomic(data, path)
         data = _load_cached(path) or data  # memory-mapped from now on
         if log:
             log(f"binned {recording.where()}: {scan.events:,} events into {data['frames'].shape[0]} frames "
                 f"in {time.perf_counter() - tick:.1f} s")
         return data
+
+    @property
+    def sensor_size(self) -> tuple[int, int]:
+        """The sensor size used: given, stated by the files, or the default."""
+        assert self.settings.sensor_size is not None
+        return self.settings.sensor_size
 
     # ------------------------------------------------------------------ access
     def __len__(self) -> int:
@@ -228,8 +272,22 @@ def _named(error: Exception, recording: RecordingEntry) -> ValueError:
     return ValueError(message if "recordings.csv row" in message else f"{recording.where()}: {message}")
 
 
+def _once(log: Any) -> Any:
+    """``log`` calling through once per distinct line (conversions are said once)."""
+    if not log:
+        return None
+    said: set[str] = set()
+
+    def say(line: str) -> None:
+        if line not in said:
+            said.add(line)
+            log(line)
+
+    return say
+
+
 def _bin_recording(recording: RecordingEntry, scan: EventScan, settings: RecordingSettings,
-                   crop: tuple[int, int, int, int]) -> dict[str, Any]:
+                   crop: tuple[int, int, int, int], log: Any = None) -> dict[str, Any]:
     """Bin one recording through ``iter_frames`` (chunked) and label its frames."""
     from ...functional import iter_frames
 
@@ -239,7 +297,8 @@ def _bin_recording(recording: RecordingEntry, scan: EventScan, settings: Recordi
     pool = settings.pool
     shape = (n_frames, 2, crop[2] // pool, crop[3] // pool)
     out = torch.zeros(shape, dtype=torch.int32)
-    source = EventFile(recording.events)
+    source = EventFile(recording.events, columns=settings.columns)
+    assert settings.sensor_size is not None  # resolved by RecordingSet
     try:
         # the scan checked the whole file's units (seconds-looking floats refused without a unit),
         # so the chunks are read as that unit, microseconds by default
@@ -253,7 +312,11 @@ def _bin_recording(recording: RecordingEntry, scan: EventScan, settings: Recordi
     force = None
     if recording.force is not None:
         try:
-            t, values = read_force(recording.force, offset_ms=settings.force_offset_ms)
+            offset_ms = settings.force_offset_ms
+            if settings.sync == "triggers":
+                offset_ms = _trigger_offset_ms(recording, source, settings, log)
+            t, values = read_force(recording.force, offset_ms=offset_ms, time_unit=settings.force_time_unit,
+                                   column=settings.force_column, log=log)
             force = torch.from_numpy(frame_labels(t, values, t_start=float(t0), frame_us=float(frame_us),
                                                   n_frames=n_frames))
         except ValueError as error:
@@ -261,3 +324,30 @@ def _bin_recording(recording: RecordingEntry, scan: EventScan, settings: Recordi
     storage = torch.int16 if out.numel() == 0 or int(out.max()) <= 32767 else torch.int32
     return {"format": _CACHE_FORMAT, "frames": out.to(storage), "force": force, "t_start_us": t0,
             "events": scan.events}
+
+
+#: Trigger sources counted by ``sync="triggers"`` (dv-processing's numbering: 1 the rising edge of
+#: the external input, 3 a pulse on it).
+_SYNC_SOURCES = (1, 3)
+
+
+def _trigger_offset_ms(recording: RecordingEntry, source: EventFile, settings: RecordingSettings, log: Any) -> float:
+    """The force clock's lag (ms) from the camera's trigger events and the force CSV's trigger column."""
+    from ...events.binning import _TIME_UNITS
+
+    assert recording.force is not None
+    if source.triggers is None:
+        raise ValueError(f"sync='triggers' needs trigger events in the event file (an .aedat4 recording); "
+                         f"{recording.events.name} holds none")
+    kept = source.triggers[np.isin(source.triggers["source"], _SYNC_SOURCES)]
+    if not kept.size:
+        found = sorted(set(source.triggers["source"].tolist()))
+        raise ValueError(f"sync='triggers': {recording.events.name} holds no external-input trigger (sources "
+                         f"{list(_SYNC_SOURCES)}; found {found or 'none'})")
+    camera = kept["t"].astype(np.float64) * float(_TIME_UNITS[settings.time_unit or "us"])
+    force = force_triggers(recording.force, time_unit=settings.force_time_unit)
+    offset, spread = trigger_offset(camera, force, f"{recording.where()} (force file {recording.force.name})")
+    if log:
+        log(f"{recording.where()}: force clock aligned to the camera's by {offset / 1000:+.3f} ms from "
+            f"{camera.size} triggers (spread {spread:.1f} µs)")
+    return offset / 1000.0

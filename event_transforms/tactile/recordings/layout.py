@@ -5,7 +5,7 @@ See :mod:`event_transforms.tactile.recordings` for the layout.
 
 from __future__ import annotations
 
-__all__ = ["SPLITS", "RecordingSettings", "RecordingEntry", "read_table"]
+__all__ = ["SPLITS", "DEFAULT_SENSOR_SIZE", "RecordingSettings", "RecordingEntry", "read_table"]
 
 import csv
 import dataclasses
@@ -23,6 +23,10 @@ _ROLES = ("train", "deploy")
 _REQUIRED = ("events", "force", "role")
 _KNOWN = (*_REQUIRED, "diameter_mm", "object", "session", "split", "crop_top", "crop_left", "crop_height", "crop_width")
 _CROP_COLUMNS = ("crop_top", "crop_left", "crop_height", "crop_width")
+#: The sensor size where neither the settings nor the files say one (the DAVIS240's).
+DEFAULT_SENSOR_SIZE = (180, 240)
+#: Settings recorded only when given.
+_OPTIONAL = ("time_unit", "columns", "force_time_unit", "force_column", "sync")
 
 
 @dataclass(frozen=True)
@@ -30,7 +34,9 @@ class RecordingSettings:
     """How recordings become items (every setting has a command-line option and is recorded).
 
     Attributes:
-        sensor_size: ``(H, W)`` of the sensor; events outside it are refused.
+        sensor_size: ``(H, W)`` of the sensor; events outside it are refused. ``None``: the
+            size the event files state (``.aedat4``, HDF5 attributes), else
+            :data:`DEFAULT_SENSOR_SIZE`; a given size that differs from a file's is refused.
         frame_ms: bin width in milliseconds.
         frames: frames T per window.
         stride: frames between window starts (``None``: T, windows do not overlap).
@@ -40,7 +46,16 @@ class RecordingSettings:
         force_offset_ms: the force clock's lag behind the events' clock.
         time_unit: unit of the event files' timestamps: ``"us"``, ``"ms"``, ``"s"`` or
             ``"ns"`` (``None``: microseconds, float timestamps that look like seconds
-            refused). Force files stay in ``t_us``.
+            refused; integer timestamps whose span and count look like milliseconds refused).
+        columns: the column order of ``(N, k)`` event arrays (``.npy``, plain HDF5), e.g.
+            ``"txyp"`` (``None``: ``x, y, t, p``).
+        force_time_unit: the unit of a force time column whose name does not say it (the
+            names ``t_ns``, ``t_us``, ``t_ms``, ``t_s`` say it).
+        force_column: the force CSV's label column (``None``: ``force_n``), or
+            ``"magnitude"``: the norm of ``fx, fy, fz``.
+        sync: ``"triggers"``: each recording's force clock aligned to the camera's from the
+            trigger events of its ``.aedat4`` file and the force CSV's ``trigger`` column
+            (``force_offset_ms`` then unused, must be 0); ``None``: ``force_offset_ms``.
 
     Example:
         >>> RecordingSettings(frames=36).window_stride
@@ -49,7 +64,7 @@ class RecordingSettings:
         's'
     """
 
-    sensor_size: tuple[int, int] = (180, 240)
+    sensor_size: tuple[int, int] | None = None
     frame_ms: float = 10.0
     frames: int = 36
     stride: int | None = None
@@ -57,17 +72,33 @@ class RecordingSettings:
     pool: int = 2
     force_offset_ms: float = 0.0
     time_unit: str | None = None
+    columns: str | None = None
+    force_time_unit: str | None = None
+    force_column: str | None = None
+    sync: str | None = None
 
     def __post_init__(self) -> None:
         from ..._validation import check_positive
         from ...events.binning import _time_unit
 
         _time_unit(self.time_unit)  # ValueError naming time_unit and the value
-
-        size = tuple(self.sensor_size)
-        if len(size) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1 for v in size):
-            raise ValueError(f"sensor_size must be two positive integers (H, W), got {self.sensor_size!r}")
-        object.__setattr__(self, "sensor_size", (int(size[0]), int(size[1])))
+        if self.force_time_unit is not None and self.force_time_unit not in ("ns", "us", "ms", "s"):
+            raise ValueError(f"force_time_unit must be one of 'ns', 'us', 'ms', 's' or None, got {self.force_time_unit!r}")
+        for name in ("columns", "force_column"):
+            value = getattr(self, name)
+            if value is not None and (not isinstance(value, str) or not value):
+                raise ValueError(f"{name} must be a non-empty string or None, got {value!r}")
+        if self.sync not in (None, "triggers"):
+            raise ValueError(f"sync must be 'triggers' or None, got {self.sync!r}")
+        if self.sync is not None and self.force_offset_ms:
+            raise ValueError(f"sync={self.sync!r} measures the force clock's offset; leave force_offset_ms at 0, "
+                             f"got {self.force_offset_ms!r}")
+        if self.sensor_size is not None:
+            size = tuple(self.sensor_size)
+            if len(size) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1
+                                     for v in size):
+                raise ValueError(f"sensor_size must be two positive integers (H, W), got {self.sensor_size!r}")
+            object.__setattr__(self, "sensor_size", (int(size[0]), int(size[1])))
         check_positive(self.frame_ms, "frame_ms")
         check_positive(self.frames, "frames", integer=True)
         check_positive(self.pool, "pool", integer=True)
@@ -76,7 +107,8 @@ class RecordingSettings:
         if not (isinstance(self.force_offset_ms, (int, float)) and math.isfinite(self.force_offset_ms)):
             raise ValueError(f"force_offset_ms must be a finite number, got {self.force_offset_ms!r}")
         if self.crop is not None:
-            object.__setattr__(self, "crop", _check_crop(self.crop, self.sensor_size, self.pool, "crop"))
+            object.__setattr__(self, "crop", _check_crop(self.crop, self.sensor_size or (2**31, 2**31), self.pool,
+                                                         "crop"))
 
     @property
     def window_stride(self) -> int:
@@ -90,14 +122,15 @@ class RecordingSettings:
         return int(round(width)) if abs(width - round(width)) < 1e-9 * width else width
 
     def as_dict(self) -> dict[str, Any]:
-        """The settings as plain JSON values (``time_unit`` only when given, so that the
-        keys of data binned before the setting existed stay valid)."""
+        """The settings as plain JSON values (``time_unit``, ``columns``, the force options and
+        ``sync`` only when given, so that the keys of data binned before they existed stay valid)."""
         out = dataclasses.asdict(self)
-        out["sensor_size"] = list(self.sensor_size)
+        out["sensor_size"] = None if self.sensor_size is None else list(self.sensor_size)
         out["crop"] = None if self.crop is None else list(self.crop)
         out["stride"] = self.window_stride
-        if self.time_unit is None:
-            del out["time_unit"]
+        for name in _OPTIONAL:
+            if out[name] is None:
+                del out[name]
         return out
 
 
@@ -145,8 +178,13 @@ class RecordingEntry:
         return f"recordings.csv row {self.row} ({self.events.name})"
 
 
-def read_table(root: str | os.PathLike[str]) -> list[RecordingEntry]:
+def read_table(root: str | os.PathLike[str], *, deployment: bool = True) -> list[RecordingEntry]:
     """Read and check ``root/recordings.csv``; every recording with its split.
+
+    Args:
+        root: the folder holding ``recordings.csv``.
+        deployment: whether deployment recordings are needed (at least two labelled); a
+            folder of training recordings only reads with ``deployment=False``.
 
     Raises:
         ValueError: a missing table or column, a missing file, a role other than train or
@@ -219,17 +257,19 @@ def read_table(root: str | os.PathLike[str]) -> list[RecordingEntry]:
             raise ValueError(f"{where}: a training recording needs a force file")
         meta = {k: v for k, v in row.items() if k not in _KNOWN or k in ("object", "session")}
         recordings.append(RecordingEntry(number, events, force, role, split or "", diameter, crop, meta))
-    return _assign_splits(recordings, table)
+    return _assign_splits(recordings, table, deployment)
 
 
-def _assign_splits(recordings: list[RecordingEntry], table: Path) -> list[RecordingEntry]:
+def _assign_splits(recordings: list[RecordingEntry], table: Path, deployment: bool = True) -> list[RecordingEntry]:
     train = [r for r in recordings if r.role == "train"]
     deploy = [r for r in recordings if r.role == "deploy" and r.force is not None]
     if not train:
         raise ValueError(f"{table}: no training recording (role 'train')")
-    if not [r for r in recordings if r.role == "deploy"]:
-        raise ValueError(f"{table}: no deployment recording (role 'deploy')")
-    if len(deploy) < 2:
+    if deployment and not [r for r in recordings if r.role == "deploy"]:
+        raise ValueError(f"{table}: no deployment recording (role 'deploy'); a folder of training recordings "
+                         "only loads with split='train' (or 'holdout', or role='train') and trains with "
+                         "`event-transforms train`")
+    if deployment and len(deploy) < 2:
         raise ValueError(
             f"{table}: {len(deploy)} labelled deployment recording(s); validation and test need at least 2 "
             "(unlabeled ones only feed the scene inference)"
@@ -242,7 +282,7 @@ def _assign_splits(recordings: list[RecordingEntry], table: Path) -> list[Record
     for k, r in enumerate(deploy):
         splits[r.row] = r.split or ("val" if k < val else "test")
     out = [dataclasses.replace(r, split=splits.get(r.row, "unlabeled")) for r in recordings]
-    for name in ("train", "val", "test"):
+    for name in ("train", "val", "test") if deployment else ("train",):
         if not any(r.split == name for r in out):
             raise ValueError(f"{table}: the split column leaves no {name!r} recording")
     return out

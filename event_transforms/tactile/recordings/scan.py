@@ -52,7 +52,7 @@ def scan_events(source: EventFile, sensor: tuple[int, int], where: str, time_uni
         >>> found.events, found.t_min, found.t_max, int(found.totals.sum())
         (2, 10, 20, 2)
     """
-    from ...events.binning import _SECONDS_SPAN, _to_microseconds
+    from ...events.binning import _SECONDS_SPAN, _millisecond_advice, _to_microseconds
 
     height, width = sensor
     totals = np.zeros(height * width, dtype=np.int64)
@@ -83,7 +83,7 @@ def scan_events(source: EventFile, sensor: tuple[int, int], where: str, time_uni
             raise ValueError(
                 f"{where}: event {offset + index} at (x, y) = ({x[index]}, {y[index]}) lies outside the sensor "
                 f"(H, W) = {sensor} (x spans {x.min()}..{x.max()}, y {y.min()}..{y.max()} in this chunk); "
-                "give the sensor size with --sensor-size H W"
+                f"pass sensor_size=(H, W) of the camera (at least ({int(y.max()) + 1}, {int(x.max()) + 1}) here)"
             )
         p = chunk["p"]
         if p.dtype.kind != "b":
@@ -100,8 +100,13 @@ def scan_events(source: EventFile, sensor: tuple[int, int], where: str, time_uni
     if time_unit is None and fractional and span < _SECONDS_SPAN:
         raise ValueError(
             f"{where}: timestamps look like seconds, not microseconds (fractional values spanning {span:g}); "
-            "give their unit: time_unit='s' (--time-unit s), or 'ms', 'ns', or 'us' if they are microseconds"
+            "give their unit: time_unit='s', or 'ms', 'ns', or 'us' if they are microseconds"
         )
+    if time_unit is None and not isinstance(t_min, float):
+        advice = _millisecond_advice(offset, t_min, t_max)
+        if advice is not None:
+            raise ValueError(f"{where}: {advice}; give their unit: time_unit='ms', or time_unit='us' if they are "
+                             "microseconds")
     if time_unit is not None:  # to microseconds exactly as the binning converts them
         dtype = torch.float64 if isinstance(t_min, float) else torch.int64
         t_min, t_max = _to_microseconds(torch.tensor([t_min, t_max], dtype=dtype), time_unit).tolist()

@@ -25,6 +25,7 @@ def load_recording_data(
     cache: str | os.PathLike[str] | None = None,
     name: str | None = None,
     log: Any = None,
+    deployment: bool = True,
 ) -> Any:
     """A folder of recordings as the protocol's :class:`~event_transforms.tactile.copies.SceneData`.
 
@@ -38,6 +39,10 @@ def load_recording_data(
     deployment windows' quietest frames; the prior's bank (``prior``, ``everything``) the
     training windows' quietest frames (another camera, or the same one, at hand).
 
+    With ``deployment=False`` a folder of training recordings only loads (for training a
+    model, never for the benchmark): validation and test are empty and the scene is inferred
+    from the training windows alone (no gap).
+
     Returns:
         A ``SceneData`` whose ``dataset`` attribute describes the data (folder, files,
         content hash, settings, crop, recordings and windows per split).
@@ -48,14 +53,24 @@ def load_recording_data(
     start = time.perf_counter()
     settings = settings or RecordingSettings()
     root = Path(root)
-    splits = {s: RecordingSet(root, split=s, settings=settings, cache=cache, log=log) for s in SPLITS}
+    splits = {s: RecordingSet(root, split=s, settings=settings, cache=cache, log=log, deployment=deployment)
+              for s in SPLITS}
+    settings = splits["train"].settings  # the sensor size resolved
     crop = splits["train"].crop
     for s, data in splits.items():  # every split on the one grid
         if len(data) and tuple(data[0][0].shape) != tuple(splits["train"][0][0].shape):
             raise ValueError(f"split {s!r}: windows of shape {tuple(data[0][0].shape)} differ from the training "
                              f"windows' {tuple(splits['train'][0][0].shape)}; give one crop size")
     train_frames = splits["train"].frames
+    if len(train_frames) < 2:
+        raise ValueError(
+            f"{len(train_frames)} training window(s): the scene inference needs at least 2; a recording of F frames "
+            f"gives (F - frames) // stride + 1 windows of frames={settings.frames}: lower frames= or stride=")
     deploy_frames = torch.cat([splits["val"].frames, splits["unlabeled"].frames])
+    if not len(deploy_frames):
+        if log:
+            log("no deployment recordings: the scene is inferred from the training windows alone (no gap)")
+        deploy_frames = train_frames
     train_sizes = splits["train"].diameters
     deploy_sizes = _sizes(splits["val"], splits["test"], splits["unlabeled"])
     inferred = infer_scene(train_frames, deploy_frames, train_sizes=train_sizes,
@@ -120,6 +135,7 @@ class RecordingScene(BenchmarkScene):
               prior_bank: Tensor, dataset: dict[str, Any]) -> RecordingScene:
         from ..simulation import SimulatorConfig
 
+        assert settings.sensor_size is not None  # resolved by RecordingSet
         config = SimulatorConfig(sensor_size=settings.sensor_size, n_frames=settings.frames,
                                  frame_ms=float(settings.frame_ms), substep_ms=float(settings.frame_ms))
         # without sizes the sessions hold a placeholder size, never read (no size gap)
