@@ -23,13 +23,16 @@ writes the results; ``--jobs N`` starts N local ranks itself.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
+
+from .cli_data import add_ingestion_options, as_flags
+from .cli_data import add_recording_options as _recording_options
+from .cli_data import recording_settings as _recording_settings
 
 __all__ = ["main", "build_parser", "QUICK", "FULL"]
 
@@ -234,6 +237,9 @@ def build_parser() -> argparse.ArgumentParser:
     predict.add_argument("events", type=Path, help="an event file (.npy, .npz, .csv, .aedat4, .h5)")
     predict.add_argument("--out", type=Path, default=Path("force.csv"), help="output CSV t_us,force_n")
     predict.add_argument("--threads", type=_positive, default=1, help="torch CPU threads")
+    add_ingestion_options(predict.add_argument_group(
+        "reading the event file (default: what the model's training recordings used; the sensor size the file "
+        "states)"))
 
     compare = sub.add_parser(
         "compare", help="compare the verdicts (sign, significance) of two runs' summary tables, not their digits",
@@ -263,64 +269,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
-
-
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
-
-
-def _recording_options(parser: argparse.ArgumentParser) -> None:
-    """The layout's settings (RecordingSettings), each recorded with the results."""
-    group = parser.add_argument_group("recordings (with --data)")
-    group.add_argument("--sensor-size", type=_positive, nargs=2, metavar=("H", "W"), default=(180, 240),
-                       help="sensor height and width (default 180 240, the DAVIS240)")
-    group.add_argument("--frame-ms", type=_positive_float, default=10.0, help="bin width in ms (default 10)")
-    group.add_argument("--frames", type=_positive, default=36, help="frames T per window (default 36)")
-    group.add_argument("--stride", type=_positive, help="frames between window starts (default T)")
-    group.add_argument("--crop", type=_non_negative_int, nargs=4, metavar=("TOP", "LEFT", "H", "W"),
-                       help="crop window for every recording (default: recordings.csv's crop columns, else the "
-                       "contact area of the training recordings)")
-    group.add_argument("--pool", type=_positive, default=2, help="sum-pool factor (default 2)")
-    group.add_argument("--force-offset-ms", type=_finite, default=0.0,
-                       help="the force clock's lag behind the events' clock in ms (default 0)")
-    group.add_argument("--time-unit", choices=("us", "ms", "s", "ns"),
-                       help="unit of the event files' timestamps (default: microseconds; float timestamps that "
-                       "look like seconds are refused without it); force files stay in t_us")
-
-
-def _recording_settings(args: argparse.Namespace) -> Any:
-    from .recordings import RecordingSettings
-
-    return RecordingSettings(
-        sensor_size=tuple(args.sensor_size), frame_ms=args.frame_ms, frames=args.frames, stride=args.stride,
-        crop=None if args.crop is None else tuple(args.crop), pool=args.pool, force_offset_ms=args.force_offset_ms,
-        time_unit=args.time_unit,
-    )
-
-
-def _load_recordings(args: argparse.Namespace) -> Any:
-    """The folder's SceneData, with one line saying what was read and how."""
+def _load_recordings(args: argparse.Namespace, deployment: bool = True) -> Any:
+    """The folder's SceneData, with one line saying what was read and how (``deployment=False``:
+    a folder of training recordings only, for ``train``)."""
     from .recordings import load_recording_data
 
     if not args.data.is_dir():
         raise ValueError(f"--data {str(args.data)!r} is not a folder")
     root = getattr(args, "root", None)
     data = load_recording_data(args.data, _recording_settings(args), cache=None if root is None else root / "recordings",
-                               log=_print)
+                               log=_print, deployment=deployment)
     d = data.dataset
     _print(f"data: {d['folder']} ({d['files']} files, content hash {d['content_hash'][:16]}); recordings per split "
            f"{d['recordings']}, windows {d['windows']} of {args.frames} frames of {args.frame_ms:g} ms (stride "
@@ -703,7 +661,9 @@ def _train(args: argparse.Namespace) -> int:
 
     _writable(args.out.parent if str(args.out.parent) else Path("."), "--out")
     torch.set_num_threads(args.threads)
-    data = _load_recordings(args)
+    data = _load_recordings(args, deployment=False)
+    if args.policy == "inferred" and not data.dataset["windows"]["val"] + data.dataset["windows"]["unlabeled"]:
+        raise ValueError("--policy inferred needs deployment recordings (role deploy) to infer the gaps from")
     start = time.perf_counter()
     model, summary = train_model(
         data, args.policy, steps=args.steps, batch_size=args.batch_size, lr=args.lr,
@@ -715,9 +675,10 @@ def _train(args: argparse.Namespace) -> int:
                      "policy": args.policy, "data": {k: data.dataset[k] for k in ("folder", "content_hash", "files")}}
     model.save(args.out, preprocessing=preprocessing)
     _print(f"trained with policy {args.policy!r} for {args.steps} steps in {time.perf_counter() - start:.1f} s "
-           f"(kept step {summary['kept_step']}, hold-out MSE {summary['holdout_mse']:.3g} N²); validation MSE "
-           f"{summary['val_mse']:.3g} N², test MSE {summary['test_mse']:.3g} N² on {data.dataset['recordings']['test']} "
-           f"test recordings")
+           f"(kept step {summary['kept_step']}, hold-out MSE {summary['holdout_mse']:.3g} N²); " + (
+               f"validation MSE {summary['val_mse']:.3g} N², test MSE {summary['test_mse']:.3g} N² on "
+               f"{data.dataset['recordings']['test']} test recordings" if len(data.test) else
+               "not scored: the folder holds no labelled deployment recordings"))
     _print(f"wrote {args.out} (weights, model settings, preprocessing: frame_ms {settings['frame_ms']:g}, crop "
            f"{tuple(settings['crop'])}, pool {settings['pool']}, force scaling; package version)")
     return 0
@@ -731,13 +692,25 @@ def _predict(args: argparse.Namespace) -> int:
 
     torch.set_num_threads(args.threads)
     _writable(args.out.parent if str(args.out.parent) else Path("."), "--out")
-    model = ForceRegressor.load(args.model)
+    model = ForceRegressor.load(_checkpoint(args.model))
     start = time.perf_counter()
-    stats = predict_stream(model, args.events, args.out)
+    stats = predict_stream(model, args.events, args.out, sensor_size=args.sensor_size, time_unit=args.time_unit,
+                           columns=args.columns, log=_print)
     _print(f"wrote {args.out}: {stats['frames']} frames from {stats['events']:,} events in "
            f"{time.perf_counter() - start:.1f} s; step latency p50 {stats['p50_ms']:.3f} ms, p99 "
            f"{stats['p99_ms']:.3f} ms per frame")
     return 0
+
+
+def _checkpoint(path: Path) -> Path:
+    """``path`` if it can be a checkpoint (a torch zip file), else the error naming what it is."""
+    import zipfile
+
+    if path.is_file() and not zipfile.is_zipfile(path):
+        kind = f"a {path.suffix} file" if path.suffix else "not a zip file"
+        raise ValueError(f"MODEL {str(path)!r} is not a checkpoint written by `event-transforms train` ({kind}); "
+                         "the command is `predict MODEL EVENTS`, the model first")
+    return path
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -772,7 +745,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)
         return 130
     except ValueError as error:  # a name or setting the user gave (also from a worker): one line
-        message = " ".join(str(error).split())
+        message = as_flags(" ".join(str(error).split()))  # the library's advice as this interface's flags
         print(f"{parser.prog} {args.command}: error: {message}", file=sys.stderr)
         return 2
     except ImportError as error:  # tqdm, matplotlib, torchvision: the app extra's packages
