@@ -51,7 +51,8 @@ class EventFile:
     Args:
         path: the file (its suffix names the format).
         columns: the order of the columns of an ``(N, k)`` array (``.npy`` or a plain HDF5
-            dataset), e.g. ``"txyp"``, ``"_"`` for a column to skip (default ``"xytp"``).
+            dataset), e.g. ``"txyp"``, ``"_"`` for a column to skip (default ``"xytp"``);
+            files with named columns are read by name (so one setting serves a folder of both).
 
     Attributes:
         path: the file.
@@ -115,9 +116,6 @@ class EventFile:
             raise ValueError(f"{path}: unknown event file type {suffix!r}; expected one of {', '.join(_SUFFIXES)}")
         if self._rows is not None:
             self._order = _row_order(self._rows, columns, path)
-        elif columns is not None:
-            raise ValueError(f"{path}: columns={columns!r} names the columns of an (N, k) array (.npy or a plain "
-                             "HDF5 dataset); this file's columns are read by name")
         lengths = {len(c) for c in self._columns.values()} if self._columns is not None else {len(self._rows)}
         if len(lengths) != 1:
             raise ValueError(f"{path}: columns x, y, t, p have different lengths {sorted(lengths)}")
@@ -357,5 +355,18 @@ def stated_sensor_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
                  and "width" in s and "height" in s}
         return sizes.pop() if len(sizes) == 1 else None
     if suffix in (".h5", ".hdf5"):
-        return EventFile(path).sensor_size
+        try:
+            import h5py
+        except ImportError:
+            raise ValueError(f"{path}: reading HDF5 needs h5py (pip install h5py)") from None
+        try:
+            with h5py.File(path, "r") as handle:
+                nodes = [handle]
+                for name in ("events", "CD/events"):
+                    if name in handle:
+                        nodes += [handle[name], handle[name].parent]
+                        break
+                return _h5_sensor(nodes, path)
+        except OSError as error:
+            raise ValueError(f"{path}: not an HDF5 file ({error}){_what_it_is(path)}") from None
     return None

@@ -19,7 +19,8 @@ _FLAGS = {
     "frame_ms": "--frame-ms", "stride": "--stride", "force_offset_ms": "--force-offset-ms",
     "force_time_unit": "--force-time-unit", "force_column": "--force-column", "sync": "--sync", "crop": "--crop",
 }
-_ADVICE = re.compile(r"\b(" + "|".join(_FLAGS) + r")=(\((\d+), (\d+)\)|'([^']*)'|(-?[\d.]+))?")
+_ADVICE = re.compile(r"\b(" + "|".join(_FLAGS) + r")=(\((\w+), (\w+)\)|'([^']*)'|(-?[\d.]+))?")
+_LEAVE = re.compile(r"\bleave (" + "|".join(_FLAGS) + r") out\b")
 
 
 def as_flags(message: str) -> str:
@@ -31,6 +32,8 @@ def as_flags(message: str) -> str:
     Example:
         >>> as_flags("pass sensor_size=(240, 320); or time_unit='ms'; lower frames= (frames=36)")
         'pass --sensor-size 240 320; or --time-unit ms; lower --frames (--frames 36)'
+        >>> as_flags("pass sensor_size=(H, W); or leave sensor_size out")
+        'pass --sensor-size H W; or leave --sensor-size out'
     """
 
     def flag(match: re.Match[str]) -> str:
@@ -40,7 +43,7 @@ def as_flags(message: str) -> str:
         value = match.group(5) if match.group(5) is not None else match.group(6)
         return name if value is None else f"{name} {value}"
 
-    return _ADVICE.sub(flag, message)
+    return _LEAVE.sub(lambda match: f"leave {_FLAGS[match.group(1)]} out", _ADVICE.sub(flag, message))
 
 
 def _positive(text: str) -> int:
