@@ -350,3 +350,79 @@ def test_recording_entry_and_the_deprecated_alias():
     from event_transforms.tactile.simulation import Recording
 
     assert Recording is not alias  # one Recording: the simulator's
+
+
+class TestBags:
+    @pytest.fixture(scope="class", params=[False, True], ids=["ros1", "ros2"])
+    def converted(self, request, tmp_path_factory):
+        from .rig_files import write_bag
+
+        tmp = tmp_path_factory.mktemp("bags")
+        for k, role in enumerate(["train"] * 3 + ["deploy"] * 2):
+            events, t, force = grasp_events(k)
+            bag = tmp / (f"g{k}" if request.param else f"g{k}.bag")
+            write_bag(bag, events, SENSOR, t, np.c_[0.6 * force, 0 * force, -0.8 * force], ros2=request.param)
+            assert cli.main(["convert", str(bag), "--events", "/dvs/events", "--force", "/ft", "--role", role,
+                             "--out", str(tmp / "rec")]) == 0
+        return tmp
+
+    def test_bags_read_like_the_npy_layout(self, converted, tmp_path, capsys):
+        reference = make_folder(tmp_path / "d", train=3, deploy=2, unlabeled=0)
+        options = {"frames": 12, "pool": 2, "crop": (0, 0, 30, 40)}
+        want = RecordingSet(reference, split="train", cache=tmp_path / "c", sensor_size=SENSOR, **options)
+        got = RecordingSet(converted / "rec", split="train", cache=tmp_path / "c", **options)  # size from the files
+        assert got.sensor_size == SENSOR and len(got) == len(want)
+        for i in range(len(got)):
+            assert torch.equal(got[i][0], want[i][0])
+            torch.testing.assert_close(got[i][1], want[i][1], atol=1e-5, rtol=1e-6)
+        assert (converted / "rec" / "recordings.csv").read_text().splitlines()[:2] == [
+            "events,force,role", "events/g0.npz,force/g0.csv,train"]
+
+    def test_receive_times_on_request(self, tmp_path, capsys):
+        from .rig_files import write_bag
+
+        events, t, force = grasp_events(0)
+        write_bag(tmp_path / "a.bag", events, SENSOR, t, np.c_[0 * force, 0 * force, force])
+        for stamps in ("header", "receive"):
+            assert cli.main(["convert", str(tmp_path / "a.bag"), "--events", "/dvs/events", "--force", "/ft",
+                             "--force-field", "fz", "--stamps", stamps, "--out", str(tmp_path / stamps)]) == 0
+            assert f"fz of geometry_msgs/msg/WrenchStamped, {stamps} " in capsys.readouterr().out
+        header = np.loadtxt(tmp_path / "header" / "force" / "a.csv", delimiter=",", skiprows=1)
+        receive = np.loadtxt(tmp_path / "receive" / "force" / "a.csv", delimiter=",", skiprows=1)
+        assert np.array_equal(header[:, 0], t) and np.array_equal(receive[:, 0], t + 3_000)
+        np.testing.assert_allclose(header[:, 1], force, rtol=1e-12)
+
+    def test_bad_bags_name_file_topic_and_fix(self, tmp_path, capsys):
+        from .rig_files import write_bag
+
+        events, t, force = grasp_events(0)
+        wrench = np.c_[0 * force, 0 * force, force]
+        wrench[5, 2] = np.nan
+        write_bag(tmp_path / "a.bag", events, SENSOR, t, wrench, float_topic=True)
+        base = ["convert", str(tmp_path / "a.bag"), "--out", str(tmp_path / "o")]
+        cases = [
+            (["--events", "/events", "--force", "/ft"], ["a.bag", "no topic '/events'", "/dvs/events (dvs_msgs",
+                                                        "name one of them"]),
+            (["--events", "/dvs/events", "--force", "/ft"], ["a.bag", "topic '/ft', message 5",
+                                                            "magnitude is nan", "drop or filter"]),
+            (["--events", "/dvs/events", "--force", "/grip", "--force-field", "data"],
+             ["topic '/grip', message 0", "has no header", "--stamps receive"]),
+            (["--events", "/ft", "--force", "/grip"], ["carries geometry_msgs/msg/WrenchStamped, not an event array"]),
+        ]
+        for extra, words in cases:
+            assert cli.main([*base, *extra]) == 2
+            err = capsys.readouterr().err
+            assert all(w in err for w in words), (err, words)
+        assert cli.main([*base, "--events", "/dvs/events", "--force", "/grip", "--force-field", "data", "--stamps",
+                         "receive"]) == 2  # receive times need no header; the value at message 5 is NaN
+        assert "topic '/grip', message 5: data is nan" in capsys.readouterr().err
+        assert not (tmp_path / "o").exists()  # nothing half-written
+
+    def test_missing_package_names_the_extra(self, tmp_path, monkeypatch):
+        import sys
+
+        from event_transforms.events.io import read_bag_events
+
+        monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
+        with pytest.raises(ValueError, match=r"pip install 'event-transforms\[bag\]'"):
+            read_bag_events(tmp_path / "a.bag", "/dvs/events")

@@ -1,4 +1,4 @@
-"""Command line: ``event-transforms reproduce | simulate | show | show-scene | infer-scene | train | predict``.
+"""Command line: ``event-transforms reproduce | simulate | show | show-scene | infer-scene | train | predict | convert``.
 
 ``reproduce`` runs the benchmark protocol (:mod:`event_transforms.tactile.experiment`) on the
 simulated scenes (:mod:`event_transforms.tactile.scenes`). Without ``--full`` it runs a quick
@@ -13,6 +13,7 @@ can build, and the paper-size model. Results are on synthetic data, never the pa
 of :mod:`event_transforms.tactile.recordings`), ``infer-scene --data DIR`` prints the gaps
 inferred between its training and deployment recordings, ``train --data DIR`` saves a model
 checkpoint with its preprocessing and ``predict MODEL EVENTS`` streams an event file through it;
+``convert BAG --events TOPIC --force TOPIC --out DIR`` writes ROS bags in the layout;
 ``simulate --export DIR --scene NAME`` writes a built-in scene in that layout.
 
 Under ``torchrun --nproc-per-node N -m event_transforms.tactile.cli reproduce ...`` the
@@ -30,7 +31,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from .cli_data import add_ingestion_options, as_flags
+from .cli_data import add_convert_command, add_ingestion_options, as_flags, run_convert
 from .cli_data import add_recording_options as _recording_options
 from .cli_data import recording_settings as _recording_settings
 
@@ -240,6 +241,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_ingestion_options(predict.add_argument_group(
         "reading the event file (default: what the model's training recordings used; the sensor size the file "
         "states)"))
+
+    add_convert_command(sub)
 
     compare = sub.add_parser(
         "compare", help="compare the verdicts (sign, significance) of two runs' summary tables, not their digits",
@@ -735,7 +738,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     handlers = {"reproduce": _reproduce, "simulate": _simulate, "show": _show, "show-scene": _show_scene,
-                "infer-scene": _infer_scene, "train": _train, "predict": _predict, "compare": _compare}
+                "infer-scene": _infer_scene, "train": _train, "predict": _predict, "compare": _compare,
+                "convert": lambda a: run_convert(a, _print)}
     try:
         if args.command in _TRAINING_COMMANDS:  # before any simulation: the training loop needs tqdm
             import tqdm  # noqa: F401

@@ -6,11 +6,13 @@ library's advice (``sensor_size=(H, W)``) into the flags a command-line user typ
 
 from __future__ import annotations
 
-__all__ = ["add_ingestion_options", "add_recording_options", "recording_settings", "as_flags"]
+__all__ = ["add_ingestion_options", "add_recording_options", "recording_settings", "as_flags", "add_convert_command",
+           "run_convert"]
 
 import argparse
 import math
 import re
+from pathlib import Path
 from typing import Any
 
 #: Python keyword -> command-line flag, for errors raised below the command line.
@@ -162,3 +164,53 @@ def recording_settings(args: argparse.Namespace) -> Any:
         force_offset_ms=args.force_offset_ms, time_unit=args.time_unit, columns=args.columns,
         force_time_unit=args.force_time_unit, force_column=args.force_column, sync=args.sync,
     )
+
+
+def add_convert_command(sub: Any) -> None:
+    """``convert BAG... --events TOPIC [--force TOPIC] --out DIR``: ROS bags into the layout.
+
+    Args:
+        sub: the subparsers of the ``event-transforms`` parser.
+
+    Example:
+        >>> parser = argparse.ArgumentParser()
+        >>> add_convert_command(parser.add_subparsers(dest="command"))
+        >>> args = parser.parse_args(["convert", "a.bag", "--events", "/dvs/events", "--out", "rec"])
+        >>> args.role, args.stamps
+        ('train', 'header')
+    """
+    convert = sub.add_parser(
+        "convert", help="write ROS bags (ROS 1 or 2) in the recording-set layout",
+        description="Read the events (dvs_msgs/EventArray or prophesee_event_msgs/EventArray) and the force "
+        "(geometry_msgs/WrenchStamped or any numeric field) of each bag and write them as one recording each of "
+        "the layout in --out (events/<bag>.npz with the sensor size, force/<bag>.csv, a row of recordings.csv). "
+        "Needs the bag extra: pip install 'event-transforms[bag]'.")
+    convert.add_argument("bags", type=Path, nargs="+", metavar="BAG", help="ROS 1 .bag files or ROS 2 bag folders")
+    convert.add_argument("--events", required=True, metavar="TOPIC", help="the events' topic, e.g. /dvs/events")
+    convert.add_argument("--force", metavar="TOPIC", help="the force topic (default: none, unlabeled recordings)")
+    convert.add_argument("--force-field", metavar="FIELD",
+                         help="magnitude (a wrench's default), fx, fy, fz, or a dotted numeric field (data, "
+                         "wrench.torque.z)")
+    convert.add_argument("--stamps", choices=("header", "receive"), default="header",
+                         help="force times: the messages' header stamps (default) or the bag's receive times")
+    convert.add_argument("--role", choices=("train", "deploy"), default="train", help="the rows' role (default train)")
+    convert.add_argument("--diameter-mm", type=_positive_float, help="the object's size, for a diameter_mm column")
+    convert.add_argument("--out", type=Path, required=True, metavar="DIR", help="the layout's folder")
+
+
+def run_convert(args: argparse.Namespace, log: Any) -> int:
+    """Run ``convert`` (each bag one row; every line of what was read is given to ``log``).
+
+    Args:
+        args: the parsed ``convert`` options.
+        log: called with one line per bag.
+
+    Example:
+        See :func:`add_convert_command`.
+    """
+    from .recordings.convert import convert_bag
+
+    for bag in args.bags:
+        convert_bag(bag, args.out, events=args.events, force=args.force, force_field=args.force_field,
+                    stamps=args.stamps, role=args.role, diameter_mm=args.diameter_mm, log=log)
+    return 0
