@@ -44,7 +44,8 @@ def write_aedat4(path: Path, events: np.ndarray, sensor: tuple[int, int], trigge
 
 
 def write_bag(path: Path, events: np.ndarray, sensor: tuple[int, int], force_t_us: np.ndarray,
-              wrench: np.ndarray, *, ros2: bool = False, per_message: int = 500, float_topic: bool = False) -> None:
+              wrench: np.ndarray, *, ros2: bool = False, per_message: int = 500, float_topic: bool = False,
+              force_topic: str = "/ft") -> None:
     """A ROS 1 ``.bag`` (or a ROS 2 bag folder) with ``/dvs/events`` (dvs_msgs/EventArray, the
     custom types registered from their .msg text), ``/ft`` (geometry_msgs/WrenchStamped, ``wrench``
     rows fx, fy, fz stamped ``force_t_us`` in the headers) and, with ``float_topic``, ``/grip``
@@ -85,7 +86,7 @@ def write_bag(path: Path, events: np.ndarray, sensor: tuple[int, int], force_t_u
     receive_shift = 3_000  # the bag receives each message 3 ms after its stamp
     with writer:
         on_events = writer.add_connection("/dvs/events", "dvs_msgs/msg/EventArray", typestore=store)
-        on_force = writer.add_connection("/ft", "geometry_msgs/msg/WrenchStamped", typestore=store)
+        on_force = writer.add_connection(force_topic, "geometry_msgs/msg/WrenchStamped", typestore=store)
         on_grip = writer.add_connection("/grip", "std_msgs/msg/Float64", typestore=store) if float_topic else None
         messages = []
         for k, start in enumerate(range(0, len(events), per_message)):

@@ -426,3 +426,80 @@ class TestBags:
         monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
         with pytest.raises(ValueError, match=r"pip install 'event-transforms\[bag\]'"):
             read_bag_events(tmp_path / "a.bag", "/dvs/events")
+
+
+class TestFromRigToVerdict:
+    """Each path of docs/rig.md, its commands read from the page and run on files the test writes,
+    with a reduced training configuration appended to ``reproduce``."""
+
+    PAGE = "docs/rig.md"
+
+    def commands(self, section: str) -> list[str]:
+        from pathlib import Path
+
+        page = (Path(__file__).resolve().parent.parent / self.PAGE).read_text()
+        text = page.split(f"## {section}\n", 1)[1].split("\n## ", 1)[0]
+        block = text.split("```bash\n", 1)[1].split("```", 1)[0]
+        lines = [line for line in block.splitlines() if line.strip()]
+        assert 1 <= len(lines) <= 3, lines
+        return lines
+
+    def run(self, section, tmp_path, monkeypatch, capsys):
+        import glob
+        import shlex
+        import subprocess
+
+        monkeypatch.chdir(tmp_path)
+        reduced = ["--methods", "none", "--seeds", "0", "--steps", "2", "--hidden-channels", "2", "--input-pool", "3",
+                   "--batch-size", "4", "--jobs", "1", "--no-plots", "--no-budget-check", "--no-equal-time",
+                   "--frames", "12", "--root", str(tmp_path / "cache"), "--out", str(tmp_path / "results")]
+        for line in self.commands(section):
+            if line.startswith("printf"):
+                subprocess.run(line, shell=True, check=True, cwd=tmp_path)
+                continue
+            words = shlex.split(line)
+            assert words[0] == "event-transforms", line
+            args = [a for w in words[1:] for a in (sorted(glob.glob(w)) if "*" in w else [w])]
+            assert cli.main(args + (reduced if args[0] == "reproduce" else [])) == 0, capsys.readouterr().err
+        assert (tmp_path / "results" / "results.md").is_file()
+        return capsys.readouterr().out
+
+    def test_a_ros_bag(self, tmp_path, monkeypatch, capsys):
+        from .rig_files import write_bag
+
+        for k, name in enumerate(["train_0", "train_1", "train_2", "deploy_0", "deploy_1"]):
+            events, t, force = grasp_events(k)
+            write_bag(tmp_path / f"{name}.bag", events, SENSOR, t, np.c_[0.6 * force, 0 * force, 0.8 * force],
+                      force_topic="/ft_sensor/wrench")
+            np.savetxt(tmp_path / f"{name}.csv", [])  # noise beside the bags, never read
+        out = self.run("A ROS bag", tmp_path, monkeypatch, capsys)
+        assert out.count("magnitude of geometry_msgs/msg/WrenchStamped, header stamps") == 5
+
+    def test_an_aedat4_recording_and_an_ft_log(self, tmp_path, monkeypatch, capsys):
+        (tmp_path / "rig").mkdir()
+        for k in range(1, 5):
+            events, t, force = grasp_events(k)
+            marked = np.arange(15, t.size - 15, 20)
+            write_aedat4(tmp_path / "rig" / f"g{k}.aedat4", events, SENSOR, triggers=t[marked].astype(np.int64))
+            flags = np.zeros(t.size, dtype=int)
+            flags[marked] = 1
+            t_ns = t * 1000 + 5_000_000_000  # the logger's clock reads 5 s more than the camera's
+            np.savetxt(tmp_path / "rig" / f"g{k}.csv", np.c_[t_ns, 0.6 * force, 0 * force, 0.8 * force, flags],
+                       delimiter=",", header="t_ns,fx,fy,fz,trigger", comments="", fmt="%.17g")
+        out = self.run("An .aedat4 recording and an F/T log", tmp_path, monkeypatch, capsys)
+        assert out.count("time column t_ns (nanoseconds) read as microseconds; force = |(fx, fy, fz)|") == 4
+        assert out.count("force clock aligned to the camera's by -5000.000 ms from 11 triggers (spread 0.0 µs)") == 4
+
+    def test_an_hdf5_array(self, tmp_path, monkeypatch, capsys):
+        h5py = pytest.importorskip("h5py")
+        (tmp_path / "rig").mkdir()
+        for k in range(1, 5):
+            events, t, force = grasp_events(k)
+            rows = rows_of(events)
+            rows[:, 2] *= 1000  # nanoseconds
+            with h5py.File(tmp_path / "rig" / f"g{k}.h5", "w") as f:
+                f["events"] = rows
+            np.savetxt(tmp_path / "rig" / f"g{k}.csv", np.c_[t * 1000, force], delimiter=",", header="t_ns,fz",
+                       comments="", fmt="%.17g")
+        out = self.run("An HDF5 array", tmp_path, monkeypatch, capsys)
+        assert out.count("time column t_ns (nanoseconds) read as microseconds; force = column fz") == 4
