@@ -402,6 +402,39 @@ EVENT_MESSAGES = {
 }
 #: One event of a ROS 1 ``EventArray`` as serialised (packed: x, y, ts.sec, ts.nsec, polarity).
 _ROS1_EVENT = np.dtype([("x", "<u2"), ("y", "<u2"), ("sec", "<u4"), ("nsec", "<u4"), ("p", "u1")])
+#: The same in little-endian CDR (ROS 2), after the first event: each element is aligned, so
+#: from the second on they repeat every 16 bytes (x, y, 2 bytes of padding, sec, nanosec, polarity).
+_CDR_EVENT = np.dtype({"names": ["x", "y", "sec", "nsec", "p"], "formats": ["<u2", "<u2", "<i4", "<u4", "u1"],
+                       "offsets": [0, 2, 6, 10, 14], "itemsize": 16})
+_EVENT_COLUMNS = [("x", "<i4"), ("y", "<i4"), ("t", "<i8"), ("p", "<i1")]
+
+
+def _ros1_events(raw: bytes) -> tuple[int, int, np.ndarray]:
+    """(height, width, records) of a ROS 1 serialised EventArray."""
+    at = 12 + 4 + int(np.frombuffer(raw, "<u4", 1, 12)[0])  # past seq, stamp and the frame_id
+    height, width, count = (int(v) for v in np.frombuffer(raw, "<u4", 3, at))
+    return height, width, np.frombuffer(raw, _ROS1_EVENT, count, at + 12)
+
+
+def _cdr_events(raw: bytes) -> tuple[int, int, np.ndarray] | None:
+    """(height, width, records) of a little-endian CDR EventArray (``None``: another encoding)."""
+    if raw[:2] != b"\x00\x01":
+        return None
+    body = memoryview(raw)[4:]
+    at = 12 + int(np.frombuffer(body, "<u4", 1, 8)[0])  # past the stamp and the frame_id
+    at += -at % 4
+    height, width, count = (int(v) for v in np.frombuffer(body, "<u4", 3, at))
+    at += 12
+    records = np.zeros(count, dtype=_ROS1_EVENT)
+    if count:
+        first = np.frombuffer(body, _ROS1_EVENT, 1, at)
+        records[0] = first[0]
+        # the last element has no trailing padding byte: one is added to read it as the others
+        rest = np.frombuffer(bytes(body[at + 14:]) + b"\x00", _CDR_EVENT, count - 1) if count > 1 else None
+        if rest is not None:
+            for name in ("x", "y", "sec", "nsec", "p"):
+                records[name][1:] = rest[name]
+    return height, width, records
 
 
 def _bag_reader(path: Path) -> Any:
@@ -473,14 +506,12 @@ def read_bag_events(path: str | os.PathLike[str], topic: str) -> tuple[dict[str,
                 raise ValueError(f"{path}: topic {topic!r} carries {connection.msgtype}, not an event array "
                                  f"({', '.join(EVENT_MESSAGES)})")
         for connection, _, raw in reader.messages(connections=connections):
-            if not reader.is2:  # ROS 1: the events are packed records, read as one array
-                at = 12
-                at += 4 + int(np.frombuffer(raw, "<u4", 1, 12)[0])  # the header's frame_id
-                height, width, count = (int(v) for v in np.frombuffer(raw, "<u4", 3, at))
-                records = np.frombuffer(raw, _ROS1_EVENT, count, at + 12)
-                t = records["sec"].astype(np.int64) * 1_000_000_000 + records["nsec"]
-                part = np.empty(count, dtype=[("x", "<i4"), ("y", "<i4"), ("t", "<i8"), ("p", "<i1")])
-                part["x"], part["y"], part["t"], part["p"] = records["x"], records["y"], t, records["p"]
+            packed = _cdr_events(raw) if reader.is2 else _ros1_events(raw)  # read as arrays, not objects
+            if packed is not None:
+                height, width, records = packed
+                part = np.empty(len(records), dtype=_EVENT_COLUMNS)
+                part["x"], part["y"], part["p"] = records["x"], records["y"], records["p"]
+                part["t"] = records["sec"].astype(np.int64) * 1_000_000_000 + records["nsec"]
             else:
                 message = reader.deserialize(raw, connection.msgtype)
                 height, width = int(message.height), int(message.width)
