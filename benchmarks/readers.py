@@ -6,8 +6,9 @@ in every format into a temporary folder, then reads each file in a fresh process
 of it cached in Python, one torch/numpy thread) through ``EventFile.chunks()`` (the chunked read
 ``RecordingSet`` and ``predict`` do), checking the event count and the timestamps' sum. Reported
 per format: the file's size, the read's wall time and events per second, the peak resident
-memory of the process above its size after the imports (``resource.getrusage``) and the peak of
-Python-traced allocations (``tracemalloc``, numpy's buffers included).
+memory during the read above the resident memory before it (the peak reset through Linux's
+``/proc/self/clear_refs``; memory-mapped pages read count) and the peak of Python-traced
+allocations (``tracemalloc``, numpy's buffers included).
 
 The ROS 2 bag (CDR) is deserialised message by message by rosbags (one Python object per event)
 and is measured on ``--bag2-events`` events (1e6 by default) and scaled; the ROS 1 bag is read as
@@ -30,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 SENSOR = (260, 346)
-FORMATS = ("npy", "npy-rows", "npz", "csv", "h5", "h5-rows", "aedat4", "bag1", "bag2")
+FORMATS = ("npy", "npy-rows", "npz", "csv", "h5", "h5-rows", "aedat4", "dat", "bag1", "bag2")
 
 
 def synthetic(n: int, seed: int = 0) -> np.ndarray:
@@ -73,6 +74,15 @@ def write(kind: str, events: np.ndarray, folder: Path) -> Path:
 
         path = folder / "e.aedat4"
         write_aedat4(path, events, SENSOR)
+    elif kind == "dat":
+        path = folder / "e.dat"
+        data = (events["x"].astype(np.uint32) | events["y"].astype(np.uint32) << 14
+                | events["p"].astype(np.uint32) << 28)
+        records = np.zeros(len(events), dtype=[("t", "<u4"), ("data", "<u4")])
+        records["t"], records["data"] = events["t"], data
+        with open(path, "wb") as handle:
+            handle.write(f"% Version 2\n% Width {SENSOR[1]}\n% Height {SENSOR[0]}\n".encode() + bytes([0x0C, 8]))
+            handle.write(records.tobytes())
     elif kind == "bag1":
         path = folder / "e.bag"
         write_bag1(path, events)
@@ -111,6 +121,24 @@ def write_bag1(path: Path, events: np.ndarray, per_message: int = 10_000) -> Non
             writer.write(connection, last * 1000, head + body)
 
 
+def _status(field: str) -> int:
+    """A ``/proc/self/status`` field in kB."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1])
+    raise KeyError(field)
+
+
+def _reset_peak_rss() -> int | None:
+    """Reset the process's peak RSS (Linux ``clear_refs``) and return the current RSS in kB, or
+    ``None`` where the peak cannot be reset (the imports' peak then counts)."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+        return _status("VmRSS")
+    except OSError:
+        return None
+
+
 def measure(kind: str, path: str, n: int) -> dict[str, float]:
     """Read ``path`` in this process (one thread); time, events/s, memory."""
     import resource
@@ -121,7 +149,7 @@ def measure(kind: str, path: str, n: int) -> dict[str, float]:
     torch.set_num_threads(1)
     from event_transforms.events.io import EventFile, read_bag_events
 
-    base_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    base_kb = _reset_peak_rss()
     tracemalloc.start()
     tick = time.perf_counter()
     if kind.startswith("bag"):
@@ -134,7 +162,8 @@ def measure(kind: str, path: str, n: int) -> dict[str, float]:
             total += int(chunk["t"].astype(np.int64).sum())
     seconds = time.perf_counter() - tick
     traced = tracemalloc.get_traced_memory()[1]
-    peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    peak_kb = _status("VmHWM") if base_kb is not None else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    base_kb = base_kb if base_kb is not None else 0
     assert count == n, (kind, count, n)
     return {"seconds": seconds, "events_per_s": count / seconds, "rss_mb": (peak_kb - base_kb) / 1024,
             "traced_mb": traced / 2**20, "total": total}
@@ -154,7 +183,7 @@ def main() -> None:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
           f"{platform.python_version()}, numpy {np.__version__}; {args.events:,} events")
-    print("| format | file MB | read s | events/s | peak RSS above imports MB | traced peak MB |")
+    print("| format | file MB | read s | events/s | peak RSS during the read MB | traced peak MB |")
     print("|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as folder:
         for kind in args.formats:

@@ -503,3 +503,30 @@ class TestFromRigToVerdict:
                        comments="", fmt="%.17g")
         out = self.run("An HDF5 array", tmp_path, monkeypatch, capsys)
         assert out.count("time column t_ns (nanoseconds) read as microseconds; force = column fz") == 4
+
+
+class TestPropheseeDat:
+    def test_dat_written_by_faery_reads_with_its_size(self, tmp_path):
+        faery = pytest.importorskip("faery")
+        root = make_folder(tmp_path / "d", train=3, deploy=2, unlabeled=0)
+        want = RecordingSet(root, split="train", cache=tmp_path / "c", sensor_size=SENSOR, frames=12,
+                            crop=(0, 0, 30, 40))
+
+        def write(path, events):
+            packed = np.zeros(len(events), dtype=faery.EVENTS_DTYPE)
+            packed["t"], packed["x"], packed["y"], packed["p"] = events["t"], events["x"], events["y"], events["p"] > 0
+            faery.events_stream_from_array(packed, dimensions=(SENSOR[1], SENSOR[0])).to_file(path, zero_t0=False)
+
+        for k in range(5):
+            swap_events(root, k, ".dat", write)
+        got = read_events(root / "r0.dat")
+        events = grasp_events(0)[0]
+        for c in "xytp":
+            assert np.array_equal(got[c].astype(np.int64), events[c].astype(np.int64)), c
+        data = RecordingSet(root, split="train", cache=tmp_path / "c", frames=12, crop=(0, 0, 30, 40))
+        assert data.sensor_size == SENSOR
+        for i in range(len(data)):
+            assert torch.equal(data[i][0], want[i][0])
+        (tmp_path / "bad.dat").write_bytes(b"\x0c\x08" + bytes(16))
+        with pytest.raises(ValueError, match="bad.dat: not a Prophesee .dat file"):
+            read_events(tmp_path / "bad.dat")

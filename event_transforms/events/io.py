@@ -14,6 +14,8 @@ Formats:
 - ``.csv``: a header naming the columns;
 - ``.aedat4`` (the ``aedat`` package): every event packet; the sensor size from the file's
   stream description; trigger packets kept for :attr:`EventFile.triggers`;
+- Prophesee ``.dat`` (CD events; read here, no package needed): the sensor size from its
+  ``% Width``/``% Height`` (or ``% geometry WxH``) header lines;
 - HDF5 ``.h5``/``.hdf5`` (``h5py``): a structured ``events`` or Prophesee-style ``CD/events``
   dataset, a plain ``(N, 4)`` ``events`` dataset (rows as in ``.npy``, ``columns=`` naming
   another order), or one dataset per column (at the root or in an ``events`` group). The
@@ -43,7 +45,7 @@ from .binning import _ALIASES
 _CHUNK = 2**20
 #: Rows probed to tell an (N, 4) array's time column.
 _PROBE = 4096
-_SUFFIXES = (".npy", ".npz", ".csv", ".aedat4", ".h5", ".hdf5")
+_SUFFIXES = (".npy", ".npz", ".csv", ".aedat4", ".h5", ".hdf5", ".dat")
 
 
 class EventFile:
@@ -115,6 +117,8 @@ class EventFile:
             self._columns, self._rows, self.sensor_size = _read_hdf5(path)
         elif suffix == ".aedat4":
             self._columns, self.sensor_size, self.triggers = _read_aedat4(path)
+        elif suffix == ".dat":
+            self._columns, self.sensor_size = _read_dat(path)
         else:
             raise ValueError(f"{path}: unknown event file type {suffix!r}; expected one of {', '.join(_SUFFIXES)}")
         if self._rows is not None:
@@ -293,6 +297,58 @@ class _H5Field:
         return self.dataset[index][self.name]
 
 
+def _dat_header(path: Path) -> tuple[int, tuple[int, int] | None]:
+    """The byte offset of a Prophesee .dat file's events and the sensor size its header states."""
+    width = height = None
+    with open(path, "rb") as handle:
+        offset = 0
+        while True:
+            line = handle.readline()
+            if not line.startswith(b"%"):
+                break
+            offset += len(line)
+            words = line[1:].decode(errors="replace").split()
+            if len(words) >= 2 and words[0].lower() == "width":
+                width = int(words[1])
+            elif len(words) >= 2 and words[0].lower() == "height":
+                height = int(words[1])
+            elif len(words) >= 2 and words[0].lower() == "geometry":
+                width, height = (int(v) for v in words[1].lower().split("x"))
+    if offset == 0:
+        raise ValueError(f"{path}: not a Prophesee .dat file (no '%' header lines){_what_it_is(path)}")
+    return offset, (height, width) if width and height else None
+
+
+class _Bits:
+    """Bits ``shift``..``shift + width`` of a uint32 column, sliced lazily."""
+
+    def __init__(self, data: np.ndarray, shift: int, width: int) -> None:
+        self.data, self.shift, self.mask = data, shift, (1 << width) - 1
+
+    def __len__(self) -> int:
+        return len(self.data)
+
+    def __getitem__(self, index: slice) -> np.ndarray:
+        return ((np.asarray(self.data[index]) >> self.shift) & self.mask).astype(np.int32)
+
+
+def _read_dat(path: Path) -> tuple[dict[str, Any], tuple[int, int] | None]:
+    """A Prophesee .dat file of CD events (8-byte records: uint32 t in µs, uint32 with x in bits
+    0-13, y in 14-27, polarity in 28-31), memory-mapped."""
+    offset, sensor = _dat_header(path)
+    kind, size = np.fromfile(path, dtype=np.uint8, count=2, offset=offset)
+    if size != 8:
+        raise ValueError(f"{path}: .dat events of {size} bytes (type {kind}); only 8-byte CD events are read")
+    dtype = np.dtype([("t", "<u4"), ("data", "<u4")])
+    if path.stat().st_size <= offset + 2:
+        records = np.zeros(0, dtype=dtype)
+    else:
+        records = np.memmap(path, dtype=dtype, mode="r", offset=offset + 2)
+    columns = {"x": _Bits(records["data"], 0, 14), "y": _Bits(records["data"], 14, 14), "t": records["t"],
+               "p": _Bits(records["data"], 28, 4)}
+    return columns, sensor
+
+
 def _read_aedat4(path: Path) -> tuple[dict[str, Any], tuple[int, int] | None, np.ndarray | None]:
     try:
         import aedat
@@ -359,6 +415,8 @@ def stated_sensor_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
     if suffix == ".npz" and zipfile.is_zipfile(path):
         with np.load(path, allow_pickle=False) as archive:
             return _npz_sensor(archive, path)
+    if suffix == ".dat":
+        return _dat_header(path)[1]
     if suffix == ".aedat4":
         try:
             import aedat
