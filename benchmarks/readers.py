@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 SENSOR = (260, 346)
-FORMATS = ("npy", "npy-rows", "npz", "csv", "h5", "h5-rows", "aedat4", "dat", "bag1", "bag2")
+FORMATS = ("npy", "npy-rows", "npz", "csv", "h5", "h5-rows", "aedat4", "dat", "raw", "bag1", "bag2")
 
 
 def synthetic(n: int, seed: int = 0) -> np.ndarray:
@@ -83,6 +83,14 @@ def write(kind: str, events: np.ndarray, folder: Path) -> Path:
         with open(path, "wb") as handle:
             handle.write(f"% Version 2\n% Width {SENSOR[1]}\n% Height {SENSOR[0]}\n".encode() + bytes([0x0C, 8]))
             handle.write(records.tobytes())
+    elif kind == "raw":  # EVT 3.0, written by faery (a test dependency)
+        import faery
+
+        path = folder / "e.raw"
+        packed = np.zeros(len(events), dtype=faery.EVENTS_DTYPE)
+        packed["t"], packed["x"], packed["y"], packed["p"] = events["t"], events["x"], events["y"], events["p"] > 0
+        faery.events_stream_from_array(packed, dimensions=(SENSOR[1], SENSOR[0])).to_file(path, version="evt3",
+                                                                                         zero_t0=False)
     elif kind == "bag1":
         path = folder / "e.bag"
         write_bag1(path, events)

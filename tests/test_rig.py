@@ -530,3 +530,25 @@ class TestPropheseeDat:
         (tmp_path / "bad.dat").write_bytes(b"\x0c\x08" + bytes(16))
         with pytest.raises(ValueError, match="bad.dat: not a Prophesee .dat file"):
             read_events(tmp_path / "bad.dat")
+
+    def test_raw_evt3_written_by_faery(self, tmp_path, monkeypatch):
+        import sys
+
+        faery = pytest.importorskip("faery")
+        pytest.importorskip("evt3")
+        events = grasp_events(0)[0]
+        packed = np.zeros(len(events), dtype=faery.EVENTS_DTYPE)
+        packed["t"], packed["x"], packed["y"], packed["p"] = events["t"], events["x"], events["y"], events["p"] > 0
+        stream = faery.events_stream_from_array(packed, dimensions=(SENSOR[1], SENSOR[0]))
+        stream.to_file(tmp_path / "e.raw", version="evt3", zero_t0=False)
+        got = read_events(tmp_path / "e.raw")
+        for c in "xytp":
+            assert np.array_equal(got[c].astype(np.int64), events[c].astype(np.int64)), c
+        assert EventFile(tmp_path / "e.raw").sensor_size == SENSOR
+        faery.events_stream_from_array(packed, dimensions=(SENSOR[1], SENSOR[0])).to_file(
+            tmp_path / "old.raw", version="evt2", zero_t0=False)
+        with pytest.raises(ValueError, match="only Prophesee .raw files in EVT 3.0 are read, this one says evt 2.0"):
+            read_events(tmp_path / "old.raw")
+        monkeypatch.setitem(sys.modules, "evt3", None)
+        with pytest.raises(ValueError, match=r"pip install 'event-transforms\[prophesee\]'"):
+            read_events(tmp_path / "e.raw")

@@ -16,6 +16,8 @@ Formats:
   stream description; trigger packets kept for :attr:`EventFile.triggers`;
 - Prophesee ``.dat`` (CD events; read here, no package needed): the sensor size from its
   ``% Width``/``% Height`` (or ``% geometry WxH``) header lines;
+- Prophesee ``.raw`` in EVT 3.0 (the ``evt3`` package, MIT: the ``prophesee`` extra), its
+  sensor size and trigger events kept (rising edges as source 1, falling as 2);
 - HDF5 ``.h5``/``.hdf5`` (``h5py``): a structured ``events`` or Prophesee-style ``CD/events``
   dataset, a plain ``(N, 4)`` ``events`` dataset (rows as in ``.npy``, ``columns=`` naming
   another order), or one dataset per column (at the root or in an ``events`` group). The
@@ -45,7 +47,7 @@ from .binning import _ALIASES
 _CHUNK = 2**20
 #: Rows probed to tell an (N, 4) array's time column.
 _PROBE = 4096
-_SUFFIXES = (".npy", ".npz", ".csv", ".aedat4", ".h5", ".hdf5", ".dat")
+_SUFFIXES = (".npy", ".npz", ".csv", ".aedat4", ".h5", ".hdf5", ".dat", ".raw")
 
 
 class EventFile:
@@ -119,6 +121,8 @@ class EventFile:
             self._columns, self.sensor_size, self.triggers = _read_aedat4(path)
         elif suffix == ".dat":
             self._columns, self.sensor_size = _read_dat(path)
+        elif suffix == ".raw":
+            self._columns, self.sensor_size, self.triggers = _read_raw(path)
         else:
             raise ValueError(f"{path}: unknown event file type {suffix!r}; expected one of {', '.join(_SUFFIXES)}")
         if self._rows is not None:
@@ -349,6 +353,39 @@ def _read_dat(path: Path) -> tuple[dict[str, Any], tuple[int, int] | None]:
     return columns, sensor
 
 
+def _raw_header(path: Path) -> tuple[str, tuple[int, int] | None]:
+    """A Prophesee .raw file's encoding (``evt 3.0``) and the sensor size its header states."""
+    encoding, sensor = "", None
+    with open(path, "rb") as handle:
+        while (line := handle.readline()).startswith(b"%"):
+            words = line[1:].decode(errors="replace").strip()
+            if words.lower().startswith("evt "):
+                encoding = words.lower()
+            elif words.lower().startswith("geometry "):
+                width, height = (int(v) for v in words.split()[1].lower().split("x"))
+                sensor = (height, width)
+    return encoding, sensor
+
+
+def _read_raw(path: Path) -> tuple[dict[str, Any], tuple[int, int] | None, np.ndarray]:
+    encoding, _ = _raw_header(path)
+    if encoding != "evt 3.0":
+        raise ValueError(f"{path}: only Prophesee .raw files in EVT 3.0 are read, this one says "
+                         f"{encoding or 'no encoding (no % evt header)'}; convert it with Metavision's tools")
+    try:
+        import evt3
+    except ImportError:
+        raise ValueError(f"{path}: reading Prophesee .raw needs evt3: pip install 'event-transforms[prophesee]'") from None
+    events, found = evt3.decode_file_with_triggers(str(path))
+    columns = {"x": np.asarray(events.x), "y": np.asarray(events.y), "t": np.asarray(events.t).astype(np.int64),
+               "p": np.asarray(events.p)}
+    triggers = np.zeros(len(found), dtype=[("t", "<u8"), ("source", "u1")])
+    if len(found):
+        triggers["t"] = np.asarray(found.timestamp)
+        triggers["source"] = np.where(np.asarray(found.value) > 0, 1, 2)
+    return columns, (int(events.sensor_height), int(events.sensor_width)), triggers
+
+
 def _read_aedat4(path: Path) -> tuple[dict[str, Any], tuple[int, int] | None, np.ndarray | None]:
     try:
         import aedat
@@ -417,6 +454,8 @@ def stated_sensor_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
             return _npz_sensor(archive, path)
     if suffix == ".dat":
         return _dat_header(path)[1]
+    if suffix == ".raw":
+        return _raw_header(path)[1]
     if suffix == ".aedat4":
         try:
             import aedat
