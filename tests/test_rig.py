@@ -191,6 +191,10 @@ class TestMilliseconds:
         as_us["t"] = events["t"] * 1000
         assert torch.equal(frames, events_to_frames(as_us, sensor_size=SENSOR))
         events_to_frames(events, sensor_size=SENSOR, time_unit="us")  # said to be microseconds: one frame, asked
+        from event_transforms.functional import iter_frames
+
+        # a stream's chunk is not a recording: a dense chunk of a fast camera is never refused
+        assert len(list(iter_frames([events], sensor_size=SENSOR))) == 1
 
     def test_recording_set_and_predict_refuse_them_by_name(self, tmp_path, capsys):
         root = make_folder(tmp_path / "d", train=3, deploy=2, unlabeled=0)

@@ -12,7 +12,8 @@ microseconds unless ``time_unit=`` says ``"ns"``, ``"ms"`` or ``"s"``; ``timedel
 ``datetime64`` columns (polars ``Duration``) carry their own unit. Two silent traps are
 refused by name: float timestamps with fractions spanning less than 1e6, which look like
 seconds read as microseconds (every event would land in one bin; pass ``time_unit``), and
-float timestamps too large for their dtype to hold microseconds (float32 past 2**24 µs).
+float timestamps too large for their dtype to hold microseconds (float32 past 2**24 µs);
+a recording of integer timestamps whose span and count say milliseconds is refused the same way.
 Polarity is bool, {0, 1} or {-1, 1}, with ON (``True``,
 ``1``) in channel 1 and OFF (``False``, ``0``, ``-1``) in channel 0, tonic's convention.
 
@@ -230,8 +231,8 @@ def _check_float_times(t: Any, unit: str | None) -> None:
 # timestamps and the count only, never a pass over the column.
 #: Integer timestamps spanning less than this (1 s as microseconds) ...
 _MS_SPAN = 1_000_000
-#: ... with at least this many events per unit (2e7 events/s as microseconds) ...
-_MS_RATE = 20
+#: ... with at least this many events per unit (5e7 events/s as microseconds) ...
+_MS_RATE = 50
 #: ... and at least this many events, spanning at least ``_MS_MIN_SPAN`` units (a shorter
 #: span is one 10 ms frame in either unit), look like milliseconds.
 _MS_EVENTS = 1000
@@ -338,11 +339,14 @@ class _Source:
     device: torch.device
 
 
-def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequence[str] | None = None) -> _Source:
+def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequence[str] | None = None,
+            whole: bool = False) -> _Source:
     """Wrap any accepted form of ``events`` without converting it as a whole.
 
     ``time_unit`` (None: microseconds, checked for float timestamps that look like seconds)
-    and ``columns`` (the order of an (N, k) array's columns) as in :func:`events_to_frames`.
+    and ``columns`` (the order of an (N, k) array's columns) as in :func:`events_to_frames`;
+    ``whole``: the events are a whole recording (not a chunk of a stream), so integer
+    timestamps that look like milliseconds are refused.
     """
     time_unit = _time_unit(time_unit)
     source, t_whole = _raw_source(events, columns)
@@ -351,7 +355,8 @@ def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequenc
         _, unit = _time_typed(t_whole, "t", time_unit)
     else:
         _check_float_times(t_whole, time_unit)
-        _check_integer_times(t_whole, time_unit)
+        if whole:
+            _check_integer_times(t_whole, time_unit)
     if unit is None or unit == "us":
         return source
     raw = source.read
@@ -1069,7 +1074,9 @@ def events_to_frames(
         time_unit: unit of plain-number timestamps: ``"us"``, ``"ms"``, ``"s"`` or ``"ns"``
             (ns are floored to whole microseconds). ``None`` (default) reads microseconds
             and refuses float timestamps with fractions spanning under 1e6 (they look
-            like seconds: pass ``time_unit`` to say what they are). ``timedelta64`` and
+            like seconds: pass ``time_unit`` to say what they are), and one stream of at
+            least 1,000 integer timestamps spanning under 1e6 with 50 or more events per
+            unit (milliseconds, read as microseconds, would fall in one bin). ``timedelta64`` and
             ``datetime64`` columns (pandas, polars ``Duration``/``Datetime``) carry their
             own unit. Float timestamps too coarse to hold microseconds (float32 past
             2**24 µs, about 16.8 s) are refused whatever the unit.
@@ -1111,7 +1118,7 @@ def events_to_frames(
                 [0., 0.],
                 [0., 1.]])
     """
-    source = _source(events, time_unit=time_unit, columns=columns)
+    source = _source(events, time_unit=time_unit, columns=columns, whole=True)
     grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
     chunk = max(1, _integer(chunk_size, "chunk_size") // max(source.batch, 1))
     if max_bytes is not None:
