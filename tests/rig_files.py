@@ -45,11 +45,13 @@ def write_aedat4(path: Path, events: np.ndarray, sensor: tuple[int, int], trigge
 
 def write_bag(path: Path, events: np.ndarray, sensor: tuple[int, int], force_t_us: np.ndarray,
               wrench: np.ndarray, *, ros2: bool = False, per_message: int = 500, float_topic: bool = False,
-              force_topic: str = "/ft") -> None:
+              force_topic: str = "/ft", force_lag_us: int = 0, triggers_us: np.ndarray | None = None) -> None:
     """A ROS 1 ``.bag`` (or a ROS 2 bag folder) with ``/dvs/events`` (dvs_msgs/EventArray, the
     custom types registered from their .msg text), ``/ft`` (geometry_msgs/WrenchStamped, ``wrench``
-    rows fx, fy, fz stamped ``force_t_us`` in the headers) and, with ``float_topic``, ``/grip``
-    (std_msgs/Float64, no header), written with rosbags' own writer. Event times are µs."""
+    rows fx, fy, fz stamped ``force_t_us - force_lag_us`` in the headers: the sensor's clock) and,
+    with ``float_topic``, ``/grip`` (std_msgs/Float64, no header), and with ``triggers_us`` the same
+    pulses as sensor_msgs/TimeReference on ``/dvs/trigger`` (camera clock) and ``/ft/trigger``
+    (the force sensor's), written with rosbags' own writer. Event times are µs."""
     pytest.importorskip("rosbags")
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -98,11 +100,18 @@ def write_bag(path: Path, events: np.ndarray, sensor: tuple[int, int], force_t_u
             messages.append((int(part["t"][-1]) + receive_shift, on_events, serialize(array, "dvs_msgs/msg/EventArray")))
         for k, (t, (fx, fy, fz)) in enumerate(zip(force_t_us, wrench)):
             wrench_msg = T["geometry_msgs/msg/WrenchStamped"](
-                header=header(int(t), k), wrench=T["geometry_msgs/msg/Wrench"](
+                header=header(int(t) - force_lag_us, k), wrench=T["geometry_msgs/msg/Wrench"](
                     force=Vector(x=float(fx), y=float(fy), z=float(fz)), torque=Vector(x=0.0, y=0.0, z=0.0)))
             messages.append((int(t) + receive_shift, on_force, serialize(wrench_msg, "geometry_msgs/msg/WrenchStamped")))
             if on_grip is not None:
                 messages.append((int(t) + receive_shift, on_grip,
                                  serialize(T["std_msgs/msg/Float64"](data=float(fz)), "std_msgs/msg/Float64")))
+        if triggers_us is not None:
+            kind = "sensor_msgs/msg/TimeReference"
+            for topic, lag in (("/dvs/trigger", 0), ("/ft/trigger", force_lag_us)):
+                connection = writer.add_connection(topic, kind, typestore=store)
+                for k, t in enumerate(triggers_us):
+                    message = T[kind](header=header(int(t) - lag, k), time_ref=stamp(int(t) - lag), source="sync")
+                    messages.append((int(t) + receive_shift, connection, serialize(message, kind)))
         for t, connection, raw in sorted(messages, key=lambda m: m[0]):
             writer.write(connection, t * 1000, raw)

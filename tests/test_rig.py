@@ -422,6 +422,22 @@ class TestBags:
         assert "topic '/grip', message 5: data is nan" in capsys.readouterr().err
         assert not (tmp_path / "o").exists()  # nothing half-written
 
+    def test_trigger_topics_align_the_force_clock(self, tmp_path, capsys):
+        from .rig_files import write_bag
+
+        events, t, force = grasp_events(0)
+        pulses = t[10:-10:25] + 137  # between samples
+        write_bag(tmp_path / "a.bag", events, SENSOR, t, np.c_[0 * force, 0 * force, force], force_lag_us=7_250,
+                  triggers_us=pulses)
+        base = ["convert", str(tmp_path / "a.bag"), "--events", "/dvs/events", "--force", "/ft", "--out"]
+        assert cli.main([*base, str(tmp_path / "o"), "--triggers", "/dvs/trigger", "/ft/trigger"]) == 0
+        assert "force clock aligned to the camera's by +7.250 ms from 9 triggers (spread 0.0 µs)" in \
+            capsys.readouterr().out
+        synced = np.loadtxt(tmp_path / "o" / "force" / "a.csv", delimiter=",", skiprows=1)
+        assert np.array_equal(synced[:, 0], t)
+        assert cli.main([*base, str(tmp_path / "p"), "--triggers", "/dvs/trigger", "/ft"]) == 2
+        assert "9 camera trigger(s) but 241 on the force clock" in capsys.readouterr().err
+
     def test_missing_package_names_the_extra(self, tmp_path, monkeypatch):
         import sys
 

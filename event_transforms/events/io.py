@@ -30,7 +30,8 @@ of :func:`~event_transforms.functional.events_to_frames`).
 
 from __future__ import annotations
 
-__all__ = ["EventFile", "read_events", "stated_sensor_size", "read_bag_events", "read_bag_values", "EVENT_MESSAGES"]
+__all__ = ["EventFile", "read_events", "stated_sensor_size", "read_bag_events", "read_bag_values",
+           "read_bag_stamps", "EVENT_MESSAGES"]
 
 import csv
 import os
@@ -717,3 +718,44 @@ def read_bag_values(
     said = f"{chosen} of {msgtype}" if wrench else f"field {chosen} of {msgtype}"
     what = f"{len(values)} values from {topic} ({said}, {'header stamps' if stamps == 'header' else 'receive times'})"
     return np.asarray(times, dtype=np.int64), np.asarray(values, dtype=np.float64), what
+
+
+def read_bag_stamps(path: str | os.PathLike[str], topic: str, *, stamps: str = "header") -> np.ndarray:
+    """The times (int64 nanoseconds) of a topic's messages: trigger pulses as a driver or a
+    logger publishes them (any message type).
+
+    Args:
+        path: the bag (ROS 1 file or ROS 2 folder).
+        topic: the trigger topic.
+        stamps: ``"header"`` (each message's ``header.stamp``) or ``"receive"``.
+
+    Raises:
+        ValueError: naming the bag, the topic and the message: a missing topic, a message
+            without a header (or stamped 0) with ``stamps="header"``.
+
+    Example:
+        >>> read_bag_stamps("missing.bag", "/trigger")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        ValueError: ...
+    """
+    path = Path(path)
+    if stamps not in ("header", "receive"):
+        raise ValueError(f"stamps must be 'header' or 'receive', got {stamps!r}")
+    reader = _bag_reader(path)
+    times: list[int] = []
+    try:
+        connections = _connections(reader, path, topic, "triggers")
+        for k, (connection, received, raw) in enumerate(reader.messages(connections=connections)):
+            if stamps == "receive":
+                times.append(int(received))
+                continue
+            header = getattr(reader.deserialize(raw, connection.msgtype), "header", None)
+            stamp = 0 if header is None else int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+            if stamp == 0:
+                raise ValueError(f"{path}: topic {topic!r}, message {k} ({connection.msgtype}) has no header stamp; "
+                                 "pass --stamps receive to use the time the bag recorded it")
+            times.append(stamp)
+    finally:
+        reader.close()
+    return np.asarray(times, dtype=np.int64)

@@ -193,6 +193,9 @@ def add_convert_command(sub: Any) -> None:
                          "wrench.torque.z)")
     convert.add_argument("--stamps", choices=("header", "receive"), default="header",
                          help="force times: the messages' header stamps (default) or the bag's receive times")
+    convert.add_argument("--triggers", nargs=2, metavar=("CAMERA_TOPIC", "FORCE_TOPIC"),
+                         help="the same trigger pulses stamped on the camera's clock and on the force sensor's: the "
+                         "force times are moved to the camera's clock by their median difference")
     convert.add_argument("--role", choices=("train", "deploy"), default="train", help="the rows' role (default train)")
     convert.add_argument("--diameter-mm", type=_positive_float, help="the object's size, for a diameter_mm column")
     convert.add_argument("--out", type=Path, required=True, metavar="DIR", help="the layout's folder")
@@ -212,5 +215,6 @@ def run_convert(args: argparse.Namespace, log: Any) -> int:
 
     for bag in args.bags:
         convert_bag(bag, args.out, events=args.events, force=args.force, force_field=args.force_field,
-                    stamps=args.stamps, role=args.role, diameter_mm=args.diameter_mm, log=log)
+                    stamps=args.stamps, role=args.role, diameter_mm=args.diameter_mm,
+                    triggers=None if args.triggers is None else tuple(args.triggers), log=log)
     return 0

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ...events.io import read_bag_events, read_bag_values
+from ...events.io import read_bag_events, read_bag_stamps, read_bag_values
 
 
 def convert_bag(
@@ -26,6 +26,7 @@ def convert_bag(
     stamps: str = "header",
     role: str = "train",
     diameter_mm: float | None = None,
+    triggers: tuple[str, str] | None = None,
     log: Any = None,
 ) -> int:
     """Write one bag's events and force as a recording of the layout in ``out`` and add its
@@ -45,6 +46,10 @@ def convert_bag(
         stamps: ``"header"`` (default) or ``"receive"`` times for the force messages.
         role: the row's role, ``"train"`` or ``"deploy"``.
         diameter_mm: the object's size, where the table has a ``diameter_mm`` column.
+        triggers: ``(camera topic, force topic)``: the same trigger pulses stamped on the
+            camera's clock and on the force sensor's; the force times are moved to the
+            camera's clock by the median difference (printed with its spread; the counts must
+            match).
         log: called with one line saying what was read and written.
 
     Returns:
@@ -82,6 +87,15 @@ def convert_bag(
     force_cell = ""
     if force_read is not None:
         t_ns, values, what = force_read
+        if triggers is not None:
+            from .labels import trigger_offset
+
+            camera, logger = (read_bag_stamps(bag, topic, stamps=stamps) for topic in triggers)
+            offset, spread = trigger_offset(camera / 1000.0, logger / 1000.0,
+                                            f"{bag}: trigger topics {triggers[0]!r} and {triggers[1]!r}")
+            t_ns = t_ns + int(round(offset * 1000.0))
+            what += (f"; force clock aligned to the camera's by {offset / 1000:+.3f} ms from {camera.size} triggers "
+                     f"(spread {spread:.1f} µs)")
         (out / "force").mkdir(parents=True, exist_ok=True)
         with open(out / "force" / f"{name}.csv", "w") as handle:
             handle.write("t_us,force_n\n")

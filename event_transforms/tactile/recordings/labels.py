@@ -202,8 +202,8 @@ def trigger_offset(camera_us: np.ndarray, force_us: np.ndarray, where: str) -> t
     """
     camera, force = np.asarray(camera_us, dtype=np.float64), np.asarray(force_us, dtype=np.float64)
     if camera.size != force.size or camera.size == 0:
-        raise ValueError(f"{where}: {camera.size} camera trigger(s) but {force.size} in the force file's trigger "
-                         "column; they must match one to one (cut the recordings to the same pulses, or sync with "
+        raise ValueError(f"{where}: {camera.size} camera trigger(s) but {force.size} on the force clock; they must "
+                         "match one to one (cut the recordings to the same pulses, or give a constant "
                          "force_offset_ms)")
     lag = camera - force
     offset = float(np.median(lag))
