@@ -365,6 +365,10 @@ def _raw_header(path: Path) -> tuple[str, tuple[int, int] | None]:
             elif words.lower().startswith("geometry "):
                 width, height = (int(v) for v in words.split()[1].lower().split("x"))
                 sensor = (height, width)
+            elif words.lower().startswith("format ") and sensor is None:  # "format EVT3;height=720;width=1280"
+                fields = dict(f.split("=", 1) for f in words.split(None, 1)[1].split(";") if "=" in f)
+                if "width" in fields and "height" in fields:
+                    sensor = (int(fields["height"]), int(fields["width"]))
     return encoding, sensor
 
 

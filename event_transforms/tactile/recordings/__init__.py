@@ -23,20 +23,32 @@ column          meaning
 anything else   kept as text in each item's metadata
 ==============  ==========================================================================
 
-**Event files** in every form the library ingests: ``.npy`` (a structured array with fields
-``x, y, t, p`` — ``timestamp``/``on``/``polarity`` accepted, tonic's dtypes included — or an
-``(N, 4)`` array of ``x, y, t, p`` rows; read memory-mapped), ``.npz`` (arrays ``x``, ``y``,
-``t``, ``p``), ``.csv`` with a header naming the columns, and through optional extras
-``.aedat4`` (the ``aedat`` package) and HDF5 ``.h5``/``.hdf5`` (``h5py``: a structured
-``events`` or Prophesee-style ``CD/events`` dataset, or one dataset per column). Timestamps
-are microseconds unless ``time_unit`` (``--time-unit``) says ``"ns"``, ``"ms"`` or ``"s"``,
-sorted; float timestamps with fractions spanning less than 1e6 look like seconds and are
-refused without a ``time_unit``. Polarity bool, {0, 1} or {-1, 1}.
+**Event files** in every form :mod:`event_transforms.events.io` reads: ``.npy`` (a structured
+array with fields ``x, y, t, p`` — ``timestamp``/``on``/``polarity`` accepted, tonic's dtypes
+included — or ``(N, k)`` rows, ``x, y, t, p`` unless ``columns`` (``--columns``) names another
+order; read memory-mapped), ``.npz`` (arrays ``x``, ``y``, ``t``, ``p``), ``.csv`` with a
+header naming the columns, Prophesee ``.dat``, and through optional extras ``.aedat4`` (the
+``aedat`` package), Prophesee ``.raw`` EVT 3.0 (``evt3``) and HDF5 ``.h5``/``.hdf5`` (``h5py``:
+a structured or ``(N, k)`` ``events`` dataset, Prophesee-style ``CD/events``, or one dataset per
+column); ROS bags are written in the layout by :func:`convert_bag` (``event-transforms
+convert``). The sensor size is the one the files state (``.aedat4``, ``.raw``, ``.dat``, HDF5
+attributes, a converted ``.npz``), else ``sensor_size``, else :data:`DEFAULT_SENSOR_SIZE`; a
+given size that differs from a file's is refused. Timestamps are microseconds unless
+``time_unit`` (``--time-unit``) says ``"ns"``, ``"ms"`` or ``"s"``, sorted; float timestamps
+with fractions spanning less than 1e6 look like seconds, and integer timestamps whose span and
+count say milliseconds look like milliseconds: both are refused without a ``time_unit``.
+Polarity bool, {0, 1} or {-1, 1}.
 
-**Force files**: CSV with a header holding ``t_us`` (microseconds on the events' clock, after
-the declared offset, whatever ``time_unit`` the event files use) and ``force_n`` (newtons), sorted by time, at any rate. The force clock
-runs ``force_offset_ms`` behind the camera's: a sample at ``t_us`` on the force clock is at
-``t_us + 1000 · force_offset_ms`` on the events' clock (default 0).
+**Force files**: CSV with a header holding a time column — ``t_us`` (microseconds on the
+events' clock, after the declared offset, whatever ``time_unit`` the event files use), or
+``t_ns``, ``t_ms``, ``t_s`` (the unit read from the name), or ``t``/``time``/``timestamp``
+with ``force_time_unit`` — and the label: ``force_n`` (newtons), the column ``force_column``
+names, or with ``force_column="magnitude"`` the norm of ``fx, fy, fz``; sorted by time, at any
+rate; each conversion is said once to ``log``. The force clock runs ``force_offset_ms`` behind
+the camera's: a sample at ``t_us`` on the force clock is at ``t_us + 1000 · force_offset_ms``
+on the events' clock (default 0); ``sync="triggers"`` measures that lag per recording from the
+event file's trigger events and the force CSV's ``trigger`` column (non-zero on the samples at
+which the sync line was raised).
 
 **Frames and labels.** A recording is binned from its first event rounded down to the bin
 grid (the ``"floor"`` rule of :func:`~event_transforms.functional.events_to_frames`) to the
@@ -48,7 +60,8 @@ bin, the last at or after the start of the last bin. A recording is then cut int
 ``frames`` (T) frames every ``stride`` frames (default T); frames after the last whole window
 are left out (counted in :attr:`RecordingSet.left_out_frames`).
 
-**Splits** (never a recording on both sides): training-role recordings in the order of
+**Splits** (never a recording on both sides; a folder of training recordings only loads
+with ``split="train"``, ``"holdout"`` or ``role="train"``): training-role recordings in the order of
 ``recordings.csv``: the last third (``n // 3``) are the *hold-out* of the stopping rule, the
 rest train. Labelled deployment recordings: the first fifth (``ceil(n / 5)``, at least one)
 validate, the rest test; at least two are needed. Unlabeled deployment recordings are used
@@ -96,6 +109,8 @@ __all__ = [
     "SPLITS",
     "EventScan",
     "RecordingEntry",
+    "DEFAULT_SENSOR_SIZE",
+    "convert_bag",
     "RecordingScene",
     "RecordingSet",
     "RecordingSettings",
@@ -117,9 +132,10 @@ from typing import Any
 from ...events.io import read_events  # re-export: the readers live in event_transforms.events.io
 from .cache import content_hash
 from .dataset import RecordingSet
+from .convert import convert_bag
 from .export import export_scene
 from .labels import frame_labels, read_force
-from .layout import SPLITS, RecordingEntry, RecordingSettings, read_table
+from .layout import DEFAULT_SENSOR_SIZE, SPLITS, RecordingEntry, RecordingSettings, read_table
 from .scan import EventScan, contact_crop, scan_events
 from .scene import RecordingScene, load_recording_data
 
