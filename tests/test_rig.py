@@ -482,7 +482,19 @@ class TestFromRigToVerdict:
             args = [a for w in words[1:] for a in (sorted(glob.glob(w)) if "*" in w else [w])]
             assert cli.main(args + (reduced if args[0] == "reproduce" else [])) == 0, capsys.readouterr().err
         assert (tmp_path / "results" / "results.md").is_file()
-        return capsys.readouterr().out
+        out = capsys.readouterr().out
+        # then a model from the same folder, with the reproduce command's reading options, streamed on a recording
+        options = shlex.split(line)[4:]  # after "event-transforms reproduce --data rig"
+        assert cli.main(["train", "--data", "rig", "--out", "model.pt", "--steps", "2", "--input-pool", "3",
+                         "--hidden-channels", "2", "--frames", "12", *options]) == 0
+        table = (tmp_path / "rig" / "recordings.csv").read_text().splitlines()
+        first = tmp_path / "rig" / table[1].split(",")[0]
+        reading = [w for w in ("--time-unit", "--sensor-size", "--columns") if w in options]
+        given = [v for w in reading for v in options[options.index(w):options.index(w) + (3 if w == "--sensor-size"
+                                                                                              else 2)]]
+        assert cli.main(["predict", "model.pt", str(first), "--out", "estimate.csv", *given]) == 0
+        assert len(np.loadtxt(tmp_path / "estimate.csv", delimiter=",", skiprows=1)) == 24
+        return out
 
     def test_a_ros_bag(self, tmp_path, monkeypatch, capsys):
         from .rig_files import write_bag
