@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -29,6 +28,13 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+if __package__:
+    from ._common import base_parser, command, environment_lines, publish
+else:  # run as a script
+    from _common import base_parser, command, environment_lines, publish  # type: ignore[no-redef]
+
+__all__ = ["synthetic", "write", "measure", "main"]
 
 SENSOR = (260, 346)
 FORMATS = ("npy", "npy-rows", "npz", "csv", "h5", "h5-rows", "aedat4", "dat", "raw", "bag1", "bag2")
@@ -69,7 +75,6 @@ def write(kind: str, events: np.ndarray, folder: Path) -> Path:
             f["events"] = events if kind == "h5" else rows
             f.attrs["width"], f.attrs["height"] = SENSOR[1], SENSOR[0]
     elif kind == "aedat4":
-        sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
         from tests.rig_files import write_aedat4
 
         path = folder / "e.aedat4"
@@ -95,7 +100,6 @@ def write(kind: str, events: np.ndarray, folder: Path) -> Path:
         path = folder / "e.bag"
         write_bag1(path, events)
     elif kind == "bag2":
-        sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
         from tests.rig_files import write_bag
 
         path = folder / "e2"
@@ -177,22 +181,23 @@ def measure(kind: str, path: str, n: int) -> dict[str, float]:
             "traced_mb": traced / 2**20, "total": total}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> str:
+    parser = base_parser(__doc__.splitlines()[0], "readers")
     parser.add_argument("--events", type=int, default=10_000_000)
     parser.add_argument("--bag2-events", type=int, default=1_000_000)
     parser.add_argument("--formats", nargs="+", default=list(FORMATS), choices=FORMATS)
     parser.add_argument("--measure", nargs=3, metavar=("KIND", "PATH", "N"), help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if args.measure:
         kind, path, n = args.measure
-        print(json.dumps(measure(kind, path, int(n))))
-        return
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
-          f"{platform.python_version()}, numpy {np.__version__}; {args.events:,} events")
-    print("| format | file MB | read s | events/s | peak RSS during the read MB | traced peak MB |")
-    print("|---|---|---|---|---|---|")
+        line = json.dumps(measure(kind, path, int(n)))
+        print(line)
+        return line
+    if args.quick:
+        args.events, args.bag2_events = 20_000, 2_000
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parent.parent), os.environ.get("PYTHONPATH", "")])}
+    rows = []
     with tempfile.TemporaryDirectory() as folder:
         for kind in args.formats:
             n = args.bag2_events if kind == "bag2" else args.events
@@ -204,11 +209,19 @@ def main() -> None:
                                  capture_output=True, text=True, check=True)
             result = json.loads(out.stdout.strip().splitlines()[-1])
             note = f" ({n:,} events)" if n != args.events else ""
-            print(f"| {kind}{note} | {size / 2**20:.0f} | {result['seconds']:.2f} | {result['events_per_s']:.3g} | "
-                  f"{result['rss_mb']:.0f} | {result['traced_mb']:.0f} |", flush=True)
+            rows.append(f"| {kind}{note} | {size / 2**20:.0f} | {result['seconds']:.2f} | "
+                        f"{result['events_per_s']:.3g} | {result['rss_mb']:.0f} | {result['traced_mb']:.0f} |")
+            print(rows[-1], flush=True)
             for p in sorted(Path(folder).iterdir()):
                 if p.is_file():
                     p.unlink()
+    body = "\n".join([
+        f"## Reading recordings: {args.events:,} events per format, one thread, a fresh process each",
+        "", *environment_lines(), "", f"Command: `{command('readers.py', argv)}`", "",
+        "| format | file MB | read s | events/s | peak RSS during the read MB | traced peak MB |",
+        "|---|---|---|---|---|---|", *rows])
+    publish(body, args)
+    return body
 
 
 if __name__ == "__main__":
