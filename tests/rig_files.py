@@ -45,7 +45,8 @@ def write_aedat4(path: Path, events: np.ndarray, sensor: tuple[int, int], trigge
 
 def write_bag(path: Path, events: np.ndarray, sensor: tuple[int, int], force_t_us: np.ndarray,
               wrench: np.ndarray, *, ros2: bool = False, per_message: int = 500, float_topic: bool = False,
-              force_topic: str = "/ft", force_lag_us: int = 0, triggers_us: np.ndarray | None = None) -> None:
+              force_topic: str = "/ft", force_lag_us: int = 0, triggers_us: np.ndarray | None = None,
+              events_type: str = "dvs_msgs/msg/EventArray") -> None:
     """A ROS 1 ``.bag`` (or a ROS 2 bag folder) with ``/dvs/events`` (dvs_msgs/EventArray, the
     custom types registered from their .msg text), ``/ft`` (geometry_msgs/WrenchStamped, ``wrench``
     rows fx, fy, fz stamped ``force_t_us - force_lag_us`` in the headers: the sensor's clock) and,
@@ -64,7 +65,8 @@ def write_bag(path: Path, events: np.ndarray, sensor: tuple[int, int], force_t_u
         types.update(get_types_from_msg(array_msg, array_type))
     store.register(types)
     T = store.types
-    Time, Header, Event = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"], T["dvs_msgs/msg/Event"]
+    Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
+    Event = T[events_type.replace("EventArray", "Event")]
     Vector = T["geometry_msgs/msg/Vector3"]
 
     def stamp(t_us: int) -> object:
@@ -87,17 +89,17 @@ def write_bag(path: Path, events: np.ndarray, sensor: tuple[int, int], force_t_u
         writer = Writer(path)
     receive_shift = 3_000  # the bag receives each message 3 ms after its stamp
     with writer:
-        on_events = writer.add_connection("/dvs/events", "dvs_msgs/msg/EventArray", typestore=store)
+        on_events = writer.add_connection("/dvs/events", events_type, typestore=store)
         on_force = writer.add_connection(force_topic, "geometry_msgs/msg/WrenchStamped", typestore=store)
         on_grip = writer.add_connection("/grip", "std_msgs/msg/Float64", typestore=store) if float_topic else None
         messages = []
         for k, start in enumerate(range(0, len(events), per_message)):
             part = events[start:start + per_message]
-            array = T["dvs_msgs/msg/EventArray"](
+            array = T[events_type](
                 header=header(int(part["t"][-1]), k), height=sensor[0], width=sensor[1],
                 events=[Event(x=int(e["x"]), y=int(e["y"]), ts=stamp(int(e["t"])), polarity=bool(e["p"] > 0))
                         for e in part])
-            messages.append((int(part["t"][-1]) + receive_shift, on_events, serialize(array, "dvs_msgs/msg/EventArray")))
+            messages.append((int(part["t"][-1]) + receive_shift, on_events, serialize(array, events_type)))
         for k, (t, (fx, fy, fz)) in enumerate(zip(force_t_us, wrench)):
             wrench_msg = T["geometry_msgs/msg/WrenchStamped"](
                 header=header(int(t) - force_lag_us, k), wrench=T["geometry_msgs/msg/Wrench"](

@@ -382,6 +382,21 @@ class TestBags:
         assert (converted / "rec" / "recordings.csv").read_text().splitlines()[:2] == [
             "events,force,role", "events/g0.npz,force/g0.csv,train"]
 
+    @pytest.mark.parametrize("ros2", [False, True], ids=["ros1", "ros2"])
+    def test_prophesee_event_arrays(self, tmp_path, ros2):
+        from event_transforms.events.io import read_bag_events
+
+        from .rig_files import write_bag
+
+        events, t, force = grasp_events(3)
+        write_bag(tmp_path / ("p" if ros2 else "p.bag"), events, SENSOR, t, np.c_[force, force, force], ros2=ros2,
+                  events_type="prophesee_event_msgs/msg/EventArray", per_message=333)
+        columns, sensor = read_bag_events(tmp_path / ("p" if ros2 else "p.bag"), "/dvs/events")
+        assert sensor == SENSOR
+        for c in "xyp":
+            assert np.array_equal(columns[c], events[c].astype(np.int64)), c
+        assert np.array_equal(columns["t"], events["t"].astype(np.int64) * 1000)
+
     def test_receive_times_on_request(self, tmp_path, capsys):
         from .rig_files import write_bag
 
