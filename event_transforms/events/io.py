@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from .binning import _ALIASES
+from .ingest import _ALIASES
 
 #: Events per chunk of :meth:`EventFile.chunks`.
 _CHUNK = 2**20

@@ -333,7 +333,7 @@ _SYNC_SOURCES = (1, 3)
 
 def _trigger_offset_ms(recording: RecordingEntry, source: EventFile, settings: RecordingSettings, log: Any) -> float:
     """The force clock's lag (ms) from the camera's trigger events and the force CSV's trigger column."""
-    from ...events.binning import _TIME_UNITS
+    from ...events.ingest import _TIME_UNITS
 
     assert recording.force is not None
     if source.triggers is None:

@@ -79,7 +79,7 @@ class RecordingSettings:
 
     def __post_init__(self) -> None:
         from ..._validation import check_positive
-        from ...events.binning import _time_unit
+        from ...events.ingest import _time_unit
 
         _time_unit(self.time_unit)  # ValueError naming time_unit and the value
         if self.force_time_unit is not None and self.force_time_unit not in ("ns", "us", "ms", "s"):

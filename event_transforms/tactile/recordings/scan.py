@@ -52,7 +52,7 @@ def scan_events(source: EventFile, sensor: tuple[int, int], where: str, time_uni
         >>> found.events, found.t_min, found.t_max, int(found.totals.sum())
         (2, 10, 20, 2)
     """
-    from ...events.binning import _SECONDS_SPAN, _millisecond_advice, _to_microseconds
+    from ...events.ingest import _SECONDS_SPAN, _millisecond_advice, _to_microseconds
 
     height, width = sensor
     totals = np.zeros(height * width, dtype=np.int64)
