@@ -21,6 +21,13 @@ from .test_recordings import SENSOR, SMALL, grasp_events, make_folder, write_for
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
+@pytest.fixture(autouse=True)
+def own_cache(tmp_path, monkeypatch):
+    """Commands without --root bin into the package cache: each test gets its own, so that no
+    other test finds these recordings binned (the files of make_folder repeat across tests)."""
+    monkeypatch.setenv("EVENT_TRANSFORMS_CACHE", str(tmp_path / "package-cache"))
+
+
 def rows_of(events: np.ndarray, order: str = "xytp") -> np.ndarray:
     return np.stack([events[c].astype(np.int64) for c in order], axis=1)
 
@@ -262,9 +269,11 @@ class TestPredict:
         tmp = tmp_path_factory.mktemp("model")
         root = make_folder(tmp / "d", train=3, deploy=2, unlabeled=0)
         path = tmp / "m.pt"
-        assert cli.main(["train", "--data", str(root), "--out", str(path), "--steps", "2", "--input-pool", "3",
-                         "--hidden-channels", "2", "--sensor-size", "30", "40", "--frames", "12",
-                         "--crop", "0", "0", "30", "40"]) == 0
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setenv("EVENT_TRANSFORMS_CACHE", str(tmp / "package-cache"))
+            assert cli.main(["train", "--data", str(root), "--out", str(path), "--steps", "2", "--input-pool", "3",
+                             "--hidden-channels", "2", "--sensor-size", "30", "40", "--frames", "12",
+                             "--crop", "0", "0", "30", "40"]) == 0
         return path
 
     def test_another_grid_in_one_line_or_refused(self, model_path, tmp_path, capsys):
