@@ -215,6 +215,15 @@ def reproduce(args: argparse.Namespace) -> int:
                f"member-steps; budget check on {plan['budget_check_scenes']}: {plan['budget_units']} units, "
                f"{plan['budget_member_steps']:,} member-steps at {2 * config.steps} steps; total "
                f"{plan['total_member_steps']:,} member-steps (× the seconds per member-step a unit reports)")
+        from .copies import load_scene_data
+        from .protocol.shared import plan_sharing
+
+        data = given or {s: load_scene_data(s, None if args.root is None else str(args.root)) for s in scenes}
+        sharing = plan_sharing(chosen, data)
+        _print(f"train once: {sharing.shared * len(seeds)} of the {plan['members']} members read exactly what a member "
+               f"of another scene reads (training data, built policy, seed) and borrow its weights: "
+               f"{plan['member_steps'] - sharing.shared * len(seeds) * config.steps:,} member-steps are trained "
+               "in the main phase (the budget check and equal time share the same way)")
         if equal_time:
             _print(f"equal wall time: at most {plan['equal_time_member_steps_max']:,} more member-steps (every "
                    "method but none retrained for the steps its measured online cost leaves, at most "

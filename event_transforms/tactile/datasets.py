@@ -184,7 +184,10 @@ class TactileGrasps(Dataset):
     ``root`` named by a hash of the session, the seeds, the crop and the simulator version;
     the file is written to a temporary name and then renamed, so an interrupted run never
     leaves a corrupt cache. Later instances memory-map it. Scenes whose sessions agree
-    share the file (every scene but ``size-extrapolation`` trains on the same data).
+    share the file: ``control``, ``timing``, ``orientation`` and ``noise`` train on one data
+    set, ``paper`` and ``paper-membrane`` on another, and ``paper-offset``, ``paper-lag``,
+    ``paper-lag-only`` and ``size-extrapolation`` each on their own (a protocol run trains a
+    member those scenes share once: :mod:`~event_transforms.tactile.protocol.shared`).
 
     Args:
         split: ``"train"`` (48 sequences), ``"holdout"`` (24 more from the training session:

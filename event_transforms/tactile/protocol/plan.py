@@ -17,16 +17,20 @@ from ..copies import SceneData
 from ..methods import methods_for, parse_method
 from ..scenes import BenchmarkScene, get_scene
 from .config import ProtocolConfig
+from .shared import Sharing
 
 __all__ = ["Unit", "resolve_scene", "work_units", "budget_scenes", "choose_methods", "plan_run"]
 
 
 @dataclass
 class Unit:
-    """A unit of work: ``methods`` of ``scene``, trained together as one ensemble."""
+    """A unit of work: ``methods`` of ``scene``, trained together as one ensemble, and scored too
+    for the ``also`` members other scenes borrow (``(method, scene, its method)``; see
+    :mod:`~event_transforms.tactile.protocol.shared`)."""
 
     scene: str
     methods: tuple[str, ...]
+    also: tuple[tuple[str, str, str], ...] = ()
 
     @property
     def slug(self) -> str:
@@ -41,16 +45,21 @@ def resolve_scene(scene: str, data: dict[str, SceneData] | None) -> BenchmarkSce
 
 
 def work_units(
-    scenes: Sequence[str], methods: Mapping[str, Sequence[str]], group: str, data: dict[str, SceneData] | None = None
+    scenes: Sequence[str], methods: Mapping[str, Sequence[str]], group: str, data: dict[str, SceneData] | None = None,
+    sharing: Sharing | None = None,
 ) -> list[Unit]:
-    """Work units; the costly ones (many copies) first, so ranks finish together."""
+    """Work units; the costly ones (many copies) first, so ranks finish together. With
+    ``sharing``, only the members a scene owns are trained, each unit scored also for its
+    borrowers; a scene that owns none has no unit."""
     units = []
     for scene in scenes:
-        names = tuple(methods[scene])
+        names = tuple(methods.get(scene, ())) if sharing is None else sharing.owned.get(scene, ())
+        if not names:
+            continue
         if group == "scene":
-            units.append(Unit(scene, names))
+            units.append(Unit(scene, names, sharing.also(scene, names) if sharing else ()))
         else:
-            units.extend(Unit(scene, (m,)) for m in names)
+            units.extend(Unit(scene, (m,), sharing.also(scene, (m,)) if sharing else ()) for m in names)
     return sorted(units, key=lambda u: -max(parse_method(m, scene=resolve_scene(u.scene, data)).copies for m in u.methods))
 
 

@@ -32,6 +32,7 @@ from ..stats import deltas_vs_none, paired_t, summarize_scene
 from .config import ProtocolConfig
 from .environment import environment, git_commit
 from .plan import Unit, choose_methods, plan_run, work_units
+from .shared import SHARED_SEPARATOR, collect, plan_sharing
 from .timing import equal_time_steps, measure_timing
 from .unit import run_unit
 
@@ -113,18 +114,23 @@ def _work(
             continue
         if reason and log:
             log(f"{label} — {reason}: recomputing")
-        if unit.scene not in cache:
-            cache[unit.scene] = load_scene_data(unit.scene, root, paper_split=False)
+        for scene in {unit.scene, *(other for _, other, _ in unit.also)}:
+            if scene not in cache:
+                cache[scene] = load_scene_data(scene, root, paper_split=False)
         tick = time.perf_counter()
         result = run_unit(unit.scene, unit.methods, seeds, config, cache[unit.scene], device=device,
                           progress=False if plain else progress, description=label,
-                          on_validation=tracker.callback(label, cost[index]) if plain else None)
+                          on_validation=tracker.callback(label, cost[index]) if plain else None,
+                          also=unit.also, also_data=cache)
         write_unit(path, (keys or {}).get(unit.slug, {}), result)
         eta = tracker.finished(cost[index])
         if log:
             scores = "; ".join(
                 f"{m} {statistics.fmean(r['test_mse'] for r in rs):.2f}" for m, rs in result.items()
+                if SHARED_SEPARATOR not in m
             )
+            if unit.also:
+                scores += f"; also scored for {', '.join(f'{s_} {n}' for _, s_, n in unit.also)} (trained once)"
             log(f"{label}: test MSE {scores} ({time.perf_counter() - tick:.0f} s; {eta})")
 
 
@@ -137,7 +143,9 @@ def _runwork_units(
     under ``out/runs/<hash of settings, seeds, model defaults, version>/``."""
     folder = folder_key(config, seeds)
     runs = out / "runs" / folder_name(config, seeds)
-    keys = {u.slug: unit_key(folder, u.scene, u.methods, data_keys[u.scene]) for u in units}
+    keys = {u.slug: {**unit_key(folder, u.scene, u.methods, data_keys[u.scene]),
+                     **({"also": [[m, s_, n, data_keys[s_]] for m, s_, n in u.also]} if u.also else {})}
+            for u in units}
     arguments = (units, seeds, config, runs, *options, phase, later_cost, keys)
     write_json_atomic(runs / "config.json", folder)
 
@@ -161,12 +169,9 @@ def _runwork_units(
 
 
 def _per_method(units: list[Unit], results: dict[str, Any], scene: str, names: Sequence[str]) -> dict[str, list]:
-    per_method: dict[str, list[dict[str, Any]]] = {}
-    for unit in units:
-        if unit.scene == scene:
-            for name, runs_ in results[unit.slug].items():
-                per_method.setdefault(name, []).extend(runs_)
-    return {m: sorted(per_method[m], key=lambda r: r["seed"]) for m in names if m in per_method}
+    """Per method of ``scene``, its records by seed: trained by the scene's own units, or
+    borrowed from the unit that trained the same member for another scene."""
+    return collect({u.slug: u.scene for u in units}, results, scene, names)
 
 
 def _budget_choices(units: list[Unit], results: dict[str, Any], scenes: list[str],
@@ -302,7 +307,6 @@ def run_protocol(
     out = Path(out)
     seeds = [int(s) for s in seeds]
     given = data
-    units = work_units(scenes, chosen, group, given)
     plan = plan_run(scenes, chosen, seeds, config, group=group, budget_check=budget_check, data=given)
     start = time.perf_counter()
     commit = git_commit()  # the code that trains: read before the run, not after (the checkout may move)
@@ -313,6 +317,10 @@ def run_protocol(
     if missing:
         raise ValueError(f"data must hold every scene, missing {missing}")
     data_keys = {scene: data_key(data[scene]) for scene in scenes}
+    sharing = plan_sharing(chosen, data)  # train once: members keyed by what their training reads
+    units = work_units(scenes, chosen, group, given, sharing)
+    plan["shared_members"] = sharing.shared * len(seeds)
+    plan["trained_members"] = plan["members"] - plan["shared_members"]
     if log:
         for scene, d in data.items():
             holdout = f"{len(d.holdout)} hold-out (training session), " if d.holdout is not None else ""
@@ -322,6 +330,9 @@ def run_protocol(
             f"{plan['member_steps']:,} member-steps; budget check of {len(plan['budget_check_scenes'])} gapped "
             f"scene(s) at {2 * config.steps} steps: {plan['budget_units']} more units, "
             f"{plan['budget_member_steps']:,} member-steps; total {plan['total_member_steps']:,}")
+        log(f"train once: {plan['shared_members']} of the {plan['members']} members read exactly what a member of "
+            f"another scene reads (the same training data, built policy and seed) and borrow its weights; "
+            f"{plan['trained_members']} are trained")
         log(PROGRESS_LEGEND)
     options = (root, device, threads, log, progress, given)
     results = _runwork_units(units, seeds, config, out, jobs, options, "unit", plan["budget_member_steps"], data_keys)
@@ -335,7 +346,8 @@ def run_protocol(
         if distributed.current_group() is not None:
             choices = distributed.broadcast_from_rank0(choices)
     double = ProtocolConfig(**{**asdict(config), "steps": 2 * config.steps})
-    budget_units = work_units(list(choices), {s: ("none", m) for s, m in choices.items()}, group, given)
+    budget_methods = {s: ("none", m) for s, m in choices.items()}
+    budget_units = work_units(list(choices), budget_methods, group, given, plan_sharing(budget_methods, data))
     budget_results = (_runwork_units(budget_units, seeds, double, out, jobs, options, "budget check", 0.0, data_keys)
                       if budget_units else {})
     rank0 = results is not None and budget_results is not None  # else a torchrun rank other than 0
@@ -388,7 +400,7 @@ def run_protocol(
                             reverse=True):
             subset = {s_: tuple(m for m, n in per.items() if n == steps) for s_, per in steps_of.items()}
             subset = {s_: ms for s_, ms in subset.items() if ms}
-            equal_units = work_units(list(subset), subset, group, given)
+            equal_units = work_units(list(subset), subset, group, given, plan_sharing(subset, data))
             shorter = ProtocolConfig(**{**asdict(config), "steps": steps})
             done = _runwork_units(equal_units, seeds, shorter, out, jobs, options, f"equal time ({steps} steps)", 0.0,
                               data_keys)
