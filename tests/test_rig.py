@@ -73,6 +73,23 @@ class TestHdf5Arrays:
         for a, b in zip(frames_of(before), frames_of(after)):
             assert torch.equal(a, b)
 
+    def test_a_filter_hdf5_lacks_is_named(self, tmp_path, monkeypatch):
+        h5py = pytest.importorskip("h5py")
+        events = grasp_events(0)[0]
+        with h5py.File(tmp_path / "p.h5", "w") as f:
+            f.create_group("CD")["events"] = events
+        with h5py.File(tmp_path / "c.h5", "w") as f:
+            f["events"] = rows_of(events)
+
+        def unreadable(self, index):  # as h5py reports a missing filter plugin
+            raise OSError("Can't read data (can't open directory: /usr/local/hdf5/lib/plugin)")
+
+        monkeypatch.setattr(h5py.Dataset, "__getitem__", unreadable)
+        for name, where in (("p.h5", "/CD/events"), ("c.h5", "/events")):
+            with pytest.raises(ValueError, match=f"{name}: dataset {where} cannot be read .*Prophesee's files use "
+                                                 "their ECF codec"):
+                read_events(tmp_path / name)
+
     def test_sensor_size_from_attributes(self, tmp_path):
         h5py = pytest.importorskip("h5py")
         events = grasp_events(0)[0]

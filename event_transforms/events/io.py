@@ -266,10 +266,11 @@ def _read_hdf5(path: Path) -> tuple[dict[str, Any] | None, Any, tuple[int, int] 
                 return _named_columns(dataset.dtype.names, lambda field, data=dataset: _H5Field(data, field),
                                       path), None, sensor
             if dataset.ndim == 2:
-                return None, dataset, sensor
+                return None, _H5Rows(dataset), sensor
             raise ValueError(f"{path}: dataset {name!r} of shape {dataset.shape} is neither structured nor (N, k) rows")
     group = handle["events"] if "events" in handle and isinstance(handle["events"], h5py.Group) else handle
-    return _named_columns(list(group.keys()), lambda name: group[name], path), None, _h5_sensor([handle, group], path)
+    return (_named_columns(list(group.keys()), lambda name: _H5Rows(group[name]), path), None,
+            _h5_sensor([handle, group], path))
 
 
 def _h5_sensor(nodes: list[Any], path: Path) -> tuple[int, int] | None:
@@ -289,6 +290,30 @@ def _h5_sensor(nodes: list[Any], path: Path) -> tuple[int, int] | None:
     return None
 
 
+def _h5_slice(dataset: Any, index: Any) -> np.ndarray:
+    """``dataset[index]``, a filter HDF5 cannot load named (Prophesee's ECF codec)."""
+    try:
+        return np.asarray(dataset[index])
+    except OSError as error:
+        raise ValueError(
+            f"{dataset.file.filename}: dataset {dataset.name} cannot be read ({str(error).splitlines()[0]}); if it "
+            "is compressed with a filter this HDF5 lacks (Prophesee's files use their ECF codec), install the "
+            "filter's HDF5 plugin (HDF5_PLUGIN_PATH) or convert the file") from None
+
+
+class _H5Rows:
+    """An (N, k) HDF5 dataset, sliced lazily, its read errors named."""
+
+    def __init__(self, dataset: Any) -> None:
+        self.dataset, self.shape = dataset, dataset.shape
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, index: slice) -> np.ndarray:
+        return _h5_slice(self.dataset, index)
+
+
 class _H5Field:
     """One field of a structured HDF5 dataset, sliced lazily."""
 
@@ -299,7 +324,7 @@ class _H5Field:
         return len(self.dataset)
 
     def __getitem__(self, index: slice) -> np.ndarray:
-        return self.dataset[index][self.name]
+        return _h5_slice(self.dataset, index)[self.name]
 
 
 def _dat_header(path: Path) -> tuple[int, tuple[int, int] | None]:
