@@ -102,6 +102,15 @@ class TestHdf5Arrays:
         assert EventFile(tmp_path / "p.h5").sensor_size == SENSOR == EventFile(tmp_path / "w.h5").sensor_size
 
 
+def test_a_logged_set_pickles_for_workers(tmp_path):
+    import pickle
+
+    root = make_folder(tmp_path / "d", train=3, deploy=2, unlabeled=0)
+    data = RecordingSet(root, split="train", cache=tmp_path / "c", log=print, **SMALL)
+    again = pickle.loads(pickle.dumps(data))
+    assert torch.equal(again[1][0], data[1][0])
+
+
 class TestWrongFiles:
     def test_txyp_rows_get_the_columns_advice(self, tmp_path, capsys):
         root = make_folder(tmp_path / "d", train=3, deploy=2, unlabeled=0)

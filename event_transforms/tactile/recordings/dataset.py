@@ -255,6 +255,7 @@ class RecordingSet(Dataset):
     def __getstate__(self) -> dict[str, Any]:  # workers reload the memory-mapped cache
         state = dict(self.__dict__)
         state["_data"] = None
+        state["_log"] = None  # a closure over the caller's log: workers say nothing
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
