@@ -536,10 +536,12 @@ _CDR_EVENT = np.dtype({"names": ["x", "y", "sec", "nsec", "p"], "formats": ["<u2
 _EVENT_COLUMNS = [("x", "<i4"), ("y", "<i4"), ("t", "<i8"), ("p", "<i1")]
 
 
-def _ros1_events(raw: bytes) -> tuple[int, int, np.ndarray]:
-    """(height, width, records) of a ROS 1 serialised EventArray."""
+def _ros1_events(raw: bytes) -> tuple[int, int, np.ndarray] | None:
+    """(height, width, records) of a ROS 1 serialised EventArray (``None``: not that layout)."""
     at = 12 + 4 + int(np.frombuffer(raw, "<u4", 1, 12)[0])  # past seq, stamp and the frame_id
     height, width, count = (int(v) for v in np.frombuffer(raw, "<u4", 3, at))
+    if len(raw) != at + 12 + count * _ROS1_EVENT.itemsize:  # another definition: deserialised instead
+        return None
     return height, width, np.frombuffer(raw, _ROS1_EVENT, count, at + 12)
 
 
@@ -552,6 +554,8 @@ def _cdr_events(raw: bytes) -> tuple[int, int, np.ndarray] | None:
     at += -at % 4
     height, width, count = (int(v) for v in np.frombuffer(body, "<u4", 3, at))
     at += 12
+    if count and len(body) < at + (13 if count == 1 else 16 * count - 3):  # another definition: deserialised
+        return None
     records = np.zeros(count, dtype=_ROS1_EVENT)
     if count:
         first = np.frombuffer(body, _ROS1_EVENT, 1, at)
