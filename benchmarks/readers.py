@@ -114,7 +114,7 @@ def write_bag1(path: Path, events: np.ndarray, per_message: int = 10_000) -> Non
     from rosbags.rosbag1 import Writer
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    from event_transforms.events.io import _ROS1_EVENT, EVENT_MESSAGES
+    from event_transforms.events.bags import _ROS1_EVENT, EVENT_MESSAGES
 
     store = get_typestore(Stores.ROS1_NOETIC)
     event_type, event_msg, array_msg = EVENT_MESSAGES["dvs_msgs/msg/EventArray"]

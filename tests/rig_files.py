@@ -56,7 +56,7 @@ def write_bag(path: Path, events: np.ndarray, sensor: tuple[int, int], force_t_u
     pytest.importorskip("rosbags")
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    from event_transforms.events.io import EVENT_MESSAGES
+    from event_transforms.events.bags import EVENT_MESSAGES
 
     store = get_typestore(Stores.ROS2_HUMBLE if ros2 else Stores.ROS1_NOETIC)
     types: dict = {}

@@ -419,7 +419,7 @@ class TestBags:
 
     @pytest.mark.parametrize("ros2", [False, True], ids=["ros1", "ros2"])
     def test_prophesee_event_arrays(self, tmp_path, ros2):
-        from event_transforms.events.io import read_bag_events
+        from event_transforms.events.bags import read_bag_events
 
         from .rig_files import write_bag
 
@@ -491,7 +491,7 @@ class TestBags:
     def test_missing_package_names_the_extra(self, tmp_path, monkeypatch):
         import sys
 
-        from event_transforms.events.io import read_bag_events
+        from event_transforms.events.bags import read_bag_events
 
         monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
         with pytest.raises(ValueError, match=r"pip install 'event-transforms\[bag\]'"):

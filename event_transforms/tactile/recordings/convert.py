@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ...events.io import read_bag_events, read_bag_stamps, read_bag_values
+from ...events.bags import read_bag_events, read_bag_stamps, read_bag_values
 
 
 def convert_bag(
@@ -42,7 +42,7 @@ def convert_bag(
         events: the events' topic (``dvs_msgs/EventArray`` or Prophesee's ``EventArray``).
         force: the force topic (``None``: an unlabeled recording).
         force_field: what to read from each force message (see
-            :func:`~event_transforms.events.io.read_bag_values`; a wrench's magnitude by default).
+            :func:`~event_transforms.events.bags.read_bag_values`; a wrench's magnitude by default).
         stamps: ``"header"`` (default) or ``"receive"`` times for the force messages.
         role: the row's role, ``"train"`` or ``"deploy"``.
         diameter_mm: the object's size, where the table has a ``diameter_mm`` column.
