@@ -746,9 +746,10 @@ class TestProgressOutput:
         assert lines[1].startswith("binning recordings: 192 recordings in ")
         assert lines[2].startswith("data: ") and len(lines) == 3
 
-    def test_infer_scene_on_a_folder_prints_no_line_per_recording(self, tmp_path, capsys):
+    def test_infer_scene_on_a_folder_prints_no_line_per_recording(self, tmp_path, capsys, monkeypatch):
         from tests.test_recordings import make_folder
 
+        monkeypatch.setenv("EVENT_TRANSFORMS_CACHE", str(tmp_path / "cache"))  # bins every recording, whatever ran before
         root = make_folder(tmp_path / "d", train=6, deploy=5, unlabeled=1)
         assert cli.main(["infer-scene", "--data", str(root), "--sensor-size", "30", "40", "--frames", "12"]) == 0
         lines = capsys.readouterr().out.splitlines()

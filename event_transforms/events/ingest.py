@@ -478,8 +478,12 @@ def _check_crop(crop: object, height: int, width: int, pool: int) -> tuple[int, 
                 f"got {crop!r}"
             )
     if crop_h % pool or crop_w % pool:
-        raise ValueError(f"the cropped size ({crop_h}, {crop_w}) must be divisible by pool={pool}")
+        raise ValueError(f"the cropped size ({crop_h}, {crop_w}) must be divisible by pool={pool} (multiples of pool)")
     return top, left, crop_h, crop_w
+
+
+#: The one crop check, for the application's readers of recordings too.
+check_crop_window = _check_crop
 
 
 def _check_dtype(dtype: object) -> torch.dtype:

@@ -45,9 +45,10 @@ def _cache_dir(cache: str | os.PathLike[str] | None) -> Path:
 
 
 def _save_atomic(obj: object, path: Path) -> None:
-    from ..datasets import _atomic_save
+    from .._files import atomic_write
 
-    _atomic_save(obj, path)
+    with atomic_write(path, "wb") as handle:
+        torch.save(obj, handle)
 
 
 def _load_cached(path: Path) -> dict[str, Any] | None:

@@ -7,13 +7,13 @@ __all__ = ["convert_bag"]
 
 import csv
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ...events.bags import read_bag_events, read_bag_stamps, read_bag_values
+from .._files import atomic_write
 
 
 def convert_bag(
@@ -105,10 +105,8 @@ def convert_bag(
     cells = {"events": f"events/{name}.npz", "force": force_cell, "role": role,
              "diameter_mm": "" if diameter_mm is None else f"{diameter_mm:g}"}
     rows.append([cells.get(h, "") for h in header])
-    handle_fd, temporary = tempfile.mkstemp(dir=out, prefix=".recordings.", suffix=".tmp")
-    with os.fdopen(handle_fd, "w", newline="") as handle:
+    with atomic_write(table, "w") as handle:
         csv.writer(handle, lineterminator="\n").writerows([header, *rows])
-    os.replace(temporary, table)
     if log:
         log(f"{bag}: {said} -> events/{name}.npz" + (f", {force_cell}" if force_cell else "")
             + f"; row {len(rows) + 1} of {table}")

@@ -5,12 +5,12 @@ from __future__ import annotations
 __all__ = ["export_scene"]
 
 import os
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from .._files import atomic_write
 
 
 def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = None, log: Any = None) -> Path:
@@ -58,8 +58,6 @@ def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = 
         if log:
             log(f"exported {SPLIT_SIZES[split]} {split} grasps of {scene.name!r} in {time.perf_counter() - tick:.1f} s")
     table = out / "recordings.csv"
-    handle_fd, temporary = tempfile.mkstemp(dir=out, prefix=".recordings.", suffix=".tmp")
-    with os.fdopen(handle_fd, "w") as handle:
+    with atomic_write(table) as handle:
         handle.write("\n".join(rows) + "\n")
-    os.replace(temporary, table)
     return table

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from ...events.ingest import check_crop_window
 
 #: The splits a recording can belong to.
 SPLITS = ("train", "holdout", "val", "test", "unlabeled")
@@ -135,18 +136,18 @@ class RecordingSettings:
 
 
 def _check_crop(crop: Any, sensor: tuple[int, int], pool: int, where: str) -> tuple[int, int, int, int]:
+    """A crop read from a table or a setting (numbers or their text) as four ints, checked by the
+    binning's one crop check (:mod:`event_transforms.events.ingest`), errors prefixed with ``where``."""
     try:
         values = tuple(int(v) for v in crop)
         if len(values) != 4 or any(float(v) != int(float(v)) for v in crop):
             raise ValueError
     except (TypeError, ValueError):
         raise ValueError(f"{where} must be four integers (top, left, height, width), got {crop!r}") from None
-    top, left, height, width = values
-    if top < 0 or left < 0 or height < 1 or width < 1 or top + height > sensor[0] or left + width > sensor[1]:
-        raise ValueError(f"{where} {values} must lie inside the sensor {sensor} (H, W)")
-    if height % pool or width % pool:
-        raise ValueError(f"{where} {values}: height and width must be multiples of pool={pool}")
-    return values
+    try:
+        return check_crop_window(values, sensor[0], sensor[1], pool)
+    except ValueError as error:
+        raise ValueError(f"{where}: {error}") from None
 
 
 @dataclass(frozen=True)
