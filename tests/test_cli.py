@@ -737,7 +737,7 @@ class TestProgressOutput:
 
         from event_transforms.tactile import commands, recordings
 
-        def fake_load(root, settings, *, cache=None, log=None):
+        def fake_load(root, settings, *, cache=None, log=None, deployment=True):
             log("crop: the contact area of 4 training recordings")
             for k in range(192):
                 log(f"binned events/g{k:03d}.npy: 1,000 events into 40 frames in 0.0 s")
@@ -755,9 +755,10 @@ class TestProgressOutput:
         assert lines[1].startswith("binning recordings: 192 recordings in ")
         assert lines[2].startswith("data: ") and len(lines) == 3
 
-    def test_infer_scene_on_a_folder_prints_no_line_per_recording(self, tmp_path, capsys):
+    def test_infer_scene_on_a_folder_prints_no_line_per_recording(self, tmp_path, capsys, monkeypatch):
         from tests.test_recordings import make_folder
 
+        monkeypatch.setenv("EVENT_TRANSFORMS_CACHE", str(tmp_path / "cache"))  # bins every recording, whatever ran before
         root = make_folder(tmp_path / "d", train=6, deploy=5, unlabeled=1)
         assert cli.main(["infer-scene", "--data", str(root), "--sensor-size", "30", "40", "--frames", "12"]) == 0
         lines = capsys.readouterr().out.splitlines()

@@ -12,7 +12,8 @@ microseconds unless ``time_unit=`` says ``"ns"``, ``"ms"`` or ``"s"``; ``timedel
 ``datetime64`` columns (polars ``Duration``) carry their own unit. Two silent traps are
 refused by name: float timestamps with fractions spanning less than 1e6, which look like
 seconds read as microseconds (every event would land in one bin; pass ``time_unit``), and
-float timestamps too large for their dtype to hold microseconds (float32 past 2**24 µs).
+float timestamps too large for their dtype to hold microseconds (float32 past 2**24 µs);
+a recording of integer timestamps whose span and count say milliseconds is refused the same way.
 Polarity is bool, {0, 1} or {-1, 1}, with ON (``True``,
 ``1``) in channel 1 and OFF (``False``, ``0``, ``-1``) in channel 0, tonic's convention.
 
@@ -169,7 +170,9 @@ def events_to_frames(
         time_unit: unit of plain-number timestamps: ``"us"``, ``"ms"``, ``"s"`` or ``"ns"``
             (ns are floored to whole microseconds). ``None`` (default) reads microseconds
             and refuses float timestamps with fractions spanning under 1e6 (they look
-            like seconds: pass ``time_unit`` to say what they are). ``timedelta64`` and
+            like seconds: pass ``time_unit`` to say what they are), and one stream of at
+            least 1,000 integer timestamps spanning under 1e6 with 50 or more events per
+            unit (milliseconds, read as microseconds, would fall in one bin). ``timedelta64`` and
             ``datetime64`` columns (pandas, polars ``Duration``/``Datetime``) carry their
             own unit. Float timestamps too coarse to hold microseconds (float32 past
             2**24 µs, about 16.8 s) are refused whatever the unit.
@@ -221,7 +224,7 @@ def events_to_frames(
         return bin_events(events, frame_ms=frame_ms, t_start=t_start, n_frames=n_frames, crop=crop, pool=pool,
                           dtype=dtype)
     frame_ms = 10.0 if frame_ms is None else frame_ms
-    source = _source(events, time_unit=time_unit, columns=columns)
+    source = _source(events, time_unit=time_unit, columns=columns, whole=True)
     grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
     chunk = max(1, _integer(chunk_size, "chunk_size") // max(source.batch, 1))
     if max_bytes is not None:

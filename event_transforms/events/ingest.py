@@ -157,6 +157,43 @@ def _check_float_times(t: Any, unit: str | None) -> None:
         )
 
 
+# Integer milliseconds read as microseconds (issue 35): checked from the first and last
+# timestamps and the count only, never a pass over the column.
+#: Integer timestamps spanning less than this (1 s as microseconds) ...
+_MS_SPAN = 1_000_000
+#: ... with at least this many events per unit (5e7 events/s as microseconds) ...
+_MS_RATE = 50
+#: ... and at least this many events, spanning at least ``_MS_MIN_SPAN`` units (a shorter
+#: span is one 10 ms frame in either unit), look like milliseconds.
+_MS_EVENTS = 1000
+_MS_MIN_SPAN = 10
+
+
+def _millisecond_advice(count: int, first: float, last: float) -> str | None:
+    """Why integer timestamps look like milliseconds read as microseconds, or ``None``."""
+    span = last - first
+    if count < _MS_EVENTS or not _MS_MIN_SPAN <= span < _MS_SPAN or count < _MS_RATE * (span + 1):
+        return None
+    rate = count / (span + 1)
+    return (f"{count:,} integer timestamps spanning {span:,.0f} look like milliseconds, not microseconds "
+            f"({rate:.0f} events per unit: {rate:.3g} million events per second as microseconds, a "
+            f"{span / 1000:.3g} s recording as milliseconds)")
+
+
+def _check_integer_times(t: Any, unit: str | None) -> None:
+    """Refuse a 1-D integer timestamp column on the CPU that looks like milliseconds (``unit`` None)."""
+    if unit is not None or getattr(t, "ndim", 0) != 1 or len(t) < _MS_EVENTS:
+        return
+    if isinstance(t, Tensor):
+        if t.is_floating_point() or t.device.type != "cpu" or t.dtype == torch.bool:
+            return
+    elif np.asarray(t[:1]).dtype.kind not in "iu":
+        return
+    advice = _millisecond_advice(len(t), float(t[0]), float(t[-1]))
+    if advice is not None:
+        raise ValueError(f"events['t']: {advice}; pass time_unit='ms', or time_unit='us' if they are microseconds")
+
+
 def _to_microseconds(t: Tensor, unit: str) -> Tensor:
     """An int64/float64 timestamp column in ``unit`` as microseconds (ns are floored to whole µs)."""
     if unit == "us":
@@ -232,11 +269,14 @@ class _Source:
     device: torch.device
 
 
-def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequence[str] | None = None) -> _Source:
+def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequence[str] | None = None,
+            whole: bool = False) -> _Source:
     """Wrap any accepted form of ``events`` without converting it as a whole.
 
     ``time_unit`` (None: microseconds, checked for float timestamps that look like seconds)
-    and ``columns`` (the order of an (N, k) array's columns) as in :func:`events_to_frames`.
+    and ``columns`` (the order of an (N, k) array's columns) as in :func:`events_to_frames`;
+    ``whole``: the events are a whole recording (not a chunk of a stream), so integer
+    timestamps that look like milliseconds are refused.
     """
     time_unit = _time_unit(time_unit)
     source, t_whole = _raw_source(events, columns)
@@ -245,6 +285,8 @@ def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequenc
         _, unit = _time_typed(t_whole, "t", time_unit)
     else:
         _check_float_times(t_whole, time_unit)
+        if whole:
+            _check_integer_times(t_whole, time_unit)
     if unit is None or unit == "us":
         return source
     raw = source.read
@@ -436,8 +478,12 @@ def _check_crop(crop: object, height: int, width: int, pool: int) -> tuple[int, 
                 f"got {crop!r}"
             )
     if crop_h % pool or crop_w % pool:
-        raise ValueError(f"the cropped size ({crop_h}, {crop_w}) must be divisible by pool={pool}")
+        raise ValueError(f"the cropped size ({crop_h}, {crop_w}) must be divisible by pool={pool} (multiples of pool)")
     return top, left, crop_h, crop_w
+
+
+#: The one crop check, for the application's readers of recordings too.
+check_crop_window = _check_crop
 
 
 def _check_dtype(dtype: object) -> torch.dtype:

@@ -1,4 +1,4 @@
-"""Command line: ``event-transforms reproduce | simulate | show | show-scene | infer-scene | train | predict``.
+"""Command line: ``event-transforms reproduce | simulate | show | show-scene | infer-scene | train | predict | convert``.
 
 ``reproduce`` runs the benchmark protocol (:mod:`event_transforms.tactile.protocol`) on the
 simulated scenes (:mod:`event_transforms.tactile.scenes`). Without ``--full`` it runs a quick
@@ -13,6 +13,7 @@ can build, and the paper-size model. Results are on synthetic data, never the pa
 of :mod:`event_transforms.tactile.recordings`), ``infer-scene --data DIR`` prints the gaps
 inferred between its training and deployment recordings, ``train --data DIR`` saves a model
 checkpoint with its preprocessing and ``predict MODEL EVENTS`` streams an event file through it;
+``convert BAG --events TOPIC --force TOPIC --out DIR`` writes ROS bags in the layout;
 ``simulate --export DIR --scene NAME`` writes a built-in scene in that layout.
 
 Under ``torchrun --nproc-per-node N -m event_transforms.tactile.cli reproduce ...`` the
@@ -23,13 +24,14 @@ writes the results; ``--jobs N`` starts N local ranks itself.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 
 from . import commands
+from .cli_data import add_convert_command, add_ingestion_options, as_flags, run_convert
+from .cli_data import add_recording_options as _recording_options
 from .commands import FULL, QUICK
 
 #: ``--data`` options -> :class:`~event_transforms.tactile.recordings.RecordingSettings` (kept under its old name).
@@ -195,9 +197,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     predict = sub.add_parser("predict", help="stream an event file through a saved model into a force CSV")
     predict.add_argument("model", type=Path, help="a checkpoint written by train")
-    predict.add_argument("events", type=Path, help="an event file (.npy, .npz, .csv, .aedat4, .h5)")
+    predict.add_argument("events", type=Path, help="an event file (.npy, .npz, .csv, .aedat4, .h5, .dat, .raw)")
     predict.add_argument("--out", type=Path, default=Path("force.csv"), help="output CSV t_us,force_n")
     predict.add_argument("--threads", type=_positive, default=1, help="torch CPU threads")
+    add_ingestion_options(predict.add_argument_group(
+        "reading the event file (default: what the model's training recordings used; the sensor size the file "
+        "states)"))
+    add_convert_command(sub)
 
     compare = sub.add_parser(
         "compare", help="compare the verdicts (sign, significance) of two runs' summary tables, not their digits",
@@ -227,52 +233,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
-
-
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
-
-
-def _recording_options(parser: argparse.ArgumentParser) -> None:
-    """The layout's settings (RecordingSettings), each recorded with the results."""
-    group = parser.add_argument_group("recordings (with --data)")
-    group.add_argument("--sensor-size", type=_positive, nargs=2, metavar=("H", "W"), default=(180, 240),
-                       help="sensor height and width (default 180 240, the DAVIS240)")
-    group.add_argument("--frame-ms", type=_positive_float, default=10.0, help="bin width in ms (default 10)")
-    group.add_argument("--frames", type=_positive, default=36, help="frames T per window (default 36)")
-    group.add_argument("--stride", type=_positive, help="frames between window starts (default T)")
-    group.add_argument("--crop", type=_non_negative_int, nargs=4, metavar=("TOP", "LEFT", "H", "W"),
-                       help="crop window for every recording (default: recordings.csv's crop columns, else the "
-                       "contact area of the training recordings)")
-    group.add_argument("--pool", type=_positive, default=2, help="sum-pool factor (default 2)")
-    group.add_argument("--force-offset-ms", type=_finite, default=0.0,
-                       help="the force clock's lag behind the events' clock in ms (default 0)")
-    group.add_argument("--time-unit", choices=("us", "ms", "s", "ns"),
-                       help="unit of the event files' timestamps (default: microseconds; float timestamps that "
-                       "look like seconds are refused without it); force files stay in t_us")
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``event-transforms`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
     handlers = {"reproduce": commands.reproduce, "simulate": commands.simulate, "show": commands.show,
                 "show-scene": commands.show_scene, "infer-scene": commands.infer_scene, "train": commands.train,
-                "predict": commands.predict, "compare": commands.compare}
+                "predict": commands.predict, "compare": commands.compare,
+                "convert": lambda a: run_convert(a, lambda line: print(line, flush=True))}
     try:
         if args.command in _TRAINING_COMMANDS:  # before any simulation: their progress bars need tqdm
             import tqdm  # noqa: F401
@@ -282,7 +250,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)
         return 130
     except ValueError as error:  # a name or setting the user gave (also from a worker): one line
-        message = " ".join(str(error).split())
+        message = as_flags(" ".join(str(error).split()))  # the library's advice as this interface's flags
         print(f"{parser.prog} {args.command}: error: {message}", file=sys.stderr)
         return 2
     except ImportError as error:  # tqdm, matplotlib, torchvision: the app extra's packages

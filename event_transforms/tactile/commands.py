@@ -13,6 +13,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from .cli_data import recording_settings
+
 __all__ = [
     "QUICK", "FULL", "reproduce", "simulate", "show", "show_scene", "infer_scene", "train", "predict", "compare",
     "recording_settings", "load_recordings", "writable", "ItemProgress",
@@ -57,18 +59,9 @@ FULL: dict[str, Any] = {
 }
 
 
-def recording_settings(args: argparse.Namespace) -> Any:
-    from .recordings import RecordingSettings
-
-    return RecordingSettings(
-        sensor_size=tuple(args.sensor_size), frame_ms=args.frame_ms, frames=args.frames, stride=args.stride,
-        crop=None if args.crop is None else tuple(args.crop), pool=args.pool, force_offset_ms=args.force_offset_ms,
-        time_unit=args.time_unit,
-    )
-
-
-def load_recordings(args: argparse.Namespace) -> Any:
-    """The folder's SceneData, with one line saying what was read and how."""
+def load_recordings(args: argparse.Namespace, deployment: bool = True) -> Any:
+    """The folder's SceneData, with one line saying what was read and how (``deployment=False``:
+    a folder of training recordings only, for ``train``)."""
     from .recordings import load_recording_data
 
     if not args.data.is_dir():
@@ -77,7 +70,8 @@ def load_recordings(args: argparse.Namespace) -> Any:
     binning = ItemProgress("binned ", "binning recordings", "recordings")
     try:
         data = load_recording_data(args.data, recording_settings(args),
-                                   cache=None if root is None else root / "recordings", log=binning)
+                                   cache=None if root is None else root / "recordings", log=binning,
+                                   deployment=deployment)
     finally:
         summary = binning.close()
     if summary:
@@ -439,7 +433,9 @@ def train(args: argparse.Namespace) -> int:
 
     writable(args.out.parent if str(args.out.parent) else Path("."), "--out")
     torch.set_num_threads(args.threads)
-    data = load_recordings(args)
+    data = load_recordings(args, deployment=False)
+    if args.policy == "inferred" and not data.dataset["windows"]["val"] + data.dataset["windows"]["unlabeled"]:
+        raise ValueError("--policy inferred needs deployment recordings (role deploy) to infer the gaps from")
     start = time.perf_counter()
     model, summary = train_model(
         data, args.policy, steps=args.steps, batch_size=args.batch_size, lr=args.lr,
@@ -451,9 +447,10 @@ def train(args: argparse.Namespace) -> int:
                      "policy": args.policy, "data": {k: data.dataset[k] for k in ("folder", "content_hash", "files")}}
     model.save(args.out, preprocessing=preprocessing)
     _print(f"trained with policy {args.policy!r} for {args.steps} steps in {time.perf_counter() - start:.1f} s "
-           f"(kept step {summary['kept_step']}, hold-out MSE {summary['holdout_mse']:.3g} N²); validation MSE "
-           f"{summary['val_mse']:.3g} N², test MSE {summary['test_mse']:.3g} N² on {data.dataset['recordings']['test']} "
-           f"test recordings")
+           f"(kept step {summary['kept_step']}, hold-out MSE {summary['holdout_mse']:.3g} N²); " + (
+               f"validation MSE {summary['val_mse']:.3g} N², test MSE {summary['test_mse']:.3g} N² on "
+               f"{data.dataset['recordings']['test']} test recordings" if len(data.test) else
+               "not scored: the folder holds no labelled deployment recordings"))
     _print(f"wrote {args.out} (weights, model settings, preprocessing: frame_ms {settings['frame_ms']:g}, crop "
            f"{tuple(settings['crop'])}, pool {settings['pool']}, force scaling; package version)")
     return 0
@@ -467,13 +464,25 @@ def predict(args: argparse.Namespace) -> int:
 
     torch.set_num_threads(args.threads)
     writable(args.out.parent if str(args.out.parent) else Path("."), "--out")
-    model = ForceRegressor.load(args.model)
+    model = ForceRegressor.load(_checkpoint(args.model))
     start = time.perf_counter()
-    stats = predict_stream(model, args.events, args.out)
+    stats = predict_stream(model, args.events, args.out, sensor_size=args.sensor_size, time_unit=args.time_unit,
+                           columns=args.columns, log=_print)
     _print(f"wrote {args.out}: {stats['frames']} frames from {stats['events']:,} events in "
            f"{time.perf_counter() - start:.1f} s; step latency p50 {stats['p50_ms']:.3f} ms, p99 "
            f"{stats['p99_ms']:.3f} ms per frame")
     return 0
+
+
+def _checkpoint(path: Path) -> Path:
+    """``path`` if it can be a checkpoint (a torch zip file), else the error naming what it is."""
+    import zipfile
+
+    if path.is_file() and not zipfile.is_zipfile(path):
+        kind = f"a {path.suffix} file" if path.suffix else "not a zip file"
+        raise ValueError(f"MODEL {str(path)!r} is not a checkpoint written by `event-transforms train` ({kind}); "
+                         "the command is `predict MODEL EVENTS`, the model first")
+    return path
 
 
 def compare(args: argparse.Namespace) -> int:

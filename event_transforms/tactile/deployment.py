@@ -67,6 +67,9 @@ def train_model(
                     description=f"train {method}")
     scores = {}
     for split in ("val", "test"):
+        if not len(getattr(data, split)):  # a folder of training recordings only: nothing to score
+            scores[f"{split}_mse"] = math.nan
+            continue
         pred, target = evaluate(trained.model, getattr(data, split))
         scores[f"{split}_mse"] = mse(pred[0], target)
     record = trained.result.members[0]
@@ -85,6 +88,10 @@ def predict_stream(
     out: str | os.PathLike[str],
     *,
     chunk_size: int = 2**16,
+    sensor_size: tuple[int, int] | None = None,
+    time_unit: str | None = None,
+    columns: str | None = None,
+    log: Any = None,
 ) -> dict[str, Any]:
     """Stream an event file through ``model`` (binned as its ``preprocessing`` says, its
     timestamps read in the training recordings' ``time_unit``) and write ``t_us,force_n`` per
@@ -93,11 +100,24 @@ def predict_stream(
     ``t_us`` is each frame's centre on the force files' clock (the events' clock minus the
     checkpoint's ``force_offset_ms``), so the output reads back as a force file of the layout.
 
+    Args:
+        model: a model with its ``preprocessing`` (a checkpoint of ``event-transforms train``).
+        events: the event file.
+        out: the CSV written.
+        chunk_size: events read per chunk.
+        sensor_size: the file's sensor ``(H, W)`` (default: the size the file states, else the
+            model's); another grid than the model's is read through the model's crop where the
+            crop lies inside it (said in one line to ``log``), else refused.
+        time_unit, columns: how the file's timestamps and ``(N, k)`` columns read (default:
+            the training recordings' settings).
+        log: called with one line when the grid differs from the model's.
+
     Returns:
         ``frames``, ``events``, and the per-step latency ``p50_ms``/``p99_ms``/``mean_ms``.
     """
     from ..functional import iter_frames
-    from .recordings import _EventFile, _scan
+    from ..events.io import EventFile
+    from .recordings.scan import scan_events
 
     settings = getattr(model, "preprocessing", None) or {}
     missing = [k for k in ("frame_ms", "crop", "pool", "sensor_size") if k not in settings]
@@ -106,10 +126,24 @@ def predict_stream(
     path = Path(events)
     if not path.is_file():
         raise ValueError(f"events file {str(path)!r} does not exist")
-    sensor = tuple(settings["sensor_size"])
-    source = _EventFile(path)
-    time_unit = settings.get("time_unit")  # the training recordings' unit (None: microseconds)
-    scan = _scan(source, sensor, str(path), time_unit)  # checked first: sorted, inside the sensor, units
+    trained = (int(settings["sensor_size"][0]), int(settings["sensor_size"][1]))
+    source = EventFile(path, columns=columns if columns is not None else settings.get("columns"))
+    given = None if sensor_size is None else (int(sensor_size[0]), int(sensor_size[1]))
+    if given is not None and source.sensor_size is not None and given != source.sensor_size:
+        raise ValueError(f"{path}: the file states a sensor of (H, W) = {source.sensor_size}, but "
+                         f"sensor_size={given}; leave sensor_size out to use the file's")
+    sensor = given or source.sensor_size or trained
+    top, left, height, width = (int(v) for v in settings["crop"])
+    crop = (top, left, height, width)
+    if sensor != trained:
+        if crop[0] + crop[2] > sensor[0] or crop[1] + crop[3] > sensor[1]:
+            raise ValueError(f"the model was trained on a {trained} (H, W) sensor with crop {crop}, which does not fit "
+                             f"this file's {sensor} sensor: train a model on recordings of this camera")
+        if log:
+            log(f"the model was trained on a {trained} (H, W) sensor, this file's is {sensor}: the model's crop {crop} "
+                "is read from it (events outside the crop ignored)")
+    time_unit = time_unit or settings.get("time_unit")  # default: the training recordings' unit (None: µs)
+    scan = scan_events(source, sensor, str(path), time_unit)  # checked first: sorted, inside the sensor, units
     frame_ms = float(settings["frame_ms"])
     frame_us = frame_ms * 1000.0
     t0 = (scan.t_min // frame_us) * frame_us
@@ -120,7 +154,7 @@ def predict_stream(
     with torch.no_grad(), atomic_write(out) as handle:
         handle.write("t_us,force_n\n")
         frames = iter_frames(source.chunks(chunk_size), sensor_size=sensor, t_start=t0, frame_ms=frame_ms,
-                             crop=tuple(settings["crop"]), pool=int(settings["pool"]), time_unit=time_unit or "us")
+                             crop=crop, pool=int(settings["pool"]), time_unit=time_unit or "us")
         for frame in frames:
             tick = time.perf_counter()
             force, state = model.step(frame.unsqueeze(0), state)
