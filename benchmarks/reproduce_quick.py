@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from event_transforms.tactile import cli
-from event_transforms.tactile.report import SUMMARY_COLUMNS
+from event_transforms.tactile.report import LEGACY_SUMMARY_COLUMNS, SUMMARY_COLUMNS
 
 __all__ = ["FIGURES", "replace_summary_table", "main"]
 
@@ -39,7 +39,8 @@ def _table_span(lines: list[str]) -> tuple[int, int] | None:
     """The first and one-past-last line of the table headed by SUMMARY_COLUMNS."""
     for start, line in enumerate(lines):
         stripped = line.strip()
-        if stripped.startswith("|") and tuple(c.strip() for c in stripped[1:-1].split("|")) == SUMMARY_COLUMNS:
+        if stripped.startswith("|") and tuple(c.strip() for c in stripped[1:-1].split("|")) in (
+                SUMMARY_COLUMNS, LEGACY_SUMMARY_COLUMNS):  # a page published before the columns were renamed
             end = start + 1
             while end < len(lines) and lines[end].strip().startswith("|"):
                 end += 1
