@@ -43,6 +43,7 @@ from ..events.binning import events_to_frames
 from .scenes import BenchmarkScene, Session, get_scene
 from .simulation import (
     SIMULATOR_VERSION,
+    Grasp,
     Recording,
     SimulatorConfig,
     draw_grasp,
@@ -126,6 +127,11 @@ def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool
         "pool": pool,
         "crop": "sensor-centre",  # issue 24: a fixed crop, not the oracle contact crop
     }
+    if session.generator != "builtin":  # builtin sessions keep their cache files
+        from .generators.optical import OPTICAL_VERSION, OpticalConfig
+
+        description["generator"] = session.generator
+        description["optical"] = [OPTICAL_VERSION, dataclasses.asdict(OpticalConfig())]
     text = json.dumps(description, sort_keys=True)
     return f"tactile-grasps-v{SIMULATOR_VERSION}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.pt"
 
@@ -154,7 +160,7 @@ def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (14
     grasps = [
         draw_grasp(session.diameter(k), seed=seed, config=session.config) for k, seed in enumerate(seeds)
     ]
-    recordings = simulate_grasps(grasps, session.config)
+    recordings = _simulate(session, grasps)
     frames = torch.stack(
         [r.frames(crop=r.sensor_crop(crop_size), pool=pool, dtype=torch.int64) for r in recordings]
     ) if recordings else torch.zeros(0, session.config.n_frames, 2, crop_size[0] // pool, crop_size[1] // pool, dtype=torch.int64)
@@ -165,6 +171,15 @@ def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (14
         "diameter_mm": torch.tensor([g.diameter_mm for g in grasps], dtype=torch.float64),
         "seed": torch.tensor(list(seeds), dtype=torch.int64),
     }
+
+
+def _simulate(session: Session, grasps: list[Grasp]) -> list[Recording]:
+    """The session's generator on ``grasps``."""
+    if session.generator == "optical":
+        from .generators.optical import simulate_optical
+
+        return simulate_optical(grasps, session.config)
+    return simulate_grasps(grasps, session.config)
 
 
 def item_index(index: object, length: int, what: str) -> int:
@@ -292,7 +307,7 @@ class TactileGrasps(Dataset):
         """Re-simulate item ``index`` as a raw event stream (same seed, same events)."""
         meta = self.meta(index)
         grasp = draw_grasp(meta["diameter_mm"], seed=meta["seed"], config=self.config)
-        return simulate_grasps([grasp], self.config)[0]
+        return _simulate(self.session, [grasp])[0]
 
     def __repr__(self) -> str:
         return (
