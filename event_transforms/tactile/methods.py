@@ -203,6 +203,8 @@ QUICK_METHODS: dict[str, tuple[str, ...]] = {
     "paper": PAPER_METHODS,
     "control": ("none", "rot50", "fs2", "noise"),
 }
+#: The optical scenes run their built-in role's quick methods.
+QUICK_METHODS.update({"optical-paper": QUICK_METHODS["paper"], "optical-control": QUICK_METHODS["control"]})
 
 #: Rows every scene runs after its own methods, in quick and full mode, where the scene can
 #: build them (``parse_method`` accepts them): adding a policy row is one name here.

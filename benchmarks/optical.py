@@ -1,0 +1,145 @@
+"""The optical generator's verdict table, its data cost and its fidelity figure, in one command.
+
+1. **Data.** Renders every render table the optical scenes need (cold: taxim; then cached) and
+   simulates every split of every optical scene, timing both (render cost per table, event
+   generation per grasp, the whole data set cold and cached).
+2. **Fidelity** (no network, :func:`event_transforms.tactile.fidelity.fidelity`): the physics
+   least-squares model fitted on the deployment's test grasps scores the training grasps
+   after the size transforms (``optical-paper``, per training size) and after the rotation
+   (``optical-orientation``), beside the same figure on the built-in ``paper`` and
+   ``orientation`` scenes.
+3. **Verdicts.** ``event-transforms reproduce --scenes optical-...`` (the unchanged protocol;
+   ``--seeds``/``--steps`` for a reduced run) into ``--out``, whose ``results.json`` and
+   ``report.md`` hold the optical verdict table.
+
+Run: ``EVENT_TRANSFORMS_CACHE=DIR python benchmarks/optical.py --out results-optical``
+(``pip install 'event-transforms[optical]'`` first). ``--skip-protocol`` stops after 1 and 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from event_transforms.tactile import datasets
+from event_transforms.tactile.generators.optical import OpticalConfig, OpticalObject, render_table
+from event_transforms.tactile.scenes import OPTICAL_SCENES, get_scene
+from event_transforms.tactile.simulation import draw_grasp
+
+__all__ = ["prepare", "fidelity_figures", "main"]
+
+#: The optical scenes of the verdict table (each one a built-in scene's role).
+ROLES = {
+    "optical-control": "control", "optical-paper": "paper", "optical-orientation": "orientation",
+    "optical-paper-membrane": "paper-membrane", "optical-paper-offset": "paper-offset", "optical-noise": "noise",
+}
+
+
+def _splits(scene_name: str) -> list[tuple[str, Any, range]]:
+    scene = get_scene(scene_name)
+    out = []
+    for split, size in datasets.SPLIT_SIZES.items():
+        session = scene.train if split in ("train", "holdout") else scene.deploy
+        first = {"train": 0, "val": 10_000, "holdout": 30_000, "test": 40_000}[split]
+        out.append((split, session, range(first, first + size)))
+    return out
+
+
+def prepare(scenes: Sequence[str], root: str | None) -> dict[str, Any]:
+    """Render the tables, then build every split; timings in seconds."""
+    optical = OpticalConfig()
+    needed: set[tuple[float, float]] = set()
+    sessions = {}
+    for name in scenes:
+        for split, session, seeds in _splits(name):
+            key = (session, seeds.start)
+            sessions[key] = (session, seeds)
+            for k, seed in enumerate(seeds):
+                grasp = draw_grasp(session.diameter(k), seed=seed, config=session.config)
+                node = round(grasp.angle_deg / optical.angle_step_deg) * optical.angle_step_deg
+                needed.add((grasp.diameter_mm, node))
+    start = time.perf_counter()
+    for diameter, node in sorted(needed):
+        render_table(OpticalObject("cylinder", diameter), node, (180, 240), optical)
+    tables_s = time.perf_counter() - start
+    start = time.perf_counter()
+    grasps = 0
+    for session, seeds in sessions.values():
+        datasets.generate(session, seeds)
+        grasps += len(seeds)
+    events_s = time.perf_counter() - start
+    start = time.perf_counter()
+    for name in scenes:
+        for split in datasets.SPLIT_SIZES:
+            datasets.TactileGrasps(split, root=root, scene=name)
+    cached_s = time.perf_counter() - start
+    return {"tables": len(needed), "tables_s": tables_s, "grasps": grasps, "events_s": events_s,
+            "datasets_cached_s": cached_s, "depth_nodes": int(optical.depths_mm.size)}
+
+
+def fidelity_figures(root: str | None) -> dict[str, dict[str, dict[str, float]]]:
+    """scene -> training subset -> method -> MSE (N²), both generators."""
+    from event_transforms.tactile.fidelity import SIZE_METHODS, fidelity
+    from event_transforms.tactile.methods import parse_method
+
+    results: dict[str, dict[str, dict[str, float]]] = {}
+    for name in ("paper", "optical-paper", "orientation", "optical-orientation"):
+        scene = get_scene(name)
+        train = datasets.TactileGrasps("train", root=root, scene=name)
+        val = datasets.TactileGrasps("val", root=root, scene=name)
+        test = datasets.TactileGrasps("test", root=root, scene=name)
+        metadata = [train.meta(i) for i in range(len(train))]
+        if "orientation" in scene.gaps:
+            methods: dict[str, Any] = {"none": None, "rot50": parse_method("rot50", scene=scene).build()}
+            results[name] = {"15 mm": fidelity((test.frames, test.forces), (val.frames, val.forces),
+                                               (train.frames, train.forces, metadata), methods)}
+            continue
+        methods = {"none": None, **{m: build(scene.target_size) for m, build in SIZE_METHODS.items()}}
+        results[name] = {}
+        for size in scene.train.diameters_mm:
+            keep = [i for i, m in enumerate(metadata) if m["diameter_mm"] == size]
+            subset = (train.frames[keep], train.forces[keep], [metadata[i] for i in keep])
+            results[name][f"{size:g} mm"] = fidelity((test.frames, test.forces), (val.frames, val.forces), subset,
+                                                      methods)
+    return results
+
+
+def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("results-optical"), help="the protocol's output folder")
+    parser.add_argument("--root", default=None, help="data-set cache folder (default: the package's)")
+    parser.add_argument("--scenes", nargs="+", default=list(ROLES), choices=list(OPTICAL_SCENES))
+    parser.add_argument("--seeds", default=None, help="the protocol's seeds (default: its quick configuration)")
+    parser.add_argument("--steps", default=None, help="the protocol's steps (default: its quick configuration)")
+    parser.add_argument("--skip-protocol", action="store_true", help="stop after the data and the fidelity figure")
+    args = parser.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    cost = prepare(args.scenes, args.root)
+    print(json.dumps(cost, indent=1), flush=True)
+    figures = fidelity_figures(args.root)
+    for scene, subsets in figures.items():
+        for subset, scores in subsets.items():
+            print(scene, subset, {m: round(v, 2) for m, v in scores.items()}, flush=True)
+    (args.out / "optical_cost_fidelity.json").write_text(json.dumps({"cost": cost, "fidelity": figures}, indent=1))
+    if not args.skip_protocol:
+        from event_transforms.tactile.cli import main as cli_main
+
+        command = ["reproduce", "--scenes", *args.scenes, "--out", str(args.out), "--no-plots"]
+        if args.root:
+            command += ["--root", args.root]
+        if args.seeds:
+            command += ["--seeds", args.seeds]
+        if args.steps:
+            command += ["--steps", args.steps]
+        cli_main(command)
+    return {"cost": cost, "fidelity": figures}
+
+
+if __name__ == "__main__":
+    main()
