@@ -25,7 +25,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from event_transforms.tactile import datasets
 from event_transforms.tactile.generators.optical import OpticalConfig, OpticalObject, render_table
@@ -58,8 +57,7 @@ def prepare(scenes: Sequence[str], root: str | None) -> dict[str, Any]:
     sessions = {}
     for name in scenes:
         for split, session, seeds in _splits(name):
-            key = (session, seeds.start)
-            sessions[key] = (session, seeds)
+            sessions[(session, seeds.start)] = (session, seeds)
             for k, seed in enumerate(seeds):
                 grasp = draw_grasp(session.diameter(k), seed=seed, config=session.config)
                 node = round(grasp.angle_deg / optical.angle_step_deg) * optical.angle_step_deg
@@ -68,19 +66,22 @@ def prepare(scenes: Sequence[str], root: str | None) -> dict[str, Any]:
     for diameter, node in sorted(needed):
         render_table(OpticalObject("cylinder", diameter), node, (180, 240), optical)
     tables_s = time.perf_counter() - start
+    files = set(Path(str(datasets.default_cache_dir() if root is None else root)).glob("tactile-grasps-*.pt"))
     start = time.perf_counter()
-    grasps = 0
-    for session, seeds in sessions.values():
-        datasets.generate(session, seeds)
-        grasps += len(seeds)
-    events_s = time.perf_counter() - start
+    for name in scenes:
+        for split in datasets.SPLIT_SIZES:
+            datasets.TactileGrasps(split, root=root, scene=name)
+    first_s = time.perf_counter() - start
+    made = set(Path(str(datasets.default_cache_dir() if root is None else root)).glob("tactile-grasps-*.pt")) - files
+    grasps = sum(seeds.stop - seeds.start for session, seeds in sessions.values())
     start = time.perf_counter()
     for name in scenes:
         for split in datasets.SPLIT_SIZES:
             datasets.TactileGrasps(split, root=root, scene=name)
     cached_s = time.perf_counter() - start
-    return {"tables": len(needed), "tables_s": tables_s, "grasps": grasps, "events_s": events_s,
-            "datasets_cached_s": cached_s, "depth_nodes": int(optical.depths_mm.size)}
+    return {"tables": len(needed), "tables_s": tables_s, "depth_nodes": int(optical.depths_mm.size),
+            "distinct_splits": len(sessions), "grasps": grasps, "files_made": len(made),
+            "datasets_first_s": first_s, "datasets_cached_s": cached_s}
 
 
 def fidelity_figures(root: str | None) -> dict[str, dict[str, dict[str, float]]]:

@@ -293,12 +293,13 @@ def _luminance(rgb: np.ndarray, sensor_size: tuple[int, int]) -> np.ndarray:
 
 def _table_key(obj: OpticalObject, angle_deg: float, config: OpticalConfig, sensor_size: tuple[int, int],
                calibration_hash: str) -> str:
+    settings = asdict(config)
+    for unused in ("leak_hz", "table_memory_mb", "instant_fraction", "foundation_n_per_mm3"):
+        settings.pop(unused)  # they do not change a table
     description = {
         "version": OPTICAL_VERSION, "calibration": calibration_hash, "object": asdict(obj),
-        "angle_deg": round(float(angle_deg), 6), "config": asdict(config), "sensor_size": list(sensor_size),
+        "angle_deg": round(float(angle_deg), 6), "config": settings, "sensor_size": list(sensor_size),
     }
-    for unused in ("leak_hz", "table_memory_mb", "instant_fraction", "foundation_n_per_mm3"):
-        description["config"].pop(unused)  # they do not change a table
     return json.dumps(description, sort_keys=True)
 
 
@@ -382,11 +383,12 @@ def render_table(
         ((5, 30, 40), True)
     """
     config = config or OpticalConfig()
+    sensor_size = (int(sensor_size[0]), int(sensor_size[1]))
     if renderer is None:
         _, calibration_hash = _calibration(config.calibration)
     else:
         calibration_hash = f"renderer:{getattr(renderer, '__qualname__', type(renderer).__name__)}"
-    key = _table_key(obj, angle_deg, config, tuple(sensor_size), calibration_hash)
+    key = _table_key(obj, angle_deg, config, sensor_size, calibration_hash)
     held = _MEMORY.get(key)
     if held is not None:
         return held
@@ -401,7 +403,7 @@ def render_table(
         surface = height_map(obj, angle_deg, config)
         pressed = surface[None, :, :] - depths[:, None, None].astype(np.float32)
         rgb = (renderer or taxim_renderer(config))(pressed)
-        table = _luminance(rgb, tuple(sensor_size))
+        table = _luminance(rgb, sensor_size)
         _write_table(path, key, table)
     table.setflags(write=False)
     _MEMORY.put(key, table, config.table_memory_mb)
