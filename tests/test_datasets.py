@@ -94,7 +94,7 @@ class TestTactileGrasps:
         def fail(*args, **kwargs):
             raise AssertionError("regenerated although the cache exists")
 
-        monkeypatch.setattr(datasets, "simulate_grasps", fail)
+        monkeypatch.setattr(datasets, "generate", fail)
         again = TactileGrasps("train", root=root)
         assert again.path == train.path and torch.equal(again[3][0], train[3][0])
 

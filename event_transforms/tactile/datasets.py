@@ -43,11 +43,9 @@ from ..events.binning import events_to_frames
 from .scenes import BenchmarkScene, Session, get_scene
 from .simulation import (
     SIMULATOR_VERSION,
-    Grasp,
     Recording,
     SimulatorConfig,
     draw_grasp,
-    simulate_grasps,
     simulate_static,
 )
 
@@ -160,7 +158,7 @@ def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (14
     grasps = [
         draw_grasp(session.diameter(k), seed=seed, config=session.config) for k, seed in enumerate(seeds)
     ]
-    recordings = _simulate(session, grasps)
+    recordings = session.simulate(grasps)
     frames = torch.stack(
         [r.frames(crop=r.sensor_crop(crop_size), pool=pool, dtype=torch.int64) for r in recordings]
     ) if recordings else torch.zeros(0, session.config.n_frames, 2, crop_size[0] // pool, crop_size[1] // pool, dtype=torch.int64)
@@ -171,15 +169,6 @@ def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (14
         "diameter_mm": torch.tensor([g.diameter_mm for g in grasps], dtype=torch.float64),
         "seed": torch.tensor(list(seeds), dtype=torch.int64),
     }
-
-
-def _simulate(session: Session, grasps: list[Grasp]) -> list[Recording]:
-    """The session's generator on ``grasps``."""
-    if session.generator == "optical":
-        from .generators.optical import simulate_optical
-
-        return simulate_optical(grasps, session.config)
-    return simulate_grasps(grasps, session.config)
 
 
 def item_index(index: object, length: int, what: str) -> int:
@@ -307,7 +296,7 @@ class TactileGrasps(Dataset):
         """Re-simulate item ``index`` as a raw event stream (same seed, same events)."""
         meta = self.meta(index)
         grasp = draw_grasp(meta["diameter_mm"], seed=meta["seed"], config=self.config)
-        return _simulate(self.session, [grasp])[0]
+        return self.session.simulate([grasp])[0]
 
     def __repr__(self) -> str:
         return (

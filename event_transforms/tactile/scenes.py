@@ -89,13 +89,13 @@ __all__ = [
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from torch import Tensor
 
-from .simulation import Grasp, SimulatorConfig, draw_grasp
+from .simulation import Grasp, Recording, SimulatorConfig, draw_grasp, simulate_grasps
 
 if TYPE_CHECKING:
     from ..scenes import Scene as LibraryScene
@@ -184,6 +184,23 @@ class Session:
     def grasps(self, n: int, *, seed: int = 0) -> list[Grasp]:
         """``n`` experiments with seeds ``seed, seed + 1, ...``, sizes in turn."""
         return [draw_grasp(self.diameter(k), seed=seed + k, config=self.config) for k in range(n)]
+
+    def simulate(self, grasps: Sequence[Grasp]) -> list[Recording]:
+        """The session's generator on ``grasps``: one recording each.
+
+        Args:
+            grasps: experiments drawn with this session's settings (:meth:`grasps`).
+
+        Example:
+            >>> recordings = BASE_SESSION.simulate(BASE_SESSION.grasps(2, seed=0))
+            >>> [r.force.shape for r in recordings]
+            [(36,), (36,)]
+        """
+        if self.generator == "optical":
+            from .generators.optical import simulate_optical
+
+            return simulate_optical(grasps, self.config)
+        return simulate_grasps(grasps, self.config)
 
 
 #: The force model and nuisance ranges every benchmark session starts from.

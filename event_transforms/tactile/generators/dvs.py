@@ -126,6 +126,9 @@ def camera(
 def quantize_log(level: np.ndarray) -> np.ndarray:
     """Round log intensities to :data:`LOG_QUANTUM` (the same events on any machine).
 
+    Args:
+        level: log intensities.
+
     Example:
         >>> float(quantize_log(np.array([0.1]))[0]) == round(0.1 * 2**20) / 2**20
         True
@@ -137,6 +140,10 @@ def lin_log(luminance: np.ndarray, *, knee_dn: float = 20.0) -> np.ndarray:
     """v2e's lin-log response to a luminance in [0, 1], in digital numbers ``x = 255 · luminance``:
     ``log(x)`` above ``knee_dn``, the linear ramp ``x · log(knee_dn) / knee_dn`` below
     (continuous and increasing), so a dark pixel is not infinitely sensitive.
+
+    Args:
+        luminance: luminance in [0, 1].
+        knee_dn: the knee in digital numbers (v2e's 20).
 
     Example:
         >>> [round(float(v), 4) for v in lin_log(np.array([0.0, 10 / 255, 20 / 255, 1.0]))]
@@ -219,6 +226,11 @@ def spread_events(
     """One event per count: the n events of one step spread evenly over the step before it,
     ``t = (step - 1)·dt + dt·(k + ½)/n``.
 
+    Args:
+        steps: the step of each fired (step, pixel) row.
+        signed: its signed count (positive ON).
+        dt_us: step length, microseconds.
+
     Returns:
         ``(which, t_us, p)``: ``which`` indexes the input rows, ``p`` 1 for ON, 0 for OFF.
 
@@ -239,6 +251,12 @@ def noise_events(
     rate_hz: np.ndarray, duration_us: int, on_fraction: float, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Homogeneous Poisson events per pixel: ``(pixel, t_us, p)`` (unsorted).
+
+    Args:
+        rate_hz: per-pixel rates.
+        duration_us: recording length, microseconds.
+        on_fraction: probability that an event is ON.
+        rng: the recording's generator for this noise.
 
     Example:
         >>> pixel, t, p = noise_events(np.array([0.0, 1e4]), 1000, 0.5, np.random.default_rng(0))
@@ -262,6 +280,13 @@ def background_events(
     """Shot noise (``rng_shot``; ``None``: off) and hot pixels (``rng_hot``; ``None``: off)
     of a camera: a list of ``(pixel, t_us, p)`` parts.
 
+    Args:
+        cam: the camera (:func:`camera`).
+        duration_us: recording length, microseconds.
+        on_fraction: probability that a noise event is ON.
+        rng_shot: generator of the shot noise, ``None`` for none.
+        rng_hot: generator of the hot pixels' events, ``None`` for none.
+
     Example:
         >>> cam = camera((4, 5), 0, 0.2, 0.03, (0.1, 10.0), 0.1, (50.0, 200.0))
         >>> parts = background_events(cam, 100_000, 0.5, None, np.random.default_rng(0))
@@ -284,6 +309,11 @@ def leak_events(
     """Leak events of pixels under constant light: pixel ``i`` fires ON at
     ``(k + 1 - phase[i]) / leak_hz[i]`` seconds, k = 0, 1, ... (its reference starts
     ``phase · θ_ON`` below the level and decays by ``θ_ON · leak_hz`` per second).
+
+    Args:
+        leak_hz: per-pixel leak rates (0: none).
+        phase: per-pixel phases in [0, 1) (the recording's random initial references).
+        duration_us: recording length, microseconds.
 
     Returns:
         ``(pixel, t_us, p)`` (p all 1), sorted by pixel.

@@ -36,7 +36,14 @@ built-in generator (same force, timing, delay, membrane time constant, angle, ce
    illumination (the background stays).
 5. **Events**: the luminance through v2e's lin-log response into the shared DVS pixel model
    (:mod:`~event_transforms.tactile.generators.dvs`): the session's camera (thresholds with
-   mismatch, refractory period, shot noise, hot pixels) and leak events at ``leak_hz`` 0.1 Hz.
+   mismatch, refractory period, shot noise, hot pixels) and leak events at ``leak_hz`` 0.1 Hz,
+   each pixel's reference starting a random fraction of a threshold below its level (v2e's
+   random initial reference). The rendered gel changes its log luminance by at most about
+   0.15 at full press, so the optical scenes use a camera of threshold 0.05
+   (:data:`~event_transforms.tactile.scenes.OPTICAL_BASE_SESSION`); with the leak's random
+   references small brightenings fire ON events that the matching darkening does not undo, so
+   a press gives mostly ON events. taxim's own rendering artefacts (faint rings from its
+   binned gradient lookup) are part of the image and fire events too.
 
 The output is the built-in generator's :class:`~event_transforms.tactile.simulation.Recording`,
 so binning, data sets and the protocol are unchanged. Settings of the built-in contact strip
@@ -164,6 +171,11 @@ class OpticalObject:
 def height_map(obj: OpticalObject, angle_deg: float, config: OpticalConfig | None = None) -> np.ndarray:
     """The object's surface above its lowest point (mm) over the render grid, turned by ``angle_deg``.
 
+    Args:
+        obj: the object.
+        angle_deg: its angle, counter-clockwise in the image (0: a cylinder along x).
+        config: the render grid (``render_size``, ``mm_per_px``) and the cylinder's length.
+
     Example:
         >>> config = OpticalConfig(render_scale=8)
         >>> hm = height_map(OpticalObject("cylinder", 15.0), 0.0, config)
@@ -198,11 +210,16 @@ def press_depth(force_n: np.ndarray | float, obj: OpticalObject, config: Optical
 
     Cylinder: F = (4/3)·k·L·√(2R)·δ^(3/2); hex face: F = k·A·δ with A = (√3/2)·D².
 
+    Args:
+        force_n: forces, newtons (finite, non-negative).
+        obj: the object.
+        config: the foundation modulus k and the cylinder's contact length L.
+
     Example:
         >>> obj = OpticalObject("cylinder", 15.0)
         >>> depth = float(press_depth(25.0, obj))
         >>> round(depth, 4), round(4 / 3 * 8.0 * math.sqrt(15.0) * depth**1.5, 6)
-        (0.7156, 25.0)
+        (0.7154, 25.0)
     """
     config = config or OpticalConfig()
     force = np.asarray(force_n, dtype=np.float64)
@@ -225,6 +242,13 @@ def membrane_depth(
     (n,) the creep time constants τ (the lag is
     :func:`~event_transforms.tactile.simulation.membrane_force`, exact for a depth linear
     between grid points; ``release_ratio`` slows it while the gel relaxes).
+
+    Args:
+        elastic_depth: (n, S) the contact law's depth of the force at each grid point.
+        lag_ms: (n,) creep time constants τ.
+        step_ms: grid step.
+        instant_fraction: r, the instantaneous share.
+        release_ratio: τ multiplier while the depth falls below the membrane's.
 
     Example:
         >>> ramp = np.arange(101)[None, :] * 0.01  # 0.01 mm per ms
@@ -270,6 +294,18 @@ def _taxim(name: str, mm_per_px: float) -> object:
 
 def taxim_renderer(config: OpticalConfig | None = None) -> Renderer:
     """taxim's JAX renderer for ``config``'s calibration and render grid (no shadows).
+
+    Args:
+        config: the calibration and the render grid (its pixel size is handed to taxim).
+
+    Returns:
+        ``pressed (N, H, W) mm -> RGB (N, H, W, 3)``: contact where the map is <= 0.
+
+    Example:
+        >>> render = taxim_renderer(OpticalConfig(render_scale=16))
+        >>> pressed = height_map(OpticalObject("cylinder", 15.0), 0.0, OpticalConfig(render_scale=16))[None] - 0.3
+        >>> render(pressed).shape
+        (1, 30, 40, 3)
 
     Raises:
         ImportError: taxim or jax is missing (``pip install 'event-transforms[optical]'``).
@@ -372,6 +408,14 @@ def render_table(
     table (taxim's version and calibration files included); an unreadable file is named in a
     warning, deleted and rebuilt. ``renderer`` (default :func:`taxim_renderer`) is only
     called on a cache miss.
+
+    Args:
+        obj: the object.
+        angle_deg: its angle (a table per angle).
+        sensor_size: (H, W) of the sensor grid.
+        config: the generator's settings (render grid, depth nodes, memory budget).
+        root: cache folder.
+        renderer: render function for a cache miss.
 
     Example:
         >>> import tempfile
