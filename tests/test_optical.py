@@ -269,9 +269,13 @@ class TestSimulateOptical:
             np.testing.assert_array_equal(recording.force, force_profile([grasp], frame_ms, self.CONFIG)[0]
                                           .astype(np.float32))
             assert recording.frames().shape == (12, 2, 30, 40)
-        quiet = simulate_optical(grasps[:1], self.CONFIG.replace(contact=False, shot_noise=False, hot_pixels=False),
-                                 SMALL, root=tmp_path)[0]
-        assert len(quiet.events) < len(first[0].events) and (quiet.events["p"] == 1).all()  # leak events only
+        static = self.CONFIG.replace(contact=False, shot_noise=False, hot_pixels=False)
+        leaky = OpticalConfig(render_scale=8, leak_hz=50.0, random_reference=True)
+        quiet = simulate_optical(grasps[:1], static, leaky, root=tmp_path)[0]
+        # leak events only: every pixel fires ON every 20 ms, at a random phase
+        per_pixel = np.bincount(quiet.events["y"].astype(int) * 40 + quiet.events["x"], minlength=1200)
+        assert (quiet.events["p"] == 1).all() and set(per_pixel.tolist()) <= {5, 6}
+        assert len(simulate_optical(grasps[:1], static, SMALL, root=tmp_path)[0].events) == 0  # reset: none
 
     def test_refuses_what_it_does_not_model(self, tmp_path):
         grasp = draw_grasp(15.0, seed=0, config=self.CONFIG)
