@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -189,6 +190,19 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         table, counts = side_by_side((root_dir / "docs" / "results.md").read_text(), (args.out / "results.md").read_text())
         (args.out / "side_by_side.md").write_text(table + "\n\n" + json.dumps(counts) + "\n")
         print(table, "\n", counts)
+        fidelity_rows = [f"| {scene} | {subset} | " + " | ".join(f"{m} {v:.2f}" for m, v in scores.items()) + " |"
+                         for scene, subsets in figures.items() for subset, scores in subsets.items()]
+        page = "\n\n".join([
+            "# The optical scenes' verdicts (`benchmarks/optical.py`)",
+            f"Command: `python benchmarks/optical.py {' '.join(argv if argv is not None else sys.argv[1:])}`.",
+            "## Data cost (seconds; tables already on disk are not re-rendered)\n\n```json\n"
+            + json.dumps(cost, indent=1) + "\n```",
+            "## Fidelity (physics least-squares model fitted on the deployment's test grasps, MSE N²)\n\n"
+            "| scene | training grasps | scores |\n|---|---|---|\n" + "\n".join(fidelity_rows),
+            "## Built-in (docs/results.md) vs optical verdicts\n\n" + table + "\n\n" + json.dumps(counts),
+            "## The optical run's output (`results.md`)\n\n" + (args.out / "results.md").read_text(),
+        ])
+        (root_dir / "benchmarks" / "optical.md").write_text(page)
     return {"cost": cost, "fidelity": figures}
 
 
