@@ -322,3 +322,18 @@ class TestOpticalScenes:
         assert methods_for("optical-control") == methods_for("control")
         assert methods_for("optical-orientation") == methods_for("orientation")
 
+
+
+def test_optical_sessions_simulate_with_the_optical_generator(monkeypatch):
+    calls = []
+
+    def fake(grasps, config):
+        calls.append((len(grasps), config))
+        return ["optical"] * len(grasps)
+
+    monkeypatch.setattr(optical, "simulate_optical", fake)
+    session = get_scene("optical-control").train
+    assert session.simulate(session.grasps(2, seed=0)) == ["optical", "optical"]
+    assert calls == [(2, session.config)]
+    builtin = BASE_SESSION.simulate(BASE_SESSION.grasps(1, seed=0))
+    assert len(calls) == 1 and builtin[0].events.dtype.names == ("x", "y", "t", "p")
