@@ -39,6 +39,8 @@ ROLES = {
     "optical-control": "control", "optical-paper": "paper", "optical-orientation": "orientation",
     "optical-paper-membrane": "paper-membrane", "optical-paper-offset": "paper-offset", "optical-noise": "noise",
 }
+#: The scenes the script runs: the roles, and the hex head's orientation gap (no built-in twin).
+RUN_SCENES = [*ROLES, "optical-orientation-hex"]
 
 
 def _splits(scene_name: str) -> list[tuple[str, Any, range]]:
@@ -54,18 +56,19 @@ def _splits(scene_name: str) -> list[tuple[str, Any, range]]:
 def prepare(scenes: Sequence[str], root: str | None) -> dict[str, Any]:
     """Render the tables, then build every split; timings in seconds."""
     optical = OpticalConfig()
-    needed: set[tuple[float, float]] = set()
+    needed: set[tuple[str, float, float]] = set()
     sessions = {}
     for name in scenes:
         for split, session, seeds in _splits(name):
             sessions[(session, seeds.start)] = (session, seeds)
+            kind = "hex" if session.generator == "optical-hex" else "cylinder"
             for k, seed in enumerate(seeds):
                 grasp = draw_grasp(session.diameter(k), seed=seed, config=session.config)
                 node = round(grasp.angle_deg / optical.angle_step_deg) * optical.angle_step_deg
-                needed.add((grasp.diameter_mm, node))
+                needed.add((kind, grasp.diameter_mm, node))
     start = time.perf_counter()
-    for diameter, node in sorted(needed):
-        render_table(OpticalObject("cylinder", diameter), node, (180, 240), optical)
+    for kind, diameter, node in sorted(needed):
+        render_table(OpticalObject(kind, diameter), node, (180, 240), optical)
     tables_s = time.perf_counter() - start
     files = set(Path(str(datasets.default_cache_dir() if root is None else root)).glob("tactile-grasps-*.pt"))
     start = time.perf_counter()
@@ -159,7 +162,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results-optical"), help="the protocol's output folder")
     parser.add_argument("--root", default=None, help="data-set cache folder (default: the package's)")
-    parser.add_argument("--scenes", nargs="+", default=list(ROLES), choices=list(OPTICAL_SCENES))
+    parser.add_argument("--scenes", nargs="+", default=RUN_SCENES, choices=list(OPTICAL_SCENES))
     parser.add_argument("--seeds", default=None, help="the protocol's seeds (default: its quick configuration)")
     parser.add_argument("--steps", default=None, help="the protocol's steps (default: its quick configuration)")
     parser.add_argument("--equal-time", action="store_true",

@@ -297,6 +297,7 @@ class TestOpticalScenes:
             assert scene.gaps == SCENES[role].gaps
             assert scene.matched_methods == SCENES[role].matched_methods
         assert get_scene("optical-noise").gaps == ("noise", "sensor")
+        assert get_scene("optical-orientation-hex").gaps == ("orientation",)
 
     def test_generator_is_checked(self):
         with pytest.raises(ValueError, match="generator"):
@@ -327,13 +328,16 @@ class TestOpticalScenes:
 def test_optical_sessions_simulate_with_the_optical_generator(monkeypatch):
     calls = []
 
-    def fake(grasps, config):
-        calls.append((len(grasps), config))
+    def fake(grasps, config, *, kind):
+        calls.append((len(grasps), config, kind))
         return ["optical"] * len(grasps)
 
     monkeypatch.setattr(optical, "simulate_optical", fake)
     session = get_scene("optical-control").train
     assert session.simulate(session.grasps(2, seed=0)) == ["optical", "optical"]
-    assert calls == [(2, session.config)]
+    assert calls == [(2, session.config, "cylinder")]
+    hex_session = get_scene("optical-orientation-hex").deploy
+    hex_session.simulate(hex_session.grasps(1, seed=0))
+    assert calls[-1] == (1, hex_session.config, "hex")
     builtin = BASE_SESSION.simulate(BASE_SESSION.grasps(1, seed=0))
-    assert len(calls) == 1 and builtin[0].events.dtype.names == ("x", "y", "t", "p")
+    assert len(calls) == 2 and builtin[0].events.dtype.names == ("x", "y", "t", "p")

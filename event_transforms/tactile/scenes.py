@@ -122,7 +122,7 @@ FACTORS: dict[str, tuple[str, ...]] = {
 }
 
 #: The generators a session can use.
-GENERATORS = ("builtin", "optical")
+GENERATORS = ("builtin", "optical", "optical-hex")
 
 _FIELD_FACTOR = {name: factor for factor, names in FACTORS.items() for name in names}
 _missing = {f.name for f in dataclasses.fields(SimulatorConfig)} - set(_FIELD_FACTOR)
@@ -139,9 +139,11 @@ class Session:
             ``diameters_mm[k % len(diameters_mm)]``, so every size is equally represented.
         config: simulator settings: every other factor's distribution (force, timing,
             delay and lag, orientation, background, sensor).
-        generator: ``"builtin"`` (:mod:`~event_transforms.tactile.simulation`) or
+        generator: ``"builtin"`` (:mod:`~event_transforms.tactile.simulation`),
             ``"optical"`` (:mod:`~event_transforms.tactile.generators.optical`: the same
-            draws rendered by taxim; its contact-strip settings do not apply).
+            draws rendered by taxim, cylinders of ``diameters_mm``; its contact-strip
+            settings do not apply) or ``"optical-hex"`` (the same, hex bolt heads of
+            ``diameters_mm`` across flats pressed flat).
 
     Example:
         >>> session = BASE_SESSION.replace(diameters_mm=(15.0,), delay_ms=(16.0, 24.0))
@@ -196,10 +198,11 @@ class Session:
             >>> [r.force.shape for r in recordings]
             [(36,), (36,)]
         """
-        if self.generator == "optical":
+        if self.generator.startswith("optical"):
             from .generators.optical import simulate_optical
 
-            return simulate_optical(grasps, self.config)
+            kind = "hex" if self.generator == "optical-hex" else "cylinder"
+            return simulate_optical(grasps, self.config, kind=kind)
         return simulate_grasps(grasps, self.config)
 
 
@@ -472,6 +475,12 @@ def _optical_scenes() -> dict[str, BenchmarkScene]:
                    "sensor": {"threshold": 0.065}}, ("noise",),
         ),
         BenchmarkScene("optical-control", "optical: deployment drawn like training: no gap", base, base, ()),
+        BenchmarkScene.from_gaps(
+            "optical-orientation-hex", "optical: a 10 mm hex bolt head pressed flat turns, ±10° in training, "
+            "±(30-50)° in deployment (a hexagon repeats every 60°)",
+            base.replace(generator="optical-hex", diameters_mm=(10.0,)),
+            {"orientation": {"angle_deg": (30.0, 50.0), "angle_symmetric": True}}, ("rot50",),
+        ),
         BenchmarkScene.from_gaps(
             "optical-paper-offset",
             "optical: the paper's sizes and a clock offset: events 12-18 ms after the force in training, 0-4 ms in "
