@@ -70,7 +70,8 @@ def build_cases(frames: torch.Tensor, seed: int = 0) -> tuple[dict[str, Callable
         elastic_transform2d, get_perspective_transform, get_rotation_matrix2d, warp_affine, warp_perspective,
     )
 
-    from event_transforms.functional.affine import _gaussian_kernel, _image_corners
+    from event_transforms.functional.elastic import _gaussian_kernel
+    from event_transforms.functional._warp import _image_corners
 
     b, t, p, h, w = frames.shape
     generator = torch.Generator().manual_seed(seed)

@@ -37,6 +37,7 @@ _NAMES: dict[str, str] = {
     "AugmentedDataset": "data",
     "EventBatch": "events",
     "collate_events": "events",
+    "count_dropped": "events",
 }
 _SUBMODULES = ("functional", "events", "transforms", "scenes", "inference", "data", "viz", "tactile")
 
@@ -46,7 +47,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from . import data as data, functional as functional, inference as inference, scenes as scenes
     from . import tactile as tactile, transforms as transforms, viz as viz
     from .data import AugmentedDataset as AugmentedDataset
-    from .functional import EventBatch as EventBatch, collate_events as collate_events
+    from .events import EventBatch as EventBatch, collate_events as collate_events, count_dropped as count_dropped
     from .inference import infer_scene as infer_scene
     from .scenes import ResizeToTarget as ResizeToTarget, Scene as Scene, StretchToTarget as StretchToTarget
     from .transforms import *  # noqa: F403

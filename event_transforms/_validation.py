@@ -44,8 +44,6 @@ __all__ = [
     "check_pair",
     "check_generator",
     "as_batch",
-    "per_sample",
-    "per_sample_pairs",
     "check_seed",
     "describe",
 ]
@@ -344,69 +342,3 @@ def check_generator(generator: object, device: torch.device, name: str = "genera
             f"{name} lives on {generator.device} but the frames live on {device}; "
             "random kernels need a generator on the frames' device"
         )
-
-
-def per_sample(
-    value: object,
-    batch: int,
-    name: str,
-    *,
-    dtype: torch.dtype = torch.float64,
-) -> Tensor:
-    """A scalar or a (B,) sequence/array/tensor as a (B,) CPU tensor of ``dtype``.
-
-    Raises:
-        TypeError: not a real number, sequence, array or tensor; a float for an integer dtype
-            that is not a whole number.
-        ValueError: a length that is not the batch size, or NaN.
-    """
-    if isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be a number or a (B,) tensor, got {value!r}")
-    if isinstance(value, (Real, np.generic)):
-        integer = not dtype.is_floating_point
-        return torch.full((batch,), as_number(value, name, finite=False, integer=integer), dtype=dtype)
-    elif isinstance(value, (Tensor, Sequence, np.ndarray)) and not isinstance(value, (str, bytes)):
-        try:
-            out = torch.as_tensor(np.asarray(value) if isinstance(value, Sequence) else value)
-        except (TypeError, ValueError, RuntimeError):
-            raise TypeError(f"{name} must hold real numbers, got {value!r}") from None
-        if out.dtype == torch.bool or out.is_complex():
-            raise TypeError(f"{name} must hold real numbers, got dtype {out.dtype}")
-        out = out.detach().cpu()
-        if out.dim() == 0:
-            out = out.expand(batch)
-        if out.dim() != 1 or out.shape[0] != batch:
-            raise ValueError(
-                f"{name} must be a scalar or have shape ({batch},) to match the batch, got {describe(value)}"
-            )
-    else:
-        raise TypeError(f"{name} must be a number or a (B,) tensor, got {type(value).__name__}")
-    if out.is_floating_point() and out.numel() and bool(out.isnan().any()):
-        raise ValueError(f"{name} must not be NaN, got {describe(value)}")
-    if not dtype.is_floating_point and out.is_floating_point():
-        if out.numel() and not bool((out.isfinite() & (out == out.round())).all()):
-            raise TypeError(f"{name} must hold integers, got {describe(value)}")
-    return out.to(dtype)
-
-
-def per_sample_pairs(value: object, batch: int, name: str, *, dtype: torch.dtype = torch.float64) -> Tensor:
-    """A ``(a, b)`` pair or a ``(B, 2)`` tensor of pairs as a (B, 2) CPU tensor."""
-    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, Tensor)) and not hasattr(value, "__array__"):
-        raise TypeError(f"{name} must be a (y, x) pair or a ({batch}, 2) tensor, got {describe(value)}")
-    try:
-        out = torch.as_tensor(value).detach().cpu()
-    except (TypeError, ValueError, RuntimeError):
-        raise TypeError(f"{name} must hold real numbers, got {value!r}") from None
-    if out.dtype == torch.bool or out.is_complex():
-        raise TypeError(f"{name} must hold real numbers, got dtype {out.dtype}")
-    if tuple(out.shape) == (2,):
-        out = out.expand(batch, 2)
-    if tuple(out.shape) != (batch, 2):
-        raise ValueError(f"{name} must be a (y, x) pair or a ({batch}, 2) tensor, got {describe(value)}")
-    if not dtype.is_floating_point and out.is_floating_point():
-        if out.numel() and not bool((out.isfinite() & (out == out.round())).all()):
-            raise TypeError(f"{name} must hold integers, got {describe(value)}")
-    out = out.to(dtype)
-    if out.is_floating_point() and out.numel() and not bool(out.isfinite().all()):
-        raise ValueError(f"{name} must be finite, got {describe(value)}")
-    return out

@@ -46,8 +46,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ._validation import check_positive, describe, per_sample
-from .functional.affine import Center
+from ._params import Param, check_args
+from ._validation import check_positive, describe
+from .functional._warp import Center
 from .transforms.base import EventTransform, Params
 from .transforms.containers import Compose, OneOf
 from .transforms.noise import AddNoise, AddPoissonNoise
@@ -99,7 +100,8 @@ def metadata_values(metadata: Metadata, key: str, batch: int, *, owner: str = "t
         )
     if isinstance(values, list) and values and isinstance(values[0], Tensor):
         values = torch.stack([torch.as_tensor(v) for v in values])
-    return per_sample(values, batch, f"metadata[{key!r}]")
+    return check_args(owner, {f"metadata[{key!r}]": Param("float")}, batch, **{f"metadata[{key!r}]": values})[
+        f"metadata[{key!r}]"]
 
 
 class _ToTarget:

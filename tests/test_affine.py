@@ -678,8 +678,9 @@ class TestPerspectiveOnEvents:
         params = module.make_params(batch.frame_shape, generator=_g(4))
         corners = params["corners"]
         corners[1] = torch.tensor([[-2.0, 1.0], [0.5, 18.0], [12.0, 15.0], [9.0, -1.5]])  # reaching out: events leave
-        with pytest.warns(EventsOutsideSensorWarning, match="outside sensor_size"):
+        with et.count_dropped() as dropped:  # dropped by design: counted, not warned
             out = module(batch, params=params)
+        assert dropped.counts()["off_sensor"] == int(batch.lengths[1] - out.lengths[1]) > 0
         for b in range(3):
             got = rows(out, b)
             expected = reference_perspective_events(rows(batch, b), corners[b].tolist(), SENSOR)
@@ -693,8 +694,7 @@ class TestPerspectiveOnEvents:
         height, width = SENSOR
         corners = torch.tensor([[0.0, 0.0], [0.0, width - 1.0], [height - 1.0, width - 1.0], [height - 1.0, 0.0]])
         corners = corners + torch.tensor([2.0, -3.0])
-        with pytest.warns(EventsOutsideSensorWarning):
-            out = F.perspective(batch, corners)
+        out = F.perspective(batch, corners)
         frames = frames_of(batch)
         assert torch.equal(frames_of(out), F.perspective(frames, corners, mode="nearest"))
         assert torch.equal(frames_of(out), F.translate(frames, (2, -3)))
@@ -715,17 +715,19 @@ class TestElasticOnEvents:
             expected = reference_elastic_events(rows(batch, b), params["noise"][b], float(params["alpha"][b]), 1.5, SENSOR)
             assert rows(out, b) == expected
 
-    def test_shift_equals_frames_and_drops_with_warning(self):
+    def test_shift_equals_frames_and_drops_by_design(self):
         """Where the semantics coincide: a field that is one whole-pixel shift over the events
         moves them as the frames' nearest warp moves pixels; events pushed off are dropped
-        with the warning."""
+        and counted (never warned)."""
         height, width = SENSOR
         events = torch.tensor([[x, y, 100 * (x + y), (x + y) % 2] for x in range(8) for y in range(4, 7)])
         batch = EventBatch.from_streams([events], sensor_size=SENSOR, frame_ms=1.0, t_start=0, n_frames=T)
         noise = torch.zeros(1, 2, height, width)
         noise[0, 1] = 1.0  # the frames sample from the right: content moves left
-        with pytest.warns(EventsOutsideSensorWarning, match="9 of 24 events"):
+        with warnings.catch_warnings(), et.count_dropped() as dropped:
+            warnings.simplefilter("error")
             out = F.elastic(batch, noise, alpha=3.0, sigma=0.3)  # 0.3 px: the field is 3 px everywhere
+        assert dropped.counts() == {"off_sensor": 9}
         assert rows(out, 0) == [(x - 3, y, t, p) for x, y, t, p in rows(batch, 0) if x >= 3]
         assert torch.equal(frames_of(out), F.elastic(frames_of(batch), noise, alpha=3.0, sigma=0.3, mode="nearest"))
 

@@ -295,7 +295,7 @@ class _Probe(et.EventTransform):
     def params_spec(self, shape):
         return {}
 
-    def apply(self, frames, params):
+    def apply_transform(self, frames, params):
         return frames
 
 
@@ -531,7 +531,7 @@ class TestRawAndSilentCases:
         assert torch.equal(out[1], expected[1])  # the other sample is as without the NaN
 
     def test_center_of_mass_ignores_non_finite_pixels(self):
-        from event_transforms.functional.affine import center_of_mass
+        from event_transforms.functional._warp import center_of_mass
 
         frames = torch.zeros(3, 2, 5, 7)
         frames[0, 1, 1, 2] = 1.0

@@ -376,3 +376,15 @@ class TestSizeModelNetwork:
         assert rows[("paper-membrane", "fs-1 − none")][6] == "not resolved"
         assert rows[("paper-membrane", "fs-1 − none")][5] == "0/3"
         assert rows[("paper-offset", "fs-1 − none")][4] == "**-1.00 [-1.30, -0.70]**"
+
+
+class TestReaders:
+    @pytest.mark.slow  # a fresh process per format (about 2 s each)
+    def test_quick_run_writes_its_section(self, tmp_path):
+        pytest.importorskip("h5py")
+        pytest.importorskip("rosbags")
+        from benchmarks import readers
+
+        path = tmp_path / "RESULTS.md"
+        body = readers.main(["--quick", "--results", str(path), "--formats", "npy", "h5-rows", "bag1"])
+        assert "## Reading recordings" in path.read_text() and body.count("\n| ") == 4

@@ -18,7 +18,7 @@ import torch
 
 from event_transforms import EventBatch, EventsToFrames
 from event_transforms.events.binning import events_to_frames
-from event_transforms.events.batch import bin_events
+from event_transforms.events.binning import bin_events
 from event_transforms.events.streaming import iter_frames
 
 EPOCH_US = 1_700_000_000_000_000

@@ -10,7 +10,8 @@ import pytest
 import torch
 
 import event_transforms as et
-from event_transforms.tactile import cli, experiment, protocol
+from event_transforms.tactile import cli, experiment, figures, protocol
+from event_transforms.tactile.protocol import run as protocol_run
 from event_transforms.tactile.protocol import (
     PAPER_METHODS,
     QUICK_METHODS,
@@ -28,7 +29,7 @@ from event_transforms.tactile.protocol import (
 from event_transforms.tactile.runs import folder_name
 from event_transforms.tactile.scenes import SCENES, get_scene
 from event_transforms.tactile.stats import holm, paired_t
-from event_transforms.tactile.training import Stopwatch
+from event_transforms.tactile.stopwatch import Stopwatch
 from tests.test_training import FakeGrasps
 
 
@@ -377,11 +378,11 @@ class TestRunProtocol:
                 raise KeyboardInterrupt
             return real(*args, **kwargs)
 
-        monkeypatch.setattr(experiment, "run_unit", killed_after_two)
+        monkeypatch.setattr(protocol_run, "run_unit", killed_after_two)
         with pytest.raises(KeyboardInterrupt):
             run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods, data=scene_data,
                          group="method")
-        monkeypatch.setattr(experiment, "run_unit", real)
+        monkeypatch.setattr(protocol_run, "run_unit", real)
         resumed = run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods,
                                data=scene_data, group="method")
         for scene in self.scenes:
@@ -463,7 +464,7 @@ class TestRunProtocol:
 
 class TestCommandLine:
     def test_reproduce_smoke(self, tmp_path, monkeypatch, capsys):
-        monkeypatch.setattr(experiment, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
+        monkeypatch.setattr(protocol_run, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
         out = tmp_path / "res"
         code = cli.main([
             "reproduce", "--scenes", "control", "--methods", "none", "fs-1", "--seeds", "0,1", "--steps", "2",
@@ -496,7 +497,7 @@ class TestCommandLine:
                 parser.parse_args(bad)
 
     def test_plan_prints_the_cost_without_training(self, tmp_path, capsys, monkeypatch):
-        monkeypatch.setattr(experiment, "run_unit", lambda *a, **k: pytest.fail("--plan trained"))
+        monkeypatch.setattr(protocol_run, "run_unit", lambda *a, **k: pytest.fail("--plan trained"))
         assert cli.main(["reproduce", "--plan", "--scenes", "control", "timing", "--seeds", "0-7",
                          "--steps", "100", "--out", str(tmp_path)]) == 0
         printed = capsys.readouterr().out
@@ -568,7 +569,7 @@ class TestCommandLineErrors:
         blocker = tmp_path / "a-file"
         blocker.write_text("")
         called = []
-        monkeypatch.setattr(experiment, "load_scene_data", lambda *a, **k: called.append(a))
+        monkeypatch.setattr(protocol_run, "load_scene_data", lambda *a, **k: called.append(a))
         argv = ["reproduce", "--scenes", "control", "--methods", "none", "--out", str(tmp_path / "out")]
         line = self._error([*argv, flag, str(blocker / "sub")], capsys)
         assert flag in line and "a-file" in line and not called
@@ -682,9 +683,9 @@ class TestEqualTime:
         timing = {"single_model_wall_s": {"median": 10.0, "min": 9.0, "max": 11.0, "repeats": 3},
                   "single_model_scene": "paper",
                   "online_aug_s_per_epoch": {"paper": {"none": None, "stretch": 10.0 / epochs, "fs-1": 0.0}}}
-        monkeypatch.setattr(experiment, "_timing", lambda *a, **k: timing)
+        monkeypatch.setattr(protocol_run, "measure_timing", lambda *a, **k: timing)
         commits = iter(["a" * 40, "b" * 40, "b" * 40])  # the checkout moves during the run
-        monkeypatch.setattr(experiment, "git_commit", lambda: next(commits))
+        monkeypatch.setattr(protocol_run, "git_commit", lambda: next(commits))
         results = run_protocol(["paper"], [0, 1], tmp_path, config=config, methods=["none", "stretch", "fs-1"],
                                data=data, budget_check=False, equal_time=True)
         methods = results["scenes"]["paper"]["methods"]
@@ -707,7 +708,7 @@ class TestEqualTime:
         assert results["config"]["equal_time"] is True
         assert results["commit"] == "a" * 40  # the commit that trained, read when the run started
         pytest.importorskip("matplotlib")
-        paths = cli._plots(results, tmp_path)
+        paths = figures.plot_results(results, tmp_path)
         assert tmp_path / "accuracy_at_equal_time.png" in paths
         assert (tmp_path / "accuracy_at_equal_time.png").stat().st_size > 0
 
@@ -716,3 +717,47 @@ class TestEqualTime:
         assert plan["equal_time_member_steps_max"] == 1 * 2 * TINY.steps
         assert experiment.plan_run(["paper"], {"paper": ["none"]}, [0], TINY)["equal_time_member_steps_max"] == 0
         assert cli.QUICK["equal_time"] and not cli.FULL["equal_time"]
+
+
+class TestProgressOutput:
+    """Long loops show one progress bar, not a line per item (issue 34): binning 192 recordings
+    printed 192 'binned ...' lines."""
+
+    def test_binning_recordings_prints_one_summary_line(self, tmp_path, monkeypatch, capsys):
+        from types import SimpleNamespace
+
+        from event_transforms.tactile import commands, recordings
+
+        def fake_load(root, settings, *, cache=None, log=None, deployment=True):
+            log("crop: the contact area of 4 training recordings")
+            for k in range(192):
+                log(f"binned events/g{k:03d}.npy: 1,000 events into 40 frames in 0.0 s")
+            dataset = {"folder": str(root), "files": 384, "content_hash": "0" * 64, "recordings": {"test": 96},
+                       "windows": {"test": 96}, "settings": {"stride": 36}, "crop": (0, 0, 10, 10),
+                       "crop_source": "given", "left_out_frames": 0}
+            return SimpleNamespace(dataset=dataset)
+
+        monkeypatch.setattr(recordings, "load_recording_data", fake_load)
+        args = cli.build_parser().parse_args(["infer-scene", "--data", str(tmp_path)])
+        commands.load_recordings(args)
+        lines = capsys.readouterr().out.splitlines()
+        assert not [line for line in lines if line.startswith("binned ")]
+        assert lines[0] == "crop: the contact area of 4 training recordings"  # other lines pass through
+        assert lines[1].startswith("binning recordings: 192 recordings in ")
+        assert lines[2].startswith("data: ") and len(lines) == 3
+
+    def test_infer_scene_on_a_folder_prints_no_line_per_recording(self, tmp_path, capsys, monkeypatch):
+        from tests.test_recordings import make_folder
+
+        monkeypatch.setenv("EVENT_TRANSFORMS_CACHE", str(tmp_path / "cache"))  # bins every recording, whatever ran before
+        root = make_folder(tmp_path / "d", train=6, deploy=5, unlabeled=1)
+        assert cli.main(["infer-scene", "--data", str(root), "--sensor-size", "30", "40", "--frames", "12"]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        assert not [line for line in lines if line.startswith("binned ")], lines
+        assert [line for line in lines if line.startswith("binning recordings: 12 recordings in ")]
+
+    def test_item_progress_without_items_says_nothing(self, capsys):
+        from event_transforms.tactile.commands import ItemProgress
+
+        log = ItemProgress("binned ", "binning recordings", "recordings")
+        assert log.close() is None and capsys.readouterr().out == ""

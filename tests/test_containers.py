@@ -209,8 +209,8 @@ BATTERY = {
 
 
 def test_torch_module_apply_reaches_every_submodule():
-    """``nn.Module.apply(fn)`` on a tree that holds transforms calls ``fn`` on each submodule
-    (a transform's own ``apply(inputs, params)`` answers torch's one-callable call)."""
+    """``nn.Module.apply(fn)`` on a tree that holds transforms calls ``fn`` on each submodule:
+    the transform hook is ``apply_transform``, so no transform class defines ``apply``."""
     seen: list[str] = []
     tree = nn.Sequential(
         et.Compose([et.RandomRotation(10.0), et.OneOf([et.RandomFrameShift([1]), et.AddPoissonNoise(5.0)])]),
@@ -225,6 +225,33 @@ def test_torch_module_apply_reaches_every_submodule():
     assert torch.equal(rotation(frames, params=params), rotation(frames, params=params))  # the transform path is untouched
 
 
+def test_no_library_transform_shadows_module_apply():
+    """``apply`` is ``torch.nn.Module.apply`` on every public transform class."""
+    classes = [getattr(et, name) for name in et.__all__]
+    transforms = [c for c in classes if isinstance(c, type) and issubclass(c, et.EventTransform)]
+    assert len(transforms) > 30
+    for cls in transforms:
+        assert cls.apply is nn.Module.apply, cls.__name__
+
+
+def test_a_subclass_with_the_old_hook_name_warns_and_still_works():
+    """A subclass that defines ``apply(inputs, params)`` (the hook's name up to 0.1) is adopted as
+    ``apply_transform`` with a DeprecationWarning naming the new name, and ``module.apply(fn)``
+    still reaches torch."""
+    with pytest.warns(DeprecationWarning, match=r"Double defines apply\(inputs, params\): .* apply_transform"):
+
+        class Double(et.EventTransform):
+            def apply(self, inputs, params):
+                return 2 * inputs
+
+    frames = torch.ones(2, 3, 2, 4, 4)
+    assert torch.equal(Double()(frames), 2 * frames)
+    assert torch.equal(Double().apply_transform(frames, {}), 2 * frames)
+    seen: list[str] = []
+    module = Double()
+    assert module.apply(lambda m: seen.append(type(m).__name__)) is module and seen == ["Double"]
+
+
 def test_a_gated_coupled_transform_must_name_its_partners():
     """The gate gathers a coupled transform's kept samples with their partners, so a coupled
     subclass with p < 1 and no partner_key is refused by name (not run ungated)."""
@@ -232,7 +259,7 @@ def test_a_gated_coupled_transform_must_name_its_partners():
     class Swap(et.EventTransform):
         couples_samples = True
 
-        def apply(self, inputs, params):  # type: ignore[override]
+        def apply_transform(self, inputs, params):
             return inputs.flip(0)
 
     frames = torch.ones(4, 2, 2, 3, 3)

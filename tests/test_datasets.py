@@ -186,7 +186,7 @@ class AddUniform(et.EventTransform):
     def params_spec(self, shape):
         return {"noise": et.Param("float", shape=tuple(shape[1:]))}
 
-    def apply(self, frames, params):
+    def apply_transform(self, frames, params):
         return frames + params["noise"]
 
 
@@ -199,7 +199,7 @@ class ScaleBySize(et.EventTransform):
     def params_spec(self, shape):
         return {"size": et.Param("float")}
 
-    def apply(self, frames, params):
+    def apply_transform(self, frames, params):
         return frames * params["size"].view(-1, 1, 1, 1, 1).to(frames.dtype)
 
 

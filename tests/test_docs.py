@@ -194,3 +194,18 @@ def test_site_builds_strict(tmp_path):
 # The transform table of docs/transforms.md (every transform listed, its frames / events cell true)
 # is checked by tests/test_public_names.py against the code and the batteries.
 
+
+
+def test_the_functional_api_page_groups_each_kernel_under_its_dispatcher():
+    """``docs/api/functional.md`` is what ``docs/hooks/api_functional.py`` writes from the kernel
+    registry (each dispatcher, then its kernels), so a new operation cannot be left off it."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("api_functional", ROOT / "docs" / "hooks" / "api_functional.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    expected = module.page()
+    assert "::: event_transforms.functional.rotate\n" in expected and "heading_level: 4" in expected
+    assert (ROOT / "docs" / "api" / "functional.md").read_text() == expected, (
+        "docs/api/functional.md is stale: run python docs/hooks/api_functional.py"
+    )

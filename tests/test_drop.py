@@ -28,7 +28,7 @@ def gen(seed: int = 0) -> torch.Generator:
 class TestDropEvents:
     def test_binomial_thinning(self):
         frames = torch.full((4, 36, 2, H, W), 3, dtype=torch.int32)
-        out = F.drop_events(frames, 0.25, generator=gen())
+        out = F.drop_random(frames, 0.25, generator=gen())
         assert out.dtype == torch.int32
         assert bool((out <= frames).all() & (out >= 0).all())
         n = frames.sum().item()
@@ -36,23 +36,23 @@ class TestDropEvents:
 
     def test_extremes_and_per_sample(self):
         frames = sparse_frames(2, 3, 2, H, W, high=9)
-        out = F.drop_events(frames, torch.tensor([0.0, 1.0]), generator=gen())
+        out = F.drop_random(frames, torch.tensor([0.0, 1.0]), generator=gen())
         assert torch.equal(out[0], frames[0])
         assert out[1].sum() == 0
 
     def test_expected_mode(self):
         frames = sparse_frames(3, 2, H, W, dtype=torch.uint8)
-        out = F.drop_events(frames, 0.3, mode="expected")
+        out = F.drop_random(frames, 0.3, mode="expected")
         assert out.dtype == torch.float32
         torch.testing.assert_close(out, frames.float() * 0.7)
 
     def test_non_integer_counts_refused(self):
         with pytest.raises(ValueError, match='mode="expected"'):
-            F.drop_events(torch.full((2, 2, H, W), 0.5), 0.3)
+            F.drop_random(torch.full((2, 2, H, W), 0.5), 0.3)
 
     def test_fraction_out_of_range(self):
         with pytest.raises(ValueError, match="fraction"):
-            F.drop_events(sparse_frames(2, 2, H, W), 1.5)
+            F.drop_random(sparse_frames(2, 2, H, W), 1.5)
 
     def test_by_time_against_loop(self):
         frames = sparse_frames(3, 6, 2, H, W, density=0.5)
@@ -115,7 +115,7 @@ class TestRandomEventDrop:
 )
 def test_drop_never_adds_events(counts, fraction, seed):
     frames = torch.tensor(counts + [0] * (-len(counts) % 2), dtype=torch.int64).view(-1, 2, 1, 1)
-    out = F.drop_events(frames, fraction, generator=gen(seed))
+    out = F.drop_random(frames, fraction, generator=gen(seed))
     assert bool((out >= 0).all() & (out <= frames).all())
 
 
@@ -251,7 +251,9 @@ class TestOnEvents:
         assert torch.equal(frames_of(F.drop_pixel(batch, [[1, 2]])), F.drop_pixel(frames, [[1, 2]]))
         out = F.drop_random(batch, 0.5, generator=torch.Generator().manual_seed(0))
         assert out.num_events < batch.num_events
-        assert F.drop_events is F.drop_random  # the former name, kept as an alias
+        with pytest.warns(DeprecationWarning, match="drop_events is deprecated: call drop_random"):
+            old = F.drop_events(batch, 0.5, generator=torch.Generator().manual_seed(0))  # the former name
+        assert torch.equal(old.t, out.t) and "drop_events" not in F.__all__
         with pytest.raises(TypeError, match="refractory_period works on events only"):
             F.refractory_period(frames, 10.0)
 

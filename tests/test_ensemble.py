@@ -15,7 +15,7 @@ from event_transforms.tactile.ensemble import (
     shuffled_batches,
 )
 from event_transforms.tactile.models import ForceRegressor
-from event_transforms.tactile.training import Stopwatch
+from event_transforms.tactile.stopwatch import Stopwatch
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # see conftest.py
 
@@ -375,7 +375,7 @@ class TestFitEnsemble:
             fit_ensemble(ensemble, [data, data], data, schedule="step", **base)
         with pytest.raises(ValueError, match="clip must be a positive number or None, got 0"):
             fit_ensemble(ensemble, [data, data], data, clip=0, **base)
-        with pytest.raises(ValueError, match="steps must be a positive int, got 0"):
+        with pytest.raises(ValueError, match="steps must be > 0, got 0"):
             fit_ensemble(ensemble, [data, data], data, steps=0, seeds=[0, 1])
         with pytest.raises(ValueError, match=r"train_sets\[1\] is empty"):
             fit_ensemble(ensemble, [data, TensorDataset(torch.zeros(0))], data, **base)

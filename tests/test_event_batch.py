@@ -148,6 +148,15 @@ class TestBinning:
             t = single.shape[0]
             assert torch.equal(out[b, :t], single)
             assert out[b, t:].sum() == 0
+        # events_to_frames dispatches on the batch like every other operation
+        assert torch.equal(events_to_frames(batch, frame_ms=1.0, t_start=t_start, n_frames=n_frames, crop=crop,
+                                            pool=pool), out)
+
+    def test_events_to_frames_of_a_batch_refuses_reading_options_by_name(self):
+        batch = make_batch(2)
+        assert torch.equal(events_to_frames(batch), bin_events(batch))  # the batch's own grid
+        with pytest.raises(TypeError, match="takes no sensor_size, time_unit"):
+            events_to_frames(batch, sensor_size=SENSOR, time_unit="us")
 
     def test_grid_is_used_and_module_matches(self):
         batch = make_batch(3)
@@ -159,22 +168,31 @@ class TestBinning:
             bin_events(batch, frame_ms=2.0)
 
     def test_outside_sensor_dropped_and_empty(self):
-        batch = EventBatch.from_streams([torch.tensor([[-1, 0, 0, 1], [17, 0, 0, 1], [3, 4, 0, 0]]), torch.zeros(0, 4)],
-                                        sensor_size=SENSOR)
-        with pytest.warns(F.EventsOutsideSensorWarning, match="2 of 3 events lie outside sensor_size"):
+        with pytest.warns(F.EventsOutsideSensorWarning) as record:  # the caller's input: warned once, when built
+            batch = EventBatch.from_streams([torch.tensor([[-1, 0, 0, 1], [17, 0, 0, 1], [3, 4, 0, 0]]),
+                                             torch.zeros(0, 4)], sensor_size=SENSOR)
+        assert (record[0].message.dropped, record[0].message.total) == (2, 3)
+        with et.count_dropped() as dropped:  # binning drops them without a second warning, and counts them
             out = bin_events(batch, frame_ms=1.0, n_frames=2)
+        assert dropped.counts() == {"off_sensor": 2}
         assert out.sum().item() == 1 and out[0, 0, 0, 4, 3] == 1
         assert bin_events(batch[1:], frame_ms=1.0, n_frames=2).sum() == 0
         assert bin_events(batch[:0], frame_ms=1.0, n_frames=2).shape == (0, 2, 2, *SENSOR)
 
-    def test_lost_events_warn_with_their_counts_and_nothing_else_does(self):
+    def test_lost_events_are_counted_not_warned(self):
+        """Binning an EventBatch drops what transforms moved off the sensor or out of the window by
+        design: counted in a count_dropped block, never warned (the caller's own input is warned about
+        once, when the batch is built)."""
         import warnings
 
         rows_ = torch.tensor([[1, 1, 0, 1], [2, 2, 5_000, 0], [-3, 1, 100, 1], [4, 4, 900, 0]])
-        batch = EventBatch.from_streams([rows_, rows_[[0, 3]]], sensor_size=SENSOR)
-        with pytest.warns(F.EventsOutsideWindowWarning, match=r"^1 events lie outside the window .*\(per stream: 1 of 4, 0 of 2\)"):
-            with pytest.warns(F.EventsOutsideSensorWarning, match="1 of 6 events"):
+        with pytest.warns(F.EventsOutsideSensorWarning):
+            batch = EventBatch.from_streams([rows_, rows_[[0, 3]]], sensor_size=SENSOR)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            with et.count_dropped() as dropped:
                 out = bin_events(batch, frame_ms=1.0, n_frames=2)
+        assert dropped.counts() == {"off_sensor": 1, "out_of_window": 1} and dropped.total == 2
         assert out.sum().item() == 4  # the two kept events of each stream
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # nothing lost: no warning; a crop is asked for, not lost

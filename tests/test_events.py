@@ -11,7 +11,8 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from event_transforms.events.binning import EventsOutsideSensorWarning, EventsOutsideWindowWarning, events_to_frames
+from event_transforms.events.binning import events_to_frames
+from event_transforms.events.drops import EventsOutsideSensorWarning, EventsOutsideWindowWarning
 from event_transforms.events.streaming import iter_frames
 
 TONIC_DTYPE = [("x", int), ("y", int), ("t", int), ("p", int)]
@@ -58,8 +59,10 @@ class TestEventsToFrames:
         x, y, t, p = random_events(rng, 3000)  # unsorted timestamps, some off-sensor
         kwargs = dict(t_start=5_000, frame_ms=10.0, n_frames=36, sensor_size=(17, 11))
         expected = reference(x, y, t, p, **kwargs)
-        with pytest.warns(EventsOutsideSensorWarning, match="events lie outside sensor_size"):
+        with pytest.warns(EventsOutsideSensorWarning, match="events outside sensor_size were dropped") as record:
             got = events_to_frames(structured(x, y, t, p), **kwargs)
+        sensor = [w.message for w in record if isinstance(w.message, EventsOutsideSensorWarning)][0]
+        assert sensor.dropped == int(((x < 0) | (x >= 11) | (y < 0) | (y >= 17)).sum()) > 0 and sensor.total == 3000
         assert got.dtype == torch.float32 and got.shape == (36, 2, 17, 11)
         torch.testing.assert_close(got, expected.float(), rtol=0, atol=0)
 
@@ -190,8 +193,9 @@ class TestEventsToFrames:
 
     def test_float_coordinates_are_floored(self):
         events = torch.tensor([[0.9, 1.5, 0.0, 1.0], [-0.5, 0.0, 0.0, 1.0]])
-        with pytest.warns(EventsOutsideSensorWarning, match="1 of 2 events"):
+        with pytest.warns(EventsOutsideSensorWarning) as record:
             got = events_to_frames(events, n_frames=1, sensor_size=(2, 2))
+        assert (record[0].message.dropped, record[0].message.total) == (1, 2)
         assert got[0, 1, 1, 0] == 1 and got.sum() == 1  # x = -0.5 is off the sensor
 
     def test_input_unchanged(self):
@@ -460,9 +464,9 @@ class TestRealRecordings:
         with pytest.warns(EventsOutsideSensorWarning) as record:
             got = events_to_frames(events)  # default (180, 240), the paper's DAVIS240
         outside = int(((events["x"] >= 240) | (events["y"] >= 180)).sum())
-        message = str(record[0].message)
-        assert f"{outside:,} of 1,000 events lie outside sensor_size=(180, 240)" in message
-        assert "sensor_size=(240, 320)" in message and "tonic_sensor_size=(320, 240, 2)" in message
+        warning = record[0].message
+        assert (warning.dropped, warning.total, warning.sensor_size) == (outside, 1000, (180, 240))
+        assert warning.suggested_sensor_size == (240, 320) and str(warning) == EventsOutsideSensorWarning.MESSAGE
         assert int(got.sum()) == 1000 - outside
 
     def test_no_warning_for_the_crop_and_a_count_for_the_window_asked_for(self):
@@ -472,8 +476,10 @@ class TestRealRecordings:
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             got = events_to_frames(events, sensor_size=(240, 320), crop=(100, 100, 20, 30))
-        with pytest.warns(EventsOutsideWindowWarning, match=r"^425 events lie outside the window .*n_frames=2 .*\(425 of 500\)"):
+        with pytest.warns(EventsOutsideWindowWarning) as record:
             got = events_to_frames(events, sensor_size=(240, 320), crop=(100, 100, 20, 30), n_frames=2)
+        warning = record[0].message
+        assert (warning.dropped, warning.per_stream) == (425, [(425, 500)]) and "n_frames=2" in warning.window
         assert got.shape == (2, 2, 20, 30)
 
     def test_tonic_sensor_size_by_name(self):
@@ -488,7 +494,7 @@ class TestRealRecordings:
             events_to_frames(events, tonic_sensor_size=(320, 240, 1))
 
     def test_chunks_bound_what_is_converted_at_once(self, monkeypatch):
-        import event_transforms.events.binning as module
+        import event_transforms.events.ingest as module
 
         seen = []
         original = module._column
@@ -499,7 +505,7 @@ class TestRealRecordings:
 
         monkeypatch.setattr(module, "_column", spy)
         events = recording(np.random.default_rng(10), 1000)
-        chunked = module.events_to_frames(events, sensor_size=(240, 320), chunk_size=64)
+        chunked = events_to_frames(events, sensor_size=(240, 320), chunk_size=64)
         assert max(seen) == 64
         monkeypatch.setattr(module, "_column", original)
         assert torch.equal(chunked, events_to_frames(events, sensor_size=(240, 320)))
@@ -588,8 +594,9 @@ class TestIterFrames:
             list(iter_frames([recording(np.random.default_rng(14), 5)], sensor_size=(240, 320), t_start=0,
                              n_frames=3))
         events = recording(np.random.default_rng(15), 100)
-        with pytest.warns(EventsOutsideSensorWarning, match="sensor_size=\\(240, 320\\)"):
+        with pytest.warns(EventsOutsideSensorWarning) as record:
             list(iter_frames(chunked(events, [30]), sensor_size=(180, 240)))
+        assert record[0].message.suggested_sensor_size == (240, 320)
 
     def test_feeds_force_regressor_step(self):
         from event_transforms.tactile.models import ForceRegressor
@@ -736,9 +743,10 @@ class TestNoSilentLoss:
     def test_floored_window_reports_the_events_it_drops(self):
         # a 360 ms window of a recording with absolute stamps: the floored grid needs a 37th bin
         events = self._stream(2000, 1_000_365_000, seed=3, t_low=1_000_005_000)
-        with pytest.warns(EventsOutsideWindowWarning, match=r"events lie outside the window t_start='floor', n_frames=36 .*one more frame") as record:
+        with pytest.warns(EventsOutsideWindowWarning) as record:
             frames = events_to_frames(events, sensor_size=(180, 240), n_frames=36)
-        dropped = int(str(record[0].message).split(" ")[0].replace(",", ""))
+        assert "t_start='floor', n_frames=36" in record[0].message.window and "one more frame" in record[0].message.hint
+        dropped = record[0].message.dropped
         assert dropped > 0 and int(frames.sum()) == 2000 - dropped
         with warnings.catch_warnings():
             warnings.simplefilter("error")

@@ -53,8 +53,8 @@ KERNELS = {
     ),
     "add_noise": (lambda x, p, g: F.add_noise(x, torch.ones(x.shape[-4:], dtype=torch.int16)), [], "kept"),
     "add_poisson_noise": (lambda x, p, g: F.add_poisson_noise(x, p[0], generator=g), [[5.0, 0.0, 200.0]], "kept"),
-    "drop_events": (lambda x, p, g: F.drop_events(x, p[0], generator=g), [[0.5, 0.0, 1.0]], "kept"),
-    "drop_events-expected": (lambda x, p, g: F.drop_events(x, p[0], mode="expected"), [[0.5, 0.0, 1.0]], "interpolating"),
+    "drop_events": (lambda x, p, g: F.drop_random(x, p[0], generator=g), [[0.5, 0.0, 1.0]], "kept"),
+    "drop_events-expected": (lambda x, p, g: F.drop_random(x, p[0], mode="expected"), [[0.5, 0.0, 1.0]], "interpolating"),
     "drop_by_time": (lambda x, p, g: F.drop_by_time(x, p[0], p[1]), [[0, 2, 5], [1, 3, 9]], "kept"),
     "drop_by_area": (
         lambda x, p, g: F.drop_by_area(x, p[0], p[1], p[2], p[3]), [[0, 3, 16], [0, 2, 5], [4, 2, 9], [1, 6, 9]], "kept",

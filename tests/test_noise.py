@@ -212,3 +212,14 @@ EVENT_BATTERY = {
     "AddNoise p": lambda: et.AddNoise(torch.poisson(torch.full((9, 2, *SENSOR), 0.3),
                                                     generator=torch.Generator().manual_seed(4)), p=0.5),
 }
+
+
+def test_a_replayed_poisson_count_past_any_draw_is_refused_by_name():
+    """Fuzzed trees (issue 34, item 8): a ``count`` of 1e9 noise events for a small batch is
+    refused by name before anything is allocated (it was a raw RuntimeError, or an OOM kill)."""
+    module = et.AddPoissonNoise(5.0)
+    frames = torch.zeros(2, 3, 2, 4, 5)
+    params = module.make_params(frames.shape, generator=torch.Generator().manual_seed(0))
+    params["count"] = torch.full_like(params["count"], 10**9)
+    with pytest.raises(ValueError, match=r"AddPoissonNoise: params\['count'\] must lie in \[0, 2944\]"):
+        module(frames, params=params)

@@ -123,7 +123,7 @@ def test_a_subclass_that_draws_must_declare_its_spec(x):
             def sample_params(self, shape, *, generator=None, metadata=None):
                 return {"factor": torch.full((shape[0],), 2.0)}
 
-            def apply(self, frames, params):
+            def apply_transform(self, frames, params):
                 return frames * params["factor"].view(-1, 1, 1, 1, 1)
 
     class Declared(et.EventTransform):
@@ -133,7 +133,7 @@ def test_a_subclass_that_draws_must_declare_its_spec(x):
         def params_spec(self, shape):
             return {"factor": et.Param("float", low=0.0)}
 
-        def apply(self, frames, params):
+        def apply_transform(self, frames, params):
             return frames * params["factor"].view(-1, 1, 1, 1, 1)
 
     with pytest.raises(ValueError, match=r"Declared: params\['factor'\] must have shape \(2,\)"):

@@ -237,22 +237,16 @@ class TestFormats:
         for name in ("a.h5", "b.hdf5", "c.h5"):
             self.check(tmp_path / name, events)
 
-    def test_aedat4_through_the_decoder(self, tmp_path, events, monkeypatch):
-        """The aedat package has no writer: its Decoder is replaced by one yielding packets as it does."""
-        import sys
-        import types
+    def test_aedat4_written_by_faery(self, tmp_path, events):
+        """A real .aedat4 (faery's writer), read by the aedat package's decoder; its size stated."""
+        pytest.importorskip("aedat")
+        from .rig_files import write_aedat4
 
-        packets = [{"events": np.zeros(len(part), dtype=[("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("on", "?")])}
-                   for part in np.array_split(events, 3)]
-        for packet, part in zip(packets, np.array_split(events, 3)):
-            for c in "txy":
-                packet["events"][c] = part[c]
-            packet["events"]["on"] = part["p"] > 0
-        fake = types.ModuleType("aedat")
-        fake.Decoder = lambda path: iter([{"frame": None}, *packets])
-        monkeypatch.setitem(sys.modules, "aedat", fake)
-        (tmp_path / "e.aedat4").write_bytes(b"")
+        write_aedat4(tmp_path / "e.aedat4", events, SENSOR)
         self.check(tmp_path / "e.aedat4", events)
+        from event_transforms.events.io import EventFile, stated_sensor_size
+
+        assert stated_sensor_size(tmp_path / "e.aedat4") == SENSOR == EventFile(tmp_path / "e.aedat4").sensor_size
 
     def test_same_frames_from_every_format(self, tmp_path, cache):
         root = make_folder(tmp_path / "d", train=3, deploy=2, unlabeled=0)
@@ -302,7 +296,8 @@ class TestBadInput:
             read_table(root)
 
     @pytest.mark.parametrize("content, message", [
-        ("time,force_n\n0,1\n", r"needs columns t_us and force_n, missing \['t_us'\]"),
+        ("time,force_n\n0,1\n", r"the time column 'time' does not say its unit.*force_time_unit='ns'"),
+        ("when,force\n0,1\n", r"needs a time column t_us \(or t_ns, t_ms, t_s\) and force_n"),
         ("t_us,force_n\n0,1\n10,nan\n", r"f1.csv line 3: force_n is nan"),
         ("t_us,force_n\n0,1\nnan,2\n", r"f1.csv line 3: t_us is nan"),
         ("t_us,force_n\n-5,1\n10,2\n", r"f1.csv line 2: t_us is negative"),
@@ -343,7 +338,7 @@ class TestBadInput:
 
     def test_windows_shorter_than_t(self, tmp_path):
         root = self.folder(tmp_path)
-        with pytest.raises(ValueError, match=r"row 2 \(r0.npy\): 24 frames of 10 ms, fewer than one window of --frames 30"):
+        with pytest.raises(ValueError, match=r"row 2 \(r0.npy\): 24 frames of 10 ms, fewer than one window of frames=30; lower frames="):
             self.build(root, tmp_path, frames=30)
 
     def test_bad_settings_and_cells(self, tmp_path):
@@ -456,7 +451,7 @@ class TestTimeUnit:
 class TestCache:
     def test_read_back_without_binning(self, folder, tmp_path, monkeypatch):
         first = RecordingSet(folder, split="val", cache=tmp_path, **SMALL)
-        monkeypatch.setattr(recordings, "_bin_recording", lambda *a: pytest.fail("binned again"))
+        monkeypatch.setattr(recordings.dataset, "_bin_recording", lambda *a: pytest.fail("binned again"))
         second = RecordingSet(folder, split="val", cache=tmp_path, **SMALL)
         torch.testing.assert_close(first[1][0], second[1][0])
 
@@ -522,7 +517,7 @@ class TestProtocolOnRecordings:
         root = make_folder(tmp_path / "d", train=6, deploy=5, unlabeled=1, lag_us=20_000)
         read = []
         real = recordings.read_force
-        monkeypatch.setattr(recordings, "read_force", lambda path, **k: (read.append(Path(path).name), real(path, **k))[1])
+        monkeypatch.setattr(recordings.dataset, "read_force", lambda path, **k: (read.append(Path(path).name), real(path, **k))[1])
         data = recordings.load_recording_data(root, RecordingSettings(**{**SMALL, "frames": 24}), cache=tmp_path / "c")
         deploy_forces = {r.force.name for r in read_table(root) if r.role == "deploy" and r.force is not None}
         # every labelled file is read once to label its windows, never for the inference: binning order

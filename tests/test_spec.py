@@ -26,9 +26,9 @@ from event_transforms._params import Param, check_args
 from .event_data import make_batch
 
 # the topic files (``functional.affine`` is also the name of the ``affine`` dispatcher)
-affine, drop, geometry, mixing, noise, stretch, temporal = (
+affine, drop, elastic, geometry, mixing, noise, perspective, stretch, temporal, timestamps = (
     importlib.import_module(f"event_transforms.functional.{topic}")
-    for topic in ("affine", "drop", "geometry", "mixing", "noise", "stretch", "temporal")
+    for topic in ("affine", "drop", "elastic", "geometry", "mixing", "noise", "perspective", "stretch", "temporal", "timestamps")
 )
 
 B, T, H, W = 3, 6, 11, 17  # events: tests/event_data's sensor (11, 17) and T = 6
@@ -57,8 +57,8 @@ OPS = [
     Op("rotate", lambda s: affine.ROTATE_SPEC, lambda: et.Rotate(10.0)),
     Op("resize", lambda s: affine.RESIZE_SPEC, lambda: et.Resize(1.2)),
     Op("affine", lambda s: affine.AFFINE_SPEC, lambda: et.Affine(angle=5.0, scale=1.1, shear=(10.0, 0.0))),
-    Op("perspective", lambda s: affine.PERSPECTIVE_SPEC, lambda: et.RandomPerspective(0.3)),
-    Op("elastic", lambda s: {"alpha": affine.elastic_spec(s)["alpha"]}, lambda: et.RandomElastic(),
+    Op("perspective", lambda s: perspective.PERSPECTIVE_SPEC, lambda: et.RandomPerspective(0.3)),
+    Op("elastic", lambda s: {"alpha": elastic.elastic_spec(s)["alpha"]}, lambda: et.RandomElastic(),
        fixed={"noise": _elastic_noise()}),
     Op("drop_random", lambda s: drop.DROP_RANDOM_SPEC, lambda: et.RandomEventDrop(),
        fixed={"generator": torch.Generator().manual_seed(0)}),
@@ -72,8 +72,8 @@ OPS = [
     Op("frame_shift", lambda s: temporal.FRAME_SHIFT_SPEC, lambda: et.FrameShift(-1)),
     Op("temporal_event_shift", lambda s: temporal.TEMPORAL_EVENT_SHIFT_SPEC, lambda: et.TemporalEventShift(-1, 0.5)),
     Op("crop_time", lambda s: temporal.crop_time_spec(s, 4), lambda: et.RandomCropTime(4), fixed={"length": 4}),
-    Op("time_jitter", lambda s: temporal.TIME_JITTER_SPEC, lambda: et.TimeJitter(), events=True),
-    Op("time_skew", lambda s: temporal.TIME_SKEW_SPEC, lambda: et.TimeSkew(), events=True),
+    Op("time_jitter", lambda s: timestamps.TIME_JITTER_SPEC, lambda: et.TimeJitter(), events=True),
+    Op("time_skew", lambda s: timestamps.TIME_SKEW_SPEC, lambda: et.TimeSkew(), events=True),
     Op("cutout", lambda s: mixing.CUTOUT_SPEC, lambda: et.Cutout(3)),
     Op("add_poisson_noise", lambda s: noise.ADD_POISSON_NOISE_SPEC, lambda: et.AddPoissonNoise((0.1, 10.0)), fixed={"frame_ms": 1.0}),
     Op("cutmix", lambda s: mixing.cutmix_spec(s), lambda: et.CutMix()),

@@ -1,6 +1,7 @@
-"""Tests for the training utilities (event_transforms.tactile.training): timing, collation, scores, atomic files.
+"""Tests for the one trainer (event_transforms.tactile.training): ``train`` and what the protocol
+and ``event-transforms train`` share through it, timing, collation, scores, atomic files.
 
-The trainer itself (``ensemble.fit_ensemble``) is tested in ``test_ensemble.py``; distributed
+The optimiser loop (``training.fit_ensemble``) is tested in ``test_ensemble.py``; distributed
 protocol runs in ``test_cli.py``.
 """
 
@@ -16,14 +17,8 @@ from torch.utils.data import Dataset
 
 import event_transforms as et
 
-from event_transforms.tactile.training import (
-    Stopwatch,
-    TimedTransform,
-    collate,
-    mse,
-    phase_mse,
-    write_json_atomic,
-)
+from event_transforms.tactile.training import collate, mse, phase_mse, write_json_atomic
+from event_transforms.tactile.stopwatch import Stopwatch, TimedTransform
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # see conftest.py
@@ -103,6 +98,21 @@ class TestMetrics:
 
 
 class TestAtomicWrite:
+    def test_text_and_bytes_and_a_failed_block(self, tmp_path):
+        from event_transforms.tactile._files import atomic_write
+
+        path = tmp_path / "sub" / "a.bin"
+        with atomic_write(path, "wb") as handle:
+            handle.write(b"old")
+        with pytest.raises(RuntimeError, match="half-way"):
+            with atomic_write(path, "wb") as handle:
+                handle.write(b"new, half")
+                raise RuntimeError("half-way")
+        assert path.read_bytes() == b"old" and os.listdir(path.parent) == ["a.bin"]
+        with pytest.raises(ValueError, match="mode must be 'w' or 'wb', got 'a'"):
+            with atomic_write(path, "a"):
+                pass
+
     def test_atomic_write_keeps_old_file(self, tmp_path):
         path = tmp_path / "r.json"
         write_json_atomic(path, {"a": 1})
@@ -110,3 +120,85 @@ class TestAtomicWrite:
             write_json_atomic(path, {"a": object()})
         assert json.loads(path.read_text()) == {"a": 1}
         assert os.listdir(tmp_path) == ["r.json"]
+
+
+@pytest.fixture(scope="module")
+def scene_data():
+    from tests.test_cli import fake_data
+
+    return fake_data("paper")
+
+
+class TestOneTrainer:
+    """``train`` is the one place a scene's methods are trained: the protocol's unit and
+    ``event-transforms train`` reach the same numbers through it."""
+
+    SETTINGS = {"steps": 4, "batch_size": 4, "eval_every": 2, "hidden_channels": (2,), "input_pool": 4}
+
+    def test_defaults_are_the_protocols(self):
+        import dataclasses
+        import inspect
+
+        from event_transforms.tactile.protocol import ProtocolConfig
+        from event_transforms.tactile.training import train
+
+        defaults = {n: p.default for n, p in inspect.signature(train).parameters.items()
+                    if p.default is not inspect.Parameter.empty}
+        config = ProtocolConfig()
+        fields = config.training_settings()
+        assert set(fields) <= set(defaults)
+        assert {n: tuple(v) if isinstance(v, tuple) else v for n, v in fields.items()} == {
+            n: defaults[n] for n in fields}
+        # every setting of ProtocolConfig that training reads is passed on (paper_split is the evaluation's)
+        assert set(fields) == {f.name for f in dataclasses.fields(config)} - {"paper_split"}
+
+    def test_train_model_and_run_unit_train_the_same_model(self, scene_data):
+        from event_transforms.tactile.deployment import train_model
+        from event_transforms.tactile.protocol import ProtocolConfig, run_unit
+
+        for method in ("none", "fs2"):
+            unit = run_unit("paper", [method], [3], ProtocolConfig(**self.SETTINGS), scene_data, progress=False)
+            model, summary = train_model(scene_data, method, seed=3, **self.SETTINGS)
+            record = unit[method][0]
+            assert summary["test_mse"] == record["test_mse"] and summary["val_mse"] == record["val_mse"]
+            assert summary["holdout_mse"] == record["holdout_mse"] and summary["kept_step"] == record["best_step"]
+            assert summary["train_items"] == record["train_items"]
+
+    def test_members_are_method_major_and_evaluate_matches_the_member(self, scene_data):
+        from event_transforms.tactile.training import evaluate, force_stats, train
+
+        trained = train(scene_data, ["none", "fs2"], [0, 5], progress=False, **self.SETTINGS)
+        assert [m.name for m in trained.methods] == ["none", "none", "fs2", "fs2"]
+        assert trained.seeds == [0, 5, 0, 5] and trained.model.members == 4
+        assert trained.train_items == [6, 6, 12, 12]  # fs2: one copy per item
+        offset, scale = force_stats(scene_data.train)
+        assert (trained.force_offset, trained.force_scale) == (offset, scale)
+        pred, target = evaluate(trained.model, scene_data.test)
+        frames = torch.stack([scene_data.test[i][0] for i in range(len(scene_data.test))])
+        member = trained.model.to("cpu").member(2).eval()
+        with torch.no_grad():
+            torch.testing.assert_close(pred[2].float(), member(frames), atol=1e-4, rtol=1e-4)
+        assert torch.equal(target, torch.stack([scene_data.test[i][1] for i in range(len(scene_data.test))]).double())
+
+    def test_bad_methods_and_seeds_are_refused_by_name(self, scene_data):
+        from event_transforms.tactile.training import train
+
+        with pytest.raises(ValueError, match="methods must be a non-empty sequence of method names, got 'none'"):
+            train(scene_data, "none", [0], **self.SETTINGS)
+        with pytest.raises(ValueError, match=r"seeds must be a non-empty sequence of ints, got \[\]"):
+            train(scene_data, ["none"], [], **self.SETTINGS)
+        with pytest.raises(ValueError, match="seeds must be a non-negative integer, got -1"):
+            train(scene_data, ["none"], [-1], **self.SETTINGS)
+        with pytest.raises(ValueError, match="unknown method 'tes'"):
+            train(scene_data, ["tes"], [0], **self.SETTINGS)
+
+    def test_old_module_paths_still_import(self):
+        from event_transforms.tactile import ensemble, experiment, protocol, training
+        from event_transforms.tactile.protocol import run, timing, unit
+
+        for name in ("fit_ensemble", "shuffled_batches", "clip_grad_norm_per_member_", "MemberRecord", "EnsembleResult"):
+            assert getattr(ensemble, name) is getattr(training, name)
+        assert experiment.run_unit is unit.run_unit is protocol.run_unit
+        assert experiment.run_protocol is run.run_protocol and experiment.equal_time_steps is timing.equal_time_steps
+        with pytest.raises(AttributeError, match="no attribute 'train'"):
+            ensemble.train  # noqa: B018 - the entry point lives in training only

@@ -1,9 +1,13 @@
 """Event streams: the padded :class:`EventBatch`, binning into frames, streaming.
 
-- :mod:`event_transforms.events.binning`: :func:`events_to_frames` (streams to ``(T, 2, H, W)``
-  or ``(B, T, 2, H, W)`` frames) and the warnings it gives for events it drops;
-- :mod:`event_transforms.events.batch`: :class:`EventBatch`, :func:`collate_events`,
-  :func:`bin_events`;
+- :mod:`event_transforms.events.ingest` (private): every in-memory input form to canonical
+  columns ``x, y, t, p`` in microseconds, and the checks of the binning's settings;
+- :mod:`event_transforms.events.batch`: :class:`EventBatch`, :func:`collate_events`;
+- :mod:`event_transforms.events.binning`: :func:`events_to_frames` (streams, or an
+  :class:`EventBatch`, to ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames) and
+  :func:`bin_events`, one binning kernel;
+- :mod:`event_transforms.events.drops`: :func:`count_dropped` (events dropped by design,
+  counted) and the two warnings for events of the caller's input outside what it declared;
 - :mod:`event_transforms.events.streaming`: :func:`iter_frames`, frames from a stream read
   in chunks.
 
@@ -20,8 +24,9 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
-from .batch import EventBatch, bin_events, collate_events
-from .binning import CHUNK_EVENTS, MAX_BYTES, EventsOutsideSensorWarning, EventsOutsideWindowWarning, events_to_frames
+from .batch import EventBatch, collate_events
+from .binning import CHUNK_EVENTS, MAX_BYTES, bin_events, events_to_frames
+from .drops import DroppedEvents, EventsOutsideSensorWarning, EventsOutsideWindowWarning, count_dropped
 from .streaming import iter_frames
 
 from torch.utils import _pytree
@@ -44,4 +49,5 @@ _pytree.register_pytree_node(EventBatch, _refuse_flatten, _unflatten)
 __all__ = [
     "EventBatch", "events_to_frames", "iter_frames", "collate_events", "bin_events",
     "EventsOutsideSensorWarning", "EventsOutsideWindowWarning", "CHUNK_EVENTS", "MAX_BYTES",
+    "count_dropped", "DroppedEvents",
 ]

@@ -38,27 +38,10 @@ import torch
 from torch import Tensor
 
 from .._validation import read_host
-from .binning import (
-    _OUTSIDE_SENSOR,
-    _T_STARTS,
-    _accumulate,
-    _accumulator,
-    _to_spare,
-    _event_index,
-    _columns,
-    _explicit_starts,
-    _floor_to_grid,
-    _frame_us,
-    _grid,
-    _integer,
-    _check_polarity,
-    _sensor,
-    _time_bins,
-    _as_dtype,
-    _MAX_INFERRED_FRAMES,
-)
+from .drops import EventsOutsideSensorWarning, warn_at_caller
+from .ingest import _T_STARTS, _check_polarity, _columns, _explicit_starts, _floor_to_grid, _frame_us, _integer, _sensor
 
-__all__ = ["EventBatch", "collate_events", "bin_events"]
+__all__ = ["EventBatch", "collate_events"]
 
 _COORD_MAX = 2**15 - 1
 _FIELDS = ("x", "y", "t", "p")
@@ -190,7 +173,9 @@ class EventBatch:
                 batch holds microseconds).
             columns: the order of ``(N, k)`` streams' columns, e.g. ``"txyp"``.
             validate: check every column once (one ``aminmax`` pass each): coordinates
-                fit int16, polarity is bool, {0, 1} or {-1, 1}, uint64 timestamps fit
+                fit int16 (events outside ``sensor_size`` are kept, and warned about once
+                with :class:`~event_transforms.events.EventsOutsideSensorWarning`: the
+                binning will drop them), polarity is bool, {0, 1} or {-1, 1}, uint64 timestamps fit
                 int64. ``False`` skips these checks for data the caller already trusts
                 (the same batch for valid data, about half the time for a list of
                 structured arrays); the parsing itself (field names, NaN in float
@@ -248,6 +233,8 @@ class EventBatch:
             else:
                 _fill_from_columns(out, stream, i, validate)
             start += n
+        if validate and total:
+            _warn_outside_sensor(x_all, y_all, height, width)
         x, y, t, p = (c.to(target) for c in (x_all, y_all, t_all, p_all))
         offsets = torch.tensor([0, *np.cumsum(lengths, dtype=np.int64).tolist()], dtype=torch.int64)
         batch = cls(x, y, t, p, offsets, (height, width))
@@ -503,6 +490,17 @@ def _narrow_struct(stream: Any) -> bool:
     return coords and kinds["t"].kind in "iu" and (kinds["p"].kind == "b" or (kinds["p"].kind in "iu" and kinds["p"].itemsize == 1))
 
 
+def _warn_outside_sensor(x: Tensor, y: Tensor, height: int, width: int) -> None:
+    """The caller's streams hold events outside ``sensor_size``: one warning at the caller's line."""
+    x_low, x_high = (int(v) for v in torch.aminmax(x))
+    y_low, y_high = (int(v) for v in torch.aminmax(y))
+    if x_low >= 0 and y_low >= 0 and x_high < width and y_high < height:
+        return
+
+    outside = int(((x < 0) | (x >= width) | (y < 0) | (y >= height)).sum())
+    warn_at_caller(EventsOutsideSensorWarning(outside, x.numel(), (height, width), (x_low, x_high), (y_low, y_high)))
+
+
 def _fill_from_struct(out: tuple[Tensor, ...], stream: np.ndarray, i: int, validate: bool) -> None:
     """Copy a :func:`_narrow_struct` stream's fields into the batch's column slices (one
     casting pass each), then check what the cast may have hidden (one pass each)."""
@@ -704,158 +702,3 @@ def _resolve_starts(batch: EventBatch, t_start: object, frame_us: float | int) -
         starts = torch.tensor(firsts, dtype=batch.t.dtype)
         return _floor_to_grid(starts, frame_us) if t_start == "floor" else starts
     return _explicit_starts(t_start, len(batch))
-
-
-def bin_events(
-    batch: EventBatch,
-    *,
-    frame_ms: float | None = None,
-    t_start: str | float | Sequence[float] | Tensor = "floor",
-    n_frames: int | None = None,
-    crop: tuple[int, int, int, int] | None = None,
-    pool: int = 1,
-    dtype: torch.dtype = torch.float32,
-) -> Tensor:
-    """Count an :class:`EventBatch` into frames ``(B, T, 2, H', W')`` on its device.
-
-    Bin by bin equal to :func:`~event_transforms.functional.events_to_frames` of each
-    stream with the same ``t_start``, ``frame_ms``, ``n_frames``, ``crop`` and ``pool``
-    (and the same bin arithmetic: int64 for integer timestamps). If the batch carries a
-    frame grid, its starts are used (``t_start`` is ignored, ``frame_ms`` must match or be
-    ``None``, ``n_frames`` defaults to the grid's). Events outside the crop are left out by
-    request; events outside the sensor or the time window (a transform may have moved them
-    there) are dropped with an :class:`EventsOutsideSensorWarning` or
-    :class:`EventsOutsideWindowWarning` that gives their count, as :func:`events_to_frames` does.
-
-    One scatter for the whole batch: int32 linear indices (int64 past 2**31 slots), an
-    event outside the window, sensor or crop counted in one spare slot, one ``index_add_``
-    of ones straight into the output dtype (when every count fits it exactly; else int32
-    and a checked cast), by the kernel of ``events_to_frames``. No ``bincount`` (on accelerators it reads its maximum back). No
-    host synchronisation, except the one read of the dropped counts for the warnings, ``n_frames=None`` without a grid (the last bin is read
-    back) and ``t_start="floor"``/``"first"`` without a grid (the first events).
-
-    Args:
-        batch: the event streams.
-        frame_ms: bin width in milliseconds (the grid's, or required without a grid).
-        t_start: the start rule without a grid: ``"floor"``, ``"first"``, or a time in
-            microseconds (one number or one per stream).
-        n_frames: number of bins (default: the grid's, or enough for the last event).
-        crop: ``(top, left, height, width)`` window inside the sensor, or ``None``.
-        pool: side of the square blocks summed into one output pixel.
-        dtype: dtype of the counts.
-
-    Shape:
-        - batch: B streams on a ``(H, W)`` sensor.
-        - output: ``(B, T, 2, H', W')`` on the batch's device, ``(H', W')`` the crop divided by
-          ``pool``.
-
-    Example:
-        >>> batch = EventBatch(torch.tensor([0, 2], dtype=torch.int16), torch.tensor([1, 0], dtype=torch.int16),
-        ...     torch.tensor([5, 15_000]), torch.tensor([1, 0], dtype=torch.int8), torch.tensor([0, 1, 2]), (2, 3))
-        >>> bin_events(batch, frame_ms=10.0, t_start=0, n_frames=2).sum(dim=(2, 3, 4)).tolist()
-        [[1.0, 0.0], [0.0, 1.0]]
-    """
-    if batch.frame_ms is not None:
-        if frame_ms is not None and _frame_us(frame_ms) != _frame_us(batch.frame_ms):
-            raise ValueError(
-                f"frame_ms={frame_ms!r} differs from the batch's grid (frame_ms={batch.frame_ms}); "
-                "bin with the grid's width or rebuild the grid with EventBatch.with_grid"
-            )
-        frame_ms = batch.frame_ms
-        starts = batch.t_start
-        n_frames = batch.n_frames if n_frames is None else n_frames
-    else:
-        if frame_ms is None:
-            frame_ms = 10.0
-        starts = None
-    grid = _grid(batch.sensor_size, None, crop, pool, frame_ms, dtype)
-    if starts is None:
-        starts = _resolve_starts(batch, t_start, grid.frame_us)
-    if n_frames is None:
-        lasts = _segment_first(batch, batch.t, "amax")
-        n_frames = 0
-        for b, last in enumerate(lasts):
-            if last is not None and last >= starts[b].item():
-                last_t = torch.tensor([[last]], dtype=batch.t.dtype)
-                n_frames = max(n_frames, int(_time_bins(last_t, starts[b : b + 1], grid.frame_us)) + 1)
-        if n_frames > _MAX_INFERRED_FRAMES:
-            raise ValueError(f"the events span {n_frames:,} bins of frame_ms={frame_ms!r}; pass n_frames")
-    else:
-        n_frames = _integer(n_frames, "n_frames", low=0)
-    b = len(batch)
-    total = b * n_frames * grid.frame_size
-    counts, lost = _bin_counts(batch, starts, n_frames, grid, total)
-    if lost is not None and any(read_host(lost)):  # the one host read: two counts
-        _warn_lost(batch, starts, n_frames, grid.frame_us, frame_ms)
-    return counts.view(b, n_frames, 2, grid.out_h, grid.out_w)
-
-
-def _warn_lost(batch: EventBatch, starts: Tensor, n_frames: int, frame_us: float | int, frame_ms: float) -> None:
-    """The warnings of :func:`events_to_frames` for the events binning drops (outside the
-    sensor or the window), with the count per stream. Called only when some were dropped."""
-    from ..functional._event_ops import warn_dropped
-    from .binning import _bins_of
-
-    if batch.num_events == 0:
-        return
-    height, width = batch.sensor_size
-    x, y = batch.x, batch.y
-    outside_sensor = (x < 0) | (x >= width) | (y < 0) | (y >= height)
-    _, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
-    warn_dropped(batch, outside_sensor=outside_sensor, outside_window=~inside & ~outside_sensor,
-                 window=f"n_frames={n_frames} of frame_ms={frame_ms!r}", stacklevel=4)
-
-
-def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
-    """``t - t_start`` of each event's stream: one scalar subtraction when every stream starts
-    at the same time (a shared clock, ``t_start`` a number), else a gather of the starts."""
-    first = starts.tolist()
-    if first and all(v == first[0] for v in first):
-        return batch.t - first[0]
-    start_of = starts.to(device=batch.device, dtype=batch.t.dtype)
-    return batch.t - start_of.index_select(0, batch.sample_index())
-
-
-def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, total: int) -> tuple[Tensor, Tensor | None]:
-    """(total,) counts in ``grid.dtype``, by the one binning kernel of :mod:`.binning`: int32
-    indices from the pixel table and the float32 bin quotient, every event not counted sent
-    to one spare slot, and an ``index_add_`` of ones straight into the output dtype when no
-    count can pass what it holds exactly (float32: 2**24), else into int32 and a checked cast.
-
-    On the CPU one sample at a time: its block (``T * 2 * H' * W'`` values) is zeroed, then
-    its events are added while the block is still in cache, 2-3x faster than one scatter
-    over the whole output. On accelerators, one ``index_add_`` for the batch (sync-free).
-
-    Also returns, on the device, how many events lay off the sensor and how many on it but
-    outside the time window (``None`` when there are no events): the caller reads these two
-    numbers to decide whether to warn, instead of a second pass over the events.
-    """
-    device = batch.device
-    dtype = grid.dtype
-    n = batch.num_events
-    if n == 0:
-        return torch.zeros(total, dtype=dtype, device=device), None
-    index, pixel, in_time = _event_index(
-        batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid, total >= 2**31 - 1
-    )
-    off_sensor = pixel == _OUTSIDE_SENSOR
-    lost = torch.stack([off_sensor.sum(), in_time.logical_not().logical_and_(off_sensor.logical_not_()).sum()])
-    if total == 0:
-        return torch.zeros(total, dtype=dtype, device=device), lost
-    counted = in_time.logical_and_(pixel >= 0)
-    block = n_frames * grid.frame_size
-    if device.type == "cpu":
-        counts = torch.empty(total + 1, dtype=_accumulator(dtype, n))
-        counts[total] = 0
-        bounds = batch.offsets.tolist()
-        for b in range(len(batch)):
-            counts[b * block : (b + 1) * block].zero_()
-            lo, hi = bounds[b], bounds[b + 1]
-            if hi > lo:
-                segment = index[lo:hi].add_(b * block - total).mul_(counted[lo:hi]).add_(total)
-                _accumulate(counts, segment)
-    else:
-        index = index.add_(batch.sample_index().to(index.dtype).mul(block))
-        counts = torch.zeros(total + 1, dtype=_accumulator(dtype, n), device=device)
-        _accumulate(counts, _to_spare(index, counted, total))
-    return _as_dtype(counts[:total], dtype), lost

@@ -18,11 +18,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .binning import (
-    _FIELDS, _T_STARTS, _accumulate, _as_dtype, _check_polarity, _empty_window_error, _exact_count, _explicit_starts,
-    _floor_to_grid, _Grid, _grid, _integer, _order_names, _pixels, _Source, _source, _Tally, _tally_outside, _time_bins,
-    _time_unit, _to_spare, _warn_outside,
-)
+from ._kernel import _accumulate, _as_dtype, _empty_window_error, _exact_count, _Grid, _grid, _pixels, _Tally, _tally_outside, _time_bins, _to_spare, _warn_outside
+from .ingest import _explicit_starts, _floor_to_grid
+from .ingest import _FIELDS, _T_STARTS, _check_polarity, _integer, _order_names, _Source, _source, _time_unit
 
 
 def iter_frames(
@@ -147,7 +145,7 @@ def _iter_frames(
         starts, last_t, bins, within, kept, (lo, hi), past_window = chunk
         del chunk
         if tally.outside and not warned:
-            _warn_outside(tally, int(tally.events.item()), grid, stacklevel=3)
+            _warn_outside(tally, int(tally.events.item()), grid)
             warned = True
         if counts is None:
             counts = torch.zeros(step * size + 1, dtype=torch.int32, device=source.device)
@@ -209,7 +207,7 @@ def _stream_chunk(
     tally.add_times(t, None)
     tally.events += t.shape[1]
     x, y, p = columns["x"][0], columns["y"][0], columns["p"][0]
-    _check_polarity(p, None, tally)
+    _check_polarity(p, None, tally.polarities)
     col = torch.floor(x) if x.is_floating_point() else x
     row = torch.floor(y) if y.is_floating_point() else y
     pixel = _pixels(col, row, grid, look=True)

@@ -12,10 +12,16 @@ from __future__ import annotations
 
 from .affine import *  # noqa: F401,F403
 from .affine import __all__ as _affine
+from .perspective import *  # noqa: F401,F403
+from .perspective import __all__ as _perspective
+from .elastic import *  # noqa: F401,F403
+from .elastic import __all__ as _elastic
 from .stretch import *  # noqa: F401,F403
 from .stretch import __all__ as _stretch
 from .temporal import *  # noqa: F401,F403
 from .temporal import __all__ as _temporal
+from .timestamps import *  # noqa: F401,F403
+from .timestamps import __all__ as _timestamps
 from .noise import *  # noqa: F401,F403
 from .noise import __all__ as _noise
 from ..events.binning import *  # noqa: F401,F403
@@ -33,6 +39,7 @@ from .cleaning import *  # noqa: F401,F403
 from .cleaning import __all__ as _cleaning
 from .drop import *  # noqa: F401,F403
 from .drop import __all__ as _drop
+from .drop import drop_events as drop_events  # deprecated former name of drop_random, not in __all__
 from .representations import *  # noqa: F401,F403
 from .representations import __all__ as _representations
 
@@ -41,6 +48,6 @@ from ..events.batch import __all__ as _event_batch
 from ._dispatch import call_kernel, has_kernel, kernel_for, register_kernel
 
 __all__ = [
-    *_affine, *_stretch, *_temporal, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop,
+    *_affine, *_perspective, *_elastic, *_stretch, *_temporal, *_timestamps, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop,
     *_representations, *_event_batch, "register_kernel", "kernel_for", "call_kernel", "has_kernel",
 ]

@@ -8,7 +8,7 @@ here under the dispatcher with :func:`register_kernel`:
 
 - a dispatcher (``F.rotate(x, angle)``) checks its arguments, brings frames to a batch,
   and calls :func:`call_kernel`;
-- a module's ``apply`` calls :func:`call_kernel` with the dispatcher and its params tree,
+- a module's ``apply_transform`` calls :func:`call_kernel` with the dispatcher and its params tree,
   already checked against its ``params_spec`` (kernels trust their arguments).
 
 An input type with no kernel is refused by name (``TypeError``), so an operation without an
@@ -124,7 +124,7 @@ def kernel_for(dispatcher: Callable[..., Any], inputs: object) -> Callable[..., 
 
 
 def call_kernel(dispatcher: Callable[..., Any], inputs: Any, *args: Any, **kwargs: Any) -> Any:
-    """``kernel_for(dispatcher, inputs)(inputs, *args, **kwargs)``: what a module's ``apply`` calls.
+    """``kernel_for(dispatcher, inputs)(inputs, *args, **kwargs)``: what a module's ``apply_transform`` calls.
 
     The kernel gets its arguments as they are (already checked, per sample): the dispatcher's
     argument checks are skipped.

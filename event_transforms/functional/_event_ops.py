@@ -19,9 +19,11 @@ spreads each count over up to four pixels (and a zoom by β multiplies the total
 β²). Events moved outside the sensor are kept (no host synchronisation, counts kept) and
 dropped when binned; a later transform that moves them back brings them back, which
 frames cannot. The perspective and elastic warps are the exception: they drop the events
-they move off the sensor, with the binning's warning (a homography sends points near its
-horizon past any int16 coordinate, and the elastic field is defined on the sensor only). Frame shift and TES drop the events they push out of the grid's window,
-as the frame kernels do.
+they move off the sensor (a homography sends points near its horizon past any int16
+coordinate, and the elastic field is defined on the sensor only). Frame shift and TES drop
+the events they push out of the grid's window, as the frame kernels do. Every such drop is
+the operation's documented meaning: it is never warned, and
+:func:`~event_transforms.count_dropped` counts it.
 
 Host synchronisations: none, except where the output size depends on the data (event
 drop, frame shift/TES dropping events pushed out of the window, refractory period,
@@ -41,7 +43,7 @@ from torch import Tensor
 from .._validation import read_host
 from ._random import EventStream
 from ..events.batch import EventBatch
-from ..events.binning import _frame_us
+from ..events.ingest import _frame_us
 
 __all__: list[str] = []
 
@@ -137,48 +139,3 @@ def _append(batch: EventBatch, columns: Sequence[Tensor], counts: Tensor) -> Eve
         out.index_copy_(0, extra, column_added.to(column.dtype))
         cols.append(out)
     return batch._replace(x=cols[0], y=cols[1], t=cols[2], p=cols[3], offsets=offsets, _sample=None)
-
-
-def warn_dropped(
-    batch: EventBatch,
-    *,
-    outside_sensor: Tensor | None = None,
-    outside_window: Tensor | None = None,
-    window: str = "",
-    stacklevel: int = 3,
-) -> None:
-    """Warn, as :func:`~event_transforms.functional.events_to_frames` does, about the events of
-    ``batch`` that a kernel or the binning drops: ``outside_sensor`` and ``outside_window`` are
-    per-event bool masks. One host read of the counts (and of the coordinate span, for the
-    sensor warning); nothing when no event is dropped. ``window`` describes the grid."""
-    import warnings
-
-    from ..events.binning import EventsOutsideWindowWarning, _SensorSize, _Tally, _warn_outside
-
-    if batch.num_events == 0 or (outside_sensor is None and outside_window is None):
-        return
-    sample = batch.sample_index()
-    rows = []
-    for mask in (outside_sensor, outside_window):
-        if mask is None:
-            rows.append(torch.zeros(len(batch), dtype=torch.int64, device=batch.device))
-        else:
-            rows.append(torch.zeros(len(batch), dtype=torch.int32, device=batch.device).index_add_(
-                0, sample, mask.to(torch.int32)).to(torch.int64))
-    sensor_counts, window_counts = (r.tolist() for r in torch.stack(rows).cpu())  # the one read
-    if sum(sensor_counts):
-        tally = _Tally(len(batch))
-        tally.outside = sum(sensor_counts)
-        x, y = batch.x, batch.y
-        tally.x_range = [int(x.min()), int(x.max())]
-        tally.y_range = [int(y.min()), int(y.max())]
-        _warn_outside(tally, batch.num_events, _SensorSize(*batch.sensor_size), stacklevel=stacklevel + 1)
-    if sum(window_counts):
-        streams = ", ".join(f"{d:,} of {n:,}" for d, n in zip(window_counts, batch.lengths))
-        warnings.warn(
-            EventsOutsideWindowWarning(
-                f"{sum(window_counts):,} events lie outside the window {window} and were dropped "
-                f"(per stream: {streams})"
-            ),
-            stacklevel=stacklevel,
-        )

@@ -11,8 +11,9 @@ import torch
 from torch import Tensor
 
 from .._validation import as_batch, as_number, check_frames, check_positive
-from ..events.batch import EventBatch, _relative_times
-from ..events.binning import _event_index, _grid
+from ..events.batch import EventBatch
+from ..events._kernel import _relative_times
+from ..events._kernel import _event_index, _grid
 from ._dispatch import kernel_for, register_kernel
 from ._event_ops import _compact, _require_grid
 

@@ -6,19 +6,20 @@ Dropping follows EventDrop (Gu et al., 2021) for events. Each operation is a dis
 :func:`refractory_period`, :func:`decimation`) with a kernel per input type beside it
 (``<op>_frames``, ``<op>_events``). On frames these only remove counts: the dtype is kept
 (``drop_random(mode="expected")`` scales instead and returns floats).
-:func:`drop_events` is the former name of :func:`drop_random`, kept as an alias.
+:func:`drop_events` is the former name of :func:`drop_random`: deprecated, it warns and calls it.
 Pixel masks are computed on the frames' device; :func:`random_pixel_mask` is a
 counter-based draw, so a sample's mask depends on its own seed only.
 """
 
 from __future__ import annotations
 
+import math
+import warnings
 from collections.abc import Sequence
+from typing import Any
 
 import torch
 from torch import Tensor
-
-import math
 
 from .._params import SEED, Param, check_args
 from .._validation import DROP_MODES, check_choice, check_generator, count_stats, describe
@@ -29,7 +30,7 @@ from ._hypergeometric import _EXPAND_MAX, Stream, binomial_counts
 from ._random import draw_seeds, sample_salts, uniform
 
 __all__ = [
-    "drop_random", "drop_random_frames", "drop_random_events", "drop_events",
+    "drop_random", "drop_random_frames", "drop_random_events",
     "drop_by_time", "drop_by_time_frames", "drop_by_time_events",
     "drop_by_area", "drop_by_area_frames", "drop_by_area_events",
     "drop_pixel", "drop_pixel_frames", "drop_pixel_events", "random_pixel_mask",
@@ -107,8 +108,11 @@ def drop_random(
     return restore(call_kernel(drop_random, batch, fraction_t, mode, seeds))
 
 
-#: The former name of :func:`drop_random` (the README's list of functional names had it).
-drop_events = drop_random
+def drop_events(*args: Any, **kwargs: Any) -> Tensor | EventBatch:
+    """Deprecated: the former name of :func:`drop_random`; warns and calls it (removed in the next release)."""
+    warnings.warn("event_transforms.functional.drop_events is deprecated: call drop_random (same arguments)",
+                  DeprecationWarning, stacklevel=2)
+    return drop_random(*args, **kwargs)
 
 _DROP_HINT = 'drop events before interpolating transforms (bilinear rotate/resize), or use mode="expected"'
 
@@ -269,8 +273,8 @@ def drop_by_time_events(batch: EventBatch, start: Tensor, length: Tensor) -> Eve
         >>> drop_by_time_events(batch, torch.tensor([1, 0]), torch.tensor([1, 1])).t.tolist()
         [100]
     """
-    from ..events.batch import _relative_times
-    from ..events.binning import _bins_of
+    from ..events._kernel import _relative_times
+    from ..events._kernel import _bins_of
 
     starts, frame_us, n_frames = _require_grid(batch, "RandomEventDrop (time)")
     bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)

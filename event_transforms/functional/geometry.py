@@ -23,12 +23,14 @@ from torch import Tensor
 import numpy as np
 
 from .._params import SEED, Param, check_args
-from .._validation import INTERPOLATIONS, as_batch, as_number, check_choice, check_frames, describe, on_host
+from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, on_host
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
 from ._event_ops import JITTER, _per_event, _round_to
 from ._random import EventStream
-from .affine import _output_dtype, _work_dtype
+from ._frame_ops import _output_dtype, _work_dtype
+from ._frame_ops import _flags, _sum_in
+from ._frame_ops import _size
 
 __all__ = [
     "horizontal_flip", "horizontal_flip_frames", "horizontal_flip_events",
@@ -58,8 +60,6 @@ def crop_spec(shape: Sequence[int], size: tuple[int, int]) -> dict[str, Param]:
     """:func:`crop`'s window corner for a batch ``shape`` (B, T, 2, H, W) and a window ``size``
     (h, w) that fits: ``top`` in [0, H - h], ``left`` in [0, W - w]."""
     return {"top": Param("int", low=0, high=shape[-2] - size[0]), "left": Param("int", low=0, high=shape[-1] - size[1])}
-
-_NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
 
 
 # --------------------------------------------------------------------------- translate
@@ -164,22 +164,7 @@ def translate_events(batch: EventBatch, shift: Tensor) -> EventBatch:
     return batch._replace(x=x, y=y)
 
 
-
 # --------------------------------------------------------------------------- crop
-
-
-def _size(value: object, name: str) -> tuple[int, int]:
-    """``n`` or ``(h, w)`` positive integers as (h, w)."""
-    if isinstance(value, (Sequence, Tensor)) and not isinstance(value, (str, bytes)):
-        if len(value) != 2:
-            raise ValueError(f"{name} must be a positive integer or an (h, w) pair, got {describe(value)}")
-        pair = tuple(as_number(v, name, integer=True) for v in value)
-    else:
-        number = as_number(value, name, integer=True)
-        pair = (number, number)
-    if min(pair) < 1:
-        raise ValueError(f"{name} must be positive, got {describe(value)}")
-    return pair
 
 
 def crop_frames(batch: Tensor, top: Tensor, left: Tensor, size: tuple[int, int], resize: bool = False, mode: str = "bilinear") -> Tensor:
@@ -375,38 +360,6 @@ def downsample_frames(batch: Tensor, factor: tuple[int, int], remainder: str = "
     return _sum_in(body.reshape(b, t, p, h, fy, w, fx), (4, 6), "downsample")
 
 
-def _sum_in(values: Tensor, dim: int | tuple[int, ...], owner: str, *, keepdim: bool = False) -> Tensor:
-    """Sum counts over ``dim`` in a wide dtype and return them in ``values``' dtype.
-
-    8/16-bit integer sums that would not fit raise (one host synchronisation, those dtypes
-    only) instead of wrapping; float16/bfloat16 sums past the dtype's largest finite value
-    raise the same way instead of becoming ``inf``.
-    """
-    dtype = values.dtype
-    if dtype.is_floating_point:
-        acc = torch.float64 if dtype == torch.float64 else torch.float32
-    else:
-        acc = torch.int64
-    total = values.to(acc).sum(dim=dim, keepdim=keepdim)
-    if dtype in _NARROW_INTEGERS and total.numel():
-        info = torch.iinfo(dtype)
-        high = total.max()
-        if bool(high > info.max):
-            raise ValueError(
-                f"{owner}: a sum ({int(high)}) does not fit frames of dtype {dtype} "
-                f"(max {info.max}); convert the frames to a wider dtype first"
-            )
-    if dtype in (torch.float16, torch.bfloat16) and total.numel():
-        largest = torch.finfo(dtype).max
-        high = total.abs().max()
-        if bool(high > largest):
-            raise ValueError(
-                f"{owner}: a sum ({float(high):g}) does not fit frames of dtype {dtype} "
-                f"(largest finite value {largest:g}); convert the frames to a wider dtype first"
-            )
-    return total.to(dtype)
-
-
 def _factor(value: object) -> tuple[int, int]:
     return _size(value, "factor")
 
@@ -537,19 +490,6 @@ def vertical_flip(inputs: Tensor | EventBatch, flip: Tensor | None = None) -> Te
     """
     batch, b, restore = batch_of(inputs)
     return restore(call_kernel(vertical_flip, batch, _flags(flip, b)))
-
-
-def _flags(flip: object, batch: int, name: str = "flip") -> Tensor | None:
-    """``None``, a bool, or ``(B,)`` bools as a (B,) bool CPU tensor."""
-    if flip is None:
-        return None
-    try:
-        value = torch.as_tensor(flip)
-    except (TypeError, ValueError, RuntimeError):
-        value = None
-    if value is None or value.dtype != torch.bool or tuple(value.shape) not in ((), (batch,)):
-        raise ValueError(f"{name} must be a bool or a ({batch},) bool tensor, got {describe(flip)}")
-    return value.detach().cpu().expand(batch)
 
 
 @register_kernel(horizontal_flip, Tensor)

@@ -14,7 +14,7 @@ from .._validation import as_batch, check_frames
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
 from ._event_ops import _per_event
-from .geometry import _flags, _sum_in
+from ._frame_ops import _flags, _sum_in
 
 __all__ = [
     "flip_polarity", "flip_polarity_frames", "flip_polarity_events", "merge_polarities", "merge_polarities_frames",

@@ -17,9 +17,12 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import check_choice, per_sample
+from .._params import Param, check_args
+from .._validation import check_choice
 from ..events.batch import EventBatch
-from ..events.binning import _columns, _pair, _polarity_channel, _positive_int, _valid_mask
+from ..events.binning import _valid_mask
+from ..events._kernel import _polarity_channel
+from ..events.ingest import _columns, _pair, _positive_int
 
 __all__ = ["to_voxel_grid", "to_time_surface"]
 
@@ -191,9 +194,7 @@ def to_time_surface(
         if t_start == "floor":
             starts = torch.floor(starts / frame_us) * frame_us
     else:
-        starts = per_sample(t_start, b, "t_start", dtype=torch.float64).to(device)
-        if b and not bool(torch.isfinite(starts).all()):
-            raise ValueError(f"t_start must be finite, got {starts.tolist()}")
+        starts = check_args("t_start", {"t_start": Param("float")}, b, t_start=t_start)["t_start"].to(device)
     since = t - starts.unsqueeze(1)
     time_bin = torch.floor(since / frame_us)
     in_window = keep & (time_bin >= 0) & (time_bin < n_frames)

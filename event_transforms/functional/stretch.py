@@ -20,7 +20,8 @@ from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, kernel_for, register_kernel
 from ._event_ops import _round_to
-from .affine import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _output_dtype, _warp
+from ._warp import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _warp
+from ._frame_ops import _output_dtype
 
 __all__ = ["stretch", "stretch_frames", "stretch_events", "contact_axis"]
 

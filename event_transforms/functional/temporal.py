@@ -21,15 +21,15 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .._params import SEED, Param, check_args
+from .._params import Param, check_args
 from .._validation import (
     TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, on_host, read_host,
 )
 from ..events.batch import EventBatch
-from ..events.binning import _frame_us
-from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel, shape_of
-from ._event_ops import TES_KEYS, TIME_JITTER, _kept, _keys, _per_event, _require_grid, warn_dropped
-from ._random import EventStream
+from ..events.ingest import _frame_us
+from ._dispatch import batch_of, call_kernel, register_kernel, shape_of
+from ..events.drops import counting, record_dropped
+from ._event_ops import TES_KEYS, _kept, _keys, _per_event, _require_grid
 from ._random import draw_seeds
 from ._hypergeometric import (
     _EXPAND_MAX, Stream, binomial_counts, level_stats, multivariate_hypergeometric, segment_sum,
@@ -40,7 +40,6 @@ __all__ = [
     "temporal_event_shift", "temporal_event_shift_frames", "temporal_event_shift_events",
     "time_reversal", "time_reversal_frames", "time_reversal_events",
     "crop_time", "crop_time_frames", "crop_time_events",
-    "time_jitter", "time_jitter_events", "time_skew", "time_skew_events",
 ]
 
 ShiftArg = int | Sequence[int] | Tensor
@@ -69,12 +68,6 @@ _BITS = {
 FRAME_SHIFT_SPEC = {"shift": Param("int")}
 #: :func:`temporal_event_shift`: whole frames j and the fraction ζ of the events moved.
 TEMPORAL_EVENT_SHIFT_SPEC = {"shift": Param("int"), "fraction": Param("float", low=0.0, high=1.0)}
-#: :func:`time_jitter`: the standard deviation in µs and the seed of the noise.
-TIME_JITTER_SPEC = {"std_us": Param("float", low=0.0), "seed": SEED}
-#: :func:`time_skew`: the coefficient (> 0) and the offset in µs.
-TIME_SKEW_SPEC = {
-    "coefficient": Param("float", low=0.0, low_open=True), "offset_us": Param("float"),
-}
 
 
 def crop_time_spec(shape: Sequence[int], length: int) -> dict[str, Param]:
@@ -439,7 +432,7 @@ def time_reversal(inputs: Tensor | EventBatch, reverse: Tensor | None = None) ->
         >>> time_reversal(frames)[:, :, 0, 0].tolist()
         [[0, 0], [0, 0], [4, 0]]
     """
-    from .geometry import _flags
+    from ._frame_ops import _flags
 
     batch, b, restore = batch_of(inputs)
     return restore(call_kernel(time_reversal, batch, _flags(reverse, b, "reverse")))
@@ -669,8 +662,8 @@ def _groups(batch: EventBatch) -> tuple[Tensor, int]:
     """Per event its group ``(sample * T + bin) * 2 + p`` (int32; ``G`` outside the grid's
     window) and the number of groups G."""
     starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
-    from ..events.batch import _relative_times
-    from ..events.binning import _bins_of
+    from ..events._kernel import _relative_times
+    from ..events._kernel import _bins_of
 
     sample = batch.sample_index()
     bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
@@ -728,7 +721,8 @@ def _shift_events(
     leaving = torch.cat([(leaving < 0) | (leaving >= n_frames), torch.zeros(1, dtype=torch.bool)]).to(device)
     keep = leaving.index_select(0, group).logical_and_(moved).logical_not_()
     del group
-    warn_dropped(batch, outside_window=~keep, window=_window_of(batch), stacklevel=4)
+    if counting():  # shifted out of the window by design: counted in a count_dropped block, never warned
+        record_dropped("out_of_window", ~keep)
     # compact first, then move the kept events' times (the temporaries are the output's size)
     index, offsets = _kept(batch, keep)
     del keep
@@ -787,127 +781,6 @@ def _exact_fixup(group: Tensor, groups: int, u: Tensor, moved: Tensor, fraction:
     return out
 
 
-# --------------------------------------------------------------------------- time jitter and skew (events only)
 
 
-def time_jitter(batch: EventBatch, std_us: Scalars, seed: ShiftArg) -> EventBatch:
-    """Add Gaussian noise of ``std_us`` microseconds to every timestamp (events only).
 
-    Rounded for integer timestamps; streams are no longer time-sorted. Sync-free.
-
-    Args:
-        batch: an EventBatch.
-        std_us: standard deviation in µs (>= 0), a number or ``(B,)``.
-        seed: per-sample seeds, an integer or ``(B,)`` int64 in [0, 2**63).
-
-    Shape:
-        - batch: an EventBatch of B streams with N events.
-        - output: an EventBatch of the same B streams, sensor and grid, N events.
-
-    Example:
-        >>> from event_transforms import EventBatch
-        >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 1000, 1]])], sensor_size=(2, 2))
-        >>> time_jitter(batch, 0.0, 3).t.tolist()
-        [1000]
-    """
-    kernel = kernel_for(time_jitter, batch)
-    args = check_args("time_jitter", TIME_JITTER_SPEC, len(batch), std_us=std_us, seed=seed)
-    return kernel(batch, args["std_us"], args["seed"])
-
-
-@register_kernel(time_jitter, EventBatch)
-def time_jitter_events(batch: EventBatch, std_us: Tensor, seed: Tensor) -> EventBatch:
-    """Add Gaussian noise of ``std_us[b]`` microseconds to the timestamps (rounded for
-    integer timestamps). Streams are no longer time-sorted. The normals come from the
-    sample's counter-based stream (``seed[b]`` and the event's position in its sample).
-    Sync-free; the same ops whatever B.
-
-    Args:
-        batch: the event streams.
-        std_us: ``(B,)`` standard deviations in microseconds (>= 0).
-        seed: ``(B,)`` int64 per-sample seeds.
-
-    Shape:
-        - batch: B streams, N events.
-        - std_us, seed: ``(B,)``.
-        - output: the same streams and events.
-
-    Example:
-        >>> from event_transforms import EventBatch
-        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
-        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
-        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
-        >>> jittered = time_jitter_events(batch, torch.tensor([0.0, 30.0]), torch.tensor([1, 2]))
-        >>> jittered.t[:2].tolist(), jittered.x.tolist()  # std 0 moves nothing; pixels kept
-        ([100, 15000], [0, 2, 1])
-    """
-    noise = EventStream.of_batch(batch, seed).normal(TIME_JITTER).to(torch.float64).mul_(
-        _per_event(std_us.to(torch.float64), batch))
-    if batch.t.is_floating_point():
-        return batch._replace(t=batch.t + noise)
-    return batch._replace(t=batch.t + torch.round(noise).to(torch.int64))
-
-
-def time_skew(batch: EventBatch, coefficient: Scalars, offset_us: Scalars = 0.0) -> EventBatch:
-    """Stretch time: ``t -> t0 + coefficient (t - t0) + offset_us`` per sample (events only).
-
-    ``t0`` is the stream's grid start (the first event without a grid). Sync-free.
-
-    Args:
-        batch: an EventBatch.
-        coefficient: factor > 0, a number or ``(B,)``.
-        offset_us: shift in µs, a number or ``(B,)``.
-
-    Shape:
-        - batch: an EventBatch of B streams with N events.
-        - output: an EventBatch of the same B streams, sensor and grid, N events.
-
-    Example:
-        >>> from event_transforms import EventBatch
-        >>> batch = EventBatch.from_streams([torch.tensor([[0, 0, 100, 1], [0, 0, 300, 0]])], sensor_size=(2, 2))
-        >>> time_skew(batch, 2.0, 10.0).t.tolist()
-        [110, 510]
-    """
-    kernel = kernel_for(time_skew, batch)
-    args = check_args("time_skew", TIME_SKEW_SPEC, len(batch), coefficient=coefficient, offset_us=offset_us)
-    return kernel(batch, args["coefficient"], args["offset_us"])
-
-
-@register_kernel(time_skew, EventBatch)
-def time_skew_events(batch: EventBatch, coefficient: Tensor, offset_us: Tensor) -> EventBatch:
-    """``t -> t0 + coefficient[b] (t - t0) + offset_us[b]`` about the stream's grid start
-    ``t0`` (the first event's time without a grid), rounded for integer timestamps. Sync-free.
-
-    Args:
-        batch: the event streams.
-        coefficient: ``(B,)`` time stretch factors.
-        offset_us: ``(B,)`` shifts in microseconds.
-
-    Shape:
-        - batch: B streams, N events.
-        - coefficient, offset_us: ``(B,)``.
-        - output: the same streams and events.
-
-    Example:
-        >>> from event_transforms import EventBatch
-        >>> batch = EventBatch.from_streams([torch.tensor([[0, 1, 100, 1], [2, 0, 15_000, 0]]),
-        ...                                  torch.tensor([[1, 1, 50, 0]])], sensor_size=(2, 3),
-        ...                                  frame_ms=10.0, t_start=0, n_frames=2)
-        >>> time_skew_events(batch, torch.tensor([2.0, 1.0]), torch.tensor([0.0, 10.0])).t.tolist()  # about t0 = 0
-        [200, 30000, 60]
-    """
-    if batch.t_start is not None:
-        origin = _per_event(batch.t_start.to(torch.float64), batch)
-    else:
-        sample = batch.sample_index().to(torch.int64)
-        big = torch.full((len(batch),), math.inf, dtype=torch.float64, device=batch.device)
-        first = big.scatter_reduce(0, sample, batch.t.to(torch.float64), reduce="amin")
-        origin = first.index_select(0, sample)
-    t = batch.t.to(torch.float64)
-    skewed = origin + _per_event(coefficient.to(torch.float64), batch) * (t - origin) + _per_event(
-        offset_us.to(torch.float64), batch)
-    return batch._replace(t=skewed if batch.t.is_floating_point() else torch.round(skewed).to(torch.int64))
-
-
-def _window_of(batch: EventBatch) -> str:
-    return f"of the batch's grid (n_frames={batch.n_frames} of frame_ms={batch.frame_ms}), shifted out of it"

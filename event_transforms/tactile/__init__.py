@@ -10,22 +10,26 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
   for each augmentation);
 - :mod:`~event_transforms.tactile.datasets`: the simulated grasps as data sets, and noise banks;
 - :mod:`~event_transforms.tactile.models`: the reference ConvLSTM force regressor;
-- :mod:`~event_transforms.tactile.ensemble`: many force regressors trained in lockstep;
+- :mod:`~event_transforms.tactile.ensemble`: many force regressors run in lockstep (the ensemble model);
 - :mod:`~event_transforms.tactile.baselines`: baselines the network must beat (trivial ones and a
   physics least-squares model);
-- :mod:`~event_transforms.tactile.training`: timing, batching, scores, atomic result files;
+- :mod:`~event_transforms.tactile.training`: the one trainer (:func:`~event_transforms.tactile.training.train`,
+  ``fit_ensemble``, stopping rule, batch order), timing, scores;
 - :mod:`~event_transforms.tactile.methods`: method names and which methods a scene runs;
 - :mod:`~event_transforms.tactile.copies`: a scene's data, synthetic copies, the paired batch order;
-- :mod:`~event_transforms.tactile.experiment`: the benchmark run (settings, units, resume, budget check);
+- :mod:`~event_transforms.tactile.experiment`: the benchmark run's old home, re-exporting the protocol package's names;
 - :mod:`~event_transforms.tactile.stats`: paired t-intervals, Wilcoxon signed-rank, Holm, summaries;
 - :mod:`~event_transforms.tactile.report`: the benchmark's tables and findings;
 - :mod:`~event_transforms.tactile.distributed`: local ranks, ``torchrun``, worker errors;
-- :mod:`~event_transforms.tactile.protocol`: every public name of the protocol in one place;
+- :mod:`~event_transforms.tactile.protocol`: the protocol by job (config, plan, unit, run, timing,
+  environment), every public name of the protocol in one place;
 - :mod:`~event_transforms.tactile.recordings`: your own recordings (a folder layout,
   :class:`~event_transforms.tactile.recordings.RecordingSet`, the simulator's export);
 - :mod:`~event_transforms.tactile.deployment`: train a model on recordings, stream force estimates;
 - :mod:`~event_transforms.tactile.runs`: the protocol's run store (resume keys);
-- :mod:`~event_transforms.tactile.cli`: the ``event-transforms`` command.
+- :mod:`~event_transforms.tactile.cli`: the ``event-transforms`` command's arguments (the commands'
+  bodies in :mod:`~event_transforms.tactile.commands`, the run's figures in
+  :mod:`~event_transforms.tactile.figures`).
 
 Results obtained on the simulated scenes are results on synthetic data, never the paper's.
 """
@@ -37,7 +41,8 @@ from typing import Any
 
 _SUBMODULES = (
     "simulation", "generators", "scenes", "datasets", "models", "ensemble", "baselines", "training", "methods",
-    "copies", "experiment", "stats", "report", "distributed", "protocol", "cli", "recordings", "deployment", "runs",
+    "copies", "experiment", "stats", "report", "distributed", "protocol", "cli", "commands", "figures", "recordings",
+    "deployment", "runs",
 )
 
 #: Public names of the protocol, importable from here (loaded on first use).

@@ -21,10 +21,11 @@ import torch
 from torch import Tensor, nn
 from torch.utils.data import Dataset
 
+from .._validation import check_positive
 from ..data import AugmentedDataset, SizedDataset
 from .methods import Method
 from .scenes import BenchmarkScene, get_scene
-from .training import Stopwatch, TimedTransform
+from .stopwatch import Stopwatch, TimedTransform
 
 __all__ = [
     "SceneData",
@@ -154,7 +155,7 @@ class DeviceAugment:
     """Transform the copies of a batch on its device, per sample, with a seeded CPU generator.
 
     Called as ``(frames (B, T, 2, H, W), metas) -> frames`` by
-    :func:`~event_transforms.tactile.ensemble.fit_ensemble`: the rows whose metadata say
+    :func:`~event_transforms.tactile.training.fit_ensemble`: the rows whose metadata say
     ``copy >= 1`` go through ``transform`` (its parameters drawn from a CPU generator seeded
     with ``seed``, so a run is reproducible and the device never waits for a draw), the
     originals pass unchanged.
@@ -186,7 +187,7 @@ class DeviceAugment:
 def paired_batches(items: int, copies: int, batch_size: int, steps: int, *, seed: int) -> Tensor:
     """Indices ``(steps, batch_size)`` into ``items`` originals followed by ``copies`` copies of each.
 
-    The originals' order is :func:`~event_transforms.tactile.ensemble.shuffled_batches` of
+    The originals' order is :func:`~event_transforms.tactile.training.shuffled_batches` of
     ``items`` with ``seed``, the same for every method of that seed. Each slot then holds the
     original or one of its copies: visit ``v`` of item ``i`` takes variant
     ``(v + r_i) mod (1 + copies)`` (variant 0 is the original, ``c`` the copy at index
@@ -201,7 +202,6 @@ def paired_batches(items: int, copies: int, batch_size: int, steps: int, *, seed
         >>> torch.equal(doubled % 4, none), sorted(set((doubled // 4).flatten().tolist()))
         (True, [0, 1])
     """
-    from .ensemble import shuffled_batches
 
     if isinstance(copies, bool) or not isinstance(copies, int) or copies < 0:
         raise ValueError(f"copies must be a non-negative int, got {copies!r}")
@@ -217,3 +217,24 @@ def paired_batches(items: int, copies: int, batch_size: int, steps: int, *, seed
         variants.append((visits[item] + int(offsets[item])) % (1 + copies))
         visits[item] += 1
     return (torch.tensor(variants, dtype=torch.int64) * items + base.flatten()).view(steps, batch_size)
+
+
+def shuffled_batches(length: int, batch_size: int, steps: int, *, seed: int) -> Tensor:
+    """Indices ``(steps, batch_size)`` of ``steps`` batches drawn from ``length`` items.
+
+    The items are visited in passes; each pass is a fresh ``torch.randperm`` from one
+    ``torch.Generator`` seeded with ``seed``, and batches run on across the end of a pass
+    (no item is dropped, no batch is short), so a data set with copies gives more distinct
+    data to the same number of steps.
+
+    Example:
+        >>> batches = shuffled_batches(5, 2, 4, seed=0)
+        >>> tuple(batches.shape), sorted(batches.flatten()[:5].tolist())
+        ((4, 2), [0, 1, 2, 3, 4])
+    """
+    for name, value in (("length", length), ("batch_size", batch_size), ("steps", steps)):
+        check_positive(value, name, integer=True)
+    generator = torch.Generator().manual_seed(seed)
+    needed = steps * batch_size
+    passes = [torch.randperm(length, generator=generator) for _ in range(-(-needed // length))]
+    return torch.cat(passes)[:needed].view(steps, batch_size)

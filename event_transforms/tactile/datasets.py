@@ -25,7 +25,6 @@ import dataclasses
 import hashlib
 import json
 import os
-import tempfile
 import warnings
 from collections.abc import Callable
 from functools import cached_property
@@ -40,6 +39,7 @@ from torch.utils.data import Dataset
 from .._validation import check_seed
 from ..transforms.base import as_transform
 from ..events.binning import events_to_frames
+from ._files import atomic_write
 from .scenes import BenchmarkScene, Session, get_scene
 from .simulation import (
     SIMULATOR_VERSION,
@@ -78,21 +78,9 @@ def default_cache_dir() -> Path:
 
 
 def _atomic_save(obj: object, path: Path) -> None:
-    """``torch.save`` to a temporary file in the same folder, then ``os.replace``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            torch.save(obj, stream)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        try:
-            os.unlink(temporary)
-        except FileNotFoundError:
-            pass
-        raise
+    """``torch.save`` through :func:`~event_transforms.tactile._files.atomic_write`."""
+    with atomic_write(path, "wb") as stream:
+        torch.save(obj, stream)
 
 
 def _load_cache(path: Path) -> dict[str, Tensor] | None:
@@ -200,7 +188,10 @@ class TactileGrasps(Dataset):
     ``root`` named by a hash of the session, the seeds, the crop and the simulator version;
     the file is written to a temporary name and then renamed, so an interrupted run never
     leaves a corrupt cache. Later instances memory-map it. Scenes whose sessions agree
-    share the file (every scene but ``size-extrapolation`` trains on the same data).
+    share the file: ``control``, ``timing``, ``orientation`` and ``noise`` train on one data
+    set, ``paper`` and ``paper-membrane`` on another, and ``paper-offset``, ``paper-lag``,
+    ``paper-lag-only`` and ``size-extrapolation`` each on their own (a protocol run trains a
+    member those scenes share once: :mod:`~event_transforms.tactile.protocol.shared`).
 
     Args:
         split: ``"train"`` (48 sequences), ``"holdout"`` (24 more from the training session:

@@ -1,9 +1,10 @@
 """A model a user keeps: train on a folder of recordings, save a checkpoint, stream force estimates.
 
 :func:`train_model` trains one reference :class:`~event_transforms.tactile.models.ForceRegressor`
-by the protocol's rules (the same trainer, one-cycle learning rate, clipping, forces scaled by
-the training mean and standard deviation, the weights with the lowest MSE on the training
-role's hold-out recordings) with no augmentation, the inferred policy or any method name, and
+by the protocol's rules: it calls the protocol's one trainer,
+:func:`~event_transforms.tactile.training.train` (one-cycle learning rate, clipping, forces
+scaled by the training mean and standard deviation, the weights with the lowest MSE on the
+training role's hold-out recordings) with no augmentation, the inferred policy or any method name, and
 returns it with its preprocessing (``frame_ms``, ``crop``, ``pool``, sensor size, force offset,
 force scaling), which :meth:`ForceRegressor.save` writes beside the weights.
 :func:`predict_stream` reads an event file of any length in chunks, bins it with
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ._files import atomic_write
 from .models import ForceRegressor
 
 
@@ -58,39 +60,26 @@ def train_model(
     Returns:
         The model (eval mode) and a summary: the kept step, hold-out, validation and test MSE.
     """
-    from .copies import build_training_set, paired_batches
-    from .ensemble import EnsembleForceRegressor, fit_ensemble
-    from .experiment import _evaluate, _force_stats
-    from .methods import parse_method
-    from .training import Stopwatch, phase_mse
+    from .training import evaluate, mse, train
 
-    parsed = parse_method(method, scene=data.scene)
-    torch.manual_seed(seed)
-    model = ForceRegressor(hidden_channels=tuple(hidden_channels), input_pool=input_pool)
-    offset, scale = _force_stats(data.train)
-    train_set = build_training_set(parsed, data, seed=seed, fixed=True, stopwatch=Stopwatch())
-    copies = parsed.copies if parsed.build(data.noise_bank) is not None else 0
-    batches = [paired_batches(len(data.train), copies, batch_size, steps, seed=seed)]
-    ensemble = EnsembleForceRegressor.from_models([model]).to(device)
-    ensemble.set_force_scaling([offset], [max(scale, 1e-6)])
-    holdout = data.holdout is not None
-    result = fit_ensemble(
-        ensemble, [train_set], data.holdout if holdout else data.train, steps=steps, batch_size=batch_size,
-        seeds=[seed], lr_max=lr, clip=1.0, schedule="one-cycle", eval_every=eval_every,
-        select="best" if holdout else "final", device=device, progress=progress, batches=batches, fixed_data=True,
-        description=f"train {method}",
-    )
+    trained = train(data, [method], [seed], steps=steps, batch_size=batch_size, lr=lr, eval_every=eval_every,
+                    hidden_channels=tuple(hidden_channels), input_pool=input_pool, device=device, progress=progress,
+                    description=f"train {method}")
     scores = {}
     for split in ("val", "test"):
-        pred, target = _evaluate(ensemble, getattr(data, split))
-        scores[f"{split}_mse"] = phase_mse(pred[0], target)["all"] if target.shape[-1] > 10 else float(
-            (pred[0] - target).square().mean())
-    record = result.members[0]
-    trained = ensemble.to("cpu").member(0).eval()
+        if not len(getattr(data, split)):  # a folder of training recordings only: nothing to score
+            scores[f"{split}_mse"] = math.nan
+            continue
+        pred, target = evaluate(trained.model, getattr(data, split))
+        scores[f"{split}_mse"] = mse(pred[0], target)
+    record = trained.result.members[0]
+    holdout = trained.holdout
+    model = trained.model.to("cpu").member(0).eval()
     summary = {"method": method, "seed": seed, "steps": steps, "kept_step": record.best_step if holdout else steps,
                "holdout_mse": record.selected_val_loss if holdout else math.nan, **scores,
-               "force_offset": offset, "force_scale": max(scale, 1e-6), "train_items": len(train_set)}
-    return trained, summary
+               "force_offset": trained.force_offset, "force_scale": trained.force_scale,
+               "train_items": trained.train_items[0]}
+    return model, summary
 
 
 def predict_stream(
@@ -99,6 +88,10 @@ def predict_stream(
     out: str | os.PathLike[str],
     *,
     chunk_size: int = 2**16,
+    sensor_size: tuple[int, int] | None = None,
+    time_unit: str | None = None,
+    columns: str | None = None,
+    log: Any = None,
 ) -> dict[str, Any]:
     """Stream an event file through ``model`` (binned as its ``preprocessing`` says, its
     timestamps read in the training recordings' ``time_unit``) and write ``t_us,force_n`` per
@@ -107,11 +100,24 @@ def predict_stream(
     ``t_us`` is each frame's centre on the force files' clock (the events' clock minus the
     checkpoint's ``force_offset_ms``), so the output reads back as a force file of the layout.
 
+    Args:
+        model: a model with its ``preprocessing`` (a checkpoint of ``event-transforms train``).
+        events: the event file.
+        out: the CSV written.
+        chunk_size: events read per chunk.
+        sensor_size: the file's sensor ``(H, W)`` (default: the size the file states, else the
+            model's); another grid than the model's is read through the model's crop where the
+            crop lies inside it (said in one line to ``log``), else refused.
+        time_unit, columns: how the file's timestamps and ``(N, k)`` columns read (default:
+            the training recordings' settings).
+        log: called with one line when the grid differs from the model's.
+
     Returns:
         ``frames``, ``events``, and the per-step latency ``p50_ms``/``p99_ms``/``mean_ms``.
     """
     from ..functional import iter_frames
-    from .recordings import _EventFile, _scan
+    from ..events.io import EventFile
+    from .recordings.scan import scan_events
 
     settings = getattr(model, "preprocessing", None) or {}
     missing = [k for k in ("frame_ms", "crop", "pool", "sensor_size") if k not in settings]
@@ -120,24 +126,35 @@ def predict_stream(
     path = Path(events)
     if not path.is_file():
         raise ValueError(f"events file {str(path)!r} does not exist")
-    sensor = tuple(settings["sensor_size"])
-    source = _EventFile(path)
-    time_unit = settings.get("time_unit")  # the training recordings' unit (None: microseconds)
-    scan = _scan(source, sensor, str(path), time_unit)  # checked first: sorted, inside the sensor, units
+    trained = (int(settings["sensor_size"][0]), int(settings["sensor_size"][1]))
+    source = EventFile(path, columns=columns if columns is not None else settings.get("columns"))
+    given = None if sensor_size is None else (int(sensor_size[0]), int(sensor_size[1]))
+    if given is not None and source.sensor_size is not None and given != source.sensor_size:
+        raise ValueError(f"{path}: the file states a sensor of (H, W) = {source.sensor_size}, but "
+                         f"sensor_size={given}; leave sensor_size out to use the file's")
+    sensor = given or source.sensor_size or trained
+    top, left, height, width = (int(v) for v in settings["crop"])
+    crop = (top, left, height, width)
+    if sensor != trained:
+        if crop[0] + crop[2] > sensor[0] or crop[1] + crop[3] > sensor[1]:
+            raise ValueError(f"the model was trained on a {trained} (H, W) sensor with crop {crop}, which does not fit "
+                             f"this file's {sensor} sensor: train a model on recordings of this camera")
+        if log:
+            log(f"the model was trained on a {trained} (H, W) sensor, this file's is {sensor}: the model's crop {crop} "
+                "is read from it (events outside the crop ignored)")
+    time_unit = time_unit or settings.get("time_unit")  # default: the training recordings' unit (None: µs)
+    scan = scan_events(source, sensor, str(path), time_unit)  # checked first: sorted, inside the sensor, units
     frame_ms = float(settings["frame_ms"])
     frame_us = frame_ms * 1000.0
     t0 = (scan.t_min // frame_us) * frame_us
     offset_us = 1000.0 * float(settings.get("force_offset_ms", 0.0))
     latencies = []
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    temporary = out.with_name(f".{out.name}.tmp")
     state = None
     count = 0
-    with torch.no_grad(), open(temporary, "w") as handle:
+    with torch.no_grad(), atomic_write(out) as handle:
         handle.write("t_us,force_n\n")
         frames = iter_frames(source.chunks(chunk_size), sensor_size=sensor, t_start=t0, frame_ms=frame_ms,
-                             crop=tuple(settings["crop"]), pool=int(settings["pool"]), time_unit=time_unit or "us")
+                             crop=crop, pool=int(settings["pool"]), time_unit=time_unit or "us")
         for frame in frames:
             tick = time.perf_counter()
             force, state = model.step(frame.unsqueeze(0), state)
@@ -145,7 +162,6 @@ def predict_stream(
             centre = t0 + (count + 0.5) * frame_us - offset_us
             handle.write(f"{centre:.0f},{float(force[0]):.9g}\n")
             count += 1
-    os.replace(temporary, out)
     ms = np.array(latencies) * 1000.0
     return {"frames": count, "events": scan.events, "p50_ms": float(np.percentile(ms, 50)),
             "p99_ms": float(np.percentile(ms, 99)), "mean_ms": float(ms.mean())}

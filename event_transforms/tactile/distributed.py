@@ -20,6 +20,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ._files import atomic_write
+
 __all__ = ["spawn", "join_from_env", "current_group", "gather_to_rank0", "broadcast_from_rank0"]
 
 
@@ -49,8 +51,8 @@ def _record(errors: str, rank: int, error: BaseException) -> None:
     except Exception:  # an exception that does not pickle: keep its type name and message
         payload = pickle.dumps(RuntimeError(f"{type(error).__name__}: {error}"))
     path = Path(errors) / f"rank-{rank}.pickle"
-    path.with_suffix(".tmp").write_bytes(payload)
-    os.replace(path.with_suffix(".tmp"), path)
+    with atomic_write(path, "wb") as handle:
+        handle.write(payload)
 
 
 def _recorded(errors: str) -> BaseException | None:

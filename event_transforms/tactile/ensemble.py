@@ -12,9 +12,13 @@ MSE's), Adam is elementwise and gradient clipping is per member.
 ``ForceRegressor`` with the same outputs (up to float rounding: the summation order of a
 grouped convolution differs from a plain one).
 
-:func:`fit_ensemble` trains every member for the same number of optimiser steps, each on its
-own data set, shuffled with its own seed, with a one-cycle (or cosine) learning rate,
-per-member gradient clipping, periodic validation and optional per-member early stopping.
+This module is the model: the ensemble, its grouped ConvLSTM cells and
+:func:`predict_ensemble` (the one evaluation loop). Its trainer lives in
+:mod:`event_transforms.tactile.training` (:func:`~event_transforms.tactile.training.train`,
+:func:`~event_transforms.tactile.training.fit_ensemble`, the stopping rule, the batch order
+:func:`~event_transforms.tactile.training.shuffled_batches`, per-member clipping
+:func:`~event_transforms.tactile.training.clip_grad_norm_per_member_`, ``MemberRecord``,
+``EnsembleResult``); those names are still importable from here (re-exported on first use).
 
 Measured cost of one optimiser step, ensemble / loop of M separate models (CPU, one
 thread, 2-core machine shared with other jobs; ``hidden_channels=(8,)``, batch 8 per
@@ -62,11 +66,8 @@ Example:
 
 from __future__ import annotations
 
-import math
-import sys
-import time
-from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+import importlib
+from collections.abc import Sequence
 from typing import Any, cast
 
 import torch
@@ -86,15 +87,18 @@ from .models import (
     _pool_counts,
 )
 
-__all__ = [
-    "EnsembleForceRegressor",
-    "MemberRecord",
-    "EnsembleResult",
-    "clip_grad_norm_per_member_",
-    "shuffled_batches",
-    "fit_ensemble",
-    "predict_ensemble",
-]
+#: The trainer's names, which lived here before: they live in :mod:`~event_transforms.tactile.training`
+#: and are re-exported from here, loaded on first use.
+_TRAINER_NAMES = ("MemberRecord", "EnsembleResult", "clip_grad_norm_per_member_", "shuffled_batches", "fit_ensemble")
+
+__all__ = ["EnsembleForceRegressor", "predict_ensemble", *_TRAINER_NAMES]
+
+
+def __getattr__(name: str) -> Any:
+    # lazily, so that training (which imports this module) and this module form no import cycle
+    if name in _TRAINER_NAMES:
+        return getattr(importlib.import_module(f"{__package__}.training"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _grouped_conv(x: Tensor, weight: Tensor, groups: int) -> Tensor:
@@ -400,115 +404,6 @@ class EnsembleForceRegressor(nn.Module):
         return f"members={self.members}, " + ", ".join(f"{k}={v!r}" for k, v in self.config.items())
 
 
-# ----------------------------------------------------------------------------- training
-
-
-def shuffled_batches(length: int, batch_size: int, steps: int, *, seed: int) -> Tensor:
-    """Indices ``(steps, batch_size)`` of ``steps`` batches drawn from ``length`` items.
-
-    The items are visited in passes; each pass is a fresh ``torch.randperm`` from one
-    ``torch.Generator`` seeded with ``seed``, and batches run on across the end of a pass
-    (no item is dropped, no batch is short), so a data set with copies gives more distinct
-    data to the same number of steps.
-
-    Example:
-        >>> batches = shuffled_batches(5, 2, 4, seed=0)
-        >>> tuple(batches.shape), sorted(batches.flatten()[:5].tolist())
-        ((4, 2), [0, 1, 2, 3, 4])
-    """
-    for name, value in (("length", length), ("batch_size", batch_size), ("steps", steps)):
-        _check_positive_int(value, name)
-    generator = torch.Generator().manual_seed(seed)
-    needed = steps * batch_size
-    passes = [torch.randperm(length, generator=generator) for _ in range(-(-needed // length))]
-    return torch.cat(passes)[:needed].view(steps, batch_size)
-
-
-def clip_grad_norm_per_member_(parameters: Sequence[Tensor], max_norm: float) -> Tensor:
-    """Clip each member's gradient to norm ``max_norm``; return the norms before clipping.
-
-    Every parameter's first dimension is the member. Member ``m``'s norm is the 2-norm over
-    its slices of every gradient, and its slices are scaled by
-    ``min(1, max_norm / (norm + 1e-6))``, as :func:`torch.nn.utils.clip_grad_norm_` does for
-    one model. No host synchronisation.
-
-    Example:
-        >>> w = torch.zeros(2, 3, requires_grad=True)
-        >>> w.grad = torch.tensor([[3.0, 4.0, 0.0], [0.3, 0.4, 0.0]])
-        >>> clip_grad_norm_per_member_([w], 1.0).tolist()
-        [5.0, 0.5]
-        >>> [[round(v, 4) for v in row] for row in w.grad.tolist()]
-        [[0.6, 0.8, 0.0], [0.3, 0.4, 0.0]]
-    """
-    grads = [p.grad for p in parameters if p.grad is not None]
-    if not grads:
-        return torch.zeros(0)
-    # member by member: a row reduction of (M, K) sums in another order than the same row
-    # alone, and a last-bit change in the clip scale made a seed's training depend on how
-    # many members shared its ensemble (issue 24)
-    squares = torch.stack(
-        [torch.stack([g.detach()[m].square().sum() for g in grads]).sum() for m in range(grads[0].shape[0])]
-    )
-    norms = squares.sqrt()
-    coef = (max_norm / (norms + 1e-6)).clamp(max=1.0)
-    for g in grads:
-        g.detach().mul_(coef.view(-1, *([1] * (g.dim() - 1))).to(g.dtype))
-    return norms
-
-
-@dataclass
-class MemberRecord:
-    """What one member of :func:`fit_ensemble` did (losses in N², steps counted from 1)."""
-
-    member: int
-    seed: int
-    steps: int
-    train_loss: list[float] = field(default_factory=list)
-    val_steps: list[int] = field(default_factory=list)
-    val_loss: list[float] = field(default_factory=list)
-    best_val_loss: float = math.inf
-    best_step: int = 0
-    stopped_step: int | None = None
-    selected_val_loss: float = math.inf
-
-
-@dataclass
-class EnsembleResult:
-    """Outcome of :func:`fit_ensemble`; the model holds the selected weights afterwards.
-
-    ``train_s`` is the wall time of the optimiser steps (data loading and augmentation
-    included), ``augmentation_s`` the part of it spent inside a timed augmentation
-    (:class:`~event_transforms.tactile.training.Stopwatch`), ``val_s`` the validation time.
-    """
-
-    members: list[MemberRecord]
-    steps: int
-    select: str
-    schedule: str
-    train_s: float
-    val_s: float
-    augmentation_s: float
-    total_s: float
-
-    @property
-    def seconds_per_step(self) -> float:
-        """Training wall time per optimiser step (all members together)."""
-        return self.train_s / max(self.steps, 1)
-
-    def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict."""
-        out = asdict(self)
-        out["seconds_per_step"] = self.seconds_per_step
-        return out
-
-
-def _stack_member_batch(
-    data: Any, indices: Tensor, collate: Callable[[Sequence[Any]], tuple]
-) -> tuple[Tensor, Tensor, list]:
-    frames, force, metas = collate([data[int(i)] for i in indices])
-    return frames, force, metas
-
-
 @torch.no_grad()
 def predict_ensemble(
     model: EnsembleForceRegressor, frames: Tensor, *, batch_size: int = 32, pooled: bool = False
@@ -532,302 +427,3 @@ def predict_ensemble(
     if not preds:
         raise ValueError("frames must hold at least one sequence, got 0")
     return torch.cat(preds, dim=1)
-
-
-def _validation_mse(model: EnsembleForceRegressor, frames: Tensor, force: Tensor, batch_size: int) -> Tensor:
-    """Per-member MSE over every frame of the shared, pooled validation set, ``(M,)`` float64."""
-    pred = predict_ensemble(model, frames, batch_size=batch_size, pooled=True)
-    return (pred.double() - force.double()).square().mean(dim=(1, 2))
-
-
-def fit_ensemble(
-    model: EnsembleForceRegressor,
-    train_sets: Sequence[Any],
-    val_data: Any,
-    *,
-    steps: int,
-    batch_size: int = 8,
-    seeds: Sequence[int],
-    lr_max: float = 1e-2,
-    clip: float | None = 1.0,
-    schedule: str = "one-cycle",
-    eval_every: int | None = None,
-    patience: int | None = None,
-    select: str = "final",
-    val_batch_size: int = 32,
-    device: str | torch.device | None = None,
-    progress: bool | None = None,
-    stopwatch: Any | None = None,
-    description: str = "ensemble",
-    augment: Sequence[Callable[[Tensor, list], Tensor] | None] | None = None,
-    batches: Sequence[Tensor] | None = None,
-    on_validation: Callable[[dict[str, Any]], None] | None = None,
-    fixed_data: bool = False,
-) -> EnsembleResult:
-    """Train every member of ``model`` for exactly ``steps`` optimiser steps, in lockstep.
-
-    Member ``m`` reads ``train_sets[m]`` (items ``(frames, force, meta)``; sizes may differ:
-    copies add data, not steps), in batches of ``batch_size`` from :func:`shuffled_batches`
-    with ``seeds[m]``. The loss is the sum over members of each member's MSE, so every
-    member gets its own gradient; Adam (elementwise) over all parameters, the learning rate
-    following ``schedule``, gradients clipped per member (:func:`clip_grad_norm_per_member_`).
-
-    Every ``eval_every`` steps and after the last step, each member's validation MSE on
-    ``val_data`` (shared by all members) is computed. With ``patience``, a member whose
-    validation MSE has not improved for ``patience`` evaluations is frozen: its slices are
-    restored after every later optimiser step, so Adam's momentum cannot move it; training
-    ends early when every member is frozen. At the end, ``select="best"`` loads each
-    member's best-validation weights, ``"final"`` keeps the final ones (a frozen member's are
-    those it had when frozen).
-
-    Augmentation inside the data sets that draws from torch's global RNG is not seeded
-    here; seed it before calling for reproducible runs. The force scaling of the members is
-    not changed (set it first with :meth:`EnsembleForceRegressor.set_force_scaling`).
-
-    Args:
-        model: the ensemble; trained in place on ``device``.
-        train_sets: one Dataset per member, items ``(frames, force, meta)``.
-        val_data: a Dataset of such items, or a ``(frames, force)`` pair.
-        steps: optimiser steps per member.
-        batch_size: sequences per member per step.
-        seeds: one shuffling seed per member.
-        lr_max: peak (one-cycle) or initial (cosine, constant) learning rate.
-        clip: per-member gradient-norm limit; ``None`` for no clipping.
-        schedule: ``"one-cycle"`` (:class:`torch.optim.lr_scheduler.OneCycleLR` with its
-            defaults: 30 % warm-up from ``lr_max / 25``, cosine annealing to
-            ``lr_max / 25e4``), ``"cosine"`` (to zero) or ``"constant"``.
-        eval_every: steps between validations; default ``max(1, steps // 20)``.
-        patience: evaluations without improvement before a member is frozen; ``None`` never.
-        select: ``"final"`` or ``"best"``.
-        val_batch_size: sequences per validation forward pass.
-        device: where to train; default the model's device.
-        progress: a tqdm bar; ``None`` shows it only when stderr is a terminal.
-        stopwatch: the :class:`~event_transforms.tactile.training.Stopwatch` of a
-            ``TimedTransform`` inside the data sets; reported as ``augmentation_s``.
-        description: label of the progress bar.
-        augment: per member, ``None`` or a callable ``(frames, metas) -> frames`` applied to
-            the member's batch ``(B, T, 2, H, W)`` after it is moved to ``device``: on-the-fly
-            augmentation on the training device (its time is counted in ``train_s``).
-        batches: per member, the item indices ``(steps, batch_size)`` of every step, instead
-            of :func:`shuffled_batches` (e.g. a schedule that gives paired members the same
-            items at the same steps).
-        on_validation: called after every validation pass with a dict ``step``, ``steps``,
-            ``train_loss`` (mean over members of the last step's MSE), ``val_mse`` (one per
-            member), ``elapsed_s``.
-        fixed_data: the training sets return the same item for an index every time (no
-            randomness in ``__getitem__``, e.g. fixed copies): every item of a set is read
-            and pooled (:meth:`EnsembleForceRegressor.pool`) once, before the first step,
-            instead of at every step. Members with an ``augment`` callable still read and
-            pool their batches at every step.
-
-    With ``progress=None`` and stderr not a terminal, one plain line per validation pass
-    (step, training loss, validation MSE range, elapsed time and ETA) replaces the bar.
-
-    Example:
-        >>> from torch.utils.data import TensorDataset
-        >>> g = torch.Generator().manual_seed(0)
-        >>> x = torch.poisson(torch.full((6, 5, 2, 8, 8), 0.5), generator=g)
-        >>> data = TensorDataset(x, x.sum((2, 3, 4)) / 20)
-        >>> _ = torch.manual_seed(0)
-        >>> ensemble = EnsembleForceRegressor(2, hidden_channels=(2,), input_pool=2)
-        >>> result = fit_ensemble(ensemble, [data, data], data, steps=6, batch_size=2,
-        ...                       seeds=[0, 1], eval_every=3, select="best", progress=False)
-        >>> [m.val_steps for m in result.members], len(result.members[0].train_loss)
-        ([[3, 6], [3, 6]], 6)
-    """
-    try:
-        from tqdm.auto import tqdm
-    except ImportError as error:
-        raise ImportError(
-            "the training loop needs tqdm, which is not installed: pip install 'event-transforms[app]'",
-            name="tqdm",
-        ) from error
-
-    from .baselines import stack_items
-    from .training import Stopwatch, collate
-
-    if not isinstance(model, EnsembleForceRegressor):
-        raise TypeError(f"model must be an EnsembleForceRegressor, got {type(model).__name__}")
-    members = model.members
-    steps = _check_positive_int(steps, "steps")
-    batch_size = _check_positive_int(batch_size, "batch_size")
-    val_batch_size = _check_positive_int(val_batch_size, "val_batch_size")
-    eval_every = max(1, steps // 20) if eval_every is None else _check_positive_int(eval_every, "eval_every")
-    if patience is not None:
-        _check_positive_int(patience, "patience")
-    if augment is not None and len(augment) != members:
-        raise ValueError(f"augment must hold one callable or None per member ({members}), got {len(augment)}")
-    if isinstance(train_sets, (str, bytes)) or not isinstance(train_sets, Sequence) or len(train_sets) != members:
-        raise ValueError(f"train_sets must hold one Dataset per member ({members}), got {train_sets!r:.80}")
-    seeds = list(seeds)
-    if len(seeds) != members or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
-        raise ValueError(f"seeds must be {members} ints, one per member, got {seeds!r}")
-    if select not in ("final", "best"):
-        raise ValueError(f"select must be 'final' or 'best', got {select!r}")
-    if schedule not in ("one-cycle", "cosine", "constant"):
-        raise ValueError(f"schedule must be 'one-cycle', 'cosine' or 'constant', got {schedule!r}")
-    if not (isinstance(lr_max, (int, float)) and math.isfinite(lr_max) and lr_max > 0):
-        raise ValueError(f"lr_max must be a positive number, got {lr_max!r}")
-    if clip is not None and not (isinstance(clip, (int, float)) and math.isfinite(clip) and clip > 0):
-        raise ValueError(f"clip must be a positive number or None, got {clip!r}")
-    for index, data in enumerate(train_sets):
-        if len(data) == 0:
-            raise ValueError(f"train_sets[{index}] is empty")
-
-    if not isinstance(fixed_data, bool):
-        raise TypeError(f"fixed_data must be a bool, got {fixed_data!r}")
-    device = model.head_weight.device if device is None else torch.device(device)
-    model.to(device)
-    val_frames, val_force = stack_items(val_data)
-    val_frames, val_force = model.pool(val_frames.to(device)), val_force.to(device)
-    # fixed data: each set's items pooled once, (N, T, C, h, w) and (N, T), shared by members
-    pooled_sets: dict[int, tuple[Tensor, Tensor]] = {}
-    if fixed_data:
-        for m, data in enumerate(train_sets):
-            if (augment is None or augment[m] is None) and id(data) not in pooled_sets:
-                chunks, forces = [], []
-                for first in range(0, len(data), 16):  # 16 raw items in memory at a time
-                    frames, force, _ = collate([data[i] for i in range(first, min(first + 16, len(data)))])
-                    chunks.append(model.pool(frames.to(device)))
-                    forces.append(force.to(device))
-                pooled_sets[id(data)] = (torch.cat(chunks), torch.cat(forces))
-    if batches is None:
-        batches = [shuffled_batches(len(data), batch_size, steps, seed=seed) for data, seed in zip(train_sets, seeds)]
-    else:
-        batches = [torch.as_tensor(b, dtype=torch.int64) for b in batches]
-        if len(batches) != members:
-            raise ValueError(f"batches must hold one index tensor per member ({members}), got {len(batches)}")
-        for index, (b, data) in enumerate(zip(batches, train_sets)):
-            if tuple(b.shape) != (steps, batch_size) or (b.numel() and not 0 <= int(b.min()) <= int(b.max()) < len(data)):
-                raise ValueError(
-                    f"batches[{index}] must be ({steps}, {batch_size}) indices into train_sets[{index}] "
-                    f"({len(data)} items), got shape {tuple(b.shape)}"
-                )
-    watch = stopwatch if stopwatch is not None else Stopwatch()
-    params = list(model.parameters())
-    optimiser = torch.optim.Adam(params, lr=lr_max)
-    scheduler: torch.optim.lr_scheduler.LRScheduler | None
-    if schedule == "one-cycle":
-        scheduler = torch.optim.lr_scheduler.OneCycleLR(optimiser, max_lr=lr_max, total_steps=steps)
-    elif schedule == "cosine":
-        scheduler = torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, T_max=steps)
-    else:
-        scheduler = None
-
-    records = [MemberRecord(member=m, seed=seeds[m], steps=0) for m in range(members)]
-    losses = torch.zeros(steps, members, dtype=torch.float64, device=device)
-    best = [p.detach().clone() for p in params]
-    frozen = torch.zeros(members, dtype=torch.bool, device=device)
-    frozen_host = [False] * members
-    frozen_state: list[Tensor] | None = None
-    waited = [0] * members
-    logged = 0
-    train_s = val_s = 0.0
-    aug_start, start = watch.seconds, time.perf_counter()
-    bar = tqdm(range(steps), desc=description, disable=None if progress is None else not progress,
-               leave=False, dynamic_ncols=True)
-    plain = progress is None and bool(bar.disable)  # not a terminal: plain progress lines
-    model.train()
-    step = 0
-    for step in bar:
-        tick = time.perf_counter()
-        inputs, targets = [], []
-        for m in range(members):
-            indices = batches[m][step]
-            if id(train_sets[m]) in pooled_sets and (augment is None or augment[m] is None):
-                pooled, force = pooled_sets[id(train_sets[m])]
-                rows = indices.to(device)
-                inputs.append(pooled.index_select(0, rows))
-                targets.append(force.index_select(0, rows))
-                continue
-            frames, force, metas = _stack_member_batch(train_sets[m], indices, collate)
-            frames = frames.to(device, non_blocking=True)
-            member_augment = None if augment is None else augment[m]
-            if member_augment is not None:
-                frames = member_augment(frames, metas)
-            inputs.append(model.pool(frames))  # pooled per member: M small tensors stacked
-            targets.append(force.to(device, non_blocking=True))
-        frames, force = torch.stack(inputs), torch.stack(targets)
-        pred = model(frames, pooled=True)
-        per_member = (pred - force.to(pred.dtype)).square().mean(dim=(1, 2))
-        optimiser.zero_grad(set_to_none=True)
-        per_member.sum().backward()
-        if clip is not None:
-            clip_grad_norm_per_member_(params, clip)
-        optimiser.step()
-        if frozen_state is not None:
-            with torch.no_grad():
-                for p, saved in zip(params, frozen_state):
-                    p.copy_(torch.where(frozen.view(-1, *([1] * (p.dim() - 1))), saved, p))
-        if scheduler is not None:
-            scheduler.step()
-        losses[step] = per_member.detach().double()
-        train_s += time.perf_counter() - tick
-        if (step + 1) % eval_every and step + 1 != steps:
-            continue
-        tick = time.perf_counter()
-        val = _validation_mse(model, val_frames, val_force, val_batch_size).tolist()
-        history = losses[logged : step + 1].tolist()
-        logged = step + 1
-        newly_frozen = []
-        for m, record in enumerate(records):
-            if frozen_host[m]:
-                continue
-            record.train_loss.extend(row[m] for row in history)
-            record.steps = step + 1
-            record.val_steps.append(step + 1)
-            record.val_loss.append(val[m])
-            if val[m] < record.best_val_loss:
-                record.best_val_loss, record.best_step, waited[m] = val[m], step + 1, 0
-                with torch.no_grad():
-                    for p, saved in zip(params, best):
-                        saved[m].copy_(p[m])
-            else:
-                waited[m] += 1
-                if patience is not None and waited[m] >= patience and step + 1 != steps:
-                    newly_frozen.append(m)
-        if newly_frozen:
-            with torch.no_grad():
-                if frozen_state is None:
-                    frozen_state = [p.detach().clone() for p in params]
-                for m in newly_frozen:
-                    frozen_host[m] = True
-                    records[m].stopped_step = step + 1
-                    for p, saved in zip(params, frozen_state):
-                        saved[m].copy_(p[m])
-                frozen[newly_frozen] = True
-        val_s += time.perf_counter() - tick
-        active = [val[m] for m in range(members) if not frozen_host[m]]
-        train_now = sum(history[-1]) / max(len(history[-1]), 1) if history else math.nan
-        bar.set_postfix(loss=f"{train_now:.3g}", val=f"{min(val):.3g}-{max(val):.3g}", active=len(active))
-        if on_validation is not None:
-            on_validation({"step": step + 1, "steps": steps, "train_loss": train_now, "val_mse": val,
-                           "elapsed_s": time.perf_counter() - start})
-        if plain:
-            elapsed = time.perf_counter() - start
-            eta = elapsed / (step + 1) * (steps - step - 1)
-            print(f"{description}: step {step + 1}/{steps}, train loss {train_now:.3g}, "
-                  f"val MSE {min(val):.3g}-{max(val):.3g}, {elapsed:.0f} s elapsed, ETA {eta:.0f} s",
-                  file=sys.stderr, flush=True)
-        if all(frozen_host):
-            break
-    bar.close()
-
-    with torch.no_grad():
-        for m, record in enumerate(records):
-            if select == "best":
-                for p, saved in zip(params, best):
-                    p[m].copy_(saved[m])
-                record.selected_val_loss = record.best_val_loss
-            else:
-                record.selected_val_loss = record.val_loss[-1]
-    return EnsembleResult(
-        members=records,
-        steps=step + 1,
-        select=select,
-        schedule=schedule,
-        train_s=train_s,
-        val_s=val_s,
-        augmentation_s=watch.seconds - aug_start,
-        total_s=time.perf_counter() - start,
-    )

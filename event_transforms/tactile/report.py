@@ -1,6 +1,6 @@
 """The protocol's report: per-scene markdown tables, one-sentence findings, the whole report.
 
-Reads the ``results.json`` dict that :func:`~event_transforms.tactile.experiment.run_protocol`
+Reads the ``results.json`` dict that :func:`~event_transforms.tactile.protocol.run.run_protocol`
 writes (per scene: baselines, and per method the per-seed values and Δ vs ``none``).
 """
 

@@ -1,7 +1,7 @@
 """The protocol's run store: finished units on disk, keyed on everything that decides a result.
 
 A unit's file (``OUT/runs/<settings key>/<unit>.json``) holds ``{"key": ..., "result": ...}``.
-The folder's key is a hash of the protocol settings (:class:`~event_transforms.tactile.experiment.ProtocolConfig`),
+The folder's key is a hash of the protocol settings (:class:`~event_transforms.tactile.protocol.config.ProtocolConfig`),
 the seeds, the reference model's constructor defaults and the package version, so a rerun
 with other seeds or settings never reads another run's units (and a results table never
 mixes seed sets). The file's key adds the scene, its methods and the data: for a built-in
@@ -124,6 +124,6 @@ def read_unit(path: Path, key: dict[str, Any]) -> tuple[dict[str, Any] | None, s
 
 def write_unit(path: Path, key: dict[str, Any], result: dict[str, Any]) -> None:
     """Write a unit's file atomically."""
-    from .training import write_json_atomic
+    from ._files import write_json_atomic
 
     write_json_atomic(path, {"key": key, "result": result})

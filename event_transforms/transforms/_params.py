@@ -19,15 +19,13 @@ dtypes and shapes are checked, their ranges are not. The reads run inside the pr
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any, Union
+from typing import Any, Protocol, Union
 
 import torch
 from torch import Tensor
 
 from .._params import Param, _check_leaf
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .base import EventTransform
 
 __all__ = ["Param", "Params", "Spec", "check_tree", "slice_params", "CHECK_RANGE"]
 
@@ -41,10 +39,20 @@ CHECK_RANGE = "event_transforms::check_params"
 
 #: A module's description of its params dict: a :class:`Param` per own entry and a
 #: ``(child, shape)`` pair per child of a container.
-Spec = Mapping[str, Union[Param, "tuple[EventTransform, torch.Size]"]]
+Spec = Mapping[str, Union[Param, "tuple[Declares, torch.Size]"]]
 
 
-def check_tree(module: EventTransform, params: object, shape: torch.Size, path: str = "params") -> dict[str, Any]:
+class Declares(Protocol):
+    """What :func:`check_tree` reads of a module: its gate probability and its declaration
+    (:class:`~event_transforms.EventTransform` is one; a Protocol, so this module needs no
+    import of the base class)."""
+
+    p: float
+
+    def params_spec(self, shape: torch.Size) -> Spec: ...
+
+
+def check_tree(module: Declares, params: object, shape: torch.Size, path: str = "params") -> dict[str, Any]:
     """Check ``params`` against ``module.params_spec(shape)``; return it with canonical dtypes.
 
     Raises:

@@ -19,12 +19,15 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive, per_sample_pairs
+from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
 from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.affine import AFFINE_SPEC, PERSPECTIVE_SPEC, RESIZE_SPEC, ROTATE_SPEC, Center, _check_center, _image_corners, elastic_spec
+from ..functional.affine import AFFINE_SPEC, RESIZE_SPEC, ROTATE_SPEC
+from ..functional.elastic import elastic_spec
+from ..functional.perspective import PERSPECTIVE_SPEC
+from ..functional._warp import Center, _check_center, _image_corners
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [
@@ -66,7 +69,7 @@ class _Rotation(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return ROTATE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.rotate, inputs, params["angle"], center=self.center, mode=self.mode)
 
 
@@ -74,7 +77,7 @@ class _Zoom(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return RESIZE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.resize, inputs, params["scale"], center=self.center, mode=self.mode)
 
 
@@ -237,7 +240,7 @@ class _AffineWarp(_Affine):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return AFFINE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(
             F.affine, inputs, params["angle"], params["scale"], shear=params["shear"], translate=params["translate"],
             center=self.center, mode=self.mode,
@@ -346,7 +349,8 @@ class RandomAffine(_AffineWarp):
         self.degrees = check_pair(degrees, "degrees", symmetric=True)
         self.translate = None
         if translate is not None:
-            fractions = per_sample_pairs(translate, 1, "translate")[0].tolist()
+            fractions = check_args(type(self).__name__, {"translate": Param("float", shape=(2,))}, 1,
+                                   translate=translate)["translate"][0].tolist()
             if not all(0 <= f <= 1 for f in fractions):
                 raise ValueError(f"translate fractions must lie in [0, 1], got {translate!r}")
             self.translate = tuple(fractions)
@@ -432,7 +436,7 @@ class RandomPerspective(_Warp):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return PERSPECTIVE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.perspective, inputs, params["corners"].detach().to("cpu", torch.float64), self.mode)
 
     def _settings(self) -> str:
@@ -489,7 +493,7 @@ class RandomElastic(_Warp):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return elastic_spec(shape)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         alpha = params["alpha"].detach().to("cpu", torch.float64)
         return call_kernel(F.elastic, inputs, params["noise"], alpha, self.sigma, self.mode)
 

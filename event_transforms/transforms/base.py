@@ -11,12 +11,12 @@ A module holds settings. A call has two steps:
    of its own input and its own slice of the tree (per-sample purity): ``module(x[i:i+1],
    params=slice_params(tree, [i]))`` equals ``module(x, params=tree)[i]``. Containers return one entry per child, so a call's
    parameters are one tree.
-2. :meth:`EventTransform.apply` hands a batch (frames or an :class:`EventBatch`) and its
+2. :meth:`EventTransform.apply_transform` hands a batch (frames or an :class:`EventBatch`) and its
    parameters to the operation's kernel for that input type, through the registry of
    :mod:`event_transforms.functional` (``call_kernel(F.rotate, inputs, ...)``).
 
 ``module(frames, params=tree)`` replays a draw exactly, whatever the global RNG state.
-Subclasses override :meth:`~EventTransform.sample_params` and :meth:`~EventTransform.apply`;
+Subclasses override :meth:`~EventTransform.sample_params` and :meth:`~EventTransform.apply_transform`;
 ``forward`` and ``make_params`` are not overridden.
 
 The calling convention (owned here and nowhere else): every module is called as
@@ -31,8 +31,8 @@ container or data set is handed (a plain function, a torchvision transform) is w
 
 from __future__ import annotations
 
-import functools
 import sys
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, cast, overload
 
@@ -43,6 +43,7 @@ from torch import Tensor, nn
 from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape
 from ..events.batch import EventBatch, _on, merge_streams, replace_streams
 from ..functional._dispatch import NoKernelError
+from ..functional._random import draw_seeds
 from ._params import CHECK_RANGE, Param, Params, Spec, check_tree, slice_params
 
 __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY"]
@@ -50,19 +51,25 @@ __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAME
 #: The key under which a dict input holds the frames.
 FRAMES_KEY = "frames"
 
-def _also_module_apply(apply: Callable[..., Any]) -> Callable[..., Any]:
-    """``apply`` of a transform that also answers ``torch.nn.Module.apply(fn)``: a call with
-    one callable (not frames, not an EventBatch) and nothing else is torch's ``module.apply``,
-    which calls ``fn`` on every submodule and then on the module."""
+def _adopt_deprecated_apply(cls: type) -> None:
+    """A subclass written for the hook's old name ``apply(inputs, params)``: its method becomes
+    ``apply_transform`` (with a DeprecationWarning naming the new name), and ``apply`` answers
+    both ``module.apply(fn)`` (torch's meaning) and the old call."""
+    old = cls.__dict__["apply"]
+    warnings.warn(
+        f"{cls.__name__} defines apply(inputs, params): the hook is now named apply_transform "
+        "(apply is torch.nn.Module.apply); rename the method. The old name is accepted until the next release.",
+        DeprecationWarning,
+        stacklevel=3,
+    )
 
-    @functools.wraps(apply)
-    def both(self: Any, inputs: Any, *args: Any, **kwargs: Any) -> Any:
+    def apply(self: Any, inputs: Any, *args: Any, **kwargs: Any) -> Any:
         if not args and not kwargs and callable(inputs) and not isinstance(inputs, (Tensor, EventBatch)):
             return torch.nn.Module.apply(self, inputs)
-        return apply(self, inputs, *args, **kwargs)
+        return old(self, inputs, *args, **kwargs)
 
-    both._takes_module_apply = True  # type: ignore[attr-defined]
-    return both
+    cls.apply_transform = old  # type: ignore[attr-defined]
+    cls.apply = apply  # type: ignore[attr-defined]
 
 
 def _numpy_frames(frames: object) -> Any:
@@ -128,9 +135,7 @@ def integers(high: Tensor | int, batch: int, generator: torch.Generator | None) 
 
 def seeds(batch: int, generator: torch.Generator | None) -> Tensor:
     """``batch`` independent 63-bit seeds (int64, CPU), one per sample."""
-    return _cpu(
-        torch.randint(0, 2**63 - 1, (batch,), generator=generator, device=_draw_device(generator), dtype=torch.int64)
-    )
+    return _cpu(draw_seeds(batch, generator))  # the one seed draw, also the dispatchers' (functional._random)
 
 
 def _cpu(tensor: Tensor) -> Tensor:
@@ -283,7 +288,7 @@ class EventTransform(nn.Module):
     """Base class: an ``nn.Module`` mapping event frames to event frames.
 
     Subclasses override :meth:`sample_params` (draw per-sample parameters on the CPU, no
-    state) and :meth:`apply` (call a private kernel on a checked batch). Calling a module
+    state) and :meth:`apply_transform` (call a private kernel on a checked batch). Calling a module
     accepts ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames and returns the same layout on
     the same device (see the module docstring for extra inputs and dicts).
 
@@ -464,15 +469,15 @@ class EventTransform(nn.Module):
         """Hook: the labels ``(B, ...)`` of a call with parameters ``params`` (identity).
 
         Called by :meth:`forward` only for a transform that :attr:`couples_samples`, on
-        the whole batch, after :meth:`apply`; CutMix and MixUp mix the labels here with
+        the whole batch, after :meth:`apply_transform`; CutMix and MixUp mix the labels here with
         the partners and weights of their ``params``; containers chain their members'.
         """
         return labels
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if "apply" in cls.__dict__ and not getattr(cls.__dict__["apply"], "_takes_module_apply", False):
-            cls.apply = _also_module_apply(cls.__dict__["apply"])  # type: ignore[method-assign]
+        if "apply" in cls.__dict__ and "apply_transform" not in cls.__dict__:
+            _adopt_deprecated_apply(cls)
         if cls.sample_params is not EventTransform.sample_params and cls.params_spec is EventTransform.params_spec:
             raise TypeError(
                 f"{cls.__name__} draws parameters (it overrides sample_params), so it must declare them: "
@@ -524,19 +529,16 @@ class EventTransform(nn.Module):
         """Override: this transform's own parameters for a checked batch ``shape``."""
         return {}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # pragma: no cover - abstract; shadows nn.Module.apply (see docstring)
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # pragma: no cover
         """Override: transform a checked batch ``(B, T, 2, H, W)`` or an EventBatch with given
         parameters, by calling the operation's kernels through the registry:
         ``call_kernel(F.rotate, inputs, params["angle"], ...)``
         (:func:`~event_transforms.functional._dispatch.call_kernel`).
 
-        The name shadows ``torch.nn.Module.apply`` (``module.apply(fn)``, which calls
-        ``fn`` on every submodule): kept because every transform and user subclass defines
-        it. A call with one callable and nothing else is torch's meaning: every subclass's
-        ``apply`` is wrapped when the class is defined so that ``model.apply(init_fn)`` on a
-        module tree that holds transforms still reaches every submodule. Type checkers flag
-        each definition against ``nn.Module.apply``: each carries
-        ``# type: ignore[override]``, and a subclass needs the same comment."""
+        kornia names this hook ``apply_transform`` too; ``module.apply(fn)`` stays
+        :meth:`torch.nn.Module.apply`. A subclass that still defines ``apply(inputs, params)``
+        (the name up to 0.1) works for one release: it is adopted as ``apply_transform`` with a
+        :class:`DeprecationWarning` when the class is defined."""
         raise NotImplementedError
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
@@ -544,10 +546,10 @@ class EventTransform(nn.Module):
         return shape
 
     def _dispatch(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
-        """:meth:`apply` on frames or an EventBatch; an operation with no kernel for the input's
+        """:meth:`apply_transform` on frames or an EventBatch; an operation with no kernel for the input's
         type is refused with this module's name."""
         try:
-            return self.apply(inputs, params)
+            return self.apply_transform(inputs, params)
         except NoKernelError as error:
             raise TypeError(f"{type(self).__name__} {error.detail}") from None
 
@@ -659,8 +661,6 @@ class EventTransform(nn.Module):
         return ""
 
 
-EventTransform.apply = _also_module_apply(EventTransform.apply)  # type: ignore[method-assign]
-
 
 class Lambda(EventTransform):
     """A plain function of frames as a transform: ``function(frames) -> frames``.
@@ -692,7 +692,7 @@ class Lambda(EventTransform):
     def params_spec(self, shape: torch.Size) -> Spec:
         return {}
 
-    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, frames: Tensor | EventBatch, params: Params) -> Tensor:
         if isinstance(frames, EventBatch):
             raise NoKernelError("", events=True, detail="has no kernel for an EventBatch; bin the events first with "
                                 "EventsToFrames (it can stand anywhere in a Compose)")

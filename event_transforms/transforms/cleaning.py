@@ -47,7 +47,7 @@ class Denoise(EventTransform):
         self.radius = as_number(radius, "radius", integer=True, low=0)
         self.temporal_radius = as_number(temporal_radius, "temporal_radius", integer=True, low=0)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.denoise, inputs, self.radius, self.temporal_radius)
 
     def _settings(self) -> str:

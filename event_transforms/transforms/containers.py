@@ -138,7 +138,7 @@ class Compose(EventTransform):
             shape = transform.output_shape(shape)
         return shape
 
-    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         for i, transform in enumerate(self.transforms):
             shape = transform.output_shape(frames.shape) if isinstance(frames, Tensor) else None  # not for events
             frames = transform._run(frames, params[str(i)])
@@ -216,7 +216,7 @@ class OneOf(EventTransform):
         spec.update({str(i): (t, shape) for i, t in enumerate(self.transforms)})
         return spec
 
-    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         branches = [
             (lambda sub, index, t=t, i=i: t._run(sub, slice_params(params[str(i)], index)))
             for i, t in enumerate(self.transforms)
@@ -266,6 +266,6 @@ class RandomApply(EventTransform):
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Metadata = None) -> Params:
         return {"0": self.transform.make_params(shape, generator=generator, metadata=metadata)}
 
-    def apply(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return self.transform._run(frames, params["0"])
 

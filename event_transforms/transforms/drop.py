@@ -18,7 +18,6 @@ from .._validation import check_pair, check_positive
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.cleaning import _hot_pixels
 from .._params import SEED
 from ..functional.drop import (
     DECIMATION_SPEC, DROP_BY_AREA_SPEC, DROP_BY_TIME_SPEC, DROP_RANDOM_SPEC, RANDOM_PIXEL_MASK_SPEC, REFRACTORY_PERIOD_SPEC,
@@ -102,7 +101,7 @@ class RandomEventDrop(EventTransform):
             **DROP_RANDOM_SPEC, "seed": SEED, **DROP_BY_TIME_SPEC, **DROP_BY_AREA_SPEC,
         }
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         def by_random(sub: Tensor | EventBatch, index: Tensor) -> Tensor | EventBatch:
             part = slice_params(params, index)
             return call_kernel(F.drop_random, sub, part["fraction"], "binomial", part["seed"], _HINT)
@@ -170,7 +169,7 @@ class DropPixel(EventTransform):
         self.rate_hz = None if rate_hz is None else check_positive(rate_hz, "rate_hz")
         self.frame_ms = check_positive(frame_ms, "frame_ms")
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         if isinstance(inputs, EventBatch):
             if self.pixels is None:
                 raise TypeError(
@@ -183,8 +182,8 @@ class DropPixel(EventTransform):
         if self.pixels is not None:
             mask = _pixel_mask(self.pixels, b, height, width, inputs.device)
         else:
-            assert isinstance(inputs, Tensor)  # an EventBatch without pixels was refused above
-            mask = _hot_pixels(inputs, self.rate_hz * self.frame_ms / 1000.0)
+            assert isinstance(inputs, Tensor) and self.rate_hz is not None  # refused above / set without pixels
+            mask = F.hot_pixels(inputs, self.rate_hz, frame_ms=self.frame_ms)
         return call_kernel(F.drop_pixel, inputs, mask)
 
     def _settings(self) -> str:
@@ -226,7 +225,7 @@ class RandomDropPixel(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return RANDOM_PIXEL_MASK_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         # the same counter-based mask over the pixels of the frames or of the sensor
         height, width = inputs.sensor_size if isinstance(inputs, EventBatch) else inputs.shape[-2:]
         mask = random_pixel_mask(params["seed"], params["fraction"], height, width, inputs.device)
@@ -274,7 +273,7 @@ class RefractoryPeriod(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return REFRACTORY_PERIOD_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.refractory_period, inputs, params["period_us"])
 
     def _settings(self) -> str:
@@ -315,7 +314,7 @@ class Decimation(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return DECIMATION_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.decimation, inputs, params["n"])
 
     def _settings(self) -> str:

@@ -9,10 +9,12 @@ import torch
 from torch import Tensor
 
 from .._validation import FRAME_DTYPES
-from ..events.batch import EventBatch, bin_events
-from ..events.binning import (
-    CHUNK_EVENTS, _explicit_starts, _grid, _integer, _order_names, _T_STARTS, _time_unit, events_to_frames,
-)
+from ..events.batch import EventBatch
+from ..events.binning import bin_events
+from ..events.binning import CHUNK_EVENTS, events_to_frames
+from ..events._kernel import _grid
+from ..events.ingest import _explicit_starts
+from ..events.ingest import _integer, _order_names, _T_STARTS, _time_unit
 from .base import EventTransform, Params
 
 __all__ = ["EventsToFrames"]
@@ -138,7 +140,7 @@ class EventsToFrames(EventTransform):
             columns=self.columns,
         )
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor:
         if isinstance(inputs, EventBatch):  # anywhere in a Compose after event transforms
             return self._bin(inputs)
         return inputs  # made from the events in forward, before the parameters were drawn

@@ -20,12 +20,13 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, per_sample_pairs
+from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair
 from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.geometry import SPATIAL_JITTER_SPEC, TRANSLATE_SPEC, REMAINDERS, _factor, _size, crop_spec, downsampled_size
+from ..functional.geometry import SPATIAL_JITTER_SPEC, TRANSLATE_SPEC, REMAINDERS, _factor, crop_spec, downsampled_size
+from ..functional._frame_ops import _size
 from .base import EventTransform, Param, Params, integers, seeds, uniform
 
 __all__ = [
@@ -38,7 +39,7 @@ class _Roll(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return TRANSLATE_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.translate, inputs, params["shift"])
 
 
@@ -94,7 +95,8 @@ class RandomTranslate(_Roll):
     def __init__(self, max_shift: int | Sequence[int], *, p: float = 1.0) -> None:
         super().__init__(p=p)
         if isinstance(max_shift, (Sequence, Tensor)) and not isinstance(max_shift, (str, bytes)):
-            pair = tuple(per_sample_pairs(max_shift, 1, "max_shift", dtype=torch.int64)[0].tolist())
+            pair = tuple(check_args(type(self).__name__, {"max_shift": Param("int", shape=(2,))}, 1,
+                                    max_shift=max_shift)["max_shift"][0].tolist())
         else:
             pair = (as_number(max_shift, "max_shift", integer=True),) * 2
         if min(pair) < 0:
@@ -137,7 +139,7 @@ class _Crop(EventTransform):
         self._room(shape)
         return crop_spec(shape, self.size)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         if isinstance(inputs, EventBatch) and self.resize:
             raise ValueError(f"{type(self).__name__}(resize=True) interpolates frames; on events crop with resize=False")
         self._room(inputs.frame_shape if isinstance(inputs, EventBatch) else inputs.shape)
@@ -231,7 +233,7 @@ class Downsample(EventTransform):
         self.factor = _factor(factor)
         self.remainder = check_choice(remainder, "remainder", REMAINDERS)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.downsample, inputs, self.factor, self.remainder)
 
     def output_shape(self, shape: torch.Size) -> torch.Size:
@@ -256,7 +258,7 @@ class HorizontalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.horizontal_flip, inputs)
 
 class VerticalFlip(EventTransform):
@@ -274,7 +276,7 @@ class VerticalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.vertical_flip, inputs)
 
 class RandomHorizontalFlip(HorizontalFlip):
@@ -361,7 +363,7 @@ class SpatialJitter(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return SPATIAL_JITTER_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.spatial_jitter, inputs, params["sigma"], params["seed"])
 
     def _settings(self) -> str:

@@ -45,7 +45,7 @@ from torch import Tensor
 
 from .._validation import as_number, check_positive
 from ..events.batch import EventBatch
-from ..functional.geometry import _size
+from ..functional._frame_ops import _size
 from .. import functional as F
 from ..functional._dispatch import call_kernel
 from ..functional.mixing import _check_classes, _mix_labels, CUTOUT_SPEC, cutmix_spec, mix_labels_spec, mixup_spec
@@ -155,7 +155,7 @@ class Cutout(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return CUTOUT_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.cutout, inputs, params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
@@ -254,7 +254,7 @@ class CutMix(_Mixing):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {**cutmix_spec(shape), "weight": mix_labels_spec(shape[0])["weight"]}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.cutmix, inputs, params["partner"], params["top"], params["left"], params["height"], params["width"])
 
     def _settings(self) -> str:
@@ -299,7 +299,7 @@ class MixUp(_Mixing):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return mixup_spec(shape)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.mixup, inputs, params["partner"], params["weight"], params["seed"])
 
     def _settings(self) -> str:

@@ -5,6 +5,7 @@ EventDrop and pixel removal are in :mod:`event_transforms.transforms.drop`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -98,7 +99,7 @@ class AddNoise(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"offset": Param("int", low=0, high=max(self.bank.shape[0] - shape[1], 0))}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         if isinstance(inputs, EventBatch):
             return call_kernel(F.add_noise, inputs, self.bank, params["offset"])
         frames = inputs
@@ -165,9 +166,12 @@ class AddPoissonNoise(EventTransform):
         return params
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
-        return {**ADD_POISSON_NOISE_SPEC, "count": Param("int", low=0, optional=True), "seed": SEED}
+        # count: the sparse path's event totals, drawn at under one expected event per cell; a
+        # replayed tree may not ask for more than 16 events per cell (the kernel places each one)
+        cells = math.prod(shape[1:])
+        return {**ADD_POISSON_NOISE_SPEC, "count": Param("int", low=0, high=16 * cells + 1024, optional=True), "seed": SEED}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(
             F.add_poisson_noise, inputs, params["rate_hz"], params["seed"], frame_ms=self.frame_ms, count=params.get("count")
         )

@@ -33,7 +33,7 @@ class FlipPolarity(EventTransform):
         [5, 1]
     """
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.flip_polarity, inputs)
 
 
@@ -81,7 +81,7 @@ class MergePolarities(EventTransform):
         [[3, 3], [0, 0]]
     """
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.merge_polarities, inputs, True)
 
 

@@ -17,7 +17,7 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
 from ..events.batch import EventBatch
-from ..functional.affine import Center, _check_center
+from ..functional._warp import Center, _check_center
 from .. import functional as F
 from ..functional._dispatch import call_kernel
 from ..functional.stretch import CONTACT, STRETCH_SPEC
@@ -41,7 +41,7 @@ class _StretchWarp(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return {"factor": STRETCH_SPEC["factor"]}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         b = len(inputs) if isinstance(inputs, EventBatch) else inputs.shape[0]
         axis = self.axis if isinstance(self.axis, str) else torch.full((b,), self.axis, dtype=torch.float64)
         return call_kernel(F.stretch, inputs, params["factor"], axis, self.center, self.mode)

@@ -23,9 +23,8 @@ from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
 from .._params import SEED
-from ..functional.temporal import (
-    FRAME_SHIFT_SPEC, TEMPORAL_EVENT_SHIFT_SPEC, TIME_JITTER_SPEC, TIME_SKEW_SPEC, _check_length, crop_time_spec,
-)
+from ..functional.temporal import FRAME_SHIFT_SPEC, TEMPORAL_EVENT_SHIFT_SPEC, _check_length, crop_time_spec
+from ..functional.timestamps import TIME_JITTER_SPEC, TIME_SKEW_SPEC
 from .base import EventTransform, Param, Params, choice, integers, seeds, uniform
 
 __all__ = [
@@ -58,7 +57,7 @@ class _Shift(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return FRAME_SHIFT_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.frame_shift, inputs, params["shift"])
 
 
@@ -70,7 +69,7 @@ class _EventShift(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return TEMPORAL_EVENT_SHIFT_SPEC if self.mode == "expected" else {**TEMPORAL_EVENT_SHIFT_SPEC, "seed": SEED}
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         hint = (
             f"{type(self).__name__}(mode={self.mode!r}) moves whole events: apply it before interpolating "
             "transforms (bilinear rotate/resize), or use mode='expected'"
@@ -267,7 +266,7 @@ class TimeReversal(EventTransform):
         [[0.0, 0.0], [0.0, 0.0], [4.0, 0.0]]
     """
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.time_reversal, inputs)
 
 class RandomTimeReversal(TimeReversal):
@@ -307,7 +306,7 @@ class _CropTime(EventTransform):
         self._room(shape)
         return crop_time_spec(shape, self.length)
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         self._room(inputs.frame_shape if isinstance(inputs, EventBatch) else inputs.shape)
         return call_kernel(F.crop_time, inputs, params["start"], self.length)
 
@@ -416,7 +415,7 @@ class TimeJitter(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return TIME_JITTER_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.time_jitter, inputs, params["std_us"], params["seed"])
 
     def _settings(self) -> str:
@@ -462,7 +461,7 @@ class TimeSkew(EventTransform):
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return TIME_SKEW_SPEC
 
-    def apply(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:  # type: ignore[override]  # shadows nn.Module.apply: see EventTransform.apply
+    def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         return call_kernel(F.time_skew, inputs, params["coefficient"], params["offset_us"])
 
     def _settings(self) -> str:

@@ -1,0 +1,136 @@
+"""What a protocol run will do before it does it: work units, each scene's methods, the cost.
+
+A unit is a scene's methods (``group="scene"``) or one method of a scene (``group="method"``);
+:func:`work_units` orders them costly first, :func:`choose_methods` checks every method name
+before any work, :func:`plan_run` counts members and member-steps (the budget check's and the
+equal-time retraining's included).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..copies import SceneData
+from ..methods import methods_for, parse_method
+from ..scenes import BenchmarkScene, get_scene
+from .config import ProtocolConfig
+from .shared import Sharing
+
+__all__ = ["Unit", "resolve_scene", "work_units", "budget_scenes", "choose_methods", "plan_run"]
+
+
+@dataclass
+class Unit:
+    """A unit of work: ``methods`` of ``scene``, trained together as one ensemble, and scored too
+    for the ``also`` members other scenes borrow (``(method, scene, its method)``; see
+    :mod:`~event_transforms.tactile.protocol.shared`)."""
+
+    scene: str
+    methods: tuple[str, ...]
+    also: tuple[tuple[str, str, str], ...] = ()
+
+    @property
+    def slug(self) -> str:
+        return re.sub(r"[^a-z0-9.+-]+", "_", f"{self.scene}__{'+'.join(self.methods)}".lower())
+
+
+def resolve_scene(scene: str, data: dict[str, SceneData] | None) -> BenchmarkScene:
+    """A scene by name: the given data's own scene (e.g. a folder of recordings), else a built-in one."""
+    if isinstance(scene, str) and data and scene in data:
+        return data[scene].scene
+    return get_scene(scene)
+
+
+def work_units(
+    scenes: Sequence[str], methods: Mapping[str, Sequence[str]], group: str, data: dict[str, SceneData] | None = None,
+    sharing: Sharing | None = None,
+) -> list[Unit]:
+    """Work units; the costly ones (many copies) first, so ranks finish together. With
+    ``sharing``, only the members a scene owns are trained, each unit scored also for its
+    borrowers; a scene that owns none has no unit."""
+    units = []
+    for scene in scenes:
+        names = tuple(methods.get(scene, ())) if sharing is None else sharing.owned.get(scene, ())
+        if not names:
+            continue
+        if group == "scene":
+            units.append(Unit(scene, names, sharing.also(scene, names) if sharing else ()))
+        else:
+            units.extend(Unit(scene, (m,), sharing.also(scene, (m,)) if sharing else ()) for m in names)
+    return sorted(units, key=lambda u: -max(parse_method(m, scene=resolve_scene(u.scene, data)).copies for m in u.methods))
+
+
+def budget_scenes(
+    scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], data: dict[str, SceneData] | None = None
+) -> list[str]:
+    """The scenes whose verdicts get a budget check: a gap, ``none`` and another method."""
+    return [s for s in scenes if resolve_scene(s, data).gaps and "none" in chosen[s] and len(chosen[s]) > 1]
+
+
+def choose_methods(
+    scenes: Sequence[str], methods: Mapping[str, Sequence[str]] | Sequence[str] | None = None, *, full: bool = False,
+    data: dict[str, SceneData] | None = None,
+) -> dict[str, tuple[str, ...]]:
+    """Each scene's methods: given per scene, given for all, or :func:`methods_for`; every name
+    checked (:func:`parse_method`) before any work.
+
+    Example:
+        >>> choose_methods(["control"], ["none", "fs2"])
+        {'control': ('none', 'fs2')}
+    """
+    resolved = {s: resolve_scene(s, data) for s in scenes}
+    if isinstance(methods, Mapping):
+        chosen = {s: tuple(methods.get(s, methods_for(resolved[s], full=full))) for s in scenes}
+    elif methods is not None:
+        chosen = {s: tuple(methods) for s in scenes}
+    else:
+        chosen = {s: methods_for(resolved[s], full=full) for s in scenes}
+    for scene, names in chosen.items():
+        if len(set(names)) != len(names):
+            raise ValueError(f"methods must be distinct, got {names} for scene {scene!r}")
+        for name in names:
+            parse_method(name, scene=resolved[scene])  # fail before any training
+    return chosen
+
+
+def plan_run(
+    scenes: Sequence[str], methods: Mapping[str, Sequence[str]], seeds: Sequence[int], config: ProtocolConfig, *,
+    group: str = "method", budget_check: bool = True, data: dict[str, SceneData] | None = None,
+    equal_time: bool = False,
+) -> dict[str, Any]:
+    """What a run costs before it starts: units, members and member-steps (one member = one
+    method × seed trained for ``config.steps``), the budget check's share included.
+
+    Multiply ``member_steps`` by the measured seconds per member-step (printed after a unit:
+    ``ensemble_train_s / (ensemble_members · steps)`` in a unit file) for the run's time. With
+    ``equal_time``, ``equal_time_member_steps_max`` bounds the retraining at equal wall time
+    (its steps depend on the timings measured after the main units).
+
+    Example:
+        >>> plan = plan_run(["control", "timing"], {"control": ["none", "fs2"], "timing": ["none", "fs2"]},
+        ...                 range(8), ProtocolConfig(steps=100))
+        >>> plan["units"], plan["members"], plan["member_steps"], plan["budget_member_steps"]
+        (4, 32, 3200, 3200)
+    """
+    units = work_units(scenes, methods, group, data)
+    members = sum(len(u.methods) for u in units) * len(seeds)
+    checked = budget_scenes(scenes, methods, data) if budget_check else []
+    budget_members = 2 * len(checked) * len(seeds)
+    return {
+        "units": len(units),
+        "members": members,
+        "member_steps": members * config.steps,
+        "budget_check_scenes": checked,
+        "budget_units": len(checked) if group == "scene" else 2 * len(checked),
+        "budget_members": budget_members,
+        "budget_member_steps": budget_members * 2 * config.steps,
+        "total_member_steps": members * config.steps + budget_members * 2 * config.steps,
+        # equal wall time retrains every method but none for at most config.steps (known after timing)
+        "equal_time_member_steps_max": (
+            sum(len([m for m in methods[s] if m != "none"]) for s in scenes) * len(seeds) * config.steps
+            if equal_time else 0
+        ),
+    }

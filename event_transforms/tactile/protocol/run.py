@@ -1,0 +1,428 @@
+"""The whole protocol run: units spread over ranks, resumed from disk, the budget check, the
+time columns, equal wall time, ``results.json`` and ``results.md`` (:func:`run_protocol`).
+
+Each rank trains its share of the units (:func:`~event_transforms.tactile.protocol.unit.run_unit`,
+which calls the one trainer :func:`~event_transforms.tactile.training.train`); every finished
+unit is kept on disk (:mod:`~event_transforms.tactile.runs`), so an interrupted run resumes.
+Statistics are in :mod:`~event_transforms.tactile.stats`, tables in
+:mod:`~event_transforms.tactile.report`, processes in :mod:`~event_transforms.tactile.distributed`.
+Results on the package's simulated scenes are results on synthetic data, not the paper's.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from .. import distributed
+from .._files import write_json_atomic
+from ..copies import SceneData, load_scene_data
+from ..report import format_report
+from ..runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
+from ..scenes import SCENES
+from ..stats import deltas_vs_none, paired_t, summarize_scene
+from .config import ProtocolConfig
+from .environment import environment, git_commit
+from .plan import Unit, choose_methods, plan_run, work_units
+from .shared import SHARED_SEPARATOR, collect, plan_sharing
+from .timing import equal_time_steps, measure_timing
+from .unit import run_unit
+
+__all__ = ["run_protocol", "PROGRESS_LEGEND"]
+
+#: What the columns of the plain progress lines mean (printed once at the start of a run).
+PROGRESS_LEGEND = (
+    "progress lines: [rank r] unit k/N (this unit's place among all units of the run) scene: methods — "
+    "step s/S of this unit; train MSE = the last step's training MSE, mean over the unit's members "
+    "(each method × seed), N²; hold-out MSE a–b = lowest–highest member MSE on the hold-out sequences "
+    "of the training session (the stopping rule's data, never deployment data), N²; ETA = this unit's "
+    "time left, then the whole run's on this rank (budget check included)"
+)
+
+
+def _baselines(data: SceneData) -> dict[str, dict[str, float]]:
+    from ..baselines import evaluate_baselines, stack_items
+
+    train, val, test = (stack_items(d) for d in (data.train, data.val, data.test))
+    scores = evaluate_baselines(train, val, test)
+    small = evaluate_baselines(train, (val[0][:6], val[1][:6]), (test[0][:6], test[1][:6]))
+    return {
+        name: {**values, "test_mse_paper_split": small[name]["test_mse"], "val_mse_paper_split": small[name]["val_mse"]}
+        for name, values in scores.items()
+    }
+
+
+class _Progress:
+    """Plain progress lines of one rank: unit k/N, this unit's ETA and the whole run's."""
+
+    def __init__(self, costs: list[float], later: float) -> None:
+        self.left, self.later = sum(costs), later
+        self.done, self.start = 0.0, time.perf_counter()
+
+    def eta(self, done_now: float) -> float:
+        elapsed = time.perf_counter() - self.start
+        return elapsed / done_now * (self.left - done_now + self.later) if done_now > 0 else math.nan
+
+    def callback(self, label: str, cost: float) -> Callable[[dict[str, Any]], None]:
+        def report(info: dict[str, Any]) -> None:
+            fraction = info["step"] / info["steps"]
+            unit_eta = info["elapsed_s"] / fraction * (1 - fraction)
+            val = info["val_mse"]
+            print(f"{label}: step {info['step']}/{info['steps']}, train MSE {info['train_loss']:.3g}, "
+                  f"hold-out MSE {min(val):.3g}–{max(val):.3g}, unit ETA {unit_eta:.0f} s, "
+                  f"overall ETA {self.eta(self.done + fraction * cost) / 60:.1f} min", file=sys.stderr, flush=True)
+
+        return report
+
+    def finished(self, cost: float) -> str:
+        self.done += cost
+        return f"overall ETA {self.eta(self.done) / 60:.1f} min" if self.left - self.done + self.later > 0 else "rank done"
+
+
+def _work(
+    rank: int, world: int, units: list[Unit], seeds: list[int], config: ProtocolConfig, runs: Path,
+    root: str | None, device: str, threads: int | None, log: Callable[[str], None] | None, progress: bool | None,
+    given: dict[str, SceneData] | None = None, phase: str = "unit", later_cost: float = 0.0,
+    keys: dict[str, dict[str, Any]] | None = None,
+) -> None:
+    """Rank ``rank``'s share of the units (every ``world``-th), each saved as it finishes; a
+    unit whose file holds its key (:mod:`~event_transforms.tactile.runs`) is read back instead
+    (the one resume loop)."""
+    if threads:
+        torch.set_num_threads(threads)
+    cache: dict[str, SceneData] = dict(given or {})
+    mine = [(index, unit) for index, unit in enumerate(units) if index % world == rank]
+    cost = {index: len(unit.methods) * len(seeds) * config.steps for index, unit in mine}
+    plain = progress is None and not sys.stderr.isatty()
+    tracker = _Progress(list(cost.values()), later_cost / world)
+    for index, unit in mine:
+        label = f"[rank {rank}] {phase} {index + 1}/{len(units)} {unit.scene}: {', '.join(unit.methods)}"
+        path = runs / f"{unit.slug}.json"
+        stored, reason = read_unit(path, (keys or {}).get(unit.slug, {}))
+        if stored is not None:
+            tracker.left -= cost[index]
+            if log:
+                log(f"{label} — resumed from disk")
+            continue
+        if reason and log:
+            log(f"{label} — {reason}: recomputing")
+        for scene in {unit.scene, *(other for _, other, _ in unit.also)}:
+            if scene not in cache:
+                cache[scene] = load_scene_data(scene, root, paper_split=False)
+        tick = time.perf_counter()
+        result = run_unit(unit.scene, unit.methods, seeds, config, cache[unit.scene], device=device,
+                          progress=False if plain else progress, description=label,
+                          on_validation=tracker.callback(label, cost[index]) if plain else None,
+                          also=unit.also, also_data=cache)
+        write_unit(path, (keys or {}).get(unit.slug, {}), result)
+        eta = tracker.finished(cost[index])
+        if log:
+            scores = "; ".join(
+                f"{m} {statistics.fmean(r['test_mse'] for r in rs):.2f}" for m, rs in result.items()
+                if SHARED_SEPARATOR not in m
+            )
+            if unit.also:
+                scores += f"; also scored for {', '.join(f'{s_} {n}' for _, s_, n in unit.also)} (trained once)"
+            log(f"{label}: test MSE {scores} ({time.perf_counter() - tick:.0f} s; {eta})")
+
+
+def _runwork_units(
+    units: list[Unit], seeds: list[int], config: ProtocolConfig, out: Path, jobs: int, options: tuple,
+    phase: str, later_cost: float, data_keys: dict[str, str],
+) -> dict[str, Any] | None:
+    """Run ``units`` on the ranks (torchrun's, ``jobs`` spawned ones, or this process); every
+    unit's result on rank 0, ``None`` on the other ranks of a torchrun group. Units are kept
+    under ``out/runs/<hash of settings, seeds, model defaults, version>/``."""
+    folder = folder_key(config, seeds)
+    runs = out / "runs" / folder_name(config, seeds)
+    keys = {u.slug: {**unit_key(folder, u.scene, u.methods, data_keys[u.scene]),
+                     **({"also": [[m, s_, n, data_keys[s_]] for m, s_, n in u.also]} if u.also else {})}
+            for u in units}
+    arguments = (units, seeds, config, runs, *options, phase, later_cost, keys)
+    write_json_atomic(runs / "config.json", folder)
+
+    def read(unit: Unit) -> dict[str, Any]:
+        result, reason = read_unit(runs / f"{unit.slug}.json", keys[unit.slug])
+        if result is None:
+            raise ValueError(f"unit {unit.slug}: {reason or 'its run file is missing'} after the run")
+        return result
+
+    group = distributed.current_group()
+    if group is not None:  # the ranks of torchrun
+        rank, world = group
+        _work(rank, world, *arguments)
+        mine = {u.slug: read(u) for i, u in enumerate(units) if i % world == rank}
+        return distributed.gather_to_rank0(mine)
+    if jobs > 1:
+        distributed.spawn(_work, arguments, jobs)
+    else:
+        _work(0, 1, *arguments)
+    return {u.slug: read(u) for u in units}
+
+
+def _per_method(units: list[Unit], results: dict[str, Any], scene: str, names: Sequence[str]) -> dict[str, list]:
+    """Per method of ``scene``, its records by seed: trained by the scene's own units, or
+    borrowed from the unit that trained the same member for another scene."""
+    return collect({u.slug: u.scene for u in units}, results, scene, names)
+
+
+def _budget_choices(units: list[Unit], results: dict[str, Any], scenes: list[str],
+                    chosen: Mapping[str, Sequence[str]]) -> dict[str, str]:
+    """Per checked scene, the method with the largest |Δ test MSE| vs ``none``."""
+    choices = {}
+    for scene in scenes:
+        per_method = _per_method(units, results, scene, chosen[scene])
+        methods = {m: {"seeds": [r["seed"] for r in rs], "test_mse": [r["test_mse"] for r in rs]}
+                   for m, rs in per_method.items()}
+        deltas = deltas_vs_none(methods, "test_mse")
+        if deltas:
+            choices[scene] = max(deltas, key=lambda m: abs(deltas[m]["mean"]))
+    return choices
+
+
+def _budget_check(method: str, steps: int, delta: dict[str, Any], runs_2n: dict[str, list]) -> dict[str, Any]:
+    """Δ at ``steps`` and at twice the steps; robust when the sign agrees and the change is
+    smaller than the CI half-width at ``steps``."""
+    none = {r["seed"]: r["test_mse"] for r in runs_2n["none"]}
+    pairs = [(none[r["seed"]], r["test_mse"]) for r in runs_2n[method] if r["seed"] in none]
+    test = paired_t([a for a, _ in pairs], [b for _, b in pairs])
+    ci = delta.get("ci95")
+    half = (ci[1] - ci[0]) / 2 if ci else math.nan
+    robust = bool(ci) and (delta["mean"] > 0) == (test.mean > 0) and abs(delta["mean"] - test.mean) < half
+    return {"method": method, "steps": steps, "steps_2n": 2 * steps, "delta": delta["mean"],
+            "delta_2n": test.mean, "ci95_2n": list(test.ci) if test.ci else None, "ci95_halfwidth": half,
+            "robust": robust}
+
+
+def _attach_equal_time(summary: dict[str, Any], steps_of: dict[str, int], runs: dict[str, list],
+                       steps: int) -> None:
+    """Per method of ``steps_of``: ``equal_time`` = its steps, per-seed test MSEs and Δ vs ``none``'s
+    main run (one family: the scene's methods at equal wall time); duplicates copy their row's."""
+    methods = summary["methods"]
+    none = methods["none"]
+    table: dict[str, Any] = {"none": {"seeds": none["seeds"], "test_mse": none["test_mse"]}}
+    for method, n in steps_of.items():
+        if n >= steps:  # the online cost leaves every step: the main run is the equal-time run
+            table[method] = {"seeds": methods[method]["seeds"], "test_mse": methods[method]["test_mse"]}
+        else:
+            table[method] = {"seeds": [r["seed"] for r in runs[method]],
+                             "test_mse": [r["test_mse"] for r in runs[method]]}
+    deltas = deltas_vs_none(table, "test_mse")
+    for method, n in steps_of.items():
+        methods[method]["equal_time"] = {"steps": n, "test_mse": table[method]["test_mse"],
+                                         "delta_vs_none": deltas.get(method)}
+    for method, s_ in methods.items():
+        original = s_.get("duplicate_of")
+        if original and "equal_time" in methods.get(original, {}):
+            s_["equal_time"] = dict(methods[original]["equal_time"])
+
+
+def _describe_data(data: dict[str, SceneData], scenes: Sequence[str]) -> str:
+    """What the results rest on: simulated grasps, or folders of recordings (path, files, content hash)."""
+    parts = []
+    for scene in scenes:
+        dataset = getattr(data[scene], "dataset", None)
+        if isinstance(dataset, dict):
+            parts.append(f"{scene}: recordings in {dataset['folder']} ({dataset['files']} files, content hash "
+                         f"{dataset['content_hash'][:16]})")
+    simulated = [s for s in scenes if not isinstance(getattr(data[s], "dataset", None), dict)]
+    if simulated:
+        parts.append(f"{', '.join(simulated)}: simulated tactile grasps (synthetic data, not the paper's recordings)")
+    return "; ".join(parts)
+
+
+def run_protocol(
+    scenes: Sequence[str] | None,
+    seeds: Sequence[int],
+    out: str | Path,
+    *,
+    config: ProtocolConfig | None = None,
+    methods: Mapping[str, Sequence[str]] | Sequence[str] | None = None,
+    full: bool = False,
+    root: str | None = None,
+    jobs: int = 1,
+    device: str = "cpu",
+    threads: int | None = 1,
+    group: str = "scene",
+    data: dict[str, SceneData] | None = None,
+    progress: bool | None = None,
+    log: Callable[[str], None] | None = None,
+    budget_check: bool = True,
+    measure_time: bool = True,
+    equal_time: bool = False,
+) -> dict[str, Any]:
+    """Run every scene's methods for every seed; write ``results.json`` and ``results.md``.
+
+    Work is split into units — a scene's methods trained together as one ensemble
+    (``group="scene"``) or one method at a time (``group="method"``) — spread over ranks:
+    ``jobs`` local processes joined by :mod:`torch.distributed` (gloo), or the ranks of an
+    already initialised process group (``torchrun``). Each finished unit is kept under
+    ``out/runs/<settings hash>/`` so an interrupted run resumes; rank 0 gathers everything
+    and writes the results.
+
+    With ``budget_check``, every scene with a gap then trains ``none`` and the method with
+    the largest |Δ| again at twice the steps (its units kept under their own settings hash)
+    and records ``scenes.NAME.budget_check = {"method", "steps", "steps_2n", "delta",
+    "delta_2n", "ci95_halfwidth", "robust"}``: robust when Δ keeps its sign and moves by less
+    than the CI half-width.
+
+    With ``measure_time``, rank 0 then measures the time columns: one model trained alone
+    for ``config.steps`` steps, three times (:func:`single_model_wall`), and per method the
+    online augmentation cost of one epoch (:func:`online_augmentation_cost`); per method
+    ``online_wall_s`` is one model's time plus that cost times the epochs of a run.
+
+    With ``equal_time`` (and ``measure_time``), every method that is not ``none`` and not a
+    duplicate row is trained again, like the main runs (same seeds, same augmentation mode),
+    for the steps its online augmentation leaves in the wall time one ``none`` model takes
+    for ``config.steps`` (:func:`equal_time_steps`, rounded down to a multiple of
+    ``config.eval_every // 2``); ``scenes.NAME.methods.M.equal_time`` records the steps, the
+    per-seed test MSEs and the Δ vs ``none``'s main run (one family per scene, as above).
+    A method whose online cost leaves every step keeps its main run.
+
+    ``results.json`` records the environment (:func:`environment`): package version and
+    commit, torch, CPU model, kernel set, threads and device.
+
+    ``data`` (scene name -> :class:`~event_transforms.tactile.copies.SceneData`) replaces the
+    simulated scenes, e.g. with your own recordings; it is sent to every worker. Without it,
+    workers read the data cache.
+
+    Returns:
+        The ``results.json`` dict (on rank 0; other ranks of a torchrun group get ``{}``).
+    """
+    config = config or ProtocolConfig()
+    scenes = list(scenes or SCENES)
+    chosen = choose_methods(scenes, methods, full=full, data=data)
+    if group not in ("scene", "method"):
+        raise ValueError(f"group must be 'scene' or 'method', got {group!r}")
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ValueError(f"jobs must be a positive int, got {jobs!r}")
+    out = Path(out)
+    seeds = [int(s) for s in seeds]
+    given = data
+    plan = plan_run(scenes, chosen, seeds, config, group=group, budget_check=budget_check, data=given)
+    start = time.perf_counter()
+    commit = git_commit()  # the code that trains: read before the run, not after (the checkout may move)
+
+    # Data first, in this process: the cache is written once, workers only read it.
+    data = dict(given) if given is not None else {scene: load_scene_data(scene, root) for scene in scenes}
+    missing = [scene for scene in scenes if scene not in data]
+    if missing:
+        raise ValueError(f"data must hold every scene, missing {missing}")
+    data_keys = {scene: data_key(data[scene]) for scene in scenes}
+    sharing = plan_sharing(chosen, data)  # train once: members keyed by what their training reads
+    units = work_units(scenes, chosen, group, given, sharing)
+    plan["shared_members"] = sharing.shared * len(seeds)
+    plan["trained_members"] = plan["members"] - plan["shared_members"]
+    if log:
+        for scene, d in data.items():
+            holdout = f"{len(d.holdout)} hold-out (training session), " if d.holdout is not None else ""
+            log(f"data: scene {scene!r} ({d.scene.description}): {len(d.train)} train, {holdout}{len(d.val)} val, "
+                f"{len(d.test)} test sequences, ready in {d.seconds:.1f} s")
+        log(f"plan: {plan['units']} units, {plan['members']} members × {config.steps} steps = "
+            f"{plan['member_steps']:,} member-steps; budget check of {len(plan['budget_check_scenes'])} gapped "
+            f"scene(s) at {2 * config.steps} steps: {plan['budget_units']} more units, "
+            f"{plan['budget_member_steps']:,} member-steps; total {plan['total_member_steps']:,}")
+        log(f"train once: {plan['shared_members']} of the {plan['members']} members read exactly what a member of "
+            f"another scene reads (the same training data, built policy and seed) and borrow its weights; "
+            f"{plan['trained_members']} are trained")
+        log(PROGRESS_LEGEND)
+    options = (root, device, threads, log, progress, given)
+    results = _runwork_units(units, seeds, config, out, jobs, options, "unit", plan["budget_member_steps"], data_keys)
+
+    # The budget check: none and the method with the largest |Δ|, at twice the steps.
+    checked = plan["budget_check_scenes"]
+    choices: dict[str, str] = {}
+    if checked:
+        if results is not None:
+            choices = _budget_choices(units, results, checked, chosen)
+        if distributed.current_group() is not None:
+            choices = distributed.broadcast_from_rank0(choices)
+    double = ProtocolConfig(**{**asdict(config), "steps": 2 * config.steps})
+    budget_methods = {s: ("none", m) for s, m in choices.items()}
+    budget_units = work_units(list(choices), budget_methods, group, given, plan_sharing(budget_methods, data))
+    budget_results = (_runwork_units(budget_units, seeds, double, out, jobs, options, "budget check", 0.0, data_keys)
+                      if budget_units else {})
+    rank0 = results is not None and budget_results is not None  # else a torchrun rank other than 0
+    timing = measure_timing(scenes, chosen, data, config, threads) if measure_time and rank0 else {}
+
+    scene_results = {}
+    for scene in scenes if rank0 else ():
+        assert results is not None and budget_results is not None  # rank 0 holds every unit's result
+        d = data[scene]
+        sizes = {"train": len(d.train), "val": len(d.val), "test": len(d.test)}
+        if d.holdout is not None:
+            sizes["holdout"] = len(d.holdout)
+        summary = summarize_scene(d.scene, _per_method(units, results, scene, chosen[scene]), _baselines(d), sizes)
+        summary["generation_s"] = d.seconds
+        dataset = getattr(d, "dataset", None)
+        if isinstance(dataset, dict):  # a folder of recordings: how many recordings the intervals rest on
+            summary["recordings"] = dataset["recordings"]
+            summary["dataset"] = dataset
+        if timing:
+            wall = timing["single_model_wall_s"]
+            epochs_of = lambda s_: config.steps * config.batch_size / max(s_["train_items"], 1)  # noqa: E731
+            for method, s_ in summary["methods"].items():
+                cost = timing["online_aug_s_per_epoch"][scene].get(method)
+                s_["single_wall_s"] = wall
+                s_["online_aug_s_per_epoch"] = cost
+                s_["online_wall_s"] = wall["median"] + (cost or 0.0) * epochs_of(s_)
+        if scene in choices:
+            method = choices[scene]
+            summary["budget_check"] = _budget_check(
+                method, config.steps, summary["methods"][method]["delta_vs_none"],
+                _per_method(budget_units, budget_results, scene, ("none", method)),
+            )
+        scene_results[scene] = summary
+
+    # Equal wall time: each method again for the steps its online augmentation leaves.
+    if equal_time and measure_time:
+        grain = max(1, config.eval_every // 2)
+        steps_of: dict[str, dict[str, int]] = {}
+        if rank0:
+            for scene, summary in scene_results.items():
+                for method, s_ in summary["methods"].items():
+                    if method == "none" or s_.get("duplicate_of") or s_.get("online_wall_s") is None:
+                        continue
+                    steps_of.setdefault(scene, {})[method] = equal_time_steps(
+                        config.steps, s_["single_wall_s"]["median"], s_["online_wall_s"], grain=grain)
+        if distributed.current_group() is not None:
+            steps_of = distributed.broadcast_from_rank0(steps_of)
+        equal_runs: dict[str, dict[str, list]] = {}
+        for steps in sorted({n for per in steps_of.values() for n in per.values() if n < config.steps},
+                            reverse=True):
+            subset = {s_: tuple(m for m, n in per.items() if n == steps) for s_, per in steps_of.items()}
+            subset = {s_: ms for s_, ms in subset.items() if ms}
+            equal_units = work_units(list(subset), subset, group, given, plan_sharing(subset, data))
+            shorter = ProtocolConfig(**{**asdict(config), "steps": steps})
+            done = _runwork_units(equal_units, seeds, shorter, out, jobs, options, f"equal time ({steps} steps)", 0.0,
+                              data_keys)
+            if done is not None:
+                for scene, names in subset.items():
+                    equal_runs.setdefault(scene, {}).update(_per_method(equal_units, done, scene, names))
+        for scene, per in steps_of.items() if rank0 else ():
+            _attach_equal_time(scene_results[scene], per, equal_runs.get(scene, {}), config.steps)
+    if not rank0:  # a torchrun rank other than 0
+        return {}
+    results_json = {
+        "commit": commit,
+        "config": {**asdict(config), "seeds": seeds, "scenes": scenes, "jobs": jobs, "device": device,
+                   "threads_per_job": threads, "group": group, "full": full, "budget_check": budget_check,
+                   "equal_time": equal_time},
+        "plan": plan,
+        "wall_s": time.perf_counter() - start,
+        "environment": environment(device, threads),
+        "timing": timing,
+        "data": _describe_data(data, scenes),
+        "scenes": scene_results,
+    }
+    write_json_atomic(out / "results.json", results_json)
+    (out / "results.md").write_text(format_report(results_json) + "\n")
+    return results_json

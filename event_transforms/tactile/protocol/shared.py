@@ -1,0 +1,141 @@
+"""Train once: members keyed by what their training reads, shared by every scene that has them.
+
+A member (method × seed) of a protocol run reads the training and hold-out sets, the built
+augmentation policy (the transform its copies get, and how many copies), the noise bank if
+the policy draws from it, the configuration and its seed. Two scenes whose members read the
+same things train the same weights, bit for bit (members of an ensemble are independent:
+grouped convolutions, per-member clipping and Adam state). So a run keys every (scene,
+method) by :func:`member_key` and trains each key once, in the unit of the first scene that
+has it (its *owner*); the weights are then scored on the validation and test sets of every
+other scene that shares the key (its *borrowers*). Policies are compared as built, not by
+name: ``inferred`` reads each scene's deployment frames and builds another policy per scene.
+
+Example:
+    >>> import torch
+    >>> from event_transforms.tactile.copies import SceneData
+    >>> from event_transforms.tactile.scenes import get_scene
+    >>> g = torch.Generator().manual_seed(0)
+    >>> def items(n):
+    ...     frames = torch.poisson(torch.full((n, 4, 2, 6, 6), 0.5), generator=g)
+    ...     return [(f, f.sum((1, 2, 3)), {"diameter_mm": 15.0}) for f in frames]
+    >>> train, holdout = items(4), items(2)
+    >>> a = SceneData(get_scene("control"), train, items(2), items(2), holdout=holdout)
+    >>> b = SceneData(get_scene("timing"), train, items(2), items(2), holdout=holdout)
+    >>> sharing = plan_sharing({"control": ("none",), "timing": ("none", "fs2")}, {"control": a, "timing": b})
+    >>> sharing.owner[("timing", "none")], sharing.owned
+    (('control', 'none'), {'control': ('none',), 'timing': ('fs2',)})
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+
+from ..copies import SceneData
+from ..methods import parse_method
+
+__all__ = ["Sharing", "plan_sharing", "member_key", "training_key", "collect", "SHARED_SEPARATOR"]
+
+#: Borrowed results live in the owner unit's file under ``"<scene>::<method>"``.
+SHARED_SEPARATOR = "::"
+
+
+def _update_tensor(digest: Any, value: torch.Tensor) -> None:
+    value = value.detach().cpu().contiguous()
+    digest.update(f"{value.dtype}{tuple(value.shape)}".encode())
+    digest.update(value.numpy().tobytes())
+
+
+def training_key(data: SceneData) -> str:
+    """A content hash of what every member of ``data``'s scene trains on: the training and
+    hold-out items (frames, forces and metadata), not the validation or test sets."""
+    digest = hashlib.sha256()
+    for split in (data.train, data.holdout):
+        if split is None:
+            digest.update(b"no split")
+            continue
+        digest.update(f"{len(split)} items".encode())
+        for index in range(len(split)):
+            item = split[index]
+            _update_tensor(digest, torch.as_tensor(item[0]))
+            _update_tensor(digest, torch.as_tensor(item[1]))
+            digest.update(repr(sorted(item[2].items()) if len(item) > 2 and isinstance(item[2], Mapping)
+                               else None).encode())
+    return digest.hexdigest()[:24]
+
+
+def member_key(data: SceneData, method_name: str, training: str | None = None) -> str:
+    """What a member of ``method_name`` on ``data``'s scene reads besides its seed and the
+    configuration (which every member of a run phase shares): the training data, the built
+    policy (its transform's full ``repr``, settings included) and its number of copies, and
+    the noise bank's content when the policy draws from it. ``training``: ``data``'s
+    :func:`training_key`, if known."""
+    method = parse_method(method_name, scene=data.scene)
+    transform = method.build(data.noise_bank)
+    digest = hashlib.sha256()
+    digest.update((training or training_key(data)).encode())
+    digest.update(repr(transform).encode())
+    digest.update(f"copies={method.copies if transform is not None else 0}".encode())
+    if transform is not None and method.needs_noise_bank and data.noise_bank is not None:
+        _update_tensor(digest, data.noise_bank)
+    return digest.hexdigest()[:24]
+
+
+@dataclass
+class Sharing:
+    """Which (scene, method) trains and which borrows its members.
+
+    ``owner[(scene, method)]`` is the (scene, method) whose unit trains that member (itself
+    for an owner); ``owned[scene]`` the methods the scene's own units train; ``borrowers``
+    the (scene, method) pairs each owner is also scored for.
+    """
+
+    owner: dict[tuple[str, str], tuple[str, str]]
+    owned: dict[str, tuple[str, ...]]
+    borrowers: dict[tuple[str, str], list[tuple[str, str]]] = field(default_factory=dict)
+
+    @property
+    def shared(self) -> int:
+        """How many (scene, method) pairs borrow instead of training."""
+        return sum(len(b) for b in self.borrowers.values())
+
+    def also(self, scene: str, methods: Sequence[str]) -> tuple[tuple[str, str, str], ...]:
+        """``(owner method, borrowing scene, its method)`` for the members of a unit of ``scene``."""
+        return tuple((m, s, n) for m in methods for s, n in self.borrowers.get((scene, m), ()))
+
+
+def plan_sharing(chosen: Mapping[str, Sequence[str]], data: Mapping[str, SceneData]) -> Sharing:
+    """Key every (scene, method) of ``chosen`` (scenes in order) and name an owner per key: the
+    first scene that has it. Keys are computed here, once, before any training."""
+    first: dict[str, tuple[str, str]] = {}
+    owner: dict[tuple[str, str], tuple[str, str]] = {}
+    borrowers: dict[tuple[str, str], list[tuple[str, str]]] = {}
+    for scene, methods in chosen.items():
+        training = training_key(data[scene])
+        for method in methods:
+            key = member_key(data[scene], method, training)
+            owner[(scene, method)] = first.setdefault(key, (scene, method))
+            if owner[(scene, method)] != (scene, method):
+                borrowers.setdefault(owner[(scene, method)], []).append((scene, method))
+    owned = {scene: tuple(m for m in methods if owner[(scene, m)] == (scene, m)) for scene, methods in chosen.items()}
+    return Sharing(owner, {s: ms for s, ms in owned.items() if ms}, borrowers)
+
+
+def collect(unit_scenes: Mapping[str, str], results: Mapping[str, Mapping[str, list]],
+            scene: str, names: Sequence[str]) -> dict[str, list[dict[str, Any]]]:
+    """Per method of ``scene`` (in ``names``), its records, sorted by seed: from the scene's own
+    units, or borrowed from the owner unit (``unit_scenes``: unit slug -> its scene)."""
+    per_method: dict[str, list[dict[str, Any]]] = {}
+    for slug, unit_scene in unit_scenes.items():
+        for name, records in results[slug].items():
+            if SHARED_SEPARATOR in name:
+                other, method = name.split(SHARED_SEPARATOR, 1)
+                if other == scene:
+                    per_method.setdefault(method, []).extend(records)
+            elif unit_scene == scene:
+                per_method.setdefault(name, []).extend(records)
+    return {m: sorted(per_method[m], key=lambda r: r["seed"]) for m in names if m in per_method}
