@@ -8,12 +8,14 @@ Liu & Delbruck, CVPR Workshops 2021), with their non-ideal effects:
 
 - **Per-pixel contrast thresholds with mismatch**: ON and OFF thresholds ``θ·(1 + σ·z)``, z
   standard normal per pixel, kept above 10 % of nominal. Here θ = 0.2 and σ = 0.03 by
-  default (v2e's defaults: θ = 0.2, σ = 0.03; ESIM's C = 0.1-0.5).
+  default (v2e's ``pos_thres``/``neg_thres`` and ``sigma_thres``; ESIM's contrast threshold C).
 - **Refractory period**: a pixel is blind for ``refractory_us`` after it fires (its reference
   follows the light meanwhile, so changes during that time are lost); at most
-  ``dt // refractory`` events per pixel and time step (v2e: 0-1 ms; 200 µs here).
+  ``dt // refractory`` events per pixel and time step (v2e's ``refractory_period_s``;
+  200 µs here).
 - **Shot noise**: Poisson background events at a per-pixel rate drawn log-uniformly from
-  0.1-10 Hz, ON with probability ½ (v2e's ``shot_noise_rate_hz`` is of this order).
+  0.1-10 Hz, ON with probability ½ (v2e's ``shot_noise_rate_hz``; the rates are the built-in
+  simulator's setting, chosen for the paper's setup, not v2e's default).
 - **Hot pixels**: a fraction (1e-4) of pixels firing at 50-200 Hz.
 - **Leak events**: the reference decays by ``θ_ON · leak_hz`` per second, so a pixel under
   constant light emits an ON event every ``1 / leak_hz`` seconds, at a random phase per pixel
