@@ -48,6 +48,7 @@ from .simulation import (
     draw_grasp,
     simulate_static,
 )
+from ._files import default_cache_dir
 
 #: Sequences per split: large enough to resolve about 1 N² between methods. ``holdout`` is
 #: drawn from the *training* session (new sequences, not among the 48), for the stopping rule.
@@ -65,16 +66,6 @@ _TRAINING_SPLITS = ("train", "holdout")
 
 _CACHE_FORMAT = 2
 _NOISE_SEED_OFFSET = 1_000_000  # static-scene seeds never reuse a grasp's noise stream
-
-
-def default_cache_dir() -> Path:
-    """``$EVENT_TRANSFORMS_CACHE``, else ``$XDG_CACHE_HOME/event-transforms``, else
-    ``~/.cache/event-transforms``."""
-    if os.environ.get("EVENT_TRANSFORMS_CACHE"):
-        return Path(os.environ["EVENT_TRANSFORMS_CACHE"])
-    if os.environ.get("XDG_CACHE_HOME"):
-        return Path(os.environ["XDG_CACHE_HOME"]) / "event-transforms"
-    return Path.home() / ".cache" / "event-transforms"
 
 
 def _atomic_save(obj: object, path: Path) -> None:

@@ -70,7 +70,6 @@ import hashlib
 import json
 import math
 import os
-import tempfile
 import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
@@ -81,6 +80,7 @@ import numpy as np
 import torch
 
 from ..simulation import EVENT_DTYPE, Grasp, Recording, SimulatorConfig, force_profile, membrane_force
+from .._files import atomic_write
 from . import dvs
 
 #: Bumped whenever the generator changes what a seed produces (keys the caches).
@@ -386,16 +386,8 @@ def _read_table(path: Path, key: str, shape: tuple[int, ...]) -> np.ndarray | No
 
 def _write_table(path: Path, key: str, table: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            np.savez(stream, key=np.array(key), luminance=table)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    with atomic_write(path, "wb") as stream:  # the application's one atomic writer
+        np.savez(stream, key=np.array(key), luminance=table)
 
 
 def render_table(
@@ -443,7 +435,7 @@ def render_table(
     if held is not None:
         return held
     if root is None:
-        from ..datasets import default_cache_dir
+        from .._files import default_cache_dir
 
         root = default_cache_dir()
     path = Path(root) / f"optical-table-v{OPTICAL_VERSION}-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
