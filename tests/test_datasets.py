@@ -13,7 +13,8 @@ import event_transforms as et
 from event_transforms.tactile import datasets
 from event_transforms.data import AugmentedDataset
 from event_transforms.scenes import metadata_values
-from event_transforms.tactile.datasets import TactileGrasps, default_cache_dir, noise_bank
+from event_transforms.tactile.datasets import TactileGrasps, noise_bank
+from event_transforms.tactile._files import default_cache_dir
 from event_transforms.tactile.scenes import get_scene
 from event_transforms.tactile.simulation import SimulatorConfig
 
@@ -94,7 +95,7 @@ class TestTactileGrasps:
         def fail(*args, **kwargs):
             raise AssertionError("regenerated although the cache exists")
 
-        monkeypatch.setattr(datasets, "simulate_grasps", fail)
+        monkeypatch.setattr(datasets, "generate", fail)
         again = TactileGrasps("train", root=root)
         assert again.path == train.path and torch.equal(again[3][0], train[3][0])
 

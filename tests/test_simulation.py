@@ -306,11 +306,11 @@ class TestReproducibility:
 
 
 class TestEffectsOffAreNotComputed:
-    def _forbid(self, monkeypatch, name):
+    def _forbid(self, monkeypatch, name, module=simulation):
         def fail(*args, **kwargs):
             raise AssertionError(f"{name} ran although its effect is off")
 
-        monkeypatch.setattr(simulation, name, fail)
+        monkeypatch.setattr(module, name, fail)
 
     def test_no_contact(self, monkeypatch):
         self._forbid(monkeypatch, "_contact_events")
@@ -322,7 +322,9 @@ class TestEffectsOffAreNotComputed:
         simulate_grasp(12.0, seed=0, config=CLEAN.replace(lag=False))
 
     def test_no_noise(self, monkeypatch):
-        self._forbid(monkeypatch, "_noise_events")
+        from event_transforms.tactile.generators import dvs
+
+        self._forbid(monkeypatch, "noise_events", dvs)
         simulate_grasp(12.0, seed=0, config=CLEAN)
 
 

@@ -110,15 +110,7 @@ def test_the_cycle_finder_finds_a_cycle():
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
-#: Files being split on their own branches as this test lands (issue 34); strict, so a split that
-#: lands without its entry removed here fails.
-_BEING_SPLIT = {"event_transforms.tactile.simulation"}
-
-
-@pytest.mark.parametrize("module", [
-    pytest.param(m, marks=pytest.mark.xfail(strict=True, reason="split on its own branch")) if m in _BEING_SPLIT else m
-    for m in sorted(_modules())
-])
+@pytest.mark.parametrize("module", sorted(_modules()))
 def test_no_module_over_800_lines(module):
     lines = len(_modules()[module].read_text().splitlines())
     assert lines <= MAX_LINES, f"{module} has {lines} lines (at most {MAX_LINES}): one job per file"

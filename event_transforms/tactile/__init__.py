@@ -4,6 +4,8 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
 
 - :mod:`~event_transforms.tactile.simulation`: a seeded simulator of a bolt pressed into a
   silicone membrane watched by a DVS;
+- :mod:`~event_transforms.tactile.generators`: the DVS pixel model both generators share and the
+  optical generator (taxim; ``pip install 'event-transforms[optical]'``);
 - :mod:`~event_transforms.tactile.scenes`: sessions and benchmark scenes (a gap and a control
   for each augmentation);
 - :mod:`~event_transforms.tactile.datasets`: the simulated grasps as data sets, and noise banks;
@@ -38,7 +40,7 @@ import importlib
 from typing import Any
 
 _SUBMODULES = (
-    "simulation", "scenes", "datasets", "models", "ensemble", "baselines", "training", "methods",
+    "simulation", "generators", "scenes", "datasets", "models", "ensemble", "baselines", "training", "methods",
     "copies", "experiment", "stats", "report", "distributed", "protocol", "cli", "commands", "figures", "recordings",
     "deployment", "runs",
 )

@@ -17,7 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["atomic_write", "write_json_atomic"]
+__all__ = ["atomic_write", "write_json_atomic", "default_cache_dir"]
 
 
 @contextmanager
@@ -64,3 +64,13 @@ def write_json_atomic(path: str | os.PathLike[str], obj: Any) -> None:
     """
     with atomic_write(path) as handle:
         json.dump(obj, handle, indent=2)
+
+
+def default_cache_dir() -> Path:
+    """``$EVENT_TRANSFORMS_CACHE``, else ``$XDG_CACHE_HOME/event-transforms``, else
+    ``~/.cache/event-transforms``."""
+    if os.environ.get("EVENT_TRANSFORMS_CACHE"):
+        return Path(os.environ["EVENT_TRANSFORMS_CACHE"])
+    if os.environ.get("XDG_CACHE_HOME"):
+        return Path(os.environ["XDG_CACHE_HOME"]) / "event-transforms"
+    return Path.home() / ".cache" / "event-transforms"

@@ -319,7 +319,6 @@ def show_scene(args: argparse.Namespace) -> int:
 
     from .. import viz
     from .scenes import SCENES, get_scene
-    from .simulation import simulate_grasps
 
     names = [get_scene(args.scene).name] if args.scene else list(SCENES)
     if args.rows > args.count:
@@ -331,7 +330,7 @@ def show_scene(args: argparse.Namespace) -> int:
 
     def grasps(session, seed):
         if (session, seed) not in simulated:
-            recordings = simulate_grasps(session.grasps(args.count, seed=seed), session.config)
+            recordings = session.simulate(session.grasps(args.count, seed=seed))
             simulated[session, seed] = torch.stack([r.frames(crop=r.contact_crop((140, 150)), pool=2) for r in recordings])
         return simulated[session, seed]
 

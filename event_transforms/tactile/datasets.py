@@ -46,9 +46,9 @@ from .simulation import (
     Recording,
     SimulatorConfig,
     draw_grasp,
-    simulate_grasps,
     simulate_static,
 )
+from ._files import default_cache_dir
 
 #: Sequences per split: large enough to resolve about 1 N² between methods. ``holdout`` is
 #: drawn from the *training* session (new sequences, not among the 48), for the stopping rule.
@@ -66,16 +66,6 @@ _TRAINING_SPLITS = ("train", "holdout")
 
 _CACHE_FORMAT = 2
 _NOISE_SEED_OFFSET = 1_000_000  # static-scene seeds never reuse a grasp's noise stream
-
-
-def default_cache_dir() -> Path:
-    """``$EVENT_TRANSFORMS_CACHE``, else ``$XDG_CACHE_HOME/event-transforms``, else
-    ``~/.cache/event-transforms``."""
-    if os.environ.get("EVENT_TRANSFORMS_CACHE"):
-        return Path(os.environ["EVENT_TRANSFORMS_CACHE"])
-    if os.environ.get("XDG_CACHE_HOME"):
-        return Path(os.environ["XDG_CACHE_HOME"]) / "event-transforms"
-    return Path.home() / ".cache" / "event-transforms"
 
 
 def _atomic_save(obj: object, path: Path) -> None:
@@ -114,6 +104,11 @@ def _cache_name(session: Session, seeds: range, crop_size: tuple[int, int], pool
         "pool": pool,
         "crop": "sensor-centre",  # issue 24: a fixed crop, not the oracle contact crop
     }
+    if session.generator != "builtin":  # builtin sessions keep their cache files
+        from .generators.optical import OPTICAL_VERSION, OpticalConfig
+
+        description["generator"] = session.generator
+        description["optical"] = [OPTICAL_VERSION, dataclasses.asdict(OpticalConfig())]
     text = json.dumps(description, sort_keys=True)
     return f"tactile-grasps-v{SIMULATOR_VERSION}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.pt"
 
@@ -142,7 +137,7 @@ def generate(session: Session, seeds: range, *, crop_size: tuple[int, int] = (14
     grasps = [
         draw_grasp(session.diameter(k), seed=seed, config=session.config) for k, seed in enumerate(seeds)
     ]
-    recordings = simulate_grasps(grasps, session.config)
+    recordings = session.simulate(grasps)
     frames = torch.stack(
         [r.frames(crop=r.sensor_crop(crop_size), pool=pool, dtype=torch.int64) for r in recordings]
     ) if recordings else torch.zeros(0, session.config.n_frames, 2, crop_size[0] // pool, crop_size[1] // pool, dtype=torch.int64)
@@ -283,7 +278,7 @@ class TactileGrasps(Dataset):
         """Re-simulate item ``index`` as a raw event stream (same seed, same events)."""
         meta = self.meta(index)
         grasp = draw_grasp(meta["diameter_mm"], seed=meta["seed"], config=self.config)
-        return simulate_grasps([grasp], self.config)[0]
+        return self.session.simulate([grasp])[0]
 
     def __repr__(self) -> str:
         return (

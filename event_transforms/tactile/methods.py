@@ -8,8 +8,8 @@
 ``noise``          ``AddNoise`` with static-scene frames of the deployment camera
 ``fs<j>``          ``FrameShift(j)``, e.g. ``fs-1`` (one frame earlier), ``fs2``
 ``tes<j>:<ζ>``     ``TemporalEventShift(j, ζ)``, e.g. ``tes-2:0.5``
-``independent``    the scene's policy, one effect per copy (``OneOf``); on ``paper``,
-                   the paper's resize or FS-1
+``independent``    the scene's policy, one effect per copy (``OneOf``); on ``paper`` and
+                   ``optical-paper``, the paper's resize or FS-1
 ``hybrid``         the same effects stacked on every copy (``Compose``)
 ``<name>x<k>``     ``k`` synthetic copies per item, e.g. ``tes-2:0.5x10``
 =================  ===============================================================
@@ -166,7 +166,7 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
     if base == "noise":
         return Method(name, _add_noise, copies, needs_noise_bank=True)
     if base in ("independent", "hybrid"):
-        if scene.name == "paper":
+        if scene.name in ("paper", "optical-paper"):  # the paper's combination, on both generators
             return Method.from_scene(name, PAPER_SCENE, copies, combination=base)
         needs_bank = "noise" in scene.gaps
         return Method(
@@ -203,6 +203,8 @@ QUICK_METHODS: dict[str, tuple[str, ...]] = {
     "paper": PAPER_METHODS,
     "control": ("none", "rot50", "fs2", "noise"),
 }
+#: The optical scenes run their built-in role's quick methods.
+QUICK_METHODS.update({"optical-paper": QUICK_METHODS["paper"], "optical-control": QUICK_METHODS["control"]})
 
 #: Rows every scene runs after its own methods, in quick and full mode, where the scene can
 #: build them (``parse_method`` accepts them): adding a policy row is one name here.

@@ -81,18 +81,21 @@ __all__ = [
     "PAPER_LAG_SETTINGS",
     "MEMBRANE_DEPLOY_SETTINGS",
     "SCENES",
+    "GENERATORS",
+    "OPTICAL_BASE_SESSION",
+    "OPTICAL_SCENES",
     "get_scene",
 ]
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from torch import Tensor
 
-from .simulation import Grasp, SimulatorConfig, draw_grasp
+from .simulation import Grasp, Recording, SimulatorConfig, draw_grasp, simulate_grasps
 
 if TYPE_CHECKING:
     from ..scenes import Scene as LibraryScene
@@ -118,6 +121,9 @@ FACTORS: dict[str, tuple[str, ...]] = {
     "recording": ("sensor_size", "n_frames", "frame_ms", "substep_ms"),
 }
 
+#: The generators a session can use.
+GENERATORS = ("builtin", "optical", "optical-hex")
+
 _FIELD_FACTOR = {name: factor for factor, names in FACTORS.items() for name in names}
 _missing = {f.name for f in dataclasses.fields(SimulatorConfig)} - set(_FIELD_FACTOR)
 if _missing:  # pragma: no cover - a new simulator setting must be given a factor
@@ -133,6 +139,11 @@ class Session:
             ``diameters_mm[k % len(diameters_mm)]``, so every size is equally represented.
         config: simulator settings: every other factor's distribution (force, timing,
             delay and lag, orientation, background, sensor).
+        generator: ``"builtin"`` (:mod:`~event_transforms.tactile.simulation`),
+            ``"optical"`` (:mod:`~event_transforms.tactile.generators.optical`: the same
+            draws rendered by taxim, cylinders of ``diameters_mm``; its contact-strip
+            settings do not apply) or ``"optical-hex"`` (the same, hex bolt heads of
+            ``diameters_mm`` across flats pressed flat).
 
     Example:
         >>> session = BASE_SESSION.replace(diameters_mm=(15.0,), delay_ms=(16.0, 24.0))
@@ -144,8 +155,11 @@ class Session:
 
     diameters_mm: tuple[float, ...]
     config: SimulatorConfig
+    generator: str = "builtin"
 
     def __post_init__(self) -> None:
+        if self.generator not in GENERATORS:
+            raise ValueError(f"generator must be one of {GENERATORS}, got {self.generator!r}")
         sizes = tuple(float(d) for d in self.diameters_mm)
         if not sizes or not all(d > 0 and math.isfinite(d) for d in sizes):
             raise ValueError(f"diameters_mm must hold positive sizes, got {self.diameters_mm!r}")
@@ -156,7 +170,8 @@ class Session:
     def replace(self, **changes: Any) -> Session:
         """A copy with ``diameters_mm`` and/or simulator settings changed."""
         diameters = changes.pop("diameters_mm", self.diameters_mm)
-        return Session(diameters, self.config.replace(**changes) if changes else self.config)
+        generator = changes.pop("generator", self.generator)
+        return Session(diameters, self.config.replace(**changes) if changes else self.config, generator)
 
     def setting(self, name: str) -> Any:
         """The value of one setting (``diameters_mm`` or a :class:`SimulatorConfig` field)."""
@@ -171,6 +186,24 @@ class Session:
     def grasps(self, n: int, *, seed: int = 0) -> list[Grasp]:
         """``n`` experiments with seeds ``seed, seed + 1, ...``, sizes in turn."""
         return [draw_grasp(self.diameter(k), seed=seed + k, config=self.config) for k in range(n)]
+
+    def simulate(self, grasps: Sequence[Grasp]) -> list[Recording]:
+        """The session's generator on ``grasps``: one recording each.
+
+        Args:
+            grasps: experiments drawn with this session's settings (:meth:`grasps`).
+
+        Example:
+            >>> recordings = BASE_SESSION.simulate(BASE_SESSION.grasps(2, seed=0))
+            >>> [r.force.shape for r in recordings]
+            [(36,), (36,)]
+        """
+        if self.generator.startswith("optical"):
+            from .generators.optical import simulate_optical
+
+            kind = "hex" if self.generator == "optical-hex" else "cylinder"
+            return simulate_optical(grasps, self.config, kind=kind)
+        return simulate_grasps(grasps, self.config)
 
 
 #: The force model and nuisance ranges every benchmark session starts from.
@@ -215,6 +248,12 @@ class BenchmarkScene:
     train: Session
     deploy: Session
     matched_methods: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.train.generator != self.deploy.generator:
+            raise ValueError(
+                f"train and deploy must use one generator, got {self.train.generator!r} and {self.deploy.generator!r}"
+            )
 
     @classmethod
     def from_gaps(
@@ -404,6 +443,69 @@ def _scenes() -> dict[str, BenchmarkScene]:
 #: The benchmark scenes by name, in table order.
 SCENES: dict[str, BenchmarkScene] = _scenes()
 
+#: The optical generator's base session: :data:`BASE_SESSION`'s draws, rendered by taxim, on a
+#: camera of contrast threshold 0.05 (the rendered gel changes its log luminance by at most
+#: about 0.15 at full press, so the built-in's 0.2 would see almost nothing of it).
+OPTICAL_BASE_SESSION = BASE_SESSION.replace(generator="optical", threshold=0.05)
+
+
+def _optical_scenes() -> dict[str, BenchmarkScene]:
+    """The built-in scenes' roles on the optical generator (``optical-<built-in name>``).
+
+    The gaps are the built-in scenes' settings; what they do to the events is taxim's: a
+    larger cylinder presses less deep and changes the shading, a turned cylinder is lit
+    differently, the membrane is a standard linear solid, so no gap is the inverse of an
+    augmentation.
+    """
+    base = OPTICAL_BASE_SESSION
+    scenes = [
+        BenchmarkScene.from_gaps(
+            "optical-paper", "optical: 12 and 18 mm cylinders in training, 15 mm in deployment",
+            base, {"size": {"diameters_mm": (15.0,)}}, ("resize", "resize-hertz"),
+            train={"diameters_mm": (12.0, 18.0)},
+        ),
+        BenchmarkScene.from_gaps(
+            "optical-orientation", "optical: the cylinder turns, ±10° in training, ±(30-50)° in deployment",
+            base, {"orientation": {"angle_deg": (30.0, 50.0), "angle_symmetric": True}}, ("rot50",),
+        ),
+        BenchmarkScene.from_gaps(
+            "optical-noise", "optical: another camera in deployment: contrast threshold 0.05 -> 0.065, 3x the "
+            "shot-noise rates, 10x the hot pixels",
+            base, {"noise": {"shot_noise_hz": (0.3, 30.0), "hot_pixel_fraction": 1e-3},
+                   "sensor": {"threshold": 0.065}}, ("noise",),
+        ),
+        BenchmarkScene("optical-control", "optical: deployment drawn like training: no gap", base, base, ()),
+        BenchmarkScene.from_gaps(
+            "optical-orientation-hex", "optical: a 10 mm hex bolt head pressed flat turns, ±10° in training, "
+            "±(30-50)° in deployment (a hexagon repeats every 60°)",
+            base.replace(generator="optical-hex", diameters_mm=(10.0,)),
+            {"orientation": {"angle_deg": (30.0, 50.0), "angle_symmetric": True}}, ("rot50",),
+        ),
+        BenchmarkScene.from_gaps(
+            "optical-paper-offset",
+            "optical: the paper's sizes and a clock offset: events 12-18 ms after the force in training, 0-4 ms in "
+            "deployment",
+            base,
+            {"size": {"diameters_mm": (15.0,)}, "timing": {"delay_ms": PAPER_LAG_DEPLOY_DELAY_MS}},
+            ("fs-1", "tes-2:0.5"),
+            train={"diameters_mm": (12.0, 18.0), "delay_ms": PAPER_LAG_SETTINGS["delay_ms"]},
+        ),
+        BenchmarkScene.from_gaps(
+            "optical-paper-membrane",
+            "optical: the paper's sizes and a colder membrane in deployment: SLS creep time 2-8 ms -> 10-20 ms, "
+            "release 3x slower",
+            base,
+            {"size": {"diameters_mm": (15.0,)}, "timing": dict(MEMBRANE_DEPLOY_SETTINGS)},
+            ("fs1", "tes1:0.5"),
+            train={"diameters_mm": (12.0, 18.0)},
+        ),
+    ]
+    return {scene.name: scene for scene in scenes}
+
+
+#: The optical generator's scenes by name (``optical-<role>``), reachable through :func:`get_scene`.
+OPTICAL_SCENES: dict[str, BenchmarkScene] = _optical_scenes()
+
 
 def get_scene(scene: str | BenchmarkScene) -> BenchmarkScene:
     """A scene by name (see :data:`SCENES`), or the scene itself.
@@ -414,6 +516,8 @@ def get_scene(scene: str | BenchmarkScene) -> BenchmarkScene:
     """
     if isinstance(scene, BenchmarkScene):
         return scene
+    if isinstance(scene, str) and scene in OPTICAL_SCENES:
+        return OPTICAL_SCENES[scene]
     if not isinstance(scene, str) or scene not in SCENES:
-        raise ValueError(f"scene must be one of {list(SCENES)} or a BenchmarkScene, got {scene!r}")
+        raise ValueError(f"scene must be one of {[*SCENES, *OPTICAL_SCENES]} or a BenchmarkScene, got {scene!r}")
     return SCENES[scene]

@@ -60,7 +60,6 @@ __all__ = [
 ]
 
 import dataclasses
-import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -71,6 +70,7 @@ import torch
 from torch import Tensor
 
 from ..events.binning import events_to_frames
+from .generators import dvs
 
 #: Bumped whenever the model changes what a seed produces (keys the data-set cache).
 SIMULATOR_VERSION = 2
@@ -78,7 +78,6 @@ SIMULATOR_VERSION = 2
 #: Structured dtype of simulated event streams (tonic's field names; t in microseconds).
 EVENT_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
 
-_LOG_QUANTUM = 2.0**-20
 
 
 @dataclass(frozen=True)
@@ -526,67 +525,23 @@ def contact_half_width(
 # --------------------------------------------------------------------------- camera
 
 
-@dataclass(frozen=True)
-class _Sensor:
-    threshold_on: np.ndarray  # (H*W,) float64
-    threshold_off: np.ndarray
-    noise_hz: np.ndarray  # (H*W,) shot noise rate per pixel
-    hot_hz: np.ndarray  # (H*W,) extra rate of hot pixels (0 elsewhere)
-
-
-def _log_uniform(rng: np.random.Generator, low: float, high: float, size: int) -> np.ndarray:
-    return np.exp(rng.uniform(np.log(low), np.log(high), size))
-
-
-@functools.lru_cache(maxsize=8)
-def _sensor(config: SimulatorConfig) -> _Sensor:
-    """The camera's fixed pixel properties, from ``config.sensor_seed``."""
-    pixels = config.sensor_size[0] * config.sensor_size[1]
-    rng_threshold, rng_noise, rng_hot = (
-        np.random.Generator(np.random.PCG64(child))
-        for child in np.random.SeedSequence([config.sensor_seed, 0x5E45]).spawn(3)
+def _sensor(config: SimulatorConfig) -> dvs.Camera:
+    """The camera's fixed pixel properties, from ``config.sensor_seed`` (:func:`dvs.camera`)."""
+    return dvs.camera(
+        config.sensor_size, config.sensor_seed, config.threshold, config.threshold_mismatch,
+        config.shot_noise_hz, config.hot_pixel_fraction, config.hot_pixel_hz,
     )
-    if config.threshold_mismatch > 0:
-        spread = config.threshold_mismatch * rng_threshold.standard_normal((2, pixels))
-        # A threshold cannot vanish: keep at least 10 % of nominal (a 30-sigma event).
-        thresholds = config.threshold * np.maximum(1.0 + spread, 0.1)
-    else:
-        thresholds = np.full((2, pixels), config.threshold)
-    noise = _log_uniform(rng_noise, *config.shot_noise_hz, pixels)
-    hot = np.zeros(pixels)
-    n_hot = int(round(config.hot_pixel_fraction * pixels))
-    if n_hot:
-        where = rng_hot.choice(pixels, size=n_hot, replace=False)
-        hot[where] = _log_uniform(rng_hot, *config.hot_pixel_hz, n_hot)
-    for array in (thresholds, noise, hot):
-        array.setflags(write=False)
-    return _Sensor(thresholds[1], thresholds[0], noise, hot)
-
-
-def _noise_events(
-    rate_hz: np.ndarray, duration_us: int, on_fraction: float, rng: np.random.Generator
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Homogeneous Poisson events per pixel: (pixel, t, p)."""
-    counts = rng.poisson(rate_hz * duration_us * 1e-6)
-    pixel = np.repeat(np.arange(rate_hz.size), counts)
-    t = rng.integers(0, duration_us, pixel.size)
-    p = (rng.random(pixel.size) < on_fraction).astype(np.int8)
-    return pixel, t, p
 
 
 def _background(
     seed: int, duration_us: int, config: SimulatorConfig
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    sensor = _sensor(config)
+    """Shot noise and hot pixels of one recording (its seed's noise streams)."""
     _, rng_shot, rng_hot = _streams(seed)
-    parts = []
-    if config.shot_noise:
-        parts.append(_noise_events(sensor.noise_hz, duration_us, config.noise_on_fraction, rng_shot))
-    if config.hot_pixels and sensor.hot_hz.any():
-        hot = np.flatnonzero(sensor.hot_hz)
-        pixel, t, p = _noise_events(sensor.hot_hz[hot], duration_us, config.noise_on_fraction, rng_hot)
-        parts.append((hot[pixel], t, p))
-    return parts
+    return dvs.background_events(
+        _sensor(config), duration_us, config.noise_on_fraction,
+        rng_shot if config.shot_noise else None, rng_hot if config.hot_pixels else None,
+    )
 
 
 def _to_events(parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], width: int) -> np.ndarray:
@@ -661,53 +616,16 @@ def _contact_events(
 
     def log_intensity(step: int) -> np.ndarray:
         cover = np.clip(b_edge[owner, step] - across, 0.0, 1.0)
-        light = np.log1p(-depth * cover)
-        return np.round(light / _LOG_QUANTUM) * _LOG_QUANTUM
+        return dvs.quantize_log(np.log1p(-depth * cover))
 
-    threshold_on, threshold_off = sensor.threshold_on[pixel], sensor.threshold_off[pixel]
     dt_us = config.substep_ms * 1000.0
-    refractory = config.refractory_us
-    cap = max(1, int(dt_us // refractory)) if refractory > 0 else None
-    reference = log_intensity(0)
-    last_fire = np.full(pixel.size, -np.inf)
-    fired_step, fired_index, fired_count = [], [], []
-    for step in range(1, width_px.shape[1]):
-        level = log_intensity(step)
-        now = step * dt_us
-        if refractory > 0:
-            blind = (now - last_fire) < refractory
-            reference = np.where(blind, level, reference)
-        change = level - reference
-        threshold = np.where(change > 0, threshold_on, threshold_off)
-        count = np.trunc(change / threshold)
-        fired = np.flatnonzero(count)
-        if fired.size == 0:
-            continue
-        n = count[fired]
-        if cap is not None:
-            capped = np.clip(n, -cap, cap)
-            reference[fired] = np.where(
-                capped == n, reference[fired] + n * threshold[fired], level[fired]
-            )
-            n = capped
-            last_fire[fired] = now
-        else:
-            reference[fired] += n * threshold[fired]
-        fired_step.append(np.full(fired.size, step))
-        fired_index.append(fired)
-        fired_count.append(n.astype(np.int64))
-
-    if not fired_index:
+    steps, indices, signed = dvs.threshold_crossings(
+        log_intensity, width_px.shape[1], sensor.threshold_on[pixel], sensor.threshold_off[pixel],
+        dt_us, config.refractory_us,
+    )
+    if not indices.size:
         return [(np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.int8),) for _ in grasps]
-    steps = np.concatenate(fired_step)
-    indices = np.concatenate(fired_index)
-    signed = np.concatenate(fired_count)
-    count = np.abs(signed)
-    # Spread the n events of one substep evenly over it: t = t_prev + dt·(k + ½)/n.
-    repeat = np.repeat(np.arange(steps.size), count)
-    k = np.arange(repeat.size) - np.repeat(np.cumsum(count) - count, count)
-    t_us = np.floor((steps[repeat] - 1) * dt_us + dt_us * (k + 0.5) / count[repeat]).astype(np.int64)
-    polarity = (signed[repeat] > 0).astype(np.int8)
+    repeat, t_us, polarity = dvs.spread_events(steps, signed, dt_us)
     who = owner[indices[repeat]]
     where = pixel[indices[repeat]]
     order = np.argsort(who, kind="stable")

@@ -39,7 +39,7 @@ def _key(description: dict[str, Any]) -> str:
 
 
 def _cache_dir(cache: str | os.PathLike[str] | None) -> Path:
-    from ..datasets import default_cache_dir
+    from .._files import default_cache_dir
 
     return Path(cache) if cache is not None else default_cache_dir() / "recordings"
 

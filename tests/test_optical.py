@@ -1,0 +1,343 @@
+"""The shared DVS pixel model and the optical generator (taxim tests skip without the extra)."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from event_transforms.tactile import datasets
+from event_transforms.tactile.generators import dvs, optical
+from event_transforms.tactile.generators.optical import (
+    OpticalConfig,
+    OpticalObject,
+    height_map,
+    membrane_depth,
+    press_depth,
+    render_table,
+    simulate_optical,
+)
+from event_transforms.tactile.scenes import (
+    BASE_SESSION,
+    OPTICAL_SCENES,
+    SCENES,
+    BenchmarkScene,
+    Session,
+    get_scene,
+)
+from event_transforms.tactile.simulation import SimulatorConfig, draw_grasp, force_profile
+
+ONE = np.array([1.0])
+
+
+def _crossings(levels, threshold_on=0.25, threshold_off=0.25, dt_us=1000.0, refractory_us=0.0, **kwargs):
+    levels = np.asarray(levels, dtype=np.float64)
+    return dvs.threshold_crossings(
+        lambda step: levels[step][None], len(levels), np.array([threshold_on]), np.array([threshold_off]),
+        dt_us, refractory_us, **kwargs,
+    )
+
+
+class TestDVSModel:
+    @pytest.mark.parametrize("rise", [0.1, 0.37, 1.0, 2.3, -0.6, -1.9, -0.125])
+    @pytest.mark.parametrize("n_steps", [2, 7, 50])
+    def test_a_ramp_gives_floor_of_rise_over_threshold(self, rise, n_steps):
+        threshold = 0.125  # dyadic, like the quantised levels: the arithmetic is exact
+        levels = dvs.quantize_log(np.linspace(0.0, rise, n_steps))
+        steps, _, counts = _crossings(levels, threshold, threshold)
+        # the reference moves by exactly one threshold per event: floor(|ΔL| / C) events
+        assert int(np.abs(counts).sum()) == math.floor(abs(float(levels[-1])) / threshold)
+        assert set(np.sign(counts).tolist()) <= {int(np.sign(rise))}
+
+    def test_polarity_follows_the_sign_with_separate_thresholds(self):
+        levels = [0.0, 0.5, 0.5, 0.0, -0.5]  # up 0.5, down 1.0
+        steps, _, counts = _crossings(levels, threshold_on=0.25, threshold_off=0.125)
+        assert steps.tolist() == [1, 3, 4]
+        # ON: 0.5 / 0.25 = 2; OFF: 0.5 / 0.125 = 4, then another 4
+        assert counts.tolist() == [2, -4, -4]
+        _, t_us, p = dvs.spread_events(steps, counts, 1000.0)
+        assert p.tolist() == [1, 1] + [0] * 8
+        assert (np.diff(t_us) >= 0).all() and t_us[0] == 250
+
+    def test_refractory_period_caps_and_blinds(self):
+        # A pixel firing at step 1 is blind for 1.5 steps: the change at step 2 is lost.
+        levels = [0.0, 0.25, 0.5, 0.5, 0.75]
+        steps, _, counts = _crossings(levels, refractory_us=1500.0)
+        assert steps.tolist() == [1, 4]
+        assert counts.tolist() == [1, 1]
+        # a jump of 4 thresholds in one step with a refractory of 1/3 step: at most 3 events
+        steps, _, counts = _crossings([0.0, 1.0], refractory_us=1000.0 / 3)
+        assert counts.tolist() == [3]
+        # no refractory: all 4
+        assert _crossings([0.0, 1.0])[2].tolist() == [4]
+
+    def test_events_of_one_pixel_are_never_closer_than_the_refractory_period_across_steps(self):
+        levels = dvs.quantize_log(np.linspace(0.0, 5.0, 41))
+        steps, _, counts = _crossings(levels, refractory_us=2500.0)
+        assert (np.diff(steps) * 1000.0 >= 2500.0).all()
+
+    def test_leak_under_constant_light_matches_the_closed_form(self):
+        rate, phase, duration_us = np.array([40.0, 7.0, 0.0]), np.array([0.3, 0.9, 0.5]), 200_000
+        pixel, t_us, p = dvs.leak_events(rate, phase, duration_us)
+        expected = [int(np.floor((duration_us * 1e-6 - (1 - ph) / r) * r)) + 1 if r > 0 and (1 - ph) / r < 0.2 else 0
+                    for r, ph in zip(rate, phase)]
+        assert np.bincount(pixel, minlength=3).tolist() == expected == [8, 2, 0]
+        assert (p == 1).all() and t_us[0] == round((1 - 0.3) / 40 * 1e6)
+        # the stepped model with the same leak gives the same number of ON events
+        threshold = np.array([0.2, 0.2, 0.2])
+        level = np.zeros(3)
+        steps, pixels, counts = dvs.threshold_crossings(
+            lambda step: level, 201, threshold, threshold, 1000.0, 0.0,
+            reference=level - phase * threshold, leak_per_step=threshold * rate * 1e-3,
+        )
+        assert np.bincount(pixels, weights=counts, minlength=3).astype(int).tolist() == expected
+
+    def test_builtin_camera_is_the_shared_one(self):
+        from event_transforms.tactile import simulation
+
+        config = SimulatorConfig(sensor_size=(20, 30), sensor_seed=4)
+        cam = simulation._sensor(config)
+        assert cam is dvs.camera((20, 30), 4, 0.2, 0.03, (0.1, 10.0), 1e-4, (50.0, 200.0))
+
+    def test_lin_log_is_increasing_and_continuous(self):
+        x = np.linspace(0.0, 1.0, 2001)
+        y = dvs.lin_log(x)
+        assert (np.diff(y) > 0).all()
+        knee = 20.0 / 255.0
+        assert abs(float(dvs.lin_log(np.array([knee - 1e-9]))[0]) - math.log(20.0)) < 1e-6
+
+
+class TestContactAndMembrane:
+    @pytest.mark.parametrize("diameter", [12.0, 15.0, 18.0])
+    def test_cylinder_depth_inverts_the_winkler_line_contact(self, diameter):
+        config = OpticalConfig()
+        force = np.array([0.0, 1.0, 7.5, 25.0])
+        depth = press_depth(force, OpticalObject("cylinder", diameter), config)
+        k, length, radius = config.foundation_n_per_mm3, config.contact_length_mm, diameter / 2
+        # F = ∫ k (δ − x²/2R) dx · L over |x| < √(2Rδ), integrated numerically
+        for f, d in zip(force, depth):
+            half = math.sqrt(2 * radius * d)
+            x = np.linspace(-half, half, 20_001)
+            carried = k * length * np.trapezoid(d - x**2 / (2 * radius), x)
+            assert carried == pytest.approx(f, rel=1e-6, abs=1e-9)
+
+    def test_a_larger_cylinder_presses_less_deep(self):
+        depths = [float(press_depth(20.0, OpticalObject("cylinder", d))) for d in (12.0, 15.0, 18.0)]
+        assert depths[0] > depths[1] > depths[2]
+
+    def test_hex_face_is_a_flat_punch(self):
+        config = OpticalConfig()
+        depth = float(press_depth(10.0, OpticalObject("hex", 10.0), config))
+        assert depth * config.foundation_n_per_mm3 * math.sqrt(3) / 2 * 100.0 == pytest.approx(10.0)
+
+    @pytest.mark.parametrize("bad", [-1.0, float("nan")])
+    def test_bad_force_is_refused(self, bad):
+        with pytest.raises(ValueError, match="force_n"):
+            press_depth(np.array([1.0, bad]), OpticalObject("cylinder", 15.0))
+
+    @pytest.mark.parametrize("r", [0.25, 0.5, 1.0])
+    def test_sls_creep_after_a_ramp_and_hold_matches_the_formula(self, r):
+        tau, slope, t_ramp = 8.0, 0.01, 20
+        t = np.arange(121, dtype=np.float64)
+        elastic = slope * np.minimum(t, t_ramp)
+        out = membrane_depth(elastic[None], np.array([tau]), 1.0, instant_fraction=r)[0]
+        # lag of a ramp: a(t − τ(1 − e^(−t/τ))); after the ramp it creeps to a·t_ramp
+        lag_at_ramp_end = slope * (t_ramp - tau * (1 - math.exp(-t_ramp / tau)))
+        held = t[t_ramp:] - t_ramp
+        lagged = slope * t_ramp + (lag_at_ramp_end - slope * t_ramp) * np.exp(-held / tau)
+        expected = r * elastic[t_ramp:] + (1 - r) * lagged
+        np.testing.assert_allclose(out[t_ramp:], expected, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(out[:t_ramp + 1], r * elastic[:t_ramp + 1] + (1 - r) * slope * (
+            t[:t_ramp + 1] - tau * (1 - np.exp(-t[:t_ramp + 1] / tau))), atol=1e-12)
+
+    def test_slower_release_lags_more_on_the_way_down(self):
+        up_down = np.concatenate([np.linspace(0, 0.5, 30), np.linspace(0.5, 0.0, 30)])[None]
+        fast = membrane_depth(up_down, np.array([5.0]), 1.0, instant_fraction=0.5)
+        slow = membrane_depth(up_down, np.array([5.0]), 1.0, instant_fraction=0.5, release_ratio=3.0)
+        np.testing.assert_array_equal(fast[0, :30], slow[0, :30])
+        assert (slow[0, 35:] > fast[0, 35:]).all()
+
+    def test_config_checks_name_the_setting(self):
+        with pytest.raises(ValueError, match="instant_fraction"):
+            OpticalConfig(instant_fraction=0.0)
+        with pytest.raises(ValueError, match="render_scale"):
+            OpticalConfig(render_scale=0)
+        with pytest.raises(ValueError, match="kind"):
+            OpticalObject("sphere", 10.0)
+
+
+class TestHeightMaps:
+    def test_rotating_the_object_rotates_its_height_map(self):
+        config = OpticalConfig(render_scale=8)
+        for obj in (OpticalObject("cylinder", 15.0), OpticalObject("hex", 8.0)):
+            turned = height_map(obj, 180.0, config)
+            np.testing.assert_allclose(turned, np.rot90(height_map(obj, 0.0, config), 2), atol=1e-5)
+        hex_map = height_map(OpticalObject("hex", 8.0), 0.0, config)
+        np.testing.assert_allclose(height_map(OpticalObject("hex", 8.0), 60.0, config), hex_map, atol=1e-5)
+        assert float(hex_map.min()) == 0.0
+
+
+# --------------------------------------------------------------------------- taxim
+
+SMALL = OpticalConfig(render_scale=8, depth_step_mm=0.2, max_depth_mm=0.8)
+
+
+@pytest.fixture(scope="module")
+def taxim_available():
+    pytest.importorskip("taxim")
+    pytest.importorskip("jax")
+
+
+@pytest.fixture(autouse=True)
+def _fresh_table_memory():
+    optical._MEMORY.tables.clear()
+    yield
+    optical._MEMORY.tables.clear()
+
+
+@pytest.mark.slow  # taxim compiles its renderer once per grid (seconds)
+@pytest.mark.usefixtures("taxim_available")
+class TestRenderTables:
+    def test_cached_keyed_and_rebuilt_when_corrupt(self, tmp_path, monkeypatch):
+        cylinder = OpticalObject("cylinder", 15.0)
+        table = render_table(cylinder, 0.0, (30, 40), SMALL, root=tmp_path)
+        assert table.shape == (5, 30, 40) and table.dtype == np.float32
+        files = sorted(tmp_path.glob("optical-table-v*.npz"))
+        assert len(files) == 1
+        # pressing changes the light, more the deeper
+        change = [float(np.abs(table[k] - table[0]).max()) for k in range(5)]
+        assert change[-1] > 0.02 and change[-1] > change[1]
+
+        # from disk, without rendering
+        optical._MEMORY.tables.clear()
+        monkeypatch.setattr(optical, "taxim_renderer", lambda config=None: pytest.fail("rendered again"))
+        np.testing.assert_array_equal(render_table(cylinder, 0.0, (30, 40), SMALL, root=tmp_path), table)
+        monkeypatch.undo()
+
+        # keyed: another angle, size or grid is another file
+        render_table(cylinder, 10.0, (30, 40), SMALL, root=tmp_path)
+        render_table(OpticalObject("cylinder", 12.0), 0.0, (30, 40), SMALL, root=tmp_path)
+        assert len(list(tmp_path.glob("optical-table-v*.npz"))) == 3
+
+        # a corrupt file is named in a warning and rebuilt
+        optical._MEMORY.tables.clear()
+        files[0].write_bytes(b"not a table")
+        with pytest.warns(UserWarning, match=str(files[0].name)):
+            rebuilt = render_table(cylinder, 0.0, (30, 40), SMALL, root=tmp_path)
+        np.testing.assert_allclose(rebuilt, table, atol=1e-6)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            optical._MEMORY.tables.clear()
+            render_table(cylinder, 0.0, (30, 40), SMALL, root=tmp_path)
+
+    def test_memory_is_bounded(self, tmp_path):
+        tiny = OpticalConfig(render_scale=8, depth_step_mm=0.4, max_depth_mm=0.8, table_memory_mb=3 * 30 * 40 * 4 * 1.5 / 2**20)
+        for angle in (0.0, 5.0, 10.0, 15.0):
+            render_table(OpticalObject("cylinder", 15.0), angle, (30, 40), tiny, root=tmp_path)
+        assert len(optical._MEMORY.tables) == 1
+
+    @pytest.mark.parametrize("obj", [OpticalObject("cylinder", 15.0), OpticalObject("hex", 8.0)])
+    def test_a_turned_object_is_not_a_turned_image(self, tmp_path, obj):
+        # Turned by 180° the object's height map is exactly the turned map (tested above);
+        # under the sensor's fixed, coloured light its image is not the turned image.
+        config = OpticalConfig(render_scale=4, depth_step_mm=0.3, max_depth_mm=0.6)
+        upright = render_table(obj, 0.0, (60, 80), config, root=tmp_path)
+        turned = render_table(obj, 180.0, (60, 80), config, root=tmp_path)
+        contact_upright = upright[-1] - upright[0]
+        contact_turned = turned[-1] - turned[0]
+        distance = np.linalg.norm(contact_turned - np.rot90(contact_upright, 2)) / np.linalg.norm(contact_upright)
+        assert distance > 0.2, distance
+
+
+@pytest.mark.usefixtures("taxim_available")
+class TestSimulateOptical:
+    CONFIG = SimulatorConfig(sensor_size=(30, 40), center_jitter_px=2.0, threshold=0.05, n_frames=12,
+                             grasp_ms=30.0, release_ms=30.0)
+
+    def test_recordings_like_the_builtin_generator(self, tmp_path):
+        grasps = [draw_grasp(d, seed=s, config=self.CONFIG) for d, s in [(12.0, 0), (18.0, 1)]]
+        first = simulate_optical(grasps, self.CONFIG, SMALL, root=tmp_path)
+        again = simulate_optical(grasps, self.CONFIG, SMALL, root=tmp_path)
+        frame_ms = (np.arange(12) + 0.5) * 10.0
+        for recording, repeat, grasp in zip(first, again, grasps):
+            events = recording.events
+            np.testing.assert_array_equal(events, repeat.events)  # same seed, same events
+            assert (np.diff(events["t"]) >= 0).all()
+            assert events["x"].max() < 40 and events["y"].max() < 30 and events["t"].max() < 120_000
+            np.testing.assert_array_equal(recording.force, force_profile([grasp], frame_ms, self.CONFIG)[0]
+                                          .astype(np.float32))
+            assert recording.frames().shape == (12, 2, 30, 40)
+        static = self.CONFIG.replace(contact=False, shot_noise=False, hot_pixels=False)
+        leaky = OpticalConfig(render_scale=8, leak_hz=50.0, random_reference=True)
+        quiet = simulate_optical(grasps[:1], static, leaky, root=tmp_path)[0]
+        # leak events only: every pixel fires ON every 20 ms, at a random phase
+        per_pixel = np.bincount(quiet.events["y"].astype(int) * 40 + quiet.events["x"], minlength=1200)
+        assert (quiet.events["p"] == 1).all() and set(per_pixel.tolist()) <= {5, 6}
+        assert len(simulate_optical(grasps[:1], static, SMALL, root=tmp_path)[0].events) == 0  # reset: none
+
+    def test_refuses_what_it_does_not_model(self, tmp_path):
+        grasp = draw_grasp(15.0, seed=0, config=self.CONFIG)
+        with pytest.raises(ValueError, match="label_lowpass_ms"):
+            simulate_optical([grasp], self.CONFIG.replace(label_lowpass_ms=5.0), SMALL, root=tmp_path)
+        with pytest.raises(ValueError, match="max_depth_mm"):
+            simulate_optical([grasp], self.CONFIG, OpticalConfig(render_scale=8, depth_step_mm=0.01,
+                                                                  max_depth_mm=0.02), root=tmp_path)
+
+
+class TestOpticalScenes:
+    def test_every_role_is_reachable_and_keeps_its_gaps(self):
+        roles = {"optical-control": "control", "optical-paper": "paper", "optical-orientation": "orientation",
+                 "optical-paper-membrane": "paper-membrane", "optical-paper-offset": "paper-offset"}
+        for name, role in roles.items():
+            scene = get_scene(name)
+            assert scene is OPTICAL_SCENES[name] and name not in SCENES
+            assert scene.train.generator == scene.deploy.generator == "optical"
+            assert scene.gaps == SCENES[role].gaps
+            assert scene.matched_methods == SCENES[role].matched_methods
+        assert get_scene("optical-noise").gaps == ("noise", "sensor")
+        assert get_scene("optical-orientation-hex").gaps == ("orientation",)
+
+    def test_generator_is_checked(self):
+        with pytest.raises(ValueError, match="generator"):
+            Session((15.0,), SimulatorConfig(), "raytraced")
+        with pytest.raises(ValueError, match="one generator"):
+            BenchmarkScene("mixed", "", BASE_SESSION, BASE_SESSION.replace(generator="optical"))
+
+    def test_the_cache_key_names_the_generator_and_builtin_keys_are_unchanged(self):
+        seeds = range(0, 48)
+        builtin = datasets._cache_name(BASE_SESSION, seeds, (140, 150), 2)
+        # the names of 4182d62, before sessions had a generator
+        assert builtin == "tactile-grasps-v2-8546bc2ef0553ea7.pt"
+        membrane = SCENES["paper-membrane"].deploy
+        assert datasets._cache_name(membrane, range(10_000, 10_024), (140, 150), 2) == (
+            "tactile-grasps-v2-6dfbb10742bdecc4.pt"
+        )
+        assert datasets._cache_name(BASE_SESSION.replace(generator="optical"), seeds, (140, 150), 2) != builtin
+
+    def test_methods_follow_the_role(self):
+        from event_transforms.tactile.methods import methods_for
+
+        assert methods_for("optical-paper") == methods_for("paper")
+        assert methods_for("optical-control") == methods_for("control")
+        assert methods_for("optical-orientation") == methods_for("orientation")
+
+
+
+def test_optical_sessions_simulate_with_the_optical_generator(monkeypatch):
+    calls = []
+
+    def fake(grasps, config, *, kind):
+        calls.append((len(grasps), config, kind))
+        return ["optical"] * len(grasps)
+
+    monkeypatch.setattr(optical, "simulate_optical", fake)
+    session = get_scene("optical-control").train
+    assert session.simulate(session.grasps(2, seed=0)) == ["optical", "optical"]
+    assert calls == [(2, session.config, "cylinder")]
+    hex_session = get_scene("optical-orientation-hex").deploy
+    hex_session.simulate(hex_session.grasps(1, seed=0))
+    assert calls[-1] == (1, hex_session.config, "hex")
+    builtin = BASE_SESSION.simulate(BASE_SESSION.grasps(1, seed=0))
+    assert len(calls) == 2 and builtin[0].events.dtype.names == ("x", "y", "t", "p")
