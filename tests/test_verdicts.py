@@ -181,3 +181,107 @@ def test_command_runs_as_a_module():
                            str(OTHER_KERNELS)], capture_output=True, text=True, cwd=ROOT)
     assert done.returncode == 0, done.stderr
     assert "verdicts in both runs" in done.stdout
+
+
+class TestBorderline:
+    """Issue 33 item 5: a verdict is resolved only when it replicates in both blocks of seeds."""
+
+    def test_blocks_against_a_hand_computed_paired_t(self):
+        from event_transforms.tactile.stats import paired_t, seed_blocks
+
+        none = [2.0, 2.1, 1.9, 2.2, 2.0, 2.3, 1.8, 2.1]
+        method = [1.5, 1.7, 1.4, 1.6, 2.1, 2.2, 1.9, 2.0]
+        blocks = seed_blocks(none, method)
+        assert [b["n"] for b in blocks] == [4, 4]
+        first = paired_t(none[:4], method[:4])
+        assert blocks[0]["mean"] == pytest.approx(-0.5) and blocks[0]["ci95"] == pytest.approx(list(first.ci))
+        assert blocks[1]["mean"] == pytest.approx(0.0, abs=1e-12)
+        # an odd count: the second block takes the extra seed; one pair has no interval
+        assert [b["n"] for b in seed_blocks([1.0] * 3, [0.5, 0.4, 0.6])] == [1, 2]
+        assert seed_blocks([1.0], [0.5])[0] == {"n": 0, "mean": pytest.approx(float("nan"), nan_ok=True), "ci95": None}
+
+    def test_replicated(self):
+        from event_transforms.tactile.stats import replicated
+
+        assert replicated(-1.0, [{"ci95": [-2, -0.5]}, {"ci95": [-1.5, -0.1]}])
+        assert not replicated(-1.0, [{"ci95": [-2, -0.5]}, {"ci95": [0.1, 0.5]}])  # opposite side
+        assert not replicated(1.0, [{"ci95": [0.5, 2]}, {"ci95": None}])  # a block without an interval
+        assert not replicated(0.0, [{"ci95": [-2, -0.5]}, {"ci95": [-1.5, -0.1]}])
+        assert not replicated(-1.0, [])
+
+    def _delta(self, none, method, family=1):
+        from event_transforms.tactile.stats import paired_delta
+
+        seeds = list(range(len(none)))
+        return paired_delta({"seeds": seeds, "x": none}, {"seeds": seeds, "x": method}, "x", family)
+
+    def test_a_family_interval_that_excludes_zero_in_one_block_only_is_borderline(self):
+        from event_transforms.tactile.report import _ci_text
+        from event_transforms.tactile.stats import significant
+
+        none = [2.0] * 8
+        # block 1 strongly better, block 2 barely and noisily: all 8 together exclude 0
+        method = [1.0, 1.05, 0.95, 1.02, 1.9, 1.5, 2.05, 1.6]
+        delta = self._delta(none, method)
+        lo, hi = delta["ci_family"]
+        assert hi < 0  # the family interval over all seeds excludes 0 ...
+        assert delta["blocks"][1]["ci95"][1] > 0  # ... the second block alone does not
+        assert delta["borderline"] and not significant(delta)
+        text = _ci_text(delta)
+        assert text.endswith("(borderline)") and "**" not in text
+        verdict = summary_verdicts(table(("s", "m", text, "—")))[("s", "m", "vs none")]
+        assert verdict == Verdict(delta["mean"], False, True) or (not verdict.significant and verdict.borderline)
+        assert verdict.word == "borderline"
+
+    def test_a_verdict_that_replicates_is_resolved_and_one_that_excludes_nothing_is_not_borderline(self):
+        from event_transforms.tactile.stats import significant
+
+        none = [2.0] * 8
+        strong = self._delta(none, [1.0, 1.05, 0.95, 1.02, 1.1, 0.9, 1.05, 0.97])
+        assert not strong["borderline"] and significant(strong)
+        null = self._delta(none, [2.1, 1.9, 2.05, 1.95, 2.02, 1.98, 2.1, 1.9])
+        assert not null["borderline"] and not significant(null)
+
+    def test_compare_counts_borderline_as_unresolved(self):
+        a = {("s", "m", "vs none"): Verdict(-1.0, False, True), ("s", "k", "vs none"): Verdict(-1.0, True)}
+        b = {("s", "m", "vs none"): Verdict(-0.9, False), ("s", "k", "vs none"): Verdict(-0.9, False, True)}
+        outcome = compare_verdicts(a, b)
+        assert outcome["same"] == [("s", "m", "vs none")] and outcome["significance"] == [("s", "k", "vs none")]
+
+
+class TestBudgetAndEqualCost:
+    """`compare` covers the budget check and the equal-cost column too (issue 33 item 5)."""
+
+    def _run(self, budget: str, equal: str) -> str:
+        from event_transforms.tactile.report import EQUAL_COST_COLUMNS
+
+        summary = ["| " + " | ".join(SUMMARY_COLUMNS) + " |", "|" + "---|" * len(SUMMARY_COLUMNS),
+                   f"| timing | fs2 (matched) | 1.00 ± 0.10 | **-3.00 [-3.50, -2.50]** | — | — | — | {budget} |"]
+        scene = ["### timing: a transport delay", "", f"| method | test MSE | {EQUAL_COST_COLUMNS[0]} |",
+                 "|---|---|---|", "| *physics least-squares* (baseline) | 1.00 | — |",
+                 "| none | 4.00 ± 0.10 | — |", f"| fs2 (matched) | 1.00 ± 0.10 | {equal} |",
+                 "", "### The same runs scored on the paper's 6 + 6 split", "", "#### timing", "",
+                 "| method | test MSE |", "|---|---|", "| fs2 | 1.10 |"]
+        return "\n".join(["# results", "", *summary, "", *scene, ""])
+
+    def test_reads_budget_and_equal_cost_cells(self):
+        from event_transforms.tactile.report import run_verdicts
+
+        verdicts = run_verdicts(self._run("robust: Δ -2.80 at 600 steps", "**-2.90 [-3.40, -2.40]**"))
+        assert verdicts[("timing", "fs2", "budget check")] == Verdict(-2.8, True, label="robust")
+        assert verdicts[("timing", "fs2", "at equal cost")] == Verdict(-2.9, True)
+        assert ("timing", "fs2", "vs none") in verdicts
+        assert run_verdicts(self._run("not robust: Δ -0.10 at 600 steps", "-0.40 [-1.00, +0.20] (borderline)"))[
+            ("timing", "fs2", "budget check")].word == "not robust"
+        with pytest.raises(ValueError, match="equal-cost cell of timing / fs2"):
+            run_verdicts(self._run("—", "about -3"))
+
+    def test_command_reports_a_moved_budget_check_and_equal_cost_cell(self, tmp_path, capsys):
+        a, b = tmp_path / "a.md", tmp_path / "b.md"
+        a.write_text(self._run("robust: Δ -2.80 at 600 steps", "**-2.90 [-3.40, -2.40]**"))
+        b.write_text(self._run("not robust: Δ -1.00 at 600 steps", "-0.40 [-1.00, +0.20]"))
+        assert cli.main(["compare", str(a), str(b)]) == 0
+        out = capsys.readouterr().out
+        assert "| timing | fs2 | budget check | -2.80 (robust) | -1.00 (not robust) |" in out
+        assert "| timing | fs2 | at equal cost | -2.90 (better) | -0.40 (unresolved) |" in out
+        assert "3 verdicts in both runs: 1 the same" in out

@@ -485,7 +485,7 @@ def _checkpoint(path: Path) -> Path:
 
 
 def compare(args: argparse.Namespace) -> int:
-    from .report import compare_verdicts, format_verdict_comparison, summary_verdicts
+    from .report import compare_verdicts, format_verdict_comparison, run_verdicts
 
     verdicts = []
     for name in ("a", "b"):
@@ -493,7 +493,7 @@ def compare(args: argparse.Namespace) -> int:
         if not path.is_file():
             raise ValueError(f"{name}: no such file {str(path)!r}")
         try:
-            verdicts.append(summary_verdicts(path.read_text()))
+            verdicts.append(run_verdicts(path.read_text()))
         except ValueError as error:
             raise ValueError(f"{name} ({path}): {error}") from None
     first, second = verdicts

@@ -47,7 +47,7 @@ def _ci_text(delta: dict[str, Any] | None) -> str:
     if not ci:
         return f"{delta['mean']:+.2f}"
     mark = "**" if significant(delta) else ""
-    note = " (not converged)" if delta.get("not_converged") else ""
+    note = " (not converged)" if delta.get("not_converged") else " (borderline)" if delta.get("borderline") else ""
     return f"{mark}{delta['mean']:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}]{mark}{note}"
 
 
@@ -313,11 +313,18 @@ class Verdict:
 
     Attributes:
         mean: the Δ as printed (N²).
-        significant: its family-wise interval excludes 0 (the cell is bold).
+        significant: its family-wise interval excludes 0 and the Δ replicates in both blocks
+            of seeds (the cell is bold).
+        borderline: the interval excludes 0 but the Δ does not replicate in both blocks (the
+            cell says "(borderline)"; not significant).
+        label: the word of a cell that is no interval (the budget check: ``"robust"`` /
+            ``"not robust"``, ``significant`` meaning robust).
     """
 
     mean: float
     significant: bool
+    borderline: bool = False
+    label: str | None = None
 
     @property
     def sign(self) -> int:
@@ -326,16 +333,26 @@ class Verdict:
 
     @property
     def word(self) -> str:
-        """``"better"`` / ``"worse"`` when significant, else ``"unresolved"``."""
+        """``"better"`` / ``"worse"`` when significant, else ``"unresolved"`` (``"borderline"``
+        where the interval excluded 0 without replicating in both blocks of seeds); a cell
+        that is no interval says its ``label``."""
+        if self.label is not None:
+            return self.label
         if not self.significant:
-            return "unresolved"
+            return "borderline" if self.borderline else "unresolved"
         return "better" if self.sign < 0 else "worse"
 
 
 #: The summary table's columns that carry a verdict, and the short name used in comparisons.
 VERDICT_COLUMNS = {"Δ vs none [Bonferroni 95 % CI]": "vs none", "Δ vs matched [Bonferroni 95 % CI]": "vs matched"}
+#: The summary table's budget-check column and the scene tables' equal-cost column (former name
+#: beside it), and their short names in comparisons.
+BUDGET_COLUMN, BUDGET_SHORT = "budget check (headline)", "budget check"
+EQUAL_COST_COLUMNS = ("Δ vs none at equal cost [Bonferroni 95 % CI]", "Δ vs none at equal time [Bonferroni 95 % CI]")
+EQUAL_COST_SHORT = "at equal cost"
+_BUDGET_CELL = re.compile(r"^(?P<word>robust|not robust): Δ (?P<mean>[+-]?\d+\.\d+) at \d+ steps$")
 _CELL = re.compile(r"^(?:(?P<ref>[^:\[\]*]+): )?(?P<bold>\*\*)?(?P<mean>[+-]?\d+\.\d+) "
-                   r"\[[+-]?\d+\.\d+, [+-]?\d+\.\d+\](?P=bold)?(?: \(not converged\))?$")
+                   r"\[[+-]?\d+\.\d+, [+-]?\d+\.\d+\](?P=bold)?(?: \((?P<note>not converged|borderline)\))?$")
 
 
 def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
@@ -351,7 +368,7 @@ def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
         >>> table = "\\n".join(["| " + " | ".join(SUMMARY_COLUMNS) + " |", "|---" * 8 + "|",
         ...     "| paper | stretch | 1.07 | **-0.92 [-1.24, -0.60]** | — | — | — | — |"])
         >>> summary_verdicts(table)
-        {('paper', 'stretch', 'vs none'): Verdict(mean=-0.92, significant=True)}
+        {('paper', 'stretch', 'vs none'): Verdict(mean=-0.92, significant=True, borderline=False, label=None)}
     """
     rows: list[list[str]] | None = None
     columns: tuple[str, ...] = SUMMARY_COLUMNS
@@ -382,8 +399,65 @@ def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
             match = _CELL.match(cell)
             if match is None:
                 raise ValueError(f"cannot read the {column!r} cell of {row['scene']} / {method}: {cell!r}")
-            verdicts[(row["scene"], method, short)] = Verdict(float(match["mean"]), bool(match["bold"]))
+            verdicts[(row["scene"], method, short)] = Verdict(float(match["mean"]), bool(match["bold"]),
+                                                              match["note"] == "borderline")
+        budget = _BUDGET_CELL.match(row.get(BUDGET_COLUMN, row.get("budget check", "—")))
+        if budget is not None:
+            verdicts[(row["scene"], method, BUDGET_SHORT)] = Verdict(
+                float(budget["mean"]), budget["word"] == "robust", label=budget["word"])
     return verdicts
+
+
+def scene_table_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
+    """The equal-cost verdicts of the scene tables in ``text`` (a run's ``results.md``): keys
+    ``(scene, method, "at equal cost")``. A text without such tables gives none.
+
+    Raises:
+        ValueError: an equal-cost cell cannot be read.
+
+    Example:
+        >>> head = "| method | " + EQUAL_COST_COLUMNS[0] + " |"
+        >>> scene_table_verdicts("\\n".join(["### timing: a delay", "", head, "|---|---|",
+        ...                                  "| fs2 | **-3.10 [-3.50, -2.70]** |"]))
+        {('timing', 'fs2', 'at equal cost'): Verdict(mean=-3.1, significant=True, borderline=False, label=None)}
+    """
+    verdicts: dict[tuple[str, str, str], Verdict] = {}
+    scene: str | None = None
+    column: int | None = None
+    for line in text.splitlines():
+        line = line.strip()
+        if line.startswith("#"):
+            heading = line.lstrip("#").strip()
+            # the scene tables ("### NAME: description"); the paper-split repeats have no equal-cost column
+            scene = heading.split(":", 1)[0].strip() if line.startswith("### ") and ":" in heading else None
+            column = None
+            continue
+        if scene is None or not (line.startswith("|") and line.endswith("|")):
+            continue
+        cells = [cell.strip() for cell in line[1:-1].split("|")]
+        if column is None:
+            column = next((cells.index(c) for c in EQUAL_COST_COLUMNS if c in cells), None)
+            if column is None:
+                scene = None
+            continue
+        if all(re.fullmatch(r":?-{3,}:?", c) for c in cells) or len(cells) <= column:
+            continue
+        cell, method = cells[column], cells[0].removesuffix(" (matched)")
+        if cell == "—" or cell.startswith("= row") or method.endswith("(baseline)"):
+            continue
+        match = _CELL.match(cell)
+        if match is None:
+            raise ValueError(f"cannot read the equal-cost cell of {scene} / {method}: {cell!r}")
+        verdicts[(scene, method, EQUAL_COST_SHORT)] = Verdict(float(match["mean"]), bool(match["bold"]),
+                                                              match["note"] == "borderline")
+    return verdicts
+
+
+def run_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
+    """Every verdict a run's ``results.md`` prints: the summary table's (Δ vs none, Δ vs
+    matched, the budget check) and the scene tables' Δ at equal cost. A README (summary
+    table only) gives the summary's."""
+    return {**summary_verdicts(text), **scene_table_verdicts(text)}
 
 
 def compare_verdicts(
@@ -391,7 +465,8 @@ def compare_verdicts(
 ) -> dict[str, list[tuple[str, str, str]]]:
     """Compare two runs' verdicts on the cells both have (sign and significance, not digits).
 
-    Returns the cells by outcome: ``"same"`` (same word: better / worse / unresolved),
+    Returns the cells by outcome: ``"same"`` (resolved in both with the same sign, or resolved
+    in neither: a borderline cell is not resolved; the budget check: robust in both or neither),
     ``"reversed"`` (significant in both, opposite signs: the runs contradict each other),
     ``"significance"`` (significant in one run only; the point estimates' signs agree),
     ``"significance and sign"`` (significant in one run, the other's estimate has the other
@@ -410,7 +485,7 @@ def compare_verdicts(
             out["only in one"].append(key)
             continue
         x, y = a[key], b[key]
-        if x.word == y.word:
+        if x.significant == y.significant and (not x.significant or x.sign == y.sign):
             out["same"].append(key)
         elif x.significant and y.significant:
             out["reversed"].append(key)
