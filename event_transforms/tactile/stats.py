@@ -370,7 +370,7 @@ def seed_blocks(first: Sequence[float], second: Sequence[float]) -> list[dict[st
     """
     pairs = list(zip(first, second))
     half = len(pairs) // 2
-    out = []
+    out: list[dict[str, Any]] = []
     for block in (pairs[:half], pairs[half:]):
         if not block:
             out.append({"n": 0, "mean": math.nan, "ci95": None})
