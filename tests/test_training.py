@@ -147,8 +147,11 @@ class TestOneTrainer:
         config = ProtocolConfig()
         fields = config.training_settings()
         assert set(fields) <= set(defaults)
-        assert {n: tuple(v) if isinstance(v, tuple) else v for n, v in fields.items()} == {
-            n: defaults[n] for n in fields}
+        # one exception: a protocol run resamples the data per seed (its intervals cover the data),
+        # a model trained alone reads every item
+        assert config.resample == "bootstrap" and defaults["resample"] == "none"
+        assert {n: tuple(v) if isinstance(v, tuple) else v for n, v in fields.items() if n != "resample"} == {
+            n: defaults[n] for n in fields if n != "resample"}
         # every setting of ProtocolConfig that training reads is passed on (paper_split is the evaluation's)
         assert set(fields) == {f.name for f in dataclasses.fields(config)} - {"paper_split"}
 
@@ -157,12 +160,38 @@ class TestOneTrainer:
         from event_transforms.tactile.protocol import ProtocolConfig, run_unit
 
         for method in ("none", "fs2"):
-            unit = run_unit("paper", [method], [3], ProtocolConfig(**self.SETTINGS), scene_data, progress=False)
+            unit = run_unit("paper", [method], [3], ProtocolConfig(**self.SETTINGS, resample="none"), scene_data,
+                            progress=False)
             model, summary = train_model(scene_data, method, seed=3, **self.SETTINGS)
             record = unit[method][0]
             assert summary["test_mse"] == record["test_mse"] and summary["val_mse"] == record["val_mse"]
             assert summary["holdout_mse"] == record["holdout_mse"] and summary["kept_step"] == record["best_step"]
             assert summary["train_items"] == record["train_items"]
+
+    def test_a_resampled_unit_trains_and_scores_each_seed_on_its_own_resample(self, scene_data):
+        from event_transforms.tactile.protocol import ProtocolConfig, run_unit
+        from event_transforms.tactile.resampling import bootstrap_indices
+        from event_transforms.tactile.training import evaluate, phase_mse, train
+
+        config = ProtocolConfig(**self.SETTINGS)
+        assert config.resample == "bootstrap"
+        unit = run_unit("paper", ["none", "fs2"], [3, 4], config, scene_data, progress=False)
+        trained = train(scene_data, ["none", "fs2"], [3, 4], progress=False, **config.training_settings())
+        fixed = train(scene_data, ["none", "fs2"], [3, 4], progress=False,
+                      **{**config.training_settings(), "resample": "none"})
+        pred, target = evaluate(trained.model, scene_data.test)
+        plain, _ = evaluate(fixed.model, scene_data.test)
+        assert not torch.equal(pred, plain)  # the resample changed what the members trained on
+        for index, (method, seed) in enumerate([("none", 3), ("none", 4), ("fs2", 3), ("fs2", 4)]):
+            pick = bootstrap_indices(len(scene_data.test), seed, "test")
+            record = next(r for r in unit[method] if r["seed"] == seed)
+            assert record["test_mse"] == phase_mse(pred[index][pick], target[pick])["all"]
+            # the paper's split reads the first sequences as they are
+            assert record["test_mse_paper_split"] == phase_mse(pred[index, :6], target[:6])["all"]
+        with pytest.raises(ValueError, match="needs paired=True"):
+            ProtocolConfig(**{**self.SETTINGS, "paired": False})
+        with pytest.raises(ValueError, match="resample must be one of"):
+            ProtocolConfig(**self.SETTINGS, resample="jackknife")
 
     def test_members_are_method_major_and_evaluate_matches_the_member(self, scene_data):
         from event_transforms.tactile.training import evaluate, force_stats, train

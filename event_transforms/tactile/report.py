@@ -268,7 +268,23 @@ def format_environment(results: dict[str, Any]) -> str:
             f"{kernels}, {env.get('threads', '?')} thread(s) per job, device {env.get('device', '?')}, "
             f"event-transforms {env.get('package_version', '?')}. Another CPU kernel set changes per-seed MSEs in "
             "the last digits and training amplifies that, so compare verdicts (sign, significance), not digits. "
-            "Intervals cover training randomness (initial weights, batch order, augmentation draws) with the "
+            + interval_coverage(results.get("config", {}).get("resample", "none")))
+
+
+def interval_coverage(resample: str) -> str:
+    """What a run's intervals cover, in one sentence, for its ``resample`` setting.
+
+    Example:
+        >>> interval_coverage("none")[:40]
+        'Intervals cover training randomness (ini'
+    """
+    if resample == "bootstrap":
+        return ("Intervals cover training randomness (initial weights, batch order, augmentation draws) and the "
+                "data: each seed trains on its own bootstrap resample of the training sequences and is scored on "
+                "its own resamples of the validation and test sequences (every method of a seed on the same "
+                "ones; the baselines fitted and scored on the same resamples, averaged over seeds; the hold-out "
+                "set and the paper's 6 + 6 split are not resampled).")
+    return ("Intervals cover training randomness (initial weights, batch order, augmentation draws) with the "
             "data fixed: every seed trains and is tested on the same grasps.")
 
 

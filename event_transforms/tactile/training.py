@@ -115,6 +115,7 @@ def train(
     fixed: bool = True,
     copies: int = 1,
     paired: bool = True,
+    resample: str = "none",
     scene: BenchmarkScene | None = None,
     device: str | torch.device = "cpu",
     progress: bool | None = None,
@@ -150,6 +151,9 @@ def train(
         fixed: copies made once before training; ``False``: on the training device per batch.
         copies: synthetic copies per item for method names without ``x<k>``.
         paired: the paired batch order across methods.
+        resample: ``"bootstrap"``: member (method, seed) reads seed's bootstrap resample of
+            ``data.train`` (:func:`~event_transforms.tactile.resampling.bootstrap_indices`; the
+            same for every method of the seed; needs ``paired``); ``"none"``: every item.
         scene: the scene the method names are read for; default ``data.scene``.
         device: where to train.
         progress: a progress bar (``None``: when stderr is a terminal).
@@ -173,6 +177,7 @@ def train(
         ((4, 3, 12), (3, 12))
     """
     from .copies import DeviceAugment, OnlineCopies, build_training_set, paired_batches
+    from .resampling import check_resample, resample_batches, split_resample
     from .methods import parse_method
     from .models import ForceRegressor
 
@@ -181,6 +186,9 @@ def train(
     if isinstance(seeds, (str, bytes)) or not seeds:
         raise ValueError(f"seeds must be a non-empty sequence of ints, got {seeds!r}")
     seeds = [check_seed(seed, "seeds") for seed in seeds]
+    if check_resample(resample) != "none" and not paired:
+        raise ValueError(f"resample={resample!r} reads each seed's resample through the paired batches: "
+                         "it needs paired=True")
     scene = data.scene if scene is None else scene
     parsed = [parse_method(m, copies=copies, scene=scene) for m in methods]
     offset, scale = force_stats(data.train)
@@ -204,7 +212,10 @@ def train(
             member_seeds.append(int(seed))
             member_copies = method.copies if transform is not None else 0
             if paired:
-                batches.append(paired_batches(len(data.train), member_copies, batch_size, steps, seed=seed))
+                order = paired_batches(len(data.train), member_copies, batch_size, steps, seed=seed)
+                if resample == "bootstrap":
+                    order = resample_batches(order, len(data.train), split_resample(data.train, seed, "train"))
+                batches.append(order)
     scale = max(scale, 1e-6)
     ensemble = EnsembleForceRegressor.from_models(models).to(device)
     ensemble.set_force_scaling([offset] * len(models), [scale] * len(models))

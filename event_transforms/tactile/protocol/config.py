@@ -8,6 +8,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from ..._validation import check_positive
+from ..resampling import check_resample
 
 __all__ = ["ProtocolConfig"]
 
@@ -35,6 +36,10 @@ class ProtocolConfig:
         paired: for a seed, every method reads the same original items at the same steps
             (:func:`~event_transforms.tactile.copies.paired_batches`); ``False`` shuffles each
             method's own set (the pairing of earlier releases: initial weights only).
+        resample: ``"bootstrap"``: each seed trains on its own bootstrap resample of the
+            training sequences and is scored on its own resamples of the validation and test
+            sequences (:mod:`~event_transforms.tactile.resampling`), so an interval over seeds
+            covers the data too; ``"none"``: every seed reads the same data.
     """
 
     steps: int = 1500
@@ -49,6 +54,7 @@ class ProtocolConfig:
     copies: int = 1
     paper_split: bool = False
     paired: bool = True
+    resample: str = "bootstrap"
 
     def __post_init__(self) -> None:
         for name in ("steps", "batch_size", "eval_every", "input_pool", "copies"):
@@ -59,6 +65,10 @@ class ProtocolConfig:
         if not channels or any(isinstance(c, bool) or not isinstance(c, int) or c < 1 for c in channels):
             raise ValueError(f"hidden_channels must be positive ints, got {self.hidden_channels!r}")
         self.hidden_channels = channels
+        check_resample(self.resample)
+        if self.resample != "none" and not self.paired:
+            raise ValueError(f"resample={self.resample!r} needs paired=True (each seed's resample is read through "
+                             "the paired batches)")
 
     def key(self) -> str:
         """A short hash of the settings, so results of different settings never mix."""
@@ -74,4 +84,4 @@ class ProtocolConfig:
         """
         return {name: getattr(self, name) for name in (
             "steps", "batch_size", "lr", "clip", "eval_every", "hidden_channels", "input_pool", "cumulative",
-            "fixed", "copies", "paired")}
+            "fixed", "copies", "paired", "resample")}

@@ -25,6 +25,7 @@ import torch
 from .. import distributed
 from .._files import write_json_atomic
 from ..copies import SceneData, load_scene_data
+from ..resampling import split_resample
 from ..report import format_report
 from ..runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
 from ..scenes import SCENES
@@ -48,16 +49,33 @@ PROGRESS_LEGEND = (
 )
 
 
-def _baselines(data: SceneData) -> dict[str, dict[str, float]]:
+def _baselines(data: SceneData, seeds: Sequence[int] = (), resample: str = "none") -> dict[str, dict[str, Any]]:
+    """The baselines' scores; with ``resample="bootstrap"`` fitted and scored on each seed's
+    resamples (as the networks are), the mean over seeds with the per-seed values beside it."""
     from ..baselines import evaluate_baselines, stack_items
 
     train, val, test = (stack_items(d) for d in (data.train, data.val, data.test))
-    scores = evaluate_baselines(train, val, test)
-    small = evaluate_baselines(train, (val[0][:6], val[1][:6]), (test[0][:6], test[1][:6]))
-    return {
-        name: {**values, "test_mse_paper_split": small[name]["test_mse"], "val_mse_paper_split": small[name]["val_mse"]}
-        for name, values in scores.items()
-    }
+    if resample == "none" or not seeds:
+        scores = evaluate_baselines(train, val, test)
+        small = evaluate_baselines(train, (val[0][:6], val[1][:6]), (test[0][:6], test[1][:6]))
+        return {name: {**values, "test_mse_paper_split": small[name]["test_mse"],
+                       "val_mse_paper_split": small[name]["val_mse"]} for name, values in scores.items()}
+    per_seed: dict[str, dict[str, list[float]]] = {}
+    for seed in seeds:
+        picks = {split: split_resample(dataset, seed, split)
+                 for split, dataset in (("train", data.train), ("val", data.val), ("test", data.test))}
+        boot_train, boot_val, boot_test = ((pair[0][picks[split]], pair[1][picks[split]])
+                                           for split, pair in (("train", train), ("val", val), ("test", test)))
+        scores = evaluate_baselines(boot_train, boot_val, boot_test)
+        small = evaluate_baselines(boot_train, (val[0][:6], val[1][:6]), (test[0][:6], test[1][:6]))
+        for name, values in scores.items():
+            entry = per_seed.setdefault(name, {})
+            for key, value in (*values.items(), ("test_mse_paper_split", small[name]["test_mse"]),
+                               ("val_mse_paper_split", small[name]["val_mse"])):
+                entry.setdefault(key, []).append(float(value))
+    return {name: {**{key: statistics.fmean(v) for key, v in values.items()},
+                   "test_mse_per_seed": values["test_mse"], "resample": resample}
+            for name, values in per_seed.items()}
 
 
 class _Progress:
@@ -356,7 +374,8 @@ def run_protocol(
         sizes = {"train": len(d.train), "val": len(d.val), "test": len(d.test)}
         if d.holdout is not None:
             sizes["holdout"] = len(d.holdout)
-        summary = summarize_scene(d.scene, _per_method(units, results, scene, chosen[scene]), _baselines(d), sizes)
+        summary = summarize_scene(d.scene, _per_method(units, results, scene, chosen[scene]),
+                                  _baselines(d, seeds, config.resample), sizes)
         summary["generation_s"] = d.seconds
         dataset = getattr(d, "dataset", None)
         if isinstance(dataset, dict):  # a folder of recordings: how many recordings the intervals rest on

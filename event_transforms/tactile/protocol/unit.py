@@ -14,6 +14,7 @@ from typing import Any
 import torch
 
 from ..copies import SceneData
+from ..resampling import bootstrap_indices, split_resample
 from ..scenes import BenchmarkScene, get_scene
 from ..training import evaluate, phase_mse, train
 from .config import ProtocolConfig
@@ -68,18 +69,31 @@ def run_unit(
             for name in names.get(trained.methods[index].name, ()):
                 key = f"{prefix}{SHARED_SEPARATOR}{name}" if prefix else name
                 out.setdefault(key, []).append(_record(trained, index, record, result, holdout, passes,
-                                                       val_pred, val_target, test_pred, test_target))
+                                                       val_pred, val_target, test_pred, test_target,
+                                                       resample=config.resample, target=target))
     return out
 
 
 def _record(trained: Any, index: int, record: Any, result: Any, holdout: bool, passes: int,
             val_pred: torch.Tensor, val_target: torch.Tensor, test_pred: torch.Tensor,
-            test_target: torch.Tensor) -> dict[str, Any]:
-    """One member's record: its training (shared by every scene that scores it) and its scores."""
+            test_target: torch.Tensor, *, resample: str = "none", target: SceneData | None = None) -> dict[str, Any]:
+    """One member's record: its training (shared by every scene that scores it) and its scores,
+    on its seed's resample of the validation and test sequences with ``resample="bootstrap"``
+    (the paper's 6 + 6 split and the examples read the first sequences as they are)."""
     method = trained.methods[index]
     size = trained.train_items[index]
     member_augment = trained.augment[index]
-    test_phases = phase_mse(test_pred[index], test_target)
+    val_scored, val_measured = val_pred[index], val_target
+    test_scored, test_measured = test_pred[index], test_target
+    if resample == "bootstrap":
+        seed = trained.seeds[index]
+        pick = (bootstrap_indices(val_target.shape[0], seed, "val") if target is None
+                else split_resample(target.val, seed, "val"))
+        val_scored, val_measured = val_scored[pick], val_measured[pick]
+        pick = (bootstrap_indices(test_target.shape[0], seed, "test") if target is None
+                else split_resample(target.test, seed, "test"))
+        test_scored, test_measured = test_scored[pick], test_measured[pick]
+    test_phases = phase_mse(test_scored, test_measured)
     return {
         "seed": trained.seeds[index],
         "copies": method.copies,
@@ -91,7 +105,7 @@ def _record(trained: Any, index: int, record: Any, result: Any, holdout: bool, p
         "holdout_mse": record.selected_val_loss if holdout else math.nan,
         "test_mse": test_phases["all"],
         "test_phase_mse": test_phases,
-        "val_mse": phase_mse(val_pred[index], val_target)["all"],
+        "val_mse": phase_mse(val_scored, val_measured)["all"],
         # the paper's 6 + 6 split: the first 6 sequences of val and test
         "val_mse_paper_split": phase_mse(val_pred[index, :6], val_target[:6])["all"],
         "test_mse_paper_split": phase_mse(test_pred[index, :6], test_target[:6])["all"],
