@@ -669,8 +669,8 @@ def test_a_seed_does_not_depend_on_the_seeds_beside_it():
 
 
 class TestEqualTime:
-    """MSE at equal wall time (issue 24, item 6): each method retrained for the steps its
-    online augmentation leaves in none's wall time."""
+    """MSE at equal cost (issue 24, item 6; issue 33, item 6): each method retrained for the steps
+    its cost per step (from the cost table) leaves in none's time."""
 
     def test_steps_from_the_timings(self):
         assert experiment.equal_time_steps(300, 10.0, 20.0) == 150
@@ -685,21 +685,25 @@ class TestEqualTime:
             experiment.equal_time_steps(0, 10.0, 20.0)
 
     def test_retrains_at_the_affordable_steps(self, monkeypatch, tmp_path):
+        """The steps come from the cost table (issue 33, item 6): stretch costs twice a plain step,
+        fs-1 nothing; the measured wall times do not enter."""
+        from event_transforms.tactile.protocol.costs import COST_TABLE_FORMAT, cost_key
+
         config = ProtocolConfig(**{**TINY.__dict__, "steps": 8, "eval_every": 4})
         data = {"paper": fake_data("paper")}
-        # one model: 10 s per run; stretch's online augmentation doubles that, fs-1's is free
-        epochs = config.steps * config.batch_size / 12  # 6 items + 6 copies
         timing = {"single_model_wall_s": {"median": 10.0, "min": 9.0, "max": 11.0, "repeats": 3},
                   "single_model_scene": "paper",
-                  "online_aug_s_per_epoch": {"paper": {"none": None, "stretch": 10.0 / epochs, "fs-1": 0.0}}}
+                  "online_aug_s_per_epoch": {"paper": {"none": None, "stretch": 123.0, "fs-1": 0.0}}}
         monkeypatch.setattr(protocol_run, "measure_timing", lambda *a, **k: timing)
         commits = iter(["a" * 40, "b" * 40, "b" * 40])  # the checkout moves during the run
         monkeypatch.setattr(protocol_run, "git_commit", lambda: next(commits))
+        costs = {"format": COST_TABLE_FORMAT, "config": cost_key(config),
+                 "ratios": {"paper": {"none": 1.0, "stretch": 2.0, "fs-1": 1.0}}}
         results = run_protocol(["paper"], [0, 1], tmp_path, config=config, methods=["none", "stretch", "fs-1"],
-                               data=data, budget_check=False, equal_time=True)
+                               data=data, budget_check=False, equal_time=True, cost_table=costs)
         methods = results["scenes"]["paper"]["methods"]
         assert "equal_time" not in methods["none"]
-        assert methods["stretch"]["equal_time"]["steps"] == 4  # 8 · 10 / 20, a multiple of eval_every // 2
+        assert methods["stretch"]["equal_time"]["steps"] == 4  # floor(8 / 2.0), whatever the stopwatch said
         direct = run_unit("paper", ["stretch"], [0, 1], ProtocolConfig(**{**config.__dict__, "steps": 4}),
                           data["paper"], progress=False)
         assert methods["stretch"]["equal_time"]["test_mse"] == [r["test_mse"] for r in direct["stretch"]]
@@ -712,7 +716,7 @@ class TestEqualTime:
         expected = paired_t(methods["none"]["test_mse"], methods["stretch"]["equal_time"]["test_mse"])
         assert delta["mean"] == pytest.approx(expected.mean) and delta["family_size"] == 2
         table = format_scene_table("paper", results["scenes"]["paper"])
-        assert "Δ vs none at equal time" in table.splitlines()[0]
+        assert "Δ vs none at equal cost" in table.splitlines()[0]
         assert "| 8 (the budget) | — |" in table
         assert results["config"]["equal_time"] is True
         assert results["commit"] == "a" * 40  # the commit that trained, read when the run started

@@ -162,6 +162,10 @@ def build_parser() -> argparse.ArgumentParser:
         "'none' model takes (MSE at equal wall time: a column and accuracy_at_equal_time.png; default: on in "
         "the quick configuration, off with --full; --no-equal-time skips it)",
     )
+    rep.add_argument("--cost-table", type=Path, metavar="JSON", default=None,
+                     help="the cost table the equal-cost step counts come from (each method's cost per training "
+                     "step relative to none; default: the committed table of the quick configuration where it "
+                     "covers the run, else one measured at the start of the equal-cost phase)")
     rep.add_argument("--plan", action="store_true",
                      help="print the run's units and member-steps (its cost) and exit without training")
     rep.add_argument("--data", type=Path, metavar="DIR",

@@ -243,12 +243,20 @@ def reproduce(args: argparse.Namespace) -> int:
         + (f"{os.environ.get('WORLD_SIZE')} torchrun ranks" if distributed else f"{jobs} job(s)")
         + f", {threads} thread(s) each"
     )
+    cost_table = args.cost_table
+    if cost_table is None and equal_time and given is None:
+        from .protocol.costs import QUICK_COST_TABLE, cost_key, load_cost_table
+
+        committed = load_cost_table(QUICK_COST_TABLE) if QUICK_COST_TABLE.exists() else None
+        if committed is not None and committed["config"] == cost_key(config) and all(
+                m in committed["ratios"].get(s, {}) for s in scenes for m in chosen[s]):
+            cost_table = QUICK_COST_TABLE
     start = time.perf_counter()
     results = run_protocol(
         scenes, seeds, args.out, config=config, methods=chosen, full=args.full,
         root=None if args.root is None else str(args.root), jobs=1 if distributed else jobs,
         device=device, threads=threads, group=args.group, log=_print, budget_check=not args.no_budget_check,
-        data=given, equal_time=equal_time,
+        data=given, equal_time=equal_time, cost_table=cost_table,
     )
     if not results:  # a torchrun rank other than 0
         return 0

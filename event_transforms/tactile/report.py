@@ -85,9 +85,9 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
     per epoch (every training item transformed once, batch by batch as a DataLoader would);
     one model's training wall time alone (median [min, max] over repeats); one model's wall
     time with online augmentation (training + online augmentation × epochs). Where the run
-    measured MSE at equal wall time: the steps each method affords in ``none``'s wall time
-    when it augments online, and its Δ vs ``none`` retrained at those steps (a family of its
-    own).
+    measured MSE at equal cost: the steps each method affords in the time ``none`` takes when
+    it augments online, from the cost table (``floor(steps / ratio)``), and its Δ vs ``none``
+    retrained at those steps (a family of its own).
     """
     head = ["method", "test MSE", "Δ vs none [Bonferroni 95 % CI]", "unpaired 95 % CI (unadjusted)", "r",
             "Bonferroni p: t / Wilcoxon", "Δ vs matched [Bonferroni 95 % CI]", "kept step (stopped early)"]
@@ -95,7 +95,7 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
         head += ["aug s once", "online aug s/epoch", "1 model s/run", "1 model s/run online"]
     equal = timings and key == "test_mse" and any("equal_time" in s for s in summary["methods"].values())
     if equal:
-        head += ["steps at equal time", "Δ vs none at equal time [Bonferroni 95 % CI]"]
+        head += ["steps at equal cost (cost table)", "Δ vs none at equal cost [Bonferroni 95 % CI]"]
     extra = len(head) - 8
     rows = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * len(head)) + "|"]
     baseline_key = "test_mse_paper_split" if key.endswith("paper_split") else "test_mse"

@@ -34,7 +34,8 @@ from .config import ProtocolConfig
 from .environment import environment, git_commit
 from .plan import Unit, choose_methods, plan_run, work_units
 from .shared import SHARED_SEPARATOR, collect, plan_sharing
-from .timing import equal_time_steps, measure_timing
+from .costs import cost_key, equal_cost_steps, load_cost_table, measure_costs, ratio_of
+from .timing import measure_timing
 from .unit import run_unit
 
 __all__ = ["run_protocol", "PROGRESS_LEGEND"]
@@ -243,6 +244,29 @@ def _attach_equal_time(summary: dict[str, Any], steps_of: dict[str, int], runs: 
             s_["equal_time"] = dict(methods[original]["equal_time"])
 
 
+def _cost_table(given: str | Path | Mapping[str, Any] | None, scenes: Sequence[str],
+                chosen: Mapping[str, Sequence[str]], data: Mapping[str, SceneData], config: ProtocolConfig,
+                threads: int | None, out: Path, log: Callable[[str], None] | None) -> dict[str, Any]:
+    """The run's cost table: the one given (checked against the run's configuration), else one
+    measured now, interleaved, and written to ``out/cost_table.json``."""
+    if given is not None:
+        table = load_cost_table(given)
+        if table["config"] != cost_key(config):
+            raise ValueError(f"cost table {given if not isinstance(given, Mapping) else '(given)'} was measured for "
+                             f"{table['config']}, this run is {cost_key(config)}: measure one for this configuration "
+                             "(reproduce without --cost-table measures its own)")
+        table["source"] = str(given) if not isinstance(given, Mapping) else "given"
+    else:
+        table = measure_costs(scenes, chosen, data, config, threads=threads)
+        table["source"] = "measured at the start of the equal-cost phase of this run"
+        write_json_atomic(out / "cost_table.json", table)
+    if log:
+        log(f"equal cost: step counts from the cost table ({table['source']}; measured on "
+            f"{table.get('environment', {}).get('cpu_model', 'an unnamed CPU')} at commit "
+            f"{str(table.get('commit', '?'))[:7]})")
+    return table
+
+
 def _describe_data(data: dict[str, SceneData], scenes: Sequence[str]) -> str:
     """What the results rest on: simulated grasps, or folders of recordings (path, files, content hash)."""
     parts = []
@@ -276,6 +300,7 @@ def run_protocol(
     budget_check: bool = True,
     measure_time: bool = True,
     equal_time: bool = False,
+    cost_table: str | Path | Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run every scene's methods for every seed; write ``results.json`` and ``results.md``.
 
@@ -300,11 +325,13 @@ def run_protocol(
 
     With ``equal_time`` (and ``measure_time``), every method that is not ``none`` and not a
     duplicate row is trained again, like the main runs (same seeds, same augmentation mode),
-    for the steps its online augmentation leaves in the wall time one ``none`` model takes
-    for ``config.steps`` (:func:`equal_time_steps`, rounded down to a multiple of
-    ``config.eval_every // 2``); ``scenes.NAME.methods.M.equal_time`` records the steps, the
-    per-seed test MSEs and the Δ vs ``none``'s main run (one family per scene, as above).
-    A method whose online cost leaves every step keeps its main run.
+    for the steps its cost per step leaves in the time ``none`` takes for ``config.steps``:
+    ``floor(steps / ratio)`` with the ratio from ``cost_table`` (a file or dict,
+    :mod:`~event_transforms.tactile.protocol.costs`), or from a table measured once at the
+    start of that phase (written to ``out/cost_table.json``) when none is given — never from the
+    wall times of the run; ``scenes.NAME.methods.M.equal_time`` records the steps, the per-seed
+    test MSEs and the Δ vs ``none``'s main run (one family per scene, as above), and
+    ``cost_ratio`` the ratio. A method whose ratio is 1 keeps its main run.
 
     ``results.json`` records the environment (:func:`environment`): package version and
     commit, torch, CPU model, kernel set, threads and device.
@@ -397,17 +424,18 @@ def run_protocol(
             )
         scene_results[scene] = summary
 
-    # Equal wall time: each method again for the steps its online augmentation leaves.
+    # Equal cost: each method again for the steps its cost per step (from the cost table) leaves.
+    costs: dict[str, Any] = {}
     if equal_time and measure_time:
-        grain = max(1, config.eval_every // 2)
         steps_of: dict[str, dict[str, int]] = {}
         if rank0:
+            costs = _cost_table(cost_table, scenes, chosen, data, config, threads, out, log)
             for scene, summary in scene_results.items():
                 for method, s_ in summary["methods"].items():
-                    if method == "none" or s_.get("duplicate_of") or s_.get("online_wall_s") is None:
+                    if method == "none" or s_.get("duplicate_of"):
                         continue
-                    steps_of.setdefault(scene, {})[method] = equal_time_steps(
-                        config.steps, s_["single_wall_s"]["median"], s_["online_wall_s"], grain=grain)
+                    s_["cost_ratio"] = ratio_of(costs, scene, method)
+                    steps_of.setdefault(scene, {})[method] = equal_cost_steps(config.steps, s_["cost_ratio"])
         if distributed.current_group() is not None:
             steps_of = distributed.broadcast_from_rank0(steps_of)
         equal_runs: dict[str, dict[str, list]] = {}
@@ -435,6 +463,8 @@ def run_protocol(
         "wall_s": time.perf_counter() - start,
         "environment": environment(device, threads),
         "timing": timing,
+        "cost_table": {k: costs[k] for k in ("source", "config", "environment", "commit", "train_s_per_step")
+                       if k in costs},
         "data": _describe_data(data, scenes),
         "scenes": scene_results,
     }

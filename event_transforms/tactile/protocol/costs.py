@@ -1,0 +1,150 @@
+"""Cost from a table, not a stopwatch: each method's cost per training step, relative to ``none``.
+
+MSE at equal cost retrains every method for the steps its online augmentation leaves in the
+time ``none`` takes for the run's steps. Reading those step counts off a stopwatch during the
+run made them move with the machine's load (the same method got 200 steps in one run and 175
+in the next). So the protocol reads them from a **cost table**: per scene and method, the ratio
+of one training step with the method's online augmentation to one plain step,
+
+    ratio = 1 + (augmentation seconds per step) / (training seconds per step),
+
+measured once by :func:`measure_costs` — the plain training and every method's augmentation
+timed in turns (interleaved, so a change of load hits both), the ratio the median over
+``repeats`` rounds — and kept with the machine it was measured on. A method then affords
+``equal_cost_steps(steps, ratio) = floor(steps / ratio)`` steps: no rounding to a grain, and
+the same count on every machine that reads the same table. The README's quick run reads the
+committed table (``cost_table_quick.json`` beside this module; ``python
+benchmarks/cost_table.py`` measures it again); a run whose configuration the table was not
+measured for measures its own at the start and writes it to ``OUT/cost_table.json``. Wall times
+stay in the tables as measured, named as such.
+
+Example:
+    >>> equal_cost_steps(300, 1.25), equal_cost_steps(300, 1.0), equal_cost_steps(300, 3.9)
+    (240, 300, 76)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from ..copies import OnlineCopies, SceneData
+from ..methods import parse_method
+from .config import ProtocolConfig
+from .environment import environment, git_commit
+from .timing import online_augmentation_cost
+from .unit import run_unit
+
+__all__ = ["COST_TABLE_FORMAT", "QUICK_COST_TABLE", "cost_key", "measure_costs", "equal_cost_steps",
+           "load_cost_table", "ratio_of"]
+
+#: The format of a cost table file.
+COST_TABLE_FORMAT = 1
+#: The committed cost table of the README's quick configuration.
+QUICK_COST_TABLE = Path(__file__).resolve().parent / "cost_table_quick.json"
+
+
+def cost_key(config: ProtocolConfig) -> dict[str, Any]:
+    """What a cost ratio depends on besides the method: the batch, the copies and the model."""
+    settings = asdict(config)
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in settings.items()
+            if k in ("batch_size", "copies", "hidden_channels", "input_pool", "cumulative")}
+
+
+def equal_cost_steps(steps: int, ratio: float) -> int:
+    """The steps a method of cost ``ratio`` (per step, relative to ``none``) affords in the time
+    ``none`` takes for ``steps``: ``floor(steps / ratio)``, at least 1, at most ``steps``.
+
+    Raises:
+        ValueError: ``ratio`` is not a finite number of at least 1.
+    """
+    if not (isinstance(ratio, (int, float)) and math.isfinite(ratio) and ratio >= 1.0):
+        raise ValueError(f"ratio must be a finite number >= 1 (a step with augmentation costs at least one "
+                         f"without), got {ratio!r}")
+    return min(steps, max(1, math.floor(steps / ratio + 1e-9)))
+
+
+def _train_seconds_per_step(scene: Any, data: SceneData, config: ProtocolConfig, steps: int) -> float:
+    tick = time.perf_counter()
+    run_unit(scene, ["none"], [0], ProtocolConfig(**{**asdict(config), "steps": steps}), data, progress=False)
+    return (time.perf_counter() - tick) / steps
+
+
+def measure_costs(scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], data: Mapping[str, SceneData],
+                  config: ProtocolConfig, *, repeats: int = 5, probe_steps: int = 50,
+                  threads: int | None = 1) -> dict[str, Any]:
+    """The cost table of a run: per scene and method, one step with online augmentation over one
+    plain step, interleaved (each round times ``probe_steps`` plain training steps, then every
+    method's augmentation of one epoch) and the median over ``repeats`` rounds.
+
+    Returns:
+        ``{"format", "config", "repeats", "train_s_per_step", "ratios": {scene: {method: ratio}},
+        "environment", "commit"}``; ``none`` and methods without copies have ratio 1.
+    """
+    if threads:
+        torch.set_num_threads(threads)
+    first = scenes[0]
+    per_round: dict[str, dict[str, list[float]]] = {s: {m: [] for m in chosen[s]} for s in scenes}
+    train_steps: list[float] = []
+    for _ in range(repeats):
+        train = _train_seconds_per_step(data[first].scene, data[first], config, probe_steps)
+        train_steps.append(train)
+        for scene in scenes:
+            for method in chosen[scene]:
+                aug = online_augmentation_cost(method, data[scene].scene, data[scene], batch_size=config.batch_size,
+                                               copies=config.copies, repeats=1)
+                if aug is None:
+                    per_round[scene][method].append(1.0)
+                    continue
+                parsed = parse_method(method, copies=config.copies, scene=data[scene].scene)
+                items = len(OnlineCopies(data[scene].train, parsed.copies))
+                per_round[scene][method].append(1.0 + aug * config.batch_size / items / train)
+    return {
+        "format": COST_TABLE_FORMAT,
+        "config": cost_key(config),
+        "repeats": repeats,
+        "train_s_per_step": statistics.median(train_steps),
+        "ratios": {s: {m: statistics.median(v) for m, v in per.items()} for s, per in per_round.items()},
+        "environment": environment("cpu", threads),
+        "commit": git_commit(),
+    }
+
+
+def load_cost_table(source: str | Path | Mapping[str, Any]) -> dict[str, Any]:
+    """A cost table from a file (or a dict), checked: its format and ratios of at least 1.
+
+    Raises:
+        ValueError: the file is no cost table of this format, or a ratio is below 1.
+    """
+    try:
+        table = dict(source) if isinstance(source, Mapping) else json.loads(Path(source).read_text())
+    except (OSError, ValueError) as error:
+        raise ValueError(f"cost table {source}: cannot be read as JSON ({error})") from None
+    if table.get("format") != COST_TABLE_FORMAT or not isinstance(table.get("ratios"), dict):
+        raise ValueError(f"cost table {source if not isinstance(source, Mapping) else '(given)'}: not a cost table of "
+                         f"format {COST_TABLE_FORMAT} (measure one with benchmarks/cost_table.py)")
+    for scene, per in table["ratios"].items():
+        for method, ratio in per.items():
+            equal_cost_steps(1, ratio)  # refuses a ratio below 1 or not finite, by name below
+    return table
+
+
+def ratio_of(table: Mapping[str, Any], scene: str, method: str) -> float:
+    """The table's ratio for ``method`` on ``scene``.
+
+    Raises:
+        ValueError: the table has none (naming the scene, the method and how to measure it).
+    """
+    ratio = table["ratios"].get(scene, {}).get(method)
+    if ratio is None:
+        raise ValueError(f"the cost table has no ratio for {method!r} on scene {scene!r}: measure one for this run "
+                         "(reproduce without --cost-table measures its own) or with benchmarks/cost_table.py")
+    return float(ratio)
