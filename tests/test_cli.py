@@ -717,7 +717,17 @@ class TestEqualTime:
         assert delta["mean"] == pytest.approx(expected.mean) and delta["family_size"] == 2
         table = format_scene_table("paper", results["scenes"]["paper"])
         assert "Δ vs none at equal cost" in table.splitlines()[0]
-        assert "| 8 (the budget) | — |" in table
+        assert "| 8 (the budget) |" in table
+        # the cost curve (budget check off): none at 1.5 x the steps, every method's Δ against it
+        curve = results["scenes"]["paper"]["cost_curve"]
+        assert curve["ratios"] == [1.0, 1.5] and curve["steps"] == {"1.0": 8, "1.5": 12}
+        longer = run_unit("paper", ["none"], [0, 1], ProtocolConfig(**{**config.__dict__, "steps": 12}),
+                          data["paper"], progress=False)["none"]
+        point = curve["methods"]["stretch"]["1.5"]
+        expected = paired_t([r["test_mse"] for r in longer], methods["stretch"]["test_mse"])
+        assert point["mean"] == pytest.approx(expected.mean) and point["family_size"] == 2
+        assert curve["methods"]["stretch"]["1.0"]["mean"] == pytest.approx(methods["stretch"]["delta_vs_none"]["mean"])
+        assert "Δ vs none at 1.5× its steps (12)" in table.splitlines()[0]
         assert results["config"]["equal_time"] is True
         assert results["commit"] == "a" * 40  # the commit that trained, read when the run started
         pytest.importorskip("matplotlib")

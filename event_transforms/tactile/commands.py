@@ -226,9 +226,14 @@ def reproduce(args: argparse.Namespace) -> int:
                f"{plan['member_steps'] - sharing.shared * len(seeds) * config.steps:,} member-steps are trained "
                "in the main phase (the budget check and equal time share the same way)")
         if equal_time:
-            _print(f"equal wall time: at most {plan['equal_time_member_steps_max']:,} more member-steps (every "
-                   "method but none retrained for the steps its measured online cost leaves, at most "
-                   f"{config.steps}); total at most {plan['total_member_steps'] + plan['equal_time_member_steps_max']:,}")
+            none_only = {s: ("none",) for s in scenes}
+            trained_none = len(scenes) - plan_sharing(none_only, data).shared
+            curve = trained_none * len(seeds) * round(1.5 * config.steps)
+            _print(f"equal cost: at most {plan['equal_time_member_steps_max']:,} more member-steps (every method but "
+                   f"none retrained for floor(steps / its cost ratio) steps from the cost table, at most "
+                   f"{config.steps}); cost curve: none at {round(1.5 * config.steps)} steps on {trained_none} "
+                   f"training set(s), {curve:,} member-steps (none at {2 * config.steps} is the budget check's); "
+                   f"total at most {plan['total_member_steps'] + plan['equal_time_member_steps_max'] + curve:,}")
         return 0
     rank = int(os.environ.get("RANK", "0")) if distributed else 0
     say = _print if rank == 0 else (lambda *a: None)

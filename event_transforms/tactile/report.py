@@ -87,7 +87,8 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
     time with online augmentation (training + online augmentation × epochs). Where the run
     measured MSE at equal cost: the steps each method affords in the time ``none`` takes when
     it augments online, from the cost table (``floor(steps / ratio)``), and its Δ vs ``none``
-    retrained at those steps (a family of its own).
+    retrained at those steps (a family of its own). Where the run has the cost curve: Δ of each
+    method against ``none`` trained for 1.5× and 2× the steps (read it at your own cost ratio).
     """
     head = ["method", "test MSE", "Δ vs none [Bonferroni 95 % CI]", "unpaired 95 % CI (unadjusted)", "r",
             "Bonferroni p: t / Wilcoxon", "Δ vs matched [Bonferroni 95 % CI]", "kept step (stopped early)"]
@@ -96,6 +97,10 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
     equal = timings and key == "test_mse" and any("equal_time" in s for s in summary["methods"].values())
     if equal:
         head += ["steps at equal cost (cost table)", "Δ vs none at equal cost [Bonferroni 95 % CI]"]
+    curve = summary.get("cost_curve") if timings and key == "test_mse" else None
+    ratios = [r for r in (curve or {}).get("ratios", []) if r > 1.0]
+    head += [f"Δ vs none at {r:g}× its steps ({curve['steps'][f'{r:.1f}']}) [Bonferroni 95 % CI]"  # type: ignore[index]
+             for r in ratios]
     extra = len(head) - 8
     rows = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * len(head)) + "|"]
     baseline_key = "test_mse_paper_split" if key.endswith("paper_split") else "test_mse"
@@ -147,6 +152,9 @@ def format_scene_table(name: str, summary: dict[str, Any], *, timings: bool = Tr
                 cells += [str(same["steps"]), f"= row {original}"]
             else:
                 cells += [str(same["steps"]), _ci_text(same["delta_vs_none"])]
+        for ratio in ratios:
+            point = (curve or {}).get("methods", {}).get(method, {}).get(f"{ratio:.1f}")
+            cells.append(f"= row {original}" if original is not None and method != "none" else _ci_text(point))
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join(rows)
 

@@ -43,8 +43,12 @@ from .environment import environment, git_commit
 from .timing import online_augmentation_cost
 from .unit import run_unit
 
-__all__ = ["COST_TABLE_FORMAT", "QUICK_COST_TABLE", "cost_key", "measure_costs", "equal_cost_steps",
-           "load_cost_table", "ratio_of"]
+__all__ = ["COST_TABLE_FORMAT", "QUICK_COST_TABLE", "CURVE_RATIOS", "cost_key", "measure_costs", "equal_cost_steps",
+           "load_cost_table", "ratio_of", "cost_curve"]
+
+#: The cost ratios of the published curve: Δ of each method at the run's steps against ``none``
+#: trained for ``ratio`` × the steps (1: the main table's Δ; 2: ``none`` of the budget check).
+CURVE_RATIOS = (1.0, 1.5, 2.0)
 
 #: The format of a cost table file.
 COST_TABLE_FORMAT = 1
@@ -148,3 +152,39 @@ def ratio_of(table: Mapping[str, Any], scene: str, method: str) -> float:
         raise ValueError(f"the cost table has no ratio for {method!r} on scene {scene!r}: measure one for this run "
                          "(reproduce without --cost-table measures its own) or with benchmarks/cost_table.py")
     return float(ratio)
+
+
+def cost_curve(methods: Mapping[str, Any], none_at: Mapping[float, Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Δ against steps, for a reader's own cost ratio: per method (not ``none``, not a duplicate
+    row), its test MSE at the run's steps against ``none`` trained for ``ratio`` × those steps,
+    paired by seed, with the Bonferroni interval of the scene's family (the methods that have the
+    point). A method whose augmentation costs ``r`` × a plain step is at equal cost with ``none``
+    at ``ratio = r``: read the curve there.
+
+    Args:
+        methods: a scene's ``methods`` of ``results.json`` (``{"seeds", "test_mse", ...}``).
+        none_at: per ratio above 1, ``none``'s ``{"seeds", "test_mse"}`` at ``ratio`` × the steps.
+
+    Returns:
+        ``{method: {ratio (str): Δ dict}}``, the ratio 1 being the main table's Δ vs none.
+
+    Example:
+        >>> methods = {"none": {"seeds": [0, 1, 2], "test_mse": [2.0, 2.2, 2.1]},
+        ...            "fs1": {"seeds": [0, 1, 2], "test_mse": [1.0, 1.3, 1.1]}}
+        >>> curve = cost_curve(methods, {2.0: {"seeds": [0, 1, 2], "test_mse": [1.5, 1.6, 1.7]}})
+        >>> sorted(curve["fs1"]), round(curve["fs1"]["2.0"]["mean"], 2)
+        (['1.0', '2.0'], -0.47)
+    """
+    from ..stats import paired_delta
+
+    family = [m for m, s in methods.items() if m != "none" and not s.get("duplicate_of")]
+    out: dict[str, dict[str, Any]] = {m: {} for m in family}
+    points = {1.0: methods.get("none"), **{float(r): v for r, v in none_at.items()}}
+    for ratio, none in sorted(points.items()):
+        if none is None:
+            continue
+        for method in family:
+            delta = paired_delta(dict(none), dict(methods[method]), "test_mse", len(family))
+            if delta is not None:
+                out[method][f"{ratio:.1f}"] = delta
+    return out

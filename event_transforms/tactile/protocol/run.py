@@ -34,7 +34,7 @@ from .config import ProtocolConfig
 from .environment import environment, git_commit
 from .plan import Unit, choose_methods, plan_run, work_units
 from .shared import SHARED_SEPARATOR, collect, plan_sharing
-from .costs import cost_key, equal_cost_steps, load_cost_table, measure_costs, ratio_of
+from .costs import CURVE_RATIOS, cost_curve, cost_key, equal_cost_steps, load_cost_table, measure_costs, ratio_of
 from .timing import measure_timing
 from .unit import run_unit
 
@@ -191,6 +191,12 @@ def _per_method(units: list[Unit], results: dict[str, Any], scene: str, names: S
     """Per method of ``scene``, its records by seed: trained by the scene's own units, or
     borrowed from the unit that trained the same member for another scene."""
     return collect({u.slug: u.scene for u in units}, results, scene, names)
+
+
+def _seed_values(runs: list[dict[str, Any]]) -> dict[str, list]:
+    """``{"seeds", "test_mse"}`` of one method's records, by seed."""
+    runs = sorted(runs, key=lambda r: r["seed"])
+    return {"seeds": [r["seed"] for r in runs], "test_mse": [r["test_mse"] for r in runs]}
 
 
 def headline(scene: str, chosen: Mapping[str, Sequence[str]], data: Mapping[str, SceneData]) -> str | None:
@@ -387,10 +393,23 @@ def run_protocol(
     checked = plan["budget_check_scenes"]
     choices = {s: m for s in checked if (m := headline(s, chosen, data)) is not None}
     double = ProtocolConfig(**{**asdict(config), "steps": 2 * config.steps})
-    budget_methods = {s: ("none", m) for s, m in choices.items()}
-    budget_units = work_units(list(choices), budget_methods, group, given, plan_sharing(budget_methods, data))
+    budget_methods: dict[str, tuple[str, ...]] = {s: ("none", m) for s, m in choices.items()}
+    if checked and equal_time:  # the cost curve's last point: none at twice the steps on every scene (mostly borrowed)
+        budget_methods.update({s: ("none",) for s in scenes if s not in choices})
+    budget_units = work_units(list(budget_methods), budget_methods, group, given,
+                              plan_sharing(budget_methods, data))
     budget_results = (_runwork_units(budget_units, seeds, double, out, jobs, options, "budget check", 0.0, data_keys)
                       if budget_units else {})
+    # The cost curve: none at 1.5 × the steps (2 × is the budget check's), Δ of every method against it.
+    curve_results: dict[float, tuple[list[Unit], dict[str, Any] | None]] = {}
+    if equal_time and measure_time:
+        for ratio in (r for r in CURVE_RATIOS if 1.0 < r < 2.0):
+            curve_methods = {s: ("none",) for s in scenes}
+            longer = ProtocolConfig(**{**asdict(config), "steps": round(ratio * config.steps)})
+            curve_units = work_units(scenes, curve_methods, group, given, plan_sharing(curve_methods, data))
+            curve_results[ratio] = (curve_units, _runwork_units(
+                curve_units, seeds, longer, out, jobs, options, f"cost curve (none at {longer.steps} steps)", 0.0,
+                data_keys))
     rank0 = results is not None and budget_results is not None  # else a torchrun rank other than 0
     timing = measure_timing(scenes, chosen, data, config, threads) if measure_time and rank0 else {}
 
@@ -416,6 +435,16 @@ def run_protocol(
                 s_["single_wall_s"] = wall
                 s_["online_aug_s_per_epoch"] = cost
                 s_["online_wall_s"] = wall["median"] + (cost or 0.0) * epochs_of(s_)
+        if curve_results:
+            none_at: dict[float, Any] = {}
+            for ratio, (curve_units, done) in curve_results.items():
+                if done is not None:
+                    none_at[ratio] = _seed_values(_per_method(curve_units, done, scene, ("none",))["none"])
+            if scene in budget_methods:
+                none_at[2.0] = _seed_values(_per_method(budget_units, budget_results, scene, ("none",))["none"])
+            summary["cost_curve"] = {"ratios": [1.0, *sorted(none_at)],
+                                     "steps": {f"{r:.1f}": round(r * config.steps) for r in [1.0, *sorted(none_at)]},
+                                     "methods": cost_curve(summary["methods"], none_at)}
         if scene in choices:
             method = choices[scene]
             summary["budget_check"] = _budget_check(
