@@ -10,7 +10,6 @@ import pytest
 from event_transforms.tactile.protocol import run_protocol
 from event_transforms.tactile.protocol.costs import (
     COST_TABLE_FORMAT,
-    QUICK_COST_TABLE,
     cost_key,
     equal_cost_steps,
     load_cost_table,
