@@ -82,7 +82,13 @@ def set_compiled_kernels(enabled: bool) -> None:
 
 
 def compiled_kernels_enabled() -> bool:
-    """Whether the hot kernels run compiled (see :func:`set_compiled_kernels`)."""
+    """Whether the hot kernels run compiled (see :func:`set_compiled_kernels`).
+
+    Example:
+        >>> import event_transforms as et
+        >>> et.compiled_kernels_enabled()  # eager unless switched on
+        False
+    """
     return _ENABLED
 
 
