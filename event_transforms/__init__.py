@@ -38,6 +38,9 @@ _NAMES: dict[str, str] = {
     "EventBatch": "events",
     "collate_events": "events",
     "count_dropped": "events",
+    "set_compiled_kernels": "_compile",
+    "compiled_kernels": "_compile",
+    "compiled_kernels_enabled": "_compile",
 }
 _SUBMODULES = ("functional", "events", "transforms", "scenes", "inference", "data", "viz", "tactile")
 
@@ -48,6 +51,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from . import tactile as tactile, transforms as transforms, viz as viz
     from .data import AugmentedDataset as AugmentedDataset
     from .events import EventBatch as EventBatch, collate_events as collate_events, count_dropped as count_dropped
+    from ._compile import compiled_kernels as compiled_kernels, compiled_kernels_enabled as compiled_kernels_enabled
+    from ._compile import set_compiled_kernels as set_compiled_kernels
     from .inference import infer_scene as infer_scene
     from .scenes import ResizeToTarget as ResizeToTarget, Scene as Scene, StretchToTarget as StretchToTarget
     from .transforms import *  # noqa: F403

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from .._compile import compilable
 from .batch import EventBatch
 from .drops import EventsOutsideSensorWarning, warn_at_caller
 from .ingest import (
@@ -388,3 +389,45 @@ def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
         return batch.t - first[0]
     start_of = starts.to(device=batch.device, dtype=batch.t.dtype)
     return batch.t - start_of.index_select(0, batch.sample_index())
+
+
+_BATCH_KERNELS: dict[tuple, Any] = {}
+
+
+def _batch_kernel(grid: _Grid, n_frames: int, total: int, accumulator: torch.dtype) -> Any:
+    """The binning of a whole batch as one pure function of its columns, for the compiled path
+    (:mod:`event_transforms._compile`): the grid's numbers are closure constants, so only the
+    event count varies between calls and one compiled graph serves every batch on this grid.
+
+    Returns ``f(x, y, p, rel, sample, table) -> (counts, lost)``: ``(total,)`` counts in
+    ``accumulator`` and the (2,) events off the sensor and on it outside the time window, by
+    the arithmetic of :func:`_event_index` (every count equal to the eager path's)."""
+    key = (grid.height, grid.width, grid.out_h, grid.out_w, grid.frame_us, type(grid.frame_us), n_frames, total,
+           accumulator)
+    fn = _BATCH_KERNELS.get(key)
+    if fn is not None:
+        return fn
+    height, width, frame = grid.height, grid.width, grid.out_h * grid.out_w
+    block, wide = n_frames * grid.frame_size, total >= 2**31 - 1
+    frame_us = grid.frame_us
+
+    @compilable
+    def bin_batch(x: Tensor, y: Tensor, p: Tensor, rel: Tensor, sample: Tensor, table: Tensor) -> tuple[Tensor, Tensor]:
+        quotient = _quotient(rel, frame_us, n_frames)
+        in_time = (quotient >= 0) & (quotient < n_frames)
+        index_dtype = torch.int64 if wide or quotient.dtype == torch.int64 else torch.int32
+        flat = y.clamp(-1, height).to(torch.int32) * (width + 2) + x.clamp(-1, width).to(torch.int32) + (width + 3)
+        pixel = table[flat]
+        index = (quotient.to(index_dtype) * 2 + (p > 0).to(index_dtype)) * frame + pixel + sample.to(index_dtype) * block
+        counted = in_time & (pixel >= 0)
+        index = torch.where(counted, index, total)
+        counts = torch.zeros(total + 1, dtype=accumulator, device=x.device)
+        counts.index_add_(0, index, torch.ones((), dtype=accumulator, device=x.device).expand(index.shape[0]))
+        off_sensor = pixel == _OUTSIDE_SENSOR
+        lost = torch.stack([off_sensor.sum(), (~in_time & ~off_sensor).sum()])
+        return counts[:total], lost
+
+    if len(_BATCH_KERNELS) > 32:
+        _BATCH_KERNELS.clear()
+    _BATCH_KERNELS[key] = bin_batch
+    return bin_batch

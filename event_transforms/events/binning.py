@@ -62,7 +62,11 @@ from .ingest import (
     _FIELDS, _T_STARTS, _explicit_starts, _floor_to_grid,
     _frame_us, _integer, _source,
 )
-from ._kernel import _OUTSIDE_SENSOR, _Tally, _accumulate, _accumulator, _as_dtype, _bin_of, _check_bytes, _count_chunk, _empty_window_error, _event_index, _grid, _relative_times, _time_bins, _to_spare, _warn_outside
+from .._compile import compiled_kernels_enabled
+from ._kernel import (
+    _OUTSIDE_SENSOR, _Tally, _accumulate, _accumulator, _as_dtype, _batch_kernel, _bin_of, _check_bytes, _count_chunk,
+    _empty_window_error, _event_index, _grid, _pixel_table, _relative_times, _time_bins, _to_spare, _warn_outside,
+)
 
 #: Events read per chunk by default: the extra memory of a call is a few times this many
 #: 64-bit values plus the output.
@@ -449,6 +453,11 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
     n = batch.num_events
     if n == 0:
         return torch.zeros(total, dtype=dtype, device=device), None
+    if compiled_kernels_enabled():  # one compiled scatter for the batch, on any device
+        kernel = _batch_kernel(grid, n_frames, total, _accumulator(dtype, n))
+        counts, lost = kernel(batch.x, batch.y, batch.p, _relative_times(batch, starts), batch.sample_index(),
+                              _pixel_table(grid, device))
+        return _as_dtype(counts, dtype), lost
     index, pixel, in_time = _event_index(
         batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid, total >= 2**31 - 1
     )

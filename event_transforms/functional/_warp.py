@@ -17,6 +17,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from .._compile import compilable
 from .._validation import as_batch, check_choice, check_frames, describe
 from ..events.batch import EventBatch
 from ..events.drops import counting, record_dropped
@@ -160,15 +161,22 @@ def _warp(batch: Tensor, theta: Tensor, mode: str) -> Tensor:
     b, t, p, height, width = batch.shape
     work, out_dtype = _work_dtype(batch.dtype, mode), _output_dtype(batch.dtype, mode)
     theta = theta.to(batch.device, work)
+    folded = batch.reshape(b, t * p, height, width).to(work)
     if height == 1 or width == 1:
         with warnings.catch_warnings():  # unit-size axes map to pixel 0, as intended here
             warnings.filterwarnings("ignore", message="Since version 1.3.0, affine_grid")
-            grid = torch.nn.functional.affine_grid(theta, [b, t * p, height, width], align_corners=True)
+            warped = _affine_sample.eager(folded, theta, mode)  # type: ignore[attr-defined]
     else:
-        grid = torch.nn.functional.affine_grid(theta, [b, t * p, height, width], align_corners=True)
-    folded = batch.reshape(b, t * p, height, width).to(work)
-    warped = torch.nn.functional.grid_sample(folded, grid, mode=mode, padding_mode="zeros", align_corners=True)
+        warped = _affine_sample(folded, theta, mode)
     return warped.view(b, t, p, height, width).to(out_dtype)
+
+
+@compilable
+def _affine_sample(folded: Tensor, theta: Tensor, mode: str) -> Tensor:
+    """``grid_sample`` of (B, C, H, W) ``folded`` at the ``affine_grid`` of (B, 2, 3) ``theta``
+    (``align_corners=True``, zero padding): the compiled path's unit of the warp."""
+    grid = torch.nn.functional.affine_grid(theta, list(folded.shape), align_corners=True)
+    return torch.nn.functional.grid_sample(folded, grid, mode=mode, padding_mode="zeros", align_corners=True)
 
 
 def _theta_on_device(batch: Tensor, angle: Tensor | None, scale: Tensor | None, center: Center) -> Tensor:
