@@ -9,6 +9,9 @@ gives how often the changed factor's gap was declared, how often any *other* fac
 factor. Blocks share seeds across points (common random numbers), so the points differ
 only in the changed setting. The ``none`` point measures false gaps.
 
+The ``labelled k/side`` columns run the timing test again from the lags of the first k
+grasps of each side measured against their force labels (:mod:`event_transforms.lags`).
+
 Run: ``python benchmarks/detection_rate.py`` (20 blocks; ``--quick``: 2 blocks of 12 + 6).
 """
 
@@ -48,19 +51,33 @@ POINTS: dict[str, tuple[str | None, str, dict[str, Any]]] = {
 _FACTORS = ("timing", "orientation", "noise")
 
 
-def _frames(session, n: int, seed: int) -> torch.Tensor:
+#: Labelled recordings per side for the timing test from lags (the first k of each side's grasps).
+LABELLED = (2, 8, 24)
+
+
+def _frames(session, n: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
     recordings = simulate_grasps(session.grasps(n, seed=seed), session.config)
-    return torch.stack([r.frames(crop=r.sensor_crop((140, 150)), pool=2) for r in recordings])
+    frames = torch.stack([r.frames(crop=r.sensor_crop((140, 150)), pool=2) for r in recordings])
+    return frames, torch.stack([torch.as_tensor(r.force, dtype=torch.float32) for r in recordings])
 
 
 def run(blocks: int = 20, n_train: int = 48, n_deploy: int = 24) -> dict[str, dict[str, Any]]:
     """point -> {"detected": k, "false": k, "blocks": n, "limit": [per block], "shifts": [...]}."""
-    out = {name: {"detected": 0, "false": 0, "blocks": 0, "limit": [], "shifts": []} for name in POINTS}
+    out = {name: {"detected": 0, "false": 0, "blocks": 0, "limit": [], "shifts": [],
+                  "labelled": {k: [] for k in LABELLED}} for name in POINTS}
     train_session = BASE_SESSION
     for block in range(blocks):
-        train = _frames(train_session, n_train, 100_000 + 1_000 * block)
+        train, train_force = _frames(train_session, n_train, 100_000 + 1_000 * block)
         for name, (factor, _, settings) in POINTS.items():
-            deploy = _frames(train_session.replace(**settings), n_deploy, 500_000 + 1_000 * block)
+            deploy, deploy_force = _frames(train_session.replace(**settings), n_deploy, 500_000 + 1_000 * block)
+            if factor in (None, "timing"):  # the timing test from k labelled recordings a side
+                for k in LABELLED:
+                    if k <= min(n_train, n_deploy):
+                        labelled = infer_scene(train, deploy, frame_ms=train_session.config.frame_ms,
+                                               labelled_train=(train[:k], train_force[:k]),
+                                               labelled_deploy=(deploy[:k], deploy_force[:k]))
+                        out[name]["labelled"][k].append(
+                            (labelled.lag_shifts[0] if labelled.lag_shifts else 0, "timing" in labelled.gaps))
             scene = infer_scene(train, deploy, frame_ms=train_session.config.frame_ms)
             evidence = scene.evidence
             record = out[name]
@@ -88,9 +105,15 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         limit = f"{statistics.median(record['limit']):.3g}" if record["limit"] else "—"
         shifts = (", ".join(f"{s:+d}×{record['shifts'].count(s)}" for s in sorted(set(record["shifts"])))
                   if record["shifts"] else "—")
+        labelled = []
+        for k in LABELLED:
+            found = record["labelled"][k]
+            labelled.append("—" if not found else
+                            f"{sum(g for _, g in found)}/{len(found)} gap; "
+                            + ", ".join(f"{s:+d}×{[x for x, _ in found].count(s)}" for s in sorted({x for x, _ in found})))
         rows.append([name, words, factor or "—",
                      f"{record['detected']}/{record['blocks']}" if factor else "—",
-                     f"{record['false']}/{record['blocks']}", limit, shifts])
+                     f"{record['false']}/{record['blocks']}", limit, shifts, *labelled])
     body = "\n\n".join(
         [
             "## infer_scene detection rate against gap size",
@@ -99,10 +122,13 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             "sensor-centred crop, `infer_scene` on the frames only (z_gap 3). `detected`: blocks declaring the changed "
             "factor's gap; `false gaps`: blocks declaring any other factor's; `limit`: median resolvable difference "
             "of the changed factor (3 standard errors: ms for timing, degrees of |angle| for orientation, log "
-            "background rate for noise); `shift`: the frame shifts the inferred policies chose. Synthetic data. "
+            "background rate for noise); `shift`: the frame shifts the inferred policies chose; `labelled k/side` (timing "
+            "points and `none`): the timing test from the lags of the first k grasps a side against their force "
+            "labels: blocks declaring a timing gap, and the shifts chosen (0: none). Synthetic data. "
             f"Command: `{command('detection_rate.py', argv)}`.",
             "\n".join(environment_lines()),
-            markdown_table(["point", "gap", "factor", "detected", "false gaps", "limit", "shift"], rows),
+            markdown_table(["point", "gap", "factor", "detected", "false gaps", "limit", "shift",
+                            *(f"labelled {k}/side" for k in LABELLED)], rows),
         ]
     )
     publish(body, args)

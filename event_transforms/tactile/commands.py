@@ -407,8 +407,18 @@ def _format_evidence(scene: Any) -> list[str]:
         if e:
             # the verdict as infer_scene states it: gap, no gap, or not resolvable (with what would resolve it)
             said = evidence.get("verdicts", {}).get(factor, "gap" if e["gap"] else "no gap")
-            verdict = "GAP" if said == "gap" else said
+            verdict = "GAP" + said[3:] if said.startswith("gap") else said  # "gap; labelled lags not ..." too
             z = "z n/a" if math.isnan(e["z"]) else f"z {e['z']:+.1f}"
+            if e.get("source") == "labelled recordings":  # lags from events against the force labels
+                lines.append(
+                    f"  {factor}: lag_ms from {e['train']['n']} training and {e['deploy']['n']} deployment labelled "
+                    f"recordings (events against force): median train {e['train']['median']:.3g} ± "
+                    f"{e['train']['se']:.2g} (spread {e['train']['spread']:.2g}), deploy {e['deploy']['median']:.3g} ± "
+                    f"{e['deploy']['se']:.2g} (spread {e['deploy']['spread']:.2g}), difference "
+                    f"{e['difference']:+.3g} ({z}): {verdict}")
+                e = e["onset"]  # the unlabeled statistic, reported beside it
+                verdict = "reported, not used"
+                z = "z n/a" if math.isnan(e["z"]) else f"z {e['z']:+.1f}"
             lines.append(f"  {factor}: {e['statistic']} train {e['train']['mean']:.3g} ± {e['train']['se']:.2g} "
                          f"(n {e['train']['n']}), deploy {e['deploy']['mean']:.3g} ± {e['deploy']['se']:.2g} "
                          f"(n {e['deploy']['n']}), difference {e['difference']:+.3g} ({z}): {verdict}")

@@ -7,7 +7,8 @@ user gets without that knowledge, and what simulating effects the scene does not
 costs:
 
 - ``inferred``: :func:`event_transforms.infer_scene` on the training grasps and the
-  deployment's *validation* frames (labels unused), bolt sizes as metadata; its policy.
+  deployment's *validation* grasps (frames, and their force labels for the lags), bolt
+  sizes as metadata; its policy.
 - ``prior``: generic ranges a user could guess without data, one effect per copy (the
   independent combination): frame shifts in [−3, 3] (never 0), rotation ±45°, a ±3 px
   contact shift, a noise bank recorded by a *different* camera (another sensor seed of the
@@ -135,16 +136,19 @@ def _inferred(scene: BenchmarkScene, root: str | None) -> Scene:
     deploy = TactileGrasps("val", root=root, scene=scene)
     return infer_scene(
         train.frames,
-        deploy.frames,  # frames only: the labels are never read
+        deploy.frames,
         train_sizes=scene.train.diameters_mm,
         deploy_sizes=scene.deploy.diameters_mm,
         frame_ms=scene.train.config.frame_ms,
+        # the timing gap from lags against the force labels (validation data, never test data)
+        labelled_train=(train.frames, train.forces),
+        labelled_deploy=(deploy.frames, deploy.forces),
     )
 
 
 def inferred_scene(scene: str | BenchmarkScene, root: str | None = None) -> Scene:
     """:func:`~event_transforms.infer_scene` on the scene's 48 training grasps and its 24
-    deployment validation grasps (frames only), bolt sizes as metadata (cached per scene); a
+    deployment validation grasps (frames, and the force labels for the lags), bolt sizes as metadata (cached per scene); a
     scene of recordings (:class:`~event_transforms.tactile.recordings.RecordingScene`) holds its own."""
     scene = get_scene(scene)
     inferred = getattr(scene, "inferred", None)

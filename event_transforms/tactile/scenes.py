@@ -45,8 +45,9 @@ scene and its lag-only half in the full results.
 Every scene uses the base session's 60 ms start jitter (grasps not triggered with the
 recording). Under it a one-frame timing difference is below what
 :func:`event_transforms.infer_scene` can resolve from 24 unlabeled recordings (see its
-docstring), so on ``paper-offset`` and ``paper-membrane`` the ``inferred`` row finds the
-size gap only: that is the point of those rows, not a defect of the scenes.
+docstring); the ``inferred`` row therefore measures the lags against the force labels of
+the training and validation grasps, which resolve it (``paper-offset``: shift −1,
+``paper-membrane``: shift 1, as the matched rows).
 
 The timing gap is a transport delay (the membrane sees the force ``delay`` ms after the
 force sensor reads it): events arrive about two frames later in deployment, which

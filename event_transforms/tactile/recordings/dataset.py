@@ -245,6 +245,17 @@ class RecordingSet(Dataset):
         return torch.stack([self[i][0] for i in range(len(self))])
 
     @property
+    def labelled(self) -> tuple[list[Tensor], list[Tensor]] | None:
+        """Each recording with force labels, whole (not windowed): frames float32 ``(T_i, 2, H', W')``
+        and forces ``(T_i,)``, for :func:`infer_scene`'s lags (one lag per recording, so
+        overlapping windows do not count twice); ``None`` where no recording has labels."""
+        if self._data is None:
+            self._data = [self._binned(r, None) for r in self.recordings]
+        pairs = [(d["frames"].to(torch.float32), d["force"].to(torch.float32)) for d in self._data
+                 if d["force"] is not None]
+        return ([f for f, _ in pairs], [force for _, force in pairs]) if pairs else None
+
+    @property
     def diameters(self) -> tuple[float, ...] | None:
         """The distinct sizes of the chosen recordings (``None`` without ``diameter_mm``)."""
         sizes = [r.diameter_mm for r in self.recordings]

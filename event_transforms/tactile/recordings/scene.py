@@ -33,9 +33,11 @@ def load_recording_data(
     the labelled deployment recordings (see *Splits* in the module docstring). The scene
     (:class:`RecordingScene`) holds :func:`~event_transforms.infer_scene` on the training
     windows and the deployment windows that are not test data (validation and unlabeled
-    recordings), as frames only — their forces are never read — with the sizes of
+    recordings), as frames, with the sizes of
     ``diameter_mm`` where given; its gaps are the inferred ones and its policy (``inferred``,
-    ``independent``, ``hybrid``) the inferred scene's. The noise bank (for ``noise``) is the
+    ``independent``, ``hybrid``) the inferred scene's. The timing gap comes from lags measured
+    against the force labels of the training and validation recordings (one per whole
+    recording) where both exist, else from the frames alone; test recordings are never read. The noise bank (for ``noise``) is the
     deployment windows' quietest frames; the prior's bank (``prior``, ``everything``) the
     training windows' quietest frames (another camera, or the same one, at hand).
 
@@ -73,9 +75,14 @@ def load_recording_data(
         deploy_frames = train_frames
     train_sizes = splits["train"].diameters
     deploy_sizes = _sizes(splits["val"], splits["test"], splits["unlabeled"])
+    # lags from the labelled recordings (training, and the deployment's validation recordings;
+    # never test data), one per whole recording
+    labelled_train, labelled_deploy = splits["train"].labelled, splits["val"].labelled
+    labelled = labelled_train is not None and labelled_deploy is not None
     inferred = infer_scene(train_frames, deploy_frames, train_sizes=train_sizes,
                            deploy_sizes=deploy_sizes if deploy_sizes and len(deploy_sizes) == 1 else None,
-                           frame_ms=settings.frame_ms)
+                           frame_ms=settings.frame_ms, labelled_train=labelled_train if labelled else None,
+                           labelled_deploy=labelled_deploy if labelled else None)
 
     def quiet(frames: Tensor) -> Tensor:
         stats = sequence_statistics(frames, frame_ms=settings.frame_ms)
@@ -96,7 +103,9 @@ def load_recording_data(
         "windows": {s: len(d) for s, d in splits.items()},
         "left_out_frames": sum(d.left_out_frames for d in splits.values()),
         "inferred_from": f"{len(train_frames)} training windows and {len(deploy_frames)} deployment windows "
-                         "(validation and unlabeled recordings; frames only)",
+                         "(validation and unlabeled recordings; frames only)" + (
+                             f"; lags from {len(labelled_train[0])} training and {len(labelled_deploy[0])} "  # type: ignore[index]
+                             "validation recordings against their force labels" if labelled else ""),
     }
     scene = RecordingScene.build(name or root.resolve().name, settings, train_sizes, deploy_sizes, inferred,
                                  quiet(train_frames), dataset)
