@@ -155,6 +155,28 @@ def _data_methods(scene: Any) -> list[str]:
     return ["none", *[m for m in EXTRA_METHODS if _buildable(m, scene)]]
 
 
+def _plan_time(plan: dict[str, Any], chosen: dict[str, Any], scenes: list[str], seeds: list[int], config: Any,
+               jobs: int, shared: int, curve: int) -> str:
+    """The run's time from the committed cost table, where it covers the run: the member-steps
+    trained (shared members not counted; the budget check unshared, an upper bound) × the
+    table's seconds per member-step, over ``jobs``."""
+    from .protocol.costs import QUICK_COST_TABLE, cost_key, equal_cost_steps, load_cost_table
+
+    table = load_cost_table(QUICK_COST_TABLE) if QUICK_COST_TABLE.exists() else None
+    if table is None or table["config"] != cost_key(config) or not table.get("ensemble_s_per_member_step"):
+        return "time: no committed cost table covers this configuration (the run measures its own)"
+    ratios = table["ratios"]
+    equal = sum(equal_cost_steps(config.steps, ratios.get(s, {}).get(m, 1.0)) for s in scenes for m in chosen[s]
+                if m != "none" and equal_cost_steps(config.steps, ratios.get(s, {}).get(m, 1.0)) < config.steps)
+    trained = (plan["member_steps"] - shared * len(seeds) * config.steps + plan["budget_member_steps"]
+               + equal * len(seeds) + curve)
+    seconds = trained * float(table["ensemble_s_per_member_step"]) / max(jobs, 1)
+    return (f"time: about {seconds / 60:.0f} min of training for at most {trained:,} member-steps at "
+            f"{table['ensemble_s_per_member_step'] * 1e3:.1f} ms per member-step over {jobs} job(s) (the cost table's "
+            "32-member ensemble, measured "
+            f"on {table.get('environment', {}).get('cpu_model', 'an unnamed CPU')}), plus data, baselines and timing")
+
+
 def reproduce(args: argparse.Namespace) -> int:
     writable(args.out, "--out")
     writable(args.root, "--root")
@@ -234,6 +256,7 @@ def reproduce(args: argparse.Namespace) -> int:
                    f"{config.steps}); cost curve: none at {round(1.5 * config.steps)} steps on {trained_none} "
                    f"training set(s), {curve:,} member-steps (none at {2 * config.steps} is the budget check's); "
                    f"total at most {plan['total_member_steps'] + plan['equal_time_member_steps_max'] + curve:,}")
+            _print(_plan_time(plan, chosen, scenes, seeds, config, jobs, sharing.shared, curve))
         return 0
     rank = int(os.environ.get("RANK", "0")) if distributed else 0
     say = _print if rank == 0 else (lambda *a: None)

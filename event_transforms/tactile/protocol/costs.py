@@ -90,8 +90,9 @@ def measure_costs(scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], da
     method's augmentation of one epoch) and the median over ``repeats`` rounds.
 
     Returns:
-        ``{"format", "config", "repeats", "train_s_per_step", "ratios": {scene: {method: ratio}},
-        "environment", "commit"}``; ``none`` and methods without copies have ratio 1.
+        ``{"format", "config", "repeats", "train_s_per_step", "ensemble_s_per_member_step",
+        "ratios": {scene: {method: ratio}}, "environment", "commit"}``; ``none`` and methods
+        without copies have ratio 1.
     """
     if threads:
         torch.set_num_threads(threads)
@@ -111,11 +112,17 @@ def measure_costs(scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], da
                 parsed = parse_method(method, copies=config.copies, scene=data[scene].scene)
                 items = len(OnlineCopies(data[scene].train, parsed.copies))
                 per_round[scene][method].append(1.0 + aug * config.batch_size / items / train)
+    # what --plan multiplies member-steps by: one member-step of an ensemble of 32 (none x 32 seeds), a unit's size
+    tick = time.perf_counter()
+    run_unit(data[first].scene, ["none"], list(range(32)), ProtocolConfig(**{**asdict(config), "steps": probe_steps}),
+             data[first], progress=False)
+    member_step = (time.perf_counter() - tick) / (32 * probe_steps)
     return {
         "format": COST_TABLE_FORMAT,
         "config": cost_key(config),
         "repeats": repeats,
         "train_s_per_step": statistics.median(train_steps),
+        "ensemble_s_per_member_step": member_step,
         "ratios": {s: {m: statistics.median(v) for m, v in per.items()} for s, per in per_round.items()},
         "environment": environment("cpu", threads),
         "commit": git_commit(),
