@@ -291,7 +291,8 @@ class TestTrainingOnly:
 
 class TestPredict:
     @pytest.fixture(scope="class")
-    def model_path(self, tmp_path_factory):
+    @classmethod
+    def model_path(cls, tmp_path_factory):
         tmp = tmp_path_factory.mktemp("model")
         root = make_folder(tmp / "d", train=3, deploy=2, unlabeled=0)
         path = tmp / "m.pt"
@@ -393,7 +394,8 @@ def test_recording_entry_and_the_deprecated_alias():
 
 class TestBags:
     @pytest.fixture(scope="class", params=[False, True], ids=["ros1", "ros2"])
-    def converted(self, request, tmp_path_factory):
+    @classmethod
+    def converted(cls, request, tmp_path_factory):
         from .rig_files import write_bag
 
         tmp = tmp_path_factory.mktemp("bags")
