@@ -292,10 +292,10 @@ def _summary(values: Tensor) -> dict[str, float]:
     }
 
 
-def _compare(train: Tensor, deploy: Tensor, min_effect: float, z_gap: float) -> dict[str, Any]:
-    a, b = _summary(train), _summary(deploy)
-    difference = b["mean"] - a["mean"]
-    se = math.sqrt(a["se"] ** 2 + b["se"] ** 2)
+def _difference_test(a: dict[str, Any], b: dict[str, Any], difference: float, se: float, min_effect: float,
+                     z_gap: float) -> dict[str, Any]:
+    """The two sessions' summaries ``a`` (training) and ``b`` (deployment), their difference, its
+    z and the verdict: a gap when resolvable, ``|z| > z_gap`` and ``|difference| >= min_effect``."""
     # a zero standard error resolves nothing from a few windows (one window, or a handful that happen
     # to agree): no z, no gap; from MIN_WINDOWS a side, every window agreeing is evidence itself
     resolvable = a["n"] >= 2 and b["n"] >= 2 and (se > 0 or min(a["n"], b["n"]) >= MIN_WINDOWS)
@@ -308,8 +308,13 @@ def _compare(train: Tensor, deploy: Tensor, min_effect: float, z_gap: float) -> 
         "se": se,
         "z": z,
         "resolvable": resolvable,
-        "gap": resolvable and abs(z) > z_gap and abs(difference) >= min_effect,
+        "gap": bool(resolvable and abs(z) > z_gap and abs(difference) >= min_effect),
     }
+
+
+def _compare(train: Tensor, deploy: Tensor, min_effect: float, z_gap: float) -> dict[str, Any]:
+    a, b = _summary(train), _summary(deploy)
+    return _difference_test(a, b, b["mean"] - a["mean"], math.sqrt(a["se"] ** 2 + b["se"] ** 2), min_effect, z_gap)
 
 
 def _verdicts(evidence: dict[str, Any], z_gap: float, n_deploy: int) -> dict[str, str]:
@@ -357,24 +362,15 @@ def _lag_test(labelled_train: object, labelled_deploy: object, grid: tuple[int, 
         summary["mean"], summary["std"] = summary["median"], summary["spread"]
     difference = b["median"] - a["median"]
     se = math.sqrt(a["se"] ** 2 + b["se"] ** 2) if a["n"] and b["n"] else math.nan
-    resolvable = a["n"] >= 2 and b["n"] >= 2 and (se > 0 or min(a["n"], b["n"]) >= MIN_WINDOWS)
-    z = (difference / se if se > 0 else math.copysign(math.inf, difference) if difference else 0.0) \
-        if resolvable else math.nan
     test: dict[str, Any] = {
         "statistic": "lag_ms",
         "source": "labelled recordings",
-        "train": a,
-        "deploy": b,
-        "difference": difference,
-        "se": se,
-        "z": z,
-        "resolvable": resolvable,
-        "gap": bool(resolvable and abs(z) > z_gap and abs(difference) >= _LAG_EFFECT),
+        **_difference_test(a, b, difference, se, _LAG_EFFECT, z_gap),
         "lags": {side: {key: lags[key].tolist() for key in ("lag_ms", "release_lag_ms", "correlation")}
                  for side, lags in sides.items()},
         "at_edge": int(sum(float(lags["at_edge"].sum()) for lags in sides.values())),
     }
-    if not resolvable:
+    if not test["resolvable"]:
         test["verdict"] = (
             f"labelled lags not resolvable from {a['n']} training and {b['n']} deployment labelled recordings with a "
             f"lag (standard error {se:.3g} ms): give at least 2 a side whose force changes, with different lags")
