@@ -64,8 +64,8 @@ def _mirrored(
 
     Every stream: one subtraction (per event gathers of a (B,) ``around``; with
     ``by_streams``, on the CPU, one subtraction per stream instead). Some: on the CPU one
-    subtraction per flagged stream and one copy per run of the others (slices, no per-event
-    index); elsewhere one ``where`` over a per-event gather of the flags, whatever B. The
+    subtraction per flagged stream (per run of them for a number) and one copy per run of the
+    others (slices, no per-event index); elsewhere one ``where`` over a per-event gather of the flags, whatever B. The
     same values either way; no host read of device data."""
     flags = np.ones(len(batch), dtype=bool) if flip is None else np.asarray(flip.tolist(), dtype=bool).reshape(-1)
     if not flags.any():
@@ -85,9 +85,11 @@ def _mirrored(
         if not flag:
             out[bounds[first] : bounds[end]].copy_(column[bounds[first] : bounds[end]])
             continue
+        if not values.dim():  # one number for every stream: one subtraction per run
+            torch.sub(values, column[bounds[first] : bounds[end]], out=out[bounds[first] : bounds[end]])
+            continue
         for i in range(first, end):
-            piece, target = column[bounds[i] : bounds[i + 1]], out[bounds[i] : bounds[i + 1]]
-            torch.sub(values[i] if values.dim() else values, piece, out=target)
+            torch.sub(values[i], column[bounds[i] : bounds[i + 1]], out=out[bounds[i] : bounds[i + 1]])
     return out
 
 

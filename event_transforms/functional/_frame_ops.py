@@ -116,11 +116,16 @@ def _flagged_rows(frames: Tensor, gate: Tensor | None, change: Callable[[Tensor]
 
 
 def _samples_by_runs(frames: Tensor, flags: np.ndarray, change: Callable[[Tensor], Tensor]) -> Tensor:
-    """``change`` of the samples flagged in ``flags`` (host bools), the others copied: one call
-    per run of adjacent samples with equal flags, written into one new contiguous batch."""
+    """``change`` of the samples flagged in ``flags`` (host bools), the others copied, into one
+    new contiguous batch: one copy per run of adjacent unflagged samples, one ``change`` and
+    copy per flagged sample (its temporary, one sample, stays in the cache for the copy)."""
     out = torch.empty(frames.shape, dtype=frames.dtype, device=frames.device)
     for flag, first, end in _runs(flags):
-        out[first:end].copy_(change(frames[first:end]) if flag else frames[first:end])
+        if not flag:
+            out[first:end].copy_(frames[first:end])
+            continue
+        for i in range(first, end):
+            out[i].copy_(change(frames[i : i + 1])[0])
     return out
 
 
