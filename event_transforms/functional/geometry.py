@@ -526,8 +526,8 @@ def _flip_frames(frames: Tensor, gate: Tensor | None, axis: int) -> Tensor:
     """Mirror along ``axis`` (-1: W, -2: H) the samples whose ``gate`` is set
     (all without a gate), in one pass over the batch: ``flip`` when every sample is
     mirrored; else, for H, one gather of whole rows by a host-built index, and for W, on
-    the CPU, one ``flip`` per run of adjacent mirrored samples and one copy per run of the
-    others (elsewhere one gather of columns). No host synchronisation."""
+    the CPU, one ``flip`` per mirrored sample and one copy per run of adjacent others
+    (elsewhere one gather of columns). No host synchronisation."""
     if gate is not None and not on_host(gate):  # compiling, or a gate on an accelerator
         flip = gate.to(frames.device, torch.bool).view(-1, 1, 1, 1, 1)
         return torch.where(flip, frames.flip(axis), frames)
