@@ -52,6 +52,8 @@ def cases() -> dict[str, Callable[[float], et.EventTransform]]:
         "RandomRotation(30)": lambda p: et.RandomRotation(30, p=p),
         "SpatialJitter(1)": lambda p: et.SpatialJitter(1, p=p),
         "RandomTimeReversal": lambda p: et.RandomTimeReversal(p),
+        "RandomVerticalFlip": lambda p: et.RandomVerticalFlip(p),
+        "RandomFlipPolarity": lambda p: et.RandomFlipPolarity(p),
     }
 
 

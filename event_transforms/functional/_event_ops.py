@@ -41,6 +41,7 @@ import torch
 from torch import Tensor
 
 from .._validation import read_host
+from ._frame_ops import _by_runs_on, _runs
 from ._random import EventStream
 from ..events.batch import EventBatch
 from ..events.ingest import _frame_us
@@ -52,6 +53,44 @@ def _per_event(values: Tensor, batch: EventBatch, dtype: torch.dtype | None = No
     """(N,) ``values[sample of each event]`` on the batch's device."""
     values = values.to(device=batch.device, dtype=dtype or values.dtype, non_blocking=True)
     return values.index_select(0, batch.sample_index())
+
+
+def _mirrored(
+    batch: EventBatch, flip: Tensor | None, column: Tensor, around: Tensor | int, *, by_streams: bool = False
+) -> Tensor | None:
+    """``around - column`` on the events of the streams flagged in ``flip`` ((B,) bool CPU,
+    ``None``: all), ``column`` elsewhere, in the dtype of ``around - column``; ``None`` when no
+    stream is flagged (the column is kept). ``around`` is a number or (B,) per-stream values.
+
+    Every stream: one subtraction (per event gathers of a (B,) ``around``; with
+    ``by_streams``, on the CPU, one subtraction per stream instead). Some: on the CPU one
+    subtraction per flagged stream (per run of them for a number) and one copy per run of the
+    others (slices, no per-event index); elsewhere one ``where`` over a per-event gather of the flags, whatever B. The
+    same values either way; no host read of device data."""
+    flags = np.ones(len(batch), dtype=bool) if flip is None else np.asarray(flip.tolist(), dtype=bool).reshape(-1)
+    if not flags.any():
+        return None
+    by_runs = _by_runs_on(column.device)
+    if flags.all() and not (by_streams and by_runs and isinstance(around, Tensor)):
+        return (around if isinstance(around, int) else _per_event(around, batch)) - column
+    if not by_runs:
+        assert flip is not None  # not every flag is set, so flip was given
+        whole = (around if isinstance(around, int) else _per_event(around, batch)) - column
+        return torch.where(_per_event(flip, batch), whole, column)
+    values = torch.as_tensor(around, dtype=column.dtype if isinstance(around, int) else around.dtype)
+    dtype = torch.result_type(values.reshape(-1)[:1] if values.dim() else values, column)
+    bounds = batch.offsets.tolist()
+    out = torch.empty(column.shape, dtype=dtype, device=column.device)
+    for flag, first, end in _runs(flags):
+        if not flag:
+            out[bounds[first] : bounds[end]].copy_(column[bounds[first] : bounds[end]])
+            continue
+        if not values.dim():  # one number for every stream: one subtraction per run
+            torch.sub(values, column[bounds[first] : bounds[end]], out=out[bounds[first] : bounds[end]])
+            continue
+        for i in range(first, end):
+            torch.sub(values[i], column[bounds[i] : bounds[i + 1]], out=out[bounds[i] : bounds[i + 1]])
+    return out
 
 
 def _compact(batch: EventBatch, keep: Tensor, **changes: Any) -> EventBatch:

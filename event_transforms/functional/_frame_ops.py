@@ -1,14 +1,17 @@
 """Small frame helpers shared by the topic files (private): the work and output dtypes of the
-warps, the flags of the flips, count sums in a wide dtype, and the ``n`` or ``(h, w)`` size check."""
+warps, the flags of the flips and the per-sample selections they drive, count sums in a wide
+dtype, and the ``n`` or ``(h, w)`` size check."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
+import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import as_number, describe
+from .._validation import as_number, describe, on_host
+from ..events import batch as _batch_module
 
 #: Integer frame dtypes whose sums are checked against their range.
 _NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
@@ -69,6 +72,61 @@ def _flags(flip: object, batch: int, name: str = "flip") -> Tensor | None:
     if value is None or value.dtype != torch.bool or tuple(value.shape) not in ((), (batch,)):
         raise ValueError(f"{name} must be a bool or a ({batch},) bool tensor, got {describe(flip)}")
     return value.detach().cpu().expand(batch)
+
+
+def _runs(flags: np.ndarray) -> list[tuple[bool, int, int]]:
+    """The runs of equal consecutive ``flags`` (a host bool array): ``(flag, first, end)`` each."""
+    if flags.size == 0:
+        return []
+    starts = np.flatnonzero(np.concatenate(([True], flags[1:] != flags[:-1])))
+    ends = np.append(starts[1:], flags.size)
+    return [(bool(flags[a]), int(a), int(b)) for a, b in zip(starts.tolist(), ends.tolist())]
+
+
+def _by_runs_on(device: torch.device) -> bool:
+    """Whether a per-sample selection goes run by run (slices of adjacent samples, the CPU:
+    a copy each, no per-element index) or as one gather (elsewhere, and when tests count the
+    accelerator path's ops with ``events.batch.SLICES_ON_CPU`` off)."""
+    return _batch_module.SLICES_ON_CPU and device.type == "cpu"
+
+
+def _rows_by_flags(frames: Tensor, flags: np.ndarray, order: np.ndarray) -> Tensor:
+    """``frames`` (B, ...) seen as B samples of ``order.size`` equal rows: the rows of the samples
+    flagged in ``flags`` (host bools) taken in ``order`` (a permutation), the others' kept. One
+    ``index_select`` of whole rows by a host-built index: no host read of the frames."""
+    b, rows = frames.shape[0], order.size
+    if frames.numel() == 0:
+        return frames.clone(memory_format=torch.contiguous_format)
+    picks = np.where(flags[:, None], order[None, :], np.arange(rows)[None, :]) + rows * np.arange(b)[:, None]
+    index = torch.from_numpy(picks.reshape(-1).astype(np.int64)).to(frames.device)
+    return frames.reshape(b * rows, frames.numel() // (b * rows)).index_select(0, index).view(frames.shape)
+
+
+def _flagged_rows(frames: Tensor, gate: Tensor | None, change: Callable[[Tensor], Tensor], order: np.ndarray) -> Tensor:
+    """``change(frames)`` on the samples flagged in ``gate`` ((B,) bool, ``None``: all), the
+    others unchanged, for a ``change`` that permutes rows (``order``, as :func:`_rows_by_flags`):
+    ``change`` of the whole batch when every sample is flagged, else one gather of rows; a gate
+    that cannot be read on the host (compiling, on an accelerator) selects with ``where``."""
+    if gate is not None and not on_host(gate):
+        return torch.where(gate.to(frames.device, torch.bool).view(-1, *([1] * (frames.dim() - 1))), change(frames), frames)
+    flags = None if gate is None else np.asarray(gate.tolist(), dtype=bool).reshape(frames.shape[0])
+    if flags is None or flags.all():
+        return change(frames)
+    return _rows_by_flags(frames, flags, order)
+
+
+def _samples_by_runs(frames: Tensor, flags: np.ndarray, change: Callable[[Tensor], Tensor]) -> Tensor:
+    """``change`` of the samples flagged in ``flags`` (host bools), the others copied, into one
+    new contiguous batch: one copy per run of adjacent unflagged samples, one ``change`` and
+    copy per flagged sample (its temporary, one sample, stays in the cache for the copy)."""
+    out = torch.empty(frames.shape, dtype=frames.dtype, device=frames.device)
+    for flag, first, end in _runs(flags):
+        if not flag:
+            out[first:end].copy_(frames[first:end])
+            continue
+        for i in range(first, end):
+            out[i].copy_(change(frames[i : i + 1])[0])
+    return out
 
 
 def _size(value: object, name: str) -> tuple[int, int]:

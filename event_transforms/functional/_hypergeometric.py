@@ -30,7 +30,7 @@ import torch
 from torch import Tensor
 
 from .._validation import read_host
-from ._random import binomial_large, draw_seeds, entry_keys, sample_salts, sub_uniform, uniform53
+from ._random import _int32, _mix, _to53, binomial_large, draw_seeds, entry_keys, sample_salts, sub_uniform, uniform53
 
 __all__ = ["segment_sum", "Stream", "binomial_counts", "multivariate_hypergeometric"]
 
@@ -328,6 +328,22 @@ _UNCHECKED_ROUNDS = 4
 _ROW_STRIDE = 2**32
 
 
+def _uniform53_rounds(salt: Tensor, counter: Tensor, purposes: list[int]) -> Tensor:
+    """``torch.stack([uniform53(salt, counter, p) for p in purposes])``, bit for bit, in fewer
+    ops: the purpose-free first mix of the hash once, then one mix per purpose over the stack."""
+    low = counter.to(torch.int32) if counter.dtype != torch.int32 else counter
+    x = _mix(low ^ salt)
+    if counter.dtype == torch.int64:
+        x = x ^ (counter >> 32).to(torch.int32)
+    tags = torch.tensor([_int32(p * 0x27D4EB2F + 0x165667B1) for p in purposes], dtype=torch.int32, device=x.device)
+    return _to53(_mix(x.unsqueeze(0) ^ tags.view(-1, *([1] * x.dim()))))
+
+
+def _fresh(u: Tensor, scale: Tensor, top: Tensor) -> Tensor:
+    """Uniform positions ``min(floor(u have), have - 1)`` carried as fresh draws, ``2 v + 1``."""
+    return torch.minimum(u.mul_(scale).to(torch.int64), top).mul_(2).add_(1)
+
+
 def _distinct_positions(want: Tensor, have: Tensor, names: tuple[Tensor, Tensor], width: int, level: int) -> Tensor:
     """Per row, ``want`` (<= ``width``) distinct uniform positions in [0, have) (see
     :func:`_small_subsets`). ``names`` are each row's salt and first counter: slot k of
@@ -346,15 +362,21 @@ def _distinct_positions(want: Tensor, have: Tensor, names: tuple[Tensor, Tensor]
     salt, first = names
     counter = first + slot
     top = have - 1
+    # the unchecked rounds' fresh draws (doubled, + 1) at once: one hash of (salt, counter), then
+    # one mix per round's purpose over a (rounds, rows, width) stack, the numbers uniform53 gives
+    purposes = [1_000 + 64 * level + r for r in range(1, _UNCHECKED_ROUNDS + 1)]
+    drawn = _fresh(_uniform53_rounds(salt, counter, purposes), scale, top)
     rounds = 0
     while True:
         empty = key < 0
         if rounds >= _UNCHECKED_ROUNDS and not bool(empty.any()):
             break
         rounds += 1
-        u = uniform53(salt, counter, 1_000 + 64 * level + rounds)  # (rows, width), small
-        fresh = torch.minimum(u.mul_(scale).to(torch.int64), top)
-        key, _ = torch.where(empty, 2 * fresh + 1, key).sort(dim=1)
+        if rounds <= _UNCHECKED_ROUNDS:
+            fresh = drawn[rounds - 1]
+        else:
+            fresh = _fresh(uniform53(salt, counter, 1_000 + 64 * level + rounds), scale, top)  # (rows, width), small
+        key, _ = torch.where(empty, fresh, key).sort(dim=1)
         value = key >> 1
         repeated = torch.nn.functional.pad(value[:, 1:] == value[:, :-1], (1, 0))
         key = (key & ~1).masked_fill_(repeated, -1)

@@ -26,10 +26,10 @@ from .._params import SEED, Param, check_args
 from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames, on_host
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import JITTER, _per_event, _round_to
+from ._event_ops import JITTER, _mirrored, _per_event, _round_to
 from ._random import EventStream
 from ._frame_ops import _output_dtype, _work_dtype
-from ._frame_ops import _flags, _sum_in
+from ._frame_ops import _by_runs_on, _flags, _rows_by_flags, _samples_by_runs, _sum_in
 from ._frame_ops import _size
 
 __all__ = [
@@ -525,8 +525,9 @@ def vertical_flip_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
 def _flip_frames(frames: Tensor, gate: Tensor | None, axis: int) -> Tensor:
     """Mirror along ``axis`` (-1: W, -2: H) the samples whose ``gate`` is set
     (all without a gate), in one pass over the batch: ``flip`` when every sample is
-    mirrored, else one gather of whole rows (H) or of columns (W) by a per-sample index
-    built on the host. No host synchronisation."""
+    mirrored; else, for H, one gather of whole rows by a host-built index, and for W, on
+    the CPU, one ``flip`` per mirrored sample and one copy per run of adjacent others
+    (elsewhere one gather of columns). No host synchronisation."""
     if gate is not None and not on_host(gate):  # compiling, or a gate on an accelerator
         flip = gate.to(frames.device, torch.bool).view(-1, 1, 1, 1, 1)
         return torch.where(flip, frames.flip(axis), frames)
@@ -538,10 +539,10 @@ def _flip_frames(frames: Tensor, gate: Tensor | None, axis: int) -> Tensor:
     b, t, p, h, w = frames.shape
     if axis == -2:
         # Rows of W values: out row (b, c, y) = in row (b, c, y or H - 1 - y).
-        ys = np.where(flags[:, None], np.arange(h)[::-1], np.arange(h))  # (B, H)
-        rows = (np.arange(b)[:, None, None] * (t * p * h) + np.arange(t * p)[None, :, None] * h + ys[:, None, :]).reshape(-1)
-        out = frames.reshape(b * t * p * h, w).index_select(0, torch.from_numpy(rows).to(frames.device))
-        return out.view(frames.shape)
+        order = (np.arange(t * p)[:, None] * h + np.arange(h)[::-1][None, :]).reshape(-1)
+        return _rows_by_flags(frames, flags, order)
+    if _by_runs_on(frames.device):
+        return _samples_by_runs(frames, flags, lambda run: run.flip(-1))
     xs = np.where(flags[:, None], np.arange(w)[::-1], np.arange(w))  # (B, W)
     index = torch.from_numpy(xs).to(frames.device).view(b, 1, w).expand(b, t * p * h, w)
     return frames.reshape(b, t * p * h, w).gather(2, index).view(frames.shape)
@@ -601,15 +602,8 @@ def _flip_events(batch: EventBatch, flip: Tensor | None, *, axis: str = "x") -> 
     """
     column = batch.x if axis == "x" else batch.y
     size = batch.sensor_size[1] if axis == "x" else batch.sensor_size[0]
-    flags = [True] * len(batch) if flip is None else flip.tolist()
-    if not any(flags):
-        return batch
-    if all(flags):
-        mirrored = (size - 1) - column
-    else:
-        assert flip is not None  # not every flag is set, so flip was given
-        mirrored = torch.where(_per_event(flip, batch), (size - 1) - column, column)
-    return batch._replace(**{axis: mirrored.to(torch.int16)})
+    mirrored = _mirrored(batch, flip, column, size - 1)
+    return batch if mirrored is None else batch._replace(**{axis: mirrored.to(torch.int16)})
 
 
 # --------------------------------------------------------------------------- spatial jitter (events only)

@@ -7,14 +7,15 @@ also swaps them, is in :mod:`event_transforms.functional.temporal`.
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import Tensor
 
 from .._validation import as_batch, check_frames
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
-from ._event_ops import _per_event
-from ._frame_ops import _flags, _sum_in
+from ._event_ops import _mirrored
+from ._frame_ops import _flagged_rows, _flags, _sum_in
 
 __all__ = [
     "flip_polarity", "flip_polarity_frames", "flip_polarity_events", "merge_polarities", "merge_polarities_frames",
@@ -54,10 +55,8 @@ def flip_polarity_frames(frames: Tensor, flip: Tensor | None = None) -> Tensor:
         - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
         - output: as :func:`flip_polarity` gives for a batch.
     """
-    swapped = frames.flip(-3)
-    if flip is None or all(flip.tolist()):
-        return swapped
-    return torch.where(flip.to(frames.device).view(-1, 1, 1, 1, 1), swapped, frames)
+    order = np.arange(frames.shape[1] * frames.shape[2]) ^ 1  # rows (frame, polarity): p -> 1 - p
+    return _flagged_rows(frames, flip, lambda f: f.flip(-3), order)
 
 
 @register_kernel(flip_polarity, EventBatch)
@@ -81,16 +80,8 @@ def flip_polarity_events(batch: EventBatch, flip: Tensor | None = None) -> Event
         >>> flip_polarity_events(batch, torch.tensor([True, False])).p.tolist()
         [0, 1, 0]
     """
-    flags = [True] * len(batch) if flip is None else flip.tolist()
-    if not any(flags):
-        return batch
-    swapped = 1 - batch.p
-    if all(flags):
-        p = swapped
-    else:
-        assert flip is not None  # not every flag is set, so flip was given
-        p = torch.where(_per_event(flip, batch), swapped, batch.p)
-    return batch._replace(p=p.to(torch.int8))
+    swapped = _mirrored(batch, flip, batch.p, 1)
+    return batch if swapped is None else batch._replace(p=swapped.to(torch.int8))
 
 
 def merge_polarities(frames: Tensor | EventBatch, *, keepdim: bool = True) -> Tensor | EventBatch:

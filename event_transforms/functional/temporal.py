@@ -29,7 +29,7 @@ from ..events.batch import EventBatch
 from ..events.ingest import _frame_us
 from ._dispatch import batch_of, call_kernel, register_kernel, shape_of
 from ..events.drops import counting, record_dropped
-from ._event_ops import TES_KEYS, _kept, _keys, _per_event, _require_grid
+from ._event_ops import TES_KEYS, _kept, _mirrored, _keys, _per_event, _require_grid
 from ._random import draw_seeds
 from ._hypergeometric import (
     _EXPAND_MAX, Stream, binomial_counts, level_stats, multivariate_hypergeometric, segment_sum,
@@ -450,10 +450,10 @@ def time_reversal_frames(frames: Tensor, reverse: Tensor | None = None) -> Tenso
         - frames: ``(B, T, 2, H, W)``; per-sample arguments ``(B,)`` (or ``(B, 2)``).
         - output: as :func:`time_reversal` gives for a batch.
     """
-    reversed_ = frames.flip(-4, -3)
-    if reverse is None or all(reverse.tolist()):
-        return reversed_
-    return torch.where(reverse.to(frames.device).view(-1, 1, 1, 1, 1), reversed_, frames)
+    from ._frame_ops import _flagged_rows
+
+    rows = frames.shape[1] * frames.shape[2]  # (frame, polarity) t, p -> T - 1 - t, 1 - p: the rows reversed
+    return _flagged_rows(frames, reverse, lambda f: f.flip(-4, -3), np.arange(rows)[::-1].copy())
 
 
 @register_kernel(time_reversal, EventBatch)
@@ -481,18 +481,16 @@ def time_reversal_events(batch: EventBatch, reverse: Tensor | None = None) -> Ev
     """
     from .polarity import flip_polarity_events
 
-    every = torch.ones(len(batch), dtype=torch.bool) if reverse is None else reverse.to(torch.bool)
-    return flip_polarity_events(_reverse_times(batch, every), every)
+    flip = None if reverse is None else reverse.to(torch.bool)
+    return flip_polarity_events(_reverse_times(batch, flip), flip)
 
 
-def _reverse_times(batch: EventBatch, reverse: Tensor) -> EventBatch:
-    """Times mirrored in the grid's window for the samples flagged in ``reverse``."""
+def _reverse_times(batch: EventBatch, reverse: Tensor | None) -> EventBatch:
+    """Times mirrored in the grid's window for the samples flagged in ``reverse`` (``None``: all)."""
     starts, frame_us, n_frames = _require_grid(batch, "TimeReversal")
     end = starts.to(batch.t.dtype) * 2 + n_frames * frame_us - (0 if batch.t.is_floating_point() else 1)
-    mirrored = _per_event(end, batch) - batch.t
-    flags = reverse.tolist()
-    t = mirrored if all(flags) else torch.where(_per_event(reverse, batch), mirrored, batch.t)
-    return batch._replace(t=t.to(batch.t.dtype))
+    t = _mirrored(batch, reverse, batch.t, end, by_streams=True)
+    return batch if t is None else batch._replace(t=t.to(batch.t.dtype))
 
 def _check_length(length: object, frames: int) -> int:
     value = as_number(length, "length", integer=True)

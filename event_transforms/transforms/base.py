@@ -325,6 +325,13 @@ class EventTransform(nn.Module):
     #: partners they read, so a partner that is itself gated off is still read, unchanged.
     partner_key: str | None = None
 
+    #: Declared by a transform whose kernels take the gate as their own per-sample flags (the
+    #: flips, time reversal, polarity swap: a kernel that leaves an unflagged sample unchanged
+    #: and keeps the dtype). ``apply_transform`` then gets the whole batch and the tree with
+    #: ``params["apply"]`` and hands the gate to the kernel: the one rule's result, without the
+    #: gather and put-back, for kernels whose work is per element or per event.
+    gates_in_kernel: bool = False
+
     #: For a dict input, the entry holding the labels a coupled transform mixes (``None``:
     #: dict inputs pass their labels through). Ignored by transforms that are not coupled.
     label_key: str | None = None
@@ -585,7 +592,10 @@ class EventTransform(nn.Module):
         gate the caller moved to an accelerator) the same rule is evaluated without reading
         it: the kernel runs on the whole batch and the gate selects, sample by sample, its
         result or the input (equal results, by per-sample purity; no data-dependent shapes).
-        An EventBatch's gate is always read (once, a sync if it is on an accelerator)."""
+        An EventBatch's gate is always read (once, a sync if it is on an accelerator). A
+        transform that :attr:`gates_in_kernel` gets the whole batch and the gate instead."""
+        if self.gates_in_kernel and not self.couples_samples:
+            return self._dispatch(frames, params)
         gate = params.get("apply")
         if gate is not None and isinstance(frames, Tensor) and (
             torch.compiler.is_compiling() or gate.device.type != "cpu"

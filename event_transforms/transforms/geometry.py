@@ -258,8 +258,10 @@ class HorizontalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
+    gates_in_kernel = True  # the kernel takes the gate as its flags: no gather, no put-back
+
     def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
-        return call_kernel(F.horizontal_flip, inputs)
+        return call_kernel(F.horizontal_flip, inputs, params.get("apply"))
 
 class VerticalFlip(EventTransform):
     """Mirror every frame top-bottom. Counts and dtype are kept.
@@ -276,8 +278,10 @@ class VerticalFlip(EventTransform):
         [[1.0, 0.0], [3.0, 2.0]]
     """
 
+    gates_in_kernel = True  # the kernel takes the gate as its flags: no gather, no put-back
+
     def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
-        return call_kernel(F.vertical_flip, inputs)
+        return call_kernel(F.vertical_flip, inputs, params.get("apply"))
 
 class RandomHorizontalFlip(HorizontalFlip):
     """Mirror each sequence left-right with probability ``p`` (per sample; default 0.5).

@@ -33,8 +33,10 @@ class FlipPolarity(EventTransform):
         [5, 1]
     """
 
+    gates_in_kernel = True  # the kernel takes the gate as its flags: no gather, no put-back
+
     def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
-        return call_kernel(F.flip_polarity, inputs)
+        return call_kernel(F.flip_polarity, inputs, params.get("apply"))
 
 
 class RandomFlipPolarity(FlipPolarity):

@@ -266,8 +266,10 @@ class TimeReversal(EventTransform):
         [[0.0, 0.0], [0.0, 0.0], [4.0, 0.0]]
     """
 
+    gates_in_kernel = True  # the kernel takes the gate as its flags: no gather, no put-back
+
     def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
-        return call_kernel(F.time_reversal, inputs)
+        return call_kernel(F.time_reversal, inputs, params.get("apply"))
 
 class RandomTimeReversal(TimeReversal):
     """Reverse each sequence in time (and swap polarities) with probability ``p`` (default 0.5).
