@@ -7,6 +7,7 @@ and warnings. :func:`~event_transforms.functional.events_to_frames`,
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -313,6 +314,15 @@ def _to_spare(index: Tensor, counted: Tensor, spare: int) -> Tensor:
     return index.sub_(spare).mul_(counted).add_(spare)
 
 
+def _zeroed(values: Tensor) -> Tensor:
+    """``values.zero_()``; a contiguous CPU tensor by one libc ``memset`` (all-zero bytes are
+    +0 in every dtype), 2-4x faster than ``fill_`` on buffers past the cache."""
+    if values.device.type == "cpu" and values.is_contiguous() and values.numel() and not torch.compiler.is_compiling():
+        ctypes.memset(values.data_ptr(), 0, values.numel() * values.element_size())
+        return values
+    return values.zero_()
+
+
 def _accumulate(counts: Tensor, index: Tensor) -> None:
     """``counts[index] += 1`` for every entry: one ``index_add_`` of an expanded one."""
     if index.numel():
@@ -386,6 +396,8 @@ def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
     at the same time (a shared clock, ``t_start`` a number), else a gather of the starts."""
     first = starts.tolist()
     if first and all(v == first[0] for v in first):
+        if first[0] == 0 and not batch.t.is_floating_point():
+            return batch.t  # read only by every caller: no copy of the int64 column
         return batch.t - first[0]
     start_of = starts.to(device=batch.device, dtype=batch.t.dtype)
     return batch.t - start_of.index_select(0, batch.sample_index())

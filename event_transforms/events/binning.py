@@ -65,7 +65,7 @@ from .ingest import (
 from .._compile import compiled_kernels_enabled
 from ._kernel import (
     _OUTSIDE_SENSOR, _Tally, _accumulate, _accumulator, _as_dtype, _batch_kernel, _bin_of, _check_bytes, _count_chunk,
-    _empty_window_error, _event_index, _grid, _pixel_table, _relative_times, _time_bins, _to_spare, _warn_outside,
+    _empty_window_error, _event_index, _grid, _pixel_table, _relative_times, _time_bins, _to_spare, _warn_outside, _zeroed,
 )
 
 #: Events read per chunk by default: the extra memory of a call is a few times this many
@@ -290,7 +290,7 @@ def events_to_frames(
     # Pass 2: count chunk by chunk straight into the output (and one spare slot).
     tally = _Tally(batch)
     total = batch * n_frames * grid.frame_size
-    counts = torch.zeros(total + 1, dtype=_accumulator(grid.dtype, batch * length), device=source.device)
+    counts = _zeroed(torch.empty(total + 1, dtype=_accumulator(grid.dtype, batch * length), device=source.device))
 
     def bin_chunk(i: int) -> None:  # a function, so that a chunk's temporaries die before the next
         columns = read(i, _FIELDS)
@@ -462,7 +462,8 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
         batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid, total >= 2**31 - 1
     )
     off_sensor = pixel == _OUTSIDE_SENSOR
-    lost = torch.stack([off_sensor.sum(), in_time.logical_not().logical_and_(off_sensor.logical_not_()).sum()])
+    # off the sensor, and on it outside the window (= every event neither in time nor off it)
+    lost = torch.stack([off_sensor.count_nonzero(), (in_time | off_sensor).count_nonzero().neg_().add_(n)])
     if total == 0:
         return torch.zeros(total, dtype=dtype, device=device), lost
     counted = in_time.logical_and_(pixel >= 0)
@@ -472,7 +473,7 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
         counts[total] = 0
         bounds = batch.offsets.tolist()
         for b in range(len(batch)):
-            counts[b * block : (b + 1) * block].zero_()
+            _zeroed(counts[b * block : (b + 1) * block])
             lo, hi = bounds[b], bounds[b + 1]
             if hi > lo:
                 segment = index[lo:hi].add_(b * block - total).mul_(counted[lo:hi]).add_(total)
