@@ -21,7 +21,7 @@ from event_transforms.events._kernel import _zeroed
 from event_transforms.events.binning import bin_events
 from event_transforms.functional._event_ops import _kept
 from event_transforms.functional._random import (
-    _GOLDEN, _hash, _mix, entry_keys, sample_keys, sample_salts, sub_uniform, uniform53,
+    _GOLDEN, _hash, _mix, entry_keys, sample_keys, sample_salts, uniform53,
 )
 from event_transforms.functional._warp import _mass_weight
 from event_transforms.functional.noise import _add_poisson_noise
