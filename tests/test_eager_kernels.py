@@ -90,6 +90,9 @@ def test_batch_binning_equals_a_loop_and_counts_what_it_drops(sizes, crop, pool)
     assert dropped.counts().get("off_sensor", 0) == off
     assert dropped.counts().get("out_of_window", 0) == late
     assert torch.equal(batch.t, t_before)  # the zero-start path reads t in place, never writes it
+    assert torch.equal(bin_events(batch, crop=crop, pool=pool, dtype=torch.int64), frames)  # not counting
+    late_start = batch.with_grid(10.0, t_start=-10_000, n_frames=5)  # a start other than 0: t - start
+    assert torch.equal(bin_events(late_start, crop=crop, pool=pool, dtype=torch.int64)[:, 1:], frames)
 
 
 @pytest.mark.parametrize("dtype", [torch.uint8, torch.int16, torch.float16, torch.bfloat16, torch.float32])

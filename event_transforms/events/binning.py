@@ -64,7 +64,7 @@ from .ingest import (
 )
 from .._compile import compiled_kernels_enabled
 from ._kernel import (
-    _OUTSIDE_SENSOR, _Tally, _accumulate, _accumulator, _as_dtype, _batch_kernel, _bin_of, _check_bytes, _count_chunk,
+    _OUTSIDE_SENSOR, _Tally, _accumulate, _count_blocks, _accumulator, _as_dtype, _batch_kernel, _bin_of, _check_bytes, _count_chunk,
     _empty_window_error, _event_index, _grid, _pixel_table, _relative_times, _time_bins, _to_spare, _warn_outside, _zeroed,
 )
 
@@ -458,9 +458,13 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
         counts, lost = kernel(batch.x, batch.y, batch.p, _relative_times(batch, starts), batch.sample_index(),
                               _pixel_table(grid, device))
         return _as_dtype(counts, dtype), lost
-    index, pixel, in_time = _event_index(
-        batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid, total >= 2**31 - 1
-    )
+    rel = _relative_times(batch, starts)
+    if device.type == "cpu" and total:
+        counted = _count_blocks(batch.x, batch.y, batch.p, rel, batch.offsets.tolist(), n_frames, grid,
+                                _accumulator(dtype, n), counting())
+        if counted is not None:
+            return _as_dtype(counted[0], dtype), counted[1]
+    index, pixel, in_time = _event_index(batch.x, batch.y, batch.p, rel, n_frames, grid, total >= 2**31 - 1)
     off_sensor = pixel == _OUTSIDE_SENSOR
     # off the sensor, and on it outside the window (= every event neither in time nor off it)
     lost = torch.stack([off_sensor.count_nonzero(), (in_time | off_sensor).count_nonzero().neg_().add_(n)])
