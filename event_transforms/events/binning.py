@@ -440,9 +440,11 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
     to one spare slot, and an ``index_add_`` of ones straight into the output dtype when no
     count can pass what it holds exactly (float32: 2**24), else into int32 and a checked cast.
 
-    On the CPU one sample at a time: its block (``T * 2 * H' * W'`` values) is zeroed, then
-    its events are added while the block is still in cache, 2-3x faster than one scatter
-    over the whole output. On accelerators, one ``index_add_`` for the batch (sync-free).
+    On the CPU one sample at a time (:func:`~._kernel._count_blocks`): its events are added
+    into one scratch block (``T * 2 * H' * W'`` values plus two spare slots) while it is in
+    cache, and the block is copied out, so the output is written once and never zeroed
+    (the masking path below remains for float times and blocks past 2**29 values). On
+    accelerators, one ``index_add_`` for the batch (sync-free).
 
     Also returns, on the device, how many events lay off the sensor and how many on it but
     outside the time window (``None`` when there are no events): the caller reads these two
