@@ -462,10 +462,10 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
         return _as_dtype(counts, dtype), lost
     rel = _relative_times(batch, starts)
     if device.type == "cpu" and total:
-        counted = _count_blocks(batch.x, batch.y, batch.p, rel, batch.offsets.tolist(), n_frames, grid,
-                                _accumulator(dtype, n), counting())
-        if counted is not None:
-            return _as_dtype(counted[0], dtype), counted[1]
+        blocks = _count_blocks(batch.x, batch.y, batch.p, rel, batch.offsets.tolist(), n_frames, grid,
+                               _accumulator(dtype, n), counting())
+        if blocks is not None:
+            return _as_dtype(blocks[0], dtype), blocks[1]
     index, pixel, in_time = _event_index(batch.x, batch.y, batch.p, rel, n_frames, grid, total >= 2**31 - 1)
     off_sensor = pixel == _OUTSIDE_SENSOR
     # off the sensor, and on it outside the window (= every event neither in time nor off it)
