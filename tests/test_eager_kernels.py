@@ -241,3 +241,11 @@ def test_cpu_compaction_equals_a_mask_loop(sizes, share):
     lengths = [int(keep[a:b].sum()) for a, b in zip(bounds[:-1], bounds[1:])]
     assert offsets.tolist() == np.concatenate([[0], np.cumsum(lengths, dtype=np.int64)]).tolist()
     assert offsets.device.type == "cpu" and offsets.dtype == torch.int64
+
+
+@pytest.mark.parametrize("sizes", [[5, 0, 9, 1], [0], [3], [], [0, 0, 4]])
+def test_sample_index_equals_a_loop(sizes):
+    batch = _batch(_streams(9, sizes), 4)
+    expected = [b for b, n in enumerate(sizes) for _ in range(n)]
+    got = batch.sample_index()
+    assert got.dtype == torch.int32 and got.tolist() == expected
