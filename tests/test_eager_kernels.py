@@ -76,9 +76,17 @@ def _batch(streams: list[torch.Tensor], n_frames: int, sensor: tuple[int, int] =
     return batch.with_grid(10.0, t_start=0, n_frames=n_frames)
 
 
+@pytest.fixture(params=["scratch", "masks"])
+def binning_path(request, monkeypatch):
+    """Both CPU batch paths: the scratch blocks, and the masks (blocks past the scratch size)."""
+    if request.param == "masks":
+        monkeypatch.setattr("event_transforms.events._kernel._SCRATCH_BYTES", 0)
+    return request.param
+
+
 @pytest.mark.parametrize("sizes", [[300, 0, 1, 257], [1], [0, 0], []])
 @pytest.mark.parametrize("crop,pool", [(None, 1), ((1, 2, 4, 4), 2)])
-def test_batch_binning_equals_a_loop_and_counts_what_it_drops(sizes, crop, pool):
+def test_batch_binning_equals_a_loop_and_counts_what_it_drops(sizes, crop, pool, binning_path):
     streams = _streams(len(sizes) + 7 * pool, sizes, margin=2)
     batch = _batch(streams, 4)
     t_before = batch.t.clone()
@@ -96,7 +104,7 @@ def test_batch_binning_equals_a_loop_and_counts_what_it_drops(sizes, crop, pool)
 
 
 @pytest.mark.parametrize("dtype", [torch.uint8, torch.int16, torch.float16, torch.bfloat16, torch.float32])
-def test_batch_binning_dtypes_at_their_limits_and_one_frame(dtype):
+def test_batch_binning_dtypes_at_their_limits_and_one_frame(dtype, binning_path):
     exact = {torch.uint8: 255, torch.int16: 32767, torch.float16: 2048, torch.bfloat16: 256, torch.float32: 2**24}
     limit = min(exact[dtype], 40_000)
     pile = torch.tensor([[3, 2, 5, 1]]).repeat(limit, 1)  # every event in one pixel of the one frame
@@ -110,7 +118,7 @@ def test_batch_binning_dtypes_at_their_limits_and_one_frame(dtype):
             bin_events(_batch([torch.cat([pile, pile[:1]])], 1), dtype=dtype)
 
 
-def test_batch_binning_a_million_events_in_one_pixel():
+def test_batch_binning_a_million_events_in_one_pixel(binning_path):
     pile = torch.tensor([[0, 0, 9_999, 0]]).repeat(10**6, 1)
     frames = bin_events(_batch([pile, torch.tensor([[1, 1, 0, 1]])], 2, (2, 2)))
     assert frames[0, 0, 0, 0, 0].item() == 10**6 and frames[1, 0, 1, 1, 1].item() == 1
