@@ -370,8 +370,9 @@ def bin_events(
     there) are dropped with an :class:`EventsOutsideSensorWarning` or
     :class:`EventsOutsideWindowWarning` that gives their count, as :func:`events_to_frames` does.
 
-    One scatter for the whole batch: int32 linear indices (int64 past 2**31 slots), an
-    event outside the window, sensor or crop counted in one spare slot, one ``index_add_``
+    One scatter for the whole batch on an accelerator (on the CPU one per sample, into a
+    block that stays in cache): int32 linear indices (int64 past 2**31 slots), an
+    event outside the window, sensor or crop counted in a spare slot, one ``index_add_``
     of ones straight into the output dtype (when every count fits it exactly; else int32
     and a checked cast), by the kernel of ``events_to_frames``. No ``bincount`` (on accelerators it reads its maximum back). No
     host synchronisation, except the one read of the dropped counts for the warnings, ``n_frames=None`` without a grid (the last bin is read
