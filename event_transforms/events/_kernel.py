@@ -7,6 +7,7 @@ and warnings. :func:`~event_transforms.functional.events_to_frames`,
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -313,6 +314,93 @@ def _to_spare(index: Tensor, counted: Tensor, spare: int) -> Tensor:
     return index.sub_(spare).mul_(counted).add_(spare)
 
 
+def _zeroed(values: Tensor) -> Tensor:
+    """``values.zero_()``; a contiguous CPU tensor by one libc ``memset`` (all-zero bytes are
+    +0 in every dtype), 2-4x faster than ``fill_`` on buffers past the cache."""
+    if values.device.type == "cpu" and values.is_contiguous() and values.numel() and not torch.compiler.is_compiling():
+        ctypes.memset(values.data_ptr(), 0, values.numel() * values.element_size())
+        return values
+    return values.zero_()
+
+
+#: Pixel-table entries of :func:`_count_blocks` for a pixel off the crop (and, one less, off
+#: the sensor): far enough below zero that an event's block index stays negative.
+_FAR = -(2**30)
+#: Largest scratch block of :func:`_count_blocks` (a sample's frames): about a CPU's L2 cache
+#: (measured: 1.5 MB blocks 0.6x the masking path's time, 12 MB blocks 1.15x).
+_SCRATCH_BYTES = 2**22
+_FAR_TABLES: dict[tuple, Tensor] = {}
+
+
+def _far_table(grid: _Grid, device: torch.device) -> Tensor:
+    """:func:`_pixel_table` with every output pixel plus one, ``_FAR`` off the crop and
+    ``_FAR - 1`` off the sensor (int32): the table of :func:`_count_blocks`."""
+    key = (grid.height, grid.width, grid.top, grid.left, grid.crop_h, grid.crop_w, grid.pool, str(device))
+    table = _FAR_TABLES.get(key)
+    if table is None:
+        base = _pixel_table(grid, device)
+        table = torch.where(base >= 0, base + 1, torch.where(base == _OUTSIDE_SENSOR, _FAR - 1, _FAR)).to(torch.int32)
+        if len(_FAR_TABLES) > 32:
+            _FAR_TABLES.clear()
+        _FAR_TABLES[key] = table
+    return table
+
+
+def _count_blocks(
+    x: Tensor, y: Tensor, p: Tensor, rel: Tensor, bounds: list[int], n_frames: int, grid: _Grid,
+    accumulator: torch.dtype, lost: bool,
+) -> tuple[Tensor, Tensor | None] | None:
+    """The CPU batch binning, sample by sample through one cache-resident scratch block;
+    ``None`` where it does not apply (float times, an int64 bin quotient, a block past
+    ``_SCRATCH_BYTES``, where a scratch out of cache costs a third pass over the output), and
+    the caller takes the general path.
+
+    Per event: the bin ``floor(clamp(rel / frame, -1, T))`` (the quotient of :func:`_quotient`,
+    exact where it matters), its index ``(2 bin + ON) * H'W' + pixel + 1`` inside its sample's
+    block, 0 or ``T 2 H'W' + 1`` for every event not counted (before or after the window, or
+    off the crop or sensor: the table's far entries keep the index negative), by one clamp, with
+    no mask. Per sample: the scratch zeroed (in cache), one ``index_add_`` of ones, and the
+    block copied out, so the output is written once and never zeroed; 4-5 fewer passes over
+    the events than masking, and the same counts (whole numbers, exact in ``accumulator``).
+    With ``lost``, also the (2,) events off the sensor and on it outside the window."""
+    block = n_frames * grid.frame_size
+    frame = grid.out_h * grid.out_w
+    if rel.is_floating_point() or block + 2 * frame >= 2**29 or (block + 2) * accumulator.itemsize > _SCRATCH_BYTES:
+        return None
+    quotient = _quotient(rel, grid.frame_us, n_frames)
+    if not quotient.is_floating_point():
+        return None
+    bins = quotient.clamp_(-1.0, float(n_frames)).floor_().to(torch.int32)
+    del quotient
+    flat = _clamped(y, grid.height, False).to(torch.int32).mul_(grid.width + 2)
+    col = _clamped(x, grid.width, False)
+    flat.add_(col if col.dtype == torch.int32 else col.to(torch.int32)).add_(grid.width + 3)
+    pixel = _far_table(grid, x.device).index_select(0, flat)
+    del flat
+    dropped = None
+    if lost:
+        off_sensor = pixel == _FAR - 1
+        in_time = (bins >= 0).logical_and_(bins < n_frames)
+        dropped = torch.stack([off_sensor.count_nonzero(), (in_time | off_sensor).count_nonzero().neg_().add_(x.shape[0])])
+        del off_sensor, in_time
+    on = p.to(torch.int32)  # 1 = ON, 0 = OFF (the batch's contract; the masking path adds p as is)
+    index = bins.mul_(2).add_(on).mul_(frame).add_(pixel).clamp_(0, block + 1)
+    del pixel, on
+    counts = torch.empty(len(bounds) - 1, block, dtype=accumulator)
+    scratch = torch.empty(block + 2, dtype=accumulator)
+    one = torch.ones((), dtype=accumulator)
+    inner = scratch[1 : block + 1]
+    for b in range(len(bounds) - 1):
+        lo, hi = bounds[b], bounds[b + 1]
+        if hi == lo:
+            _zeroed(counts[b])
+            continue
+        _zeroed(scratch)
+        scratch.index_add_(0, index[lo:hi], one.expand(hi - lo))
+        counts[b].copy_(inner)
+    return counts.view(-1), dropped
+
+
 def _accumulate(counts: Tensor, index: Tensor) -> None:
     """``counts[index] += 1`` for every entry: one ``index_add_`` of an expanded one."""
     if index.numel():
@@ -386,6 +474,8 @@ def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
     at the same time (a shared clock, ``t_start`` a number), else a gather of the starts."""
     first = starts.tolist()
     if first and all(v == first[0] for v in first):
+        if first[0] == 0 and not batch.t.is_floating_point():
+            return batch.t  # read only by every caller: no copy of the int64 column
         return batch.t - first[0]
     start_of = starts.to(device=batch.device, dtype=batch.t.dtype)
     return batch.t - start_of.index_select(0, batch.sample_index())

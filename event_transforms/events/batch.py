@@ -431,9 +431,13 @@ class EventBatch:
             [0, 0, 1]
         """
         if self._sample is None:
-            lengths = torch.tensor(self.lengths, dtype=torch.int64)
-            ids = torch.arange(len(self), dtype=torch.int32)
-            self._sample = torch.repeat_interleave(ids, lengths, output_size=self.num_events).to(self.device)
+            n = self.num_events
+            if n < 2**31:  # the one-argument form writes each stream's index run by run: no gather
+                sample = torch.repeat_interleave(torch.tensor(self.lengths, dtype=torch.int32), output_size=n)
+            else:
+                ids = torch.arange(len(self), dtype=torch.int32)
+                sample = torch.repeat_interleave(ids, torch.tensor(self.lengths, dtype=torch.int64), output_size=n)
+            self._sample = sample.to(self.device)
         return self._sample
 
     def columns(self) -> dict[str, Tensor]:

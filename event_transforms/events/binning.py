@@ -64,8 +64,8 @@ from .ingest import (
 )
 from .._compile import compiled_kernels_enabled
 from ._kernel import (
-    _OUTSIDE_SENSOR, _Tally, _accumulate, _accumulator, _as_dtype, _batch_kernel, _bin_of, _check_bytes, _count_chunk,
-    _empty_window_error, _event_index, _grid, _pixel_table, _relative_times, _time_bins, _to_spare, _warn_outside,
+    _OUTSIDE_SENSOR, _Tally, _accumulate, _count_blocks, _accumulator, _as_dtype, _batch_kernel, _bin_of, _check_bytes, _count_chunk,
+    _empty_window_error, _event_index, _grid, _pixel_table, _relative_times, _time_bins, _to_spare, _warn_outside, _zeroed,
 )
 
 #: Events read per chunk by default: the extra memory of a call is a few times this many
@@ -290,7 +290,7 @@ def events_to_frames(
     # Pass 2: count chunk by chunk straight into the output (and one spare slot).
     tally = _Tally(batch)
     total = batch * n_frames * grid.frame_size
-    counts = torch.zeros(total + 1, dtype=_accumulator(grid.dtype, batch * length), device=source.device)
+    counts = _zeroed(torch.empty(total + 1, dtype=_accumulator(grid.dtype, batch * length), device=source.device))
 
     def bin_chunk(i: int) -> None:  # a function, so that a chunk's temporaries die before the next
         columns = read(i, _FIELDS)
@@ -370,8 +370,9 @@ def bin_events(
     there) are dropped with an :class:`EventsOutsideSensorWarning` or
     :class:`EventsOutsideWindowWarning` that gives their count, as :func:`events_to_frames` does.
 
-    One scatter for the whole batch: int32 linear indices (int64 past 2**31 slots), an
-    event outside the window, sensor or crop counted in one spare slot, one ``index_add_``
+    One scatter for the whole batch on an accelerator (on the CPU one per sample, into a
+    block that stays in cache): int32 linear indices (int64 past 2**31 slots), an
+    event outside the window, sensor or crop counted in a spare slot, one ``index_add_``
     of ones straight into the output dtype (when every count fits it exactly; else int32
     and a checked cast), by the kernel of ``events_to_frames``. No ``bincount`` (on accelerators it reads its maximum back). No
     host synchronisation, except the one read of the dropped counts for the warnings, ``n_frames=None`` without a grid (the last bin is read
@@ -440,9 +441,11 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
     to one spare slot, and an ``index_add_`` of ones straight into the output dtype when no
     count can pass what it holds exactly (float32: 2**24), else into int32 and a checked cast.
 
-    On the CPU one sample at a time: its block (``T * 2 * H' * W'`` values) is zeroed, then
-    its events are added while the block is still in cache, 2-3x faster than one scatter
-    over the whole output. On accelerators, one ``index_add_`` for the batch (sync-free).
+    On the CPU one sample at a time (:func:`~._kernel._count_blocks`): its events are added
+    into one scratch block (``T * 2 * H' * W'`` values plus two spare slots) while it is in
+    cache, and the block is copied out, so the output is written once and never zeroed
+    (the masking path below remains for float times and blocks past 2**29 values). On
+    accelerators, one ``index_add_`` for the batch (sync-free).
 
     Also returns, on the device, how many events lay off the sensor and how many on it but
     outside the time window (``None`` when there are no events): the caller reads these two
@@ -458,11 +461,16 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
         counts, lost = kernel(batch.x, batch.y, batch.p, _relative_times(batch, starts), batch.sample_index(),
                               _pixel_table(grid, device))
         return _as_dtype(counts, dtype), lost
-    index, pixel, in_time = _event_index(
-        batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid, total >= 2**31 - 1
-    )
+    rel = _relative_times(batch, starts)
+    if device.type == "cpu" and total:
+        blocks = _count_blocks(batch.x, batch.y, batch.p, rel, batch.offsets.tolist(), n_frames, grid,
+                               _accumulator(dtype, n), counting())
+        if blocks is not None:
+            return _as_dtype(blocks[0], dtype), blocks[1]
+    index, pixel, in_time = _event_index(batch.x, batch.y, batch.p, rel, n_frames, grid, total >= 2**31 - 1)
     off_sensor = pixel == _OUTSIDE_SENSOR
-    lost = torch.stack([off_sensor.sum(), in_time.logical_not().logical_and_(off_sensor.logical_not_()).sum()])
+    # off the sensor, and on it outside the window (= every event neither in time nor off it)
+    lost = torch.stack([off_sensor.count_nonzero(), (in_time | off_sensor).count_nonzero().neg_().add_(n)])
     if total == 0:
         return torch.zeros(total, dtype=dtype, device=device), lost
     counted = in_time.logical_and_(pixel >= 0)
@@ -472,7 +480,7 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
         counts[total] = 0
         bounds = batch.offsets.tolist()
         for b in range(len(batch)):
-            counts[b * block : (b + 1) * block].zero_()
+            _zeroed(counts[b * block : (b + 1) * block])
             lo, hi = bounds[b], bounds[b + 1]
             if hi > lo:
                 segment = index[lo:hi].add_(b * block - total).mul_(counted[lo:hi]).add_(total)

@@ -105,11 +105,17 @@ def _kept(batch: EventBatch, keep: Tensor) -> tuple[Tensor, Tensor]:
 
     One cumulative sum of ``keep`` gives both the kept counts (read at the stream ends: the
     one host read, no per-event scatter) and each kept event's place; one scatter of
-    positions then (no ``nonzero``, which reads its size back on an accelerator). Positions
+    positions then (no ``nonzero``, which reads its size back on an accelerator; on the
+    CPU, where it makes nothing wait, one ``nonzero`` and a search of the stream starts). Positions
     and sums are int32 below 2**31 events (half the bytes); the output's sample index is
     rebuilt on demand by a run fill, not gathered."""
     dtype = torch.int32 if keep.shape[0] < 2**31 else torch.int64
     device = keep.device
+    if device.type == "cpu" and not torch.compiler.is_compiling():
+        # on the CPU nothing waits: one nonzero gives the ascending kept positions, and the
+        # kept counts before each stream's start are a search of them (2-3x fewer passes)
+        index = keep.nonzero().squeeze(1)
+        return index, torch.searchsorted(index, batch.offsets)
     running = torch.cumsum(keep, 0, dtype=dtype)
     at_ends = torch.cat([running.new_zeros(1), running]).index_select(0, batch.offsets.to(device))
     lengths = read_host(at_ends.diff())  # the output size depends on the data: the one read

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -27,7 +28,7 @@ if TYPE_CHECKING:  # the batch imports functional; a runtime import here would b
 
 __all__ = [
     "sample_salts", "uniform", "uniform53", "entry_keys", "sub_uniform", "sub_uniform32", "sub_normal_pair", "draw_seeds",
-    "EventStream", "poisson_counts", "binomial_large", "poisson_cells",
+    "sample_keys", "EventStream", "poisson_counts", "binomial_large", "poisson_cells",
 ]
 
 _MULTIPLIER = 0x45D9F3B  # the 32-bit integer mix of Thomas Mueller's hash
@@ -93,10 +94,49 @@ def uniform53(salt: Tensor, counter: Tensor, purpose: int) -> Tensor:
 
 
 def _to53(first: Tensor) -> Tensor:
+    """``(high >> 6) 2**-26 + (low >> 5) 2**-53`` of the unsigned 32-bit ``first`` and its
+    next mix: int32 lanes (logical shifts by masking), then float64, where both terms and
+    their sum are exact."""
     second = _mix(first ^ _GOLDEN)
-    high = first.to(torch.int64) & 0xFFFFFFFF
-    low = second.to(torch.int64) & 0xFFFFFFFF
-    return ((high >> 6) * 2**27 + (low >> 5)).to(torch.float64) * 2.0**-53
+    high = ((first >> 6) & 0x3FFFFFF).to(torch.float64)
+    low = ((second >> 5) & 0x7FFFFFF).to(torch.float64)
+    return high.mul_(2.0**27).add_(low).mul_(2.0**-53)
+
+
+def _mix_host(x: np.ndarray) -> np.ndarray:
+    """:func:`_mix` on numpy int32 lanes (the same wrapping products and logical shifts)."""
+    multiplier = np.int32(_MULTIPLIER)
+    x = x ^ ((x >> 16) & 0xFFFF)
+    x = x * multiplier
+    x = x ^ ((x >> 16) & 0xFFFF)
+    x = x * multiplier
+    return x ^ ((x >> 16) & 0xFFFF)
+
+
+def sample_keys(seed: Tensor, device: torch.device | str) -> Tensor:
+    """(B,) int32 keys of each sample's stream on ``device``: ``entry_keys(sample_salts(seed),
+    0)``, the key :class:`EventStream` gives every event of a sample.
+
+    CPU seeds (the usual case: drawn by a CPU generator) are hashed on the host in numpy
+    int32 lanes, the same bits, and copied over once (no device op per step of the hash);
+    seeds already on a device are hashed there with tensor ops (no host read).
+
+    Example:
+        >>> seeds = torch.tensor([7, 2**62 + 5])
+        >>> zero = torch.zeros(1, dtype=torch.int64)
+        >>> torch.equal(sample_keys(seeds, "cpu"), entry_keys(sample_salts(seeds, "cpu"), zero))
+        True
+    """
+    if seed.device.type != "cpu" or torch.compiler.is_compiling():
+        return entry_keys(sample_salts(seed, device), torch.zeros(1, dtype=torch.int64, device=device))
+    values = seed.to(torch.int64).numpy()
+    with np.errstate(over="ignore"):
+        low = (values & 0xFFFFFFFF).astype(np.int32)
+        high = ((values >> 32) & 0xFFFFFFFF).astype(np.int32)
+        salt = _mix_host(_mix_host(low ^ np.int32(_GOLDEN)) ^ high)
+        # entry_keys at counter 0: _hash(salt, 0, purpose 0)
+        keys = _mix_host(_mix_host(salt) ^ np.int32(_int32(0x165667B1)))
+    return torch.from_numpy(keys).to(device, non_blocking=True)
 
 
 def entry_keys(salt: Tensor, counter: Tensor) -> Tensor:
@@ -164,7 +204,8 @@ class EventStream:
         index = torch.int32 if total < 2**31 else torch.int64
         first = (lengths.cumsum(0) - lengths).to(device=device, dtype=index, non_blocking=True)
         on_device = lengths.to(device, non_blocking=True)
-        keys = entry_keys(sample_salts(seeds, device), torch.zeros(1, dtype=torch.int64, device=device))
+        self.lengths = on_device  #: (B,) the event counts on ``device``
+        keys = sample_keys(seeds, device)
         # repeat_interleave fills runs (no per-event gather): each event's sample key and first event
         self.event_keys = torch.repeat_interleave(keys, on_device, output_size=total)
         self.within = torch.arange(total, dtype=index, device=device).sub_(

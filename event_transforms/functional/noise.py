@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from ._random import EventStream, draw_seeds, entry_keys, poisson_cells, poisson_counts, sample_salts, sub_uniform
+from ._random import EventStream, draw_seeds, poisson_cells, poisson_counts, sample_keys, sub_uniform
 from .._validation import (
     check_counts,
     check_frames,
@@ -353,17 +353,14 @@ def _add_poisson_noise(batch: Tensor, lam: Tensor, *, totals: Tensor | None = No
     device = batch.device
     cells = batch[0].numel()
     if totals is not None:
-        count = sum(totals.tolist())  # a CPU tensor: read on the host
-        sample = torch.repeat_interleave(
-            torch.arange(batch.shape[0], device=device), totals.to(device), output_size=count
-        )
-        first = (totals.cumsum(0) - totals).to(device)
-        within = torch.arange(count, device=device) - first.index_select(0, sample)
-        keys = entry_keys(sample_salts(seeds, device), torch.zeros(1, dtype=torch.int64, device=device))
-        position = (sub_uniform(keys.index_select(0, sample), within, 0, bits=53) * cells).to(torch.int64)
+        # event k of sample b: its sample's key and k by run fills (EventStream), no gather
+        stream = EventStream(seeds, totals, device)
+        count = stream.within.shape[0]
+        position = (sub_uniform(stream.event_keys, stream.within, 0, bits=53) * cells).to(torch.int64)
         position = position.clamp_max_(cells - 1)
-        return _add_events(batch, sample * cells + position)
-    keys = entry_keys(sample_salts(seeds, device), torch.zeros(1, dtype=torch.int64, device=device))
+        first_cell = torch.arange(0, batch.shape[0] * cells, cells, device=device)
+        return _add_events(batch, position.add_(torch.repeat_interleave(first_cell, stream.lengths, output_size=count)))
+    keys = sample_keys(seeds, device)
     noise = poisson_cells(keys, lam, cells, _POISSON_CELLS).view(batch.shape)
     return _add_counts(batch, noise, "Poisson noise")
 
