@@ -315,6 +315,15 @@ def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> 
     pmf = torch.cat([pmf0, pmf0 * ratio.cumprod(1)], 1)
     out = (pmf.cumsum(1) < u).sum(1).clamp_max_(_INVERSION_TERMS - 1).to(torch.float64)
     pending = mean >= _INVERSION_MEAN
+    if bool(pending.any()):  # one flag, then one per BTRS round (most calls: no entry needs BTRS)
+        out = _btrs(out, pending, keys, n, p, q, r, mean, purpose)
+    out = out.minimum(n)
+    return torch.where(flip, n - out, out).to(torch.int64)
+
+
+def _btrs(out: Tensor, pending: Tensor, keys: Tensor, n: Tensor, p: Tensor, q: Tensor, r: Tensor, mean: Tensor,
+          purpose: int) -> Tensor:
+    """The BTRS rounds of :func:`binomial_large` for its ``pending`` entries (``n p' >= 10``)."""
     # BTRS (valid for n p' >= 10), the parameters per entry
     spq = (mean * q).sqrt()
     b = 1.15 + 2.53 * spq
@@ -326,7 +335,7 @@ def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> 
     h = _stirling_tail(m) + _stirling_tail(n - m)
     column = torch.arange(_BTRS_CANDIDATES, device=n.device)
     rounds = 0
-    while bool(pending.any()):  # one flag per round, and one to skip BTRS when no entry needs it
+    while True:
         within = (column + rounds * _BTRS_CANDIDATES).unsqueeze(0)
         key = keys.unsqueeze(1)
         us_ = sub_uniform(key, within, purpose + 1, bits=53) - 0.5
@@ -351,8 +360,8 @@ def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> 
         out = torch.where(found, chosen, out)
         pending = pending & ~found
         rounds += 1
-    out = out.minimum(n)
-    return torch.where(flip, n - out, out).to(torch.int64)
+        if not bool(pending.any()):  # one flag per round
+            return out
 
 
 def poisson_cells(keys: Tensor, lam: Tensor, cells: int, purpose: int) -> Tensor:
