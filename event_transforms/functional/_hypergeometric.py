@@ -30,7 +30,9 @@ import torch
 from torch import Tensor
 
 from .._validation import read_host
-from ._random import _int32, _mix, _to53, binomial_large, draw_seeds, entry_keys, sample_salts, sub_uniform
+from ._random import (
+    _int32, _mix, _sub_hash, _to53, binomial_large, draw_seeds, entry_keys, sample_salts,
+)
 
 __all__ = ["segment_sum", "Stream", "binomial_counts", "multivariate_hypergeometric"]
 
@@ -150,15 +152,19 @@ def binomial_counts(
     small = counts if largest <= _EXPAND_MAX else counts.clamp_max(_EXPAND_MAX)
     owner = torch.repeat_interleave(small, output_size=events)  # the entry of each event
     first = small.cumsum(0).sub_(small)  # the first event of each entry
-    within = torch.arange(events, device=counts.device).sub_(first.index_select(0, owner))
+    index = torch.int32 if events < 2**31 else torch.int64  # _sub_hash takes the low 32 bits either way
+    within = torch.arange(events, dtype=index, device=counts.device).sub_(first.to(index).index_select(0, owner))
     keys = entry_keys(stream.entry_salt, stream.entry_counter)  # per entry, then one mix per event
-    u = sub_uniform(keys.index_select(0, owner), within, level)
     prob = prob if prob.dtype == torch.float64 else prob.to(torch.float64)
-    hit = u < prob.index_select(0, key).index_select(0, owner)
+    # the event's uniform u = (x + 2**31 + 1/2) 2**-32 (sub_uniform, exact in float64) is below
+    # p exactly when its hash x is below ceil(p 2**32 - 1/2) - 2**31 (exact in float64 too):
+    # the same comparison on the int32 hash, without the float64 uniforms
+    below = (prob * 2.0**32 - 0.5).ceil_().to(torch.int64).sub_(2**31)
+    hit = _sub_hash(keys.index_select(0, owner), within, level) < below.index_select(0, key).index_select(0, owner)
     dtype = counts.dtype if dtype is None else dtype
     out = torch.zeros(counts.shape, dtype=dtype, device=counts.device).index_add_(0, owner, hit.to(dtype))
     if largest > _EXPAND_MAX:
-        _large_counts(out, counts, prob, key, keys, level)
+        _large_counts(out, counts, prob, key, keys, level, largest)
     return out
 
 
@@ -166,7 +172,9 @@ def binomial_counts(
 _LARGE_PURPOSE = 1_000_000
 
 
-def _large_counts(out: Tensor, counts: Tensor, prob: Tensor, key: Tensor, keys: Tensor, level: int) -> None:
+def _large_counts(
+    out: Tensor, counts: Tensor, prob: Tensor, key: Tensor, keys: Tensor, level: int, largest: int
+) -> None:
     """Overwrite the entries above ``_EXPAND_MAX`` with whole-count binomial draws
     (:func:`~._random.binomial_large`), keyed by each entry's sample salt and position in
     its sample and by ``level`` (``keys``: every entry's :func:`~._random.entry_keys`): one
@@ -174,7 +182,7 @@ def _large_counts(out: Tensor, counts: Tensor, prob: Tensor, key: Tensor, keys: 
     large = (counts > _EXPAND_MAX).nonzero().squeeze(1)
     drawn = binomial_large(
         keys.index_select(0, large), counts.index_select(0, large), prob.index_select(0, key.index_select(0, large)),
-        _LARGE_PURPOSE + 4 * level,
+        _LARGE_PURPOSE + 4 * level, largest,
     )
     out.index_copy_(0, large, drawn.to(out.dtype))
 

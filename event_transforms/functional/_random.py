@@ -264,7 +264,7 @@ def _stirling_tail(k: Tensor) -> Tensor:
     return torch.where(k < 10, small, series)
 
 
-def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> Tensor:
+def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int, largest: int | None = None) -> Tensor:
     """Exact ``Binomial(counts[i], prob[i])`` draws, counter-based: one per entry, vectorised.
 
     Entry i's numbers are hashes of its key ``keys[i]`` (:func:`entry_keys` of its sample's
@@ -290,6 +290,8 @@ def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> 
         counts: (m,) integer counts ``n >= 0`` (exact in float64: below 2**53).
         prob: (m,) float64 probabilities in [0, 1].
         purpose: names the draw; ``purpose``, ``purpose + 1`` and ``purpose + 2`` are used.
+        largest: an upper bound of ``counts`` if known on the host: the inversion's CDF then
+            stops at ``largest + 1`` terms (its terms above n are 0: the same draws, less work).
 
     Returns:
         (m,) int64, ``0 <= out <= counts``.
@@ -309,7 +311,8 @@ def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> 
     mean = n * p
     # inversion, for every entry (the BTRS ones are overwritten below)
     u = sub_uniform(keys, torch.zeros_like(keys), purpose, bits=53).unsqueeze(1)
-    terms = torch.arange(_INVERSION_TERMS - 1, dtype=torch.float64, device=n.device)
+    width = _INVERSION_TERMS if largest is None else max(1, min(_INVERSION_TERMS, largest + 1))
+    terms = torch.arange(width - 1, dtype=torch.float64, device=n.device)
     ratio = (n.unsqueeze(1) - terms).clamp_min_(0.0).div_(terms + 1.0).mul_(r.unsqueeze(1))
     pmf0 = torch.exp(n * torch.log1p(-p)).unsqueeze(1)
     pmf = torch.cat([pmf0, pmf0 * ratio.cumprod(1)], 1)

@@ -363,7 +363,9 @@ def _draw_moved(
     counts = values.to(torch.int64)  # used only once the check below has passed
     if index.numel() == 0:
         return counts, 0.0
-    stream = Stream.of_samples(seeds, sample, index - sample * (t * p * h * w), t * p)
+    counter = index - sample * (t * p * h * w)  # the entry's place in its sample
+    # int32 counters when they fit: the same hash (its high word is 0), three passes fewer
+    stream = Stream.of_samples(seeds, sample, counter.to(torch.int32) if t * p * h * w < 2**31 else counter, t * p)
     limit = min(2**53, 2**62 // (h * w))  # float64-exact counts; row totals fit in int64
     if mode == "binomial":
         high, events = count_stats(values, counts, hint=hint, extra=[counts.clamp_max(_EXPAND_MAX).sum()])
