@@ -189,10 +189,8 @@ def _large_counts(
 
 def level_stats(size: Tensor, total: Tensor) -> list[Tensor]:
     """0-d tensors :func:`multivariate_hypergeometric` needs on the host, to be read in one
-    synchronisation: the largest draw ``d = min(size, total - size)`` and the largest
-    draw of at most ``_SMALL`` (the width of the rows finished at this level)."""
-    draw = torch.minimum(size, total - size)
-    return [draw.max(), torch.where(draw <= _SMALL, draw, 0).max()]
+    synchronisation: the largest draw ``d = min(size, total - size)`` of any row."""
+    return [torch.minimum(size, total - size).max()]
 
 
 def multivariate_hypergeometric(
@@ -203,7 +201,7 @@ def multivariate_hypergeometric(
     total: Tensor | None = None,
     stream: Stream | None = None,
     generator: torch.Generator | None = None,
-    stats: tuple[int, int] | None = None,
+    stats: int | None = None,
     expansion: tuple[int, int] | None = None,
     level: int = 0,
 ) -> Tensor:
@@ -244,7 +242,7 @@ def multivariate_hypergeometric(
         total: int64 (R,) row totals if already known.
         stream: the per-sample streams (default: one stream from ``generator``).
         generator: source of the stream's seed when ``stream`` is not given.
-        stats: :func:`level_stats` as host ints, if already read.
+        stats: :func:`level_stats` as a host int, if already read.
         expansion: :func:`expansion_stats` of the pool as host ints, if already read.
         level: the recursion level (names the draws).
 
@@ -256,10 +254,7 @@ def multivariate_hypergeometric(
     if pool.numel() == 0:
         return pool.clone()
     stream = _stream(stream, pool.numel(), size.numel(), generator, pool.device)
-    if stats is None:
-        widest, small = (int(v) for v in read_host(torch.stack(level_stats(size, total))))
-        stats = (widest, small)
-    draw, width = stats
+    draw = int(read_host(level_stats(size, total)[0])) if stats is None else stats
     if level > 0:
         # the correction of a binomial level (about sqrt(N) events): finished at once, every
         # row, whatever its width, so the number of levels (and ops) never depends on the data
@@ -267,7 +262,6 @@ def multivariate_hypergeometric(
     if draw <= _SMALL:
         return _small_subsets(pool, segment, size, total, stream, draw, level)
     finish = torch.minimum(size, total - size) <= _SMALL
-    finish_entry = finish.index_select(0, segment)
     drawn = torch.where(finish, 0, size)  # the rows that take a binomial level
     # drawn / total is 0 / 1 = 0 for an empty row (and for every finished row).
     prob = drawn.to(torch.float64) / total.clamp_min(1).to(torch.float64)
@@ -282,14 +276,15 @@ def multivariate_hypergeometric(
     # One finish for every row: the rows finished at this level draw their own subset
     # (``level``), the others the correction of their binomial draw (``level + 1``, from the
     # kept events or the others); each row's numbers are named by its own level, so this is
-    # the draw of a finish per level, in one call.
-    sub_pool = torch.where(finish_entry, pool, torch.where(over_entry, kept, pool - kept))
+    # the draw of a finish per level, in one call. A finished row drew with probability 0:
+    # it kept nothing and is not over, so its pool, total and result need no case of their own.
+    sub_pool = torch.where(over_entry, kept, pool - kept)
     sub_size = torch.where(finish, size, excess.abs())
-    sub_total = torch.where(finish, total, torch.where(over, kept_total, total - kept_total))
+    sub_total = torch.where(over, kept_total, total - kept_total)
     widest = int(read_host(torch.minimum(sub_size, sub_total - sub_size).max()))
     counted = _small_subsets(pool=sub_pool, segment=segment, size=sub_size, total=sub_total, stream=stream,
                              width=widest, level=level, deeper=~finish)
-    return torch.where(finish_entry, counted, torch.where(over_entry, kept - counted, kept + counted))
+    return torch.where(over_entry, kept - counted, kept + counted)
 
 
 def _small_subsets(
