@@ -156,16 +156,23 @@ def binomial_counts(
     within = torch.arange(events, dtype=index, device=counts.device).sub_(first.to(index).index_select(0, owner))
     keys = entry_keys(stream.entry_salt, stream.entry_counter)  # per entry, then one mix per event
     prob = prob if prob.dtype == torch.float64 else prob.to(torch.float64)
-    # the event's uniform u = (x + 2**31 + 1/2) 2**-32 (sub_uniform, exact in float64) is below
-    # p exactly when its hash x is below ceil(p 2**32 - 1/2) - 2**31 (exact in float64 too):
-    # the same comparison on the int32 hash, without the float64 uniforms
-    below = (prob * 2.0**32 - 0.5).ceil_().to(torch.int64).sub_(2**31)
+    below = _hash_thresholds(prob)  # the sub_uniform comparison on the int32 hashes
     hit = _sub_hash(keys.index_select(0, owner), within, level) < below.index_select(0, key).index_select(0, owner)
     dtype = counts.dtype if dtype is None else dtype
     out = torch.zeros(counts.shape, dtype=dtype, device=counts.device).index_add_(0, owner, hit.to(dtype))
     if largest > _EXPAND_MAX:
         _large_counts(out, counts, prob, key, keys, level, largest)
     return out
+
+
+def _hash_thresholds(prob: Tensor) -> Tensor:
+    """int64 T with ``sub_uniform(keys, within, purpose) < prob`` exactly when the int32 hash
+    ``_sub_hash(keys, within, purpose) < T``, for float64 ``prob`` in [0, 1].
+
+    The uniform is u = (x + 2**31 + 1/2) 2**-32, exact in float64, so u < p <=> x + 2**31 <
+    p 2**32 - 1/2 <=> x < ceil(p 2**32 - 1/2) - 2**31 for an integer x; p 2**32 - 1/2 is exact
+    in float64 (or, below 1/4, rounds within (-1/2, -1/4], whose ceiling is 0 all the same)."""
+    return (prob * 2.0**32 - 0.5).ceil_().to(torch.int64).sub_(2**31)
 
 
 #: Purposes of the whole-count draws (:func:`~._random.binomial_large`), four per level.
