@@ -53,7 +53,7 @@ def _moved_counts(frames, fraction, *, mode="exact", generator=None):
     fractions = check_args("temporal_event_shift", TEMPORAL_EVENT_SHIFT_SPEC, batch.shape[0], fraction=fraction)["fraction"]
     index, sample, values = _entries(batch)
     seeds = draw_seeds(batch.shape[0], generator)  # as temporal_event_shift draws them
-    moved, _, _ = _draw_moved(batch.shape, index, sample, values, fractions, mode, seeds)
+    moved, _ = _draw_moved(batch.shape, index, sample, values, fractions, mode, seeds)
     out = torch.zeros(batch.numel(), dtype=frames.dtype, device=frames.device)
     out[index] = moved.to(frames.dtype)
     return unbatch(out.view(batch.shape))

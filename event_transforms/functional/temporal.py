@@ -292,12 +292,12 @@ def temporal_event_shift_frames(
         return out
     if seeds is None:
         raise ValueError(f"temporal_event_shift with mode={mode!r} needs seeds (one int64 seed per sample)")
-    moved, high, counter = _draw_moved(batch.shape, index, sample, values, fractions, mode, seeds, hint)
+    moved, high = _draw_moved(batch.shape, index, sample, values, fractions, mode, seeds, hint)
     exact = _exact_limit(batch.dtype)
     if 2 * high <= exact:  # X - Z + Z' <= 2 max X: the dtype holds every result
-        return _move(out, index, sample, moved, shifts, counter)
+        return _move(out, index, sample, moved, shifts)
     wide = batch.to(torch.float64 if batch.is_floating_point() else torch.int64, memory_format=torch.contiguous_format)
-    wide = _move(wide, index, sample, moved, shifts, counter)
+    wide = _move(wide, index, sample, moved, shifts)
     peak = read_host(wide.max())
     if peak > exact:
         raise ValueError(
@@ -345,7 +345,7 @@ def _draw_moved(
     mode: str,
     seeds: Tensor,
     hint: str = _TES_HINT,
-) -> tuple[Tensor, float, Tensor]:
+) -> tuple[Tensor, float]:
     """Check the values X of the non-zero pixels ``index`` (whole, non-negative, finite) and
     draw the moved counts Z (0 <= Z <= X), ``mode`` ``"exact"`` (int64) or ``"binomial"``
     (in the values' dtype, ready to subtract).
@@ -353,7 +353,7 @@ def _draw_moved(
     One host synchronisation checks the values and reads what the sampler needs (the
     largest count and the events to expand; in exact mode also the largest draw and the
     widest frame), so the sampler's top level asks the device for nothing. Returns Z and
-    the largest count X (read with the check) and each entry's place in its sample (int64).
+    the largest count X (read with the check).
 
     The draws come from per-sample streams (``seeds``): an entry is named by its position
     within its sample, a row by its frame and polarity, so a sample's Z does not depend on
@@ -361,9 +361,9 @@ def _draw_moved(
     """
     b, t, p, h, w = shape
     counts = values.to(torch.int64)  # used only once the check below has passed
-    counter = index - sample * (t * p * h * w)  # the entry's place in its sample
     if index.numel() == 0:
-        return counts, 0.0, counter
+        return counts, 0.0
+    counter = index - sample * (t * p * h * w)  # the entry's place in its sample
     # int32 counters when they fit: the same hash (its high word is 0), three passes fewer
     stream = Stream.of_samples(seeds, sample, counter.to(torch.int32) if t * p * h * w < 2**31 else counter, t * p)
     limit = min(2**53, 2**62 // (h * w))  # float64-exact counts; row totals fit in int64
@@ -373,7 +373,7 @@ def _draw_moved(
         prob = fractions.to(values.device, torch.float64)
         return binomial_counts(
             counts, prob, sample, stream=stream, largest=high, events=events, dtype=values.dtype
-        ), high, counter
+        ), high
     row = index.div(h * w, rounding_mode="floor")  # (sample, frame, polarity), sorted
     total = segment_sum(counts, row, b * t * p)
     row_fraction = fractions.repeat_interleave(t * p)  # ζ per row (float64), on the host
@@ -384,7 +384,7 @@ def _draw_moved(
     _check_limit(high, limit)
     return multivariate_hypergeometric(
         counts, row, size, total=total, stream=stream, stats=int(stats[0]), expansion=(high, int(stats[1])),
-    ), high, counter
+    ), high
 
 
 def _check_limit(high: float, limit: int) -> None:
@@ -392,14 +392,11 @@ def _check_limit(high: float, limit: int) -> None:
         raise ValueError(f"frames: counts above {limit} per pixel are not supported, got {high}")
 
 
-def _move(
-    out: Tensor, index: Tensor, sample: Tensor, moved: Tensor, shifts: Tensor, counter: Tensor | None = None
-) -> Tensor:
+def _move(out: Tensor, index: Tensor, sample: Tensor, moved: Tensor, shifts: Tensor) -> Tensor:
     """Turn ``out`` (a contiguous copy of X) into ``X - Z + frame_shift(Z)`` in place.
 
     Z (``moved``) is given on the non-zero pixels ``index``; it moves to
     ``index + j * frame`` unless that leaves the sample's sequence (then it is dropped).
-    ``counter``: each entry's place in its sample, if already known.
     Two ``index_add_`` calls; no data-dependent shape, no host synchronisation.
     """
     if index.numel() == 0:
@@ -409,13 +406,9 @@ def _move(
     flat = out.view(-1)
     moved = moved if moved.dtype == out.dtype else moved.to(out.dtype)
     flat.index_add_(0, index, moved, alpha=-1)  # X - Z on the non-zero pixels
-    step = shifts.clamp(-t, t).to(out.device).mul_(frame)  # CPU parameters, moved once
-    jump = step.index_select(0, sample)
-    target = index + jump
-    if counter is None:
-        counter = index - sample * (t * frame)
-    place = counter + jump  # the target's place in the sample: outside [0, T frame) leaves it
-    dropped = (place < 0) | (place >= t * frame)
+    step = shifts.clamp(-t, t).to(out.device)  # CPU parameters, moved once
+    target = torch.add(index, step.index_select(0, sample), alpha=frame)
+    dropped = target.div(t * frame, rounding_mode="floor") != sample
     # Dropped events add 0 to their own pixel (no data-dependent shapes, no sync).
     flat.index_add_(0, torch.where(dropped, index, target), moved.masked_fill_(dropped, 0))
     return out
