@@ -748,10 +748,11 @@ def _shift_events(
 def _exact_fixup(group: Tensor, groups: int, u: Tensor, moved: Tensor, fraction: Tensor, n_frames: int) -> Tensor:
     """Turn the binomial choice ``moved`` into exactly round(ζ N) smallest keys per group."""
     device = group.device
-    ones = torch.ones((), dtype=torch.int32, device=device).expand(group.shape[0])
-    total = torch.zeros(groups + 1, dtype=torch.int32, device=device).index_add_(0, group, ones)[:groups].to(torch.int64)
-    chosen = torch.zeros(groups + 1, dtype=torch.int32, device=device).index_add_(
-        0, group, moved.to(torch.int32))[:groups].to(torch.int64)
+    # events and chosen events per group in one scatter: 1 + 2**32 per chosen event, 1 per other
+    # (a group holds fewer than 2**31 events: the low word counts them, the high word the chosen)
+    both = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(
+        0, group, torch.where(moved, 2**32 + 1, 1))[:groups]
+    total, chosen = both & 0xFFFFFFFF, both >> 32
     group_zeta = fraction.to(torch.float64).repeat_interleave(n_frames * 2).to(device)
     want = torch.round(group_zeta * total.to(torch.float64)).to(torch.int64)
     surplus = chosen - want
