@@ -1,9 +1,10 @@
 """DataLoader throughput: binning and augmenting per sample, per batch, and tonic's way.
 
 256 grasps (32 simulated grasps, :func:`benchmarks.events_pipeline.grasp_streams`, cycled
-8 times to keep the set-up short), ``batch_size=8``, ``num_workers=0`` (the machine this
+8 times to keep the set-up short), ``batch_size=8``, ``num_workers=0`` by default (the machine this
 ran on has 2 cores shared with other jobs: workers would measure the scheduler; every path
-does the same work per sample in a worker, so the ratios carry over). One epoch, timed as
+does the same work per sample in a worker, so the ratios carry over); ``--workers N`` loads
+the per-sample and tonic paths with N worker processes (one torch thread each, persistent). One epoch, timed as
 samples per second (median of a few epochs):
 
 - **per sample in the dataset**: ``EventsToFrames`` (crop 140×150, pool 2, 36 bins of
@@ -16,7 +17,7 @@ samples per second (median of a few epochs):
   then the same crop and 2×2 pool in numpy (tonic has neither), default collate.
 
     MALLOC_MMAP_THRESHOLD_=1073741824 MALLOC_TRIM_THRESHOLD_=1073741824 \\
-        python benchmarks/dataloader.py --threads 1 [--quick] [--no-write]
+        python benchmarks/dataloader.py --threads 1 [--quick] [--workers 2] [--no-write]
 """
 
 from __future__ import annotations
@@ -87,8 +88,13 @@ def _tonic_transform() -> Callable[[np.ndarray], Any] | None:
     return transform
 
 
-def loaders(streams: Sequence[np.ndarray]) -> dict[str, Callable[[], int]]:
-    """One epoch per path, returning the number of samples seen."""
+def _one_thread(worker: int) -> None:
+    torch.set_num_threads(1)
+
+
+def loaders(streams: Sequence[np.ndarray], workers: int = 0) -> dict[str, Callable[[], int]]:
+    """One epoch per path, returning the number of samples seen; the per-sample and tonic
+    paths load with ``workers`` worker processes (one torch thread each, kept between epochs)."""
     to_frames = et.EventsToFrames(SENSOR, frame_ms=10.0, t_start=0, n_frames=N_FRAMES, crop=CROP, pool=2)
     augment = _augment()
 
@@ -105,22 +111,24 @@ def loaders(streams: Sequence[np.ndarray]) -> dict[str, Callable[[], int]]:
             seen += step(item).shape[0]
         return seen
 
-    sample_loader = DataLoader(Streams(streams, per_sample), batch_size=BATCH, num_workers=0)
+    pool = {"num_workers": workers, "worker_init_fn": _one_thread if workers else None,
+            "persistent_workers": workers > 0}
+    sample_loader = DataLoader(Streams(streams, per_sample), batch_size=BATCH, **pool)
     paths["per sample in the dataset (EventsToFrames → OneOf)"] = lambda: epoch(sample_loader, lambda b: b)
     batch_loader = DataLoader(Streams(streams), batch_size=BATCH, num_workers=0, collate_fn=collate)
     paths["collated EventBatch, OneOf + EventsToFrames in the main process"] = lambda: epoch(
         batch_loader, lambda b: to_frames(augment(b)))
     tonic = _tonic_transform()
     if tonic is not None:
-        tonic_loader = DataLoader(Streams(streams, tonic), batch_size=BATCH, num_workers=0)
+        tonic_loader = DataLoader(Streams(streams, tonic), batch_size=BATCH, **pool)
         paths["tonic per sample (DropEvent, SpatialJitter, ToFrame, crop/pool in numpy)"] = lambda: epoch(
             tonic_loader, lambda b: b)
     return paths
 
 
-def run(streams: Sequence[np.ndarray], *, repeats: int = 3) -> dict[str, Any]:
+def run(streams: Sequence[np.ndarray], *, repeats: int = 3, workers: int = 0) -> dict[str, Any]:
     rates = {}
-    for name, fn in loaders(streams).items():
+    for name, fn in loaders(streams, workers).items():
         timing = time_repeated(fn, repeats=repeats, warmup=1)
         rates[name] = len(streams) / timing.median
     first = next(iter(rates))
@@ -136,11 +144,13 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
                         help="per-sample samples/s measured before issue 26 (on 732b169), for the goal line")
     parser.add_argument("--before-tonic", type=float, default=30.0,
                         help="tonic's samples/s measured in the same run as --before")
+    parser.add_argument("--workers", type=int, default=0,
+                        help="DataLoader workers of the per-sample and tonic paths (default 0: the main process)")
     args = parser.parse_args(argv)
     apply_threads(args.threads)
     unique = grasp_streams(4 if args.quick else 32)
     streams = [unique[i % len(unique)] for i in range(16 if args.quick else 256)]
-    result = run(streams, repeats=1 if args.quick else 3)
+    result = run(streams, repeats=1 if args.quick else 3, workers=args.workers)
     rates, first, tonic = result["rates"], result["per_sample"], result["tonic"]
     goals = [f"- per-sample path: {rates[first]:,.0f} samples/s against {args.before:g} measured on 732b169 (a "
              "different machine load: not comparable as such)"]
@@ -153,7 +163,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     body = "\n\n".join([
         "## DataLoader throughput: per sample, batched, tonic" + allocator_suffix(),
         f"`{command('dataloader.py', argv)}`. {len(streams)} grasps ({len(unique)} simulated, cycled), batch "
-        f"{BATCH}, num_workers=0 (2 shared cores), one CPU thread; samples/s = grasps / median epoch time.",
+        f"{BATCH}, num_workers={args.workers} for the per-sample and tonic paths (2 shared cores), one CPU thread "
+        "per process; samples/s = grasps / median epoch time.",
         result["table"],
         "Goals (issue 26):",
         "\n".join(goals),

@@ -92,10 +92,13 @@ def test_counts_are_deterministic(frames):
 
 
 def test_device_reads_are_counted(frames):
-    """``tolist`` of a device tensor is a sync on an accelerator: the library marks it."""
+    """``tolist`` of a device tensor is a sync on an accelerator: the library marks it. On the
+    CPU the active pixels come from numpy's nonzero (faster there), marked as a host read too;
+    elsewhere from ``aten::nonzero``."""
     counts = _counts("TES binomial", frames, generator=False)
-    assert counts.sync_names.count("aten::nonzero") == 1
-    assert counts.sync_names.count("event_transforms::host_read") == 1
+    assert counts.syncs == 2
+    assert counts.sync_names.count("event_transforms::host_read") == 2
+    assert counts.sync_names.count("aten::nonzero") == 0
 
 
 # --------------------------------------------------------------------------- no host reads

@@ -30,7 +30,9 @@ import torch
 from torch import Tensor
 
 from .._validation import read_host
-from ._random import _int32, _mix, _to53, binomial_large, draw_seeds, entry_keys, sample_salts, sub_uniform, uniform53
+from ._random import (
+    _int32, _mix, _sub_hash, _to53, binomial_large, draw_seeds, entry_keys, sample_salts,
+)
 
 __all__ = ["segment_sum", "Stream", "binomial_counts", "multivariate_hypergeometric"]
 
@@ -150,41 +152,52 @@ def binomial_counts(
     small = counts if largest <= _EXPAND_MAX else counts.clamp_max(_EXPAND_MAX)
     owner = torch.repeat_interleave(small, output_size=events)  # the entry of each event
     first = small.cumsum(0).sub_(small)  # the first event of each entry
-    within = torch.arange(events, device=counts.device).sub_(first.index_select(0, owner))
+    index = torch.int32 if events < 2**31 else torch.int64  # _sub_hash takes the low 32 bits either way
+    within = torch.arange(events, dtype=index, device=counts.device).sub_(first.to(index).index_select(0, owner))
     keys = entry_keys(stream.entry_salt, stream.entry_counter)  # per entry, then one mix per event
-    u = sub_uniform(keys.index_select(0, owner), within, level)
     prob = prob if prob.dtype == torch.float64 else prob.to(torch.float64)
-    hit = u < prob.index_select(0, key).index_select(0, owner)
+    below = _hash_thresholds(prob)  # the sub_uniform comparison on the int32 hashes
+    hit = _sub_hash(keys.index_select(0, owner), within, level) < below.index_select(0, key).index_select(0, owner)
     dtype = counts.dtype if dtype is None else dtype
     out = torch.zeros(counts.shape, dtype=dtype, device=counts.device).index_add_(0, owner, hit.to(dtype))
     if largest > _EXPAND_MAX:
-        _large_counts(out, counts, prob, key, stream, level)
+        _large_counts(out, counts, prob, key, keys, level, largest)
     return out
+
+
+def _hash_thresholds(prob: Tensor) -> Tensor:
+    """int64 T with ``sub_uniform(keys, within, purpose) < prob`` exactly when the int32 hash
+    ``_sub_hash(keys, within, purpose) < T``, for float64 ``prob`` in [0, 1].
+
+    The uniform is u = (x + 2**31 + 1/2) 2**-32, exact in float64, so u < p <=> x + 2**31 <
+    p 2**32 - 1/2 <=> x < ceil(p 2**32 - 1/2) - 2**31 for an integer x; p 2**32 - 1/2 is exact
+    in float64 (or, below 1/4, rounds within (-1/2, -1/4], whose ceiling is 0 all the same)."""
+    return (prob * 2.0**32 - 0.5).ceil_().to(torch.int64).sub_(2**31)
 
 
 #: Purposes of the whole-count draws (:func:`~._random.binomial_large`), four per level.
 _LARGE_PURPOSE = 1_000_000
 
 
-def _large_counts(out: Tensor, counts: Tensor, prob: Tensor, key: Tensor, stream: Stream, level: int) -> None:
+def _large_counts(
+    out: Tensor, counts: Tensor, prob: Tensor, key: Tensor, keys: Tensor, level: int, largest: int
+) -> None:
     """Overwrite the entries above ``_EXPAND_MAX`` with whole-count binomial draws
     (:func:`~._random.binomial_large`), keyed by each entry's sample salt and position in
-    its sample and by ``level``: one vectorised call for the batch, pure per sample."""
+    its sample and by ``level`` (``keys``: every entry's :func:`~._random.entry_keys`): one
+    vectorised call for the batch, pure per sample."""
     large = (counts > _EXPAND_MAX).nonzero().squeeze(1)
-    keys = entry_keys(stream.entry_salt.index_select(0, large), stream.entry_counter.index_select(0, large))
     drawn = binomial_large(
-        keys, counts.index_select(0, large), prob.index_select(0, key.index_select(0, large)),
-        _LARGE_PURPOSE + 4 * level,
+        keys.index_select(0, large), counts.index_select(0, large), prob.index_select(0, key.index_select(0, large)),
+        _LARGE_PURPOSE + 4 * level, largest,
     )
     out.index_copy_(0, large, drawn.to(out.dtype))
 
 
 def level_stats(size: Tensor, total: Tensor) -> list[Tensor]:
     """0-d tensors :func:`multivariate_hypergeometric` needs on the host, to be read in one
-    synchronisation: the largest draw ``d = min(size, total - size)`` and the largest
-    draw of at most ``_SMALL`` (the width of the rows finished at this level)."""
-    draw = torch.minimum(size, total - size)
-    return [draw.max(), torch.where(draw <= _SMALL, draw, 0).max()]
+    synchronisation: the largest draw ``d = min(size, total - size)`` of any row."""
+    return [torch.minimum(size, total - size).max()]
 
 
 def multivariate_hypergeometric(
@@ -195,7 +208,7 @@ def multivariate_hypergeometric(
     total: Tensor | None = None,
     stream: Stream | None = None,
     generator: torch.Generator | None = None,
-    stats: tuple[int, int] | None = None,
+    stats: int | None = None,
     expansion: tuple[int, int] | None = None,
     level: int = 0,
 ) -> Tensor:
@@ -236,7 +249,7 @@ def multivariate_hypergeometric(
         total: int64 (R,) row totals if already known.
         stream: the per-sample streams (default: one stream from ``generator``).
         generator: source of the stream's seed when ``stream`` is not given.
-        stats: :func:`level_stats` as host ints, if already read.
+        stats: :func:`level_stats` as a host int, if already read.
         expansion: :func:`expansion_stats` of the pool as host ints, if already read.
         level: the recursion level (names the draws).
 
@@ -248,10 +261,7 @@ def multivariate_hypergeometric(
     if pool.numel() == 0:
         return pool.clone()
     stream = _stream(stream, pool.numel(), size.numel(), generator, pool.device)
-    if stats is None:
-        widest, small = (int(v) for v in read_host(torch.stack(level_stats(size, total))))
-        stats = (widest, small)
-    draw, width = stats
+    draw = int(read_host(level_stats(size, total)[0])) if stats is None else stats
     if level > 0:
         # the correction of a binomial level (about sqrt(N) events): finished at once, every
         # row, whatever its width, so the number of levels (and ops) never depends on the data
@@ -259,29 +269,34 @@ def multivariate_hypergeometric(
     if draw <= _SMALL:
         return _small_subsets(pool, segment, size, total, stream, draw, level)
     finish = torch.minimum(size, total - size) <= _SMALL
-    finish_entry = finish.index_select(0, segment)
-    finished = _small_subsets(pool, segment, torch.where(finish, size, 0), total, stream, width, level)
-    size = torch.where(finish, 0, size)
-    # size / total is 0 / 1 = 0 for an empty row (and for every finished row).
-    prob = size.to(torch.float64) / total.clamp_min(1).to(torch.float64)
+    drawn = torch.where(finish, 0, size)  # the rows that take a binomial level
+    # drawn / total is 0 / 1 = 0 for an empty row (and for every finished row).
+    prob = drawn.to(torch.float64) / total.clamp_min(1).to(torch.float64)
     largest: int | None
     events: int | None
     largest, events = (None, None) if expansion is None else expansion
     kept = binomial_counts(pool, prob, segment, stream=stream, level=level, largest=largest, events=events)
     kept_total = segment_sum(kept, segment, size.numel())
-    excess = kept_total - size
+    excess = kept_total - drawn
     over = excess > 0
     over_entry = over.index_select(0, segment)
-    residual_pool = torch.where(over_entry, kept, pool - kept)
-    residual_total = torch.where(over, kept_total, total - kept_total)
-    correction = multivariate_hypergeometric(
-        residual_pool, segment, excess.abs(), total=residual_total, stream=stream, level=level + 1
-    )
-    return torch.where(finish_entry, finished, torch.where(over_entry, kept - correction, kept + correction))
+    # One finish for every row: the rows finished at this level draw their own subset
+    # (``level``), the others the correction of their binomial draw (``level + 1``, from the
+    # kept events or the others); each row's numbers are named by its own level, so this is
+    # the draw of a finish per level, in one call. A finished row drew with probability 0:
+    # it kept nothing and is not over, so its pool, total and result need no case of their own.
+    sub_pool = torch.where(over_entry, kept, pool - kept)
+    sub_size = torch.where(finish, size, excess.abs())
+    sub_total = torch.where(over, kept_total, total - kept_total)
+    widest = int(read_host(torch.minimum(sub_size, sub_total - sub_size).max()))
+    counted = _small_subsets(pool=sub_pool, segment=segment, size=sub_size, total=sub_total, stream=stream,
+                             width=widest, level=level, deeper=~finish)
+    return torch.where(over_entry, kept - counted, kept + counted)
 
 
 def _small_subsets(
-    pool: Tensor, segment: Tensor, size: Tensor, total: Tensor, stream: Stream, width: int, level: int
+    pool: Tensor, segment: Tensor, size: Tensor, total: Tensor, stream: Stream, width: int, level: int,
+    deeper: Tensor | None = None,
 ) -> Tensor:
     """Exact MVHG when every row needs at most ``width`` (<= ``_SMALL``) events or all but that many.
 
@@ -295,7 +310,9 @@ def _small_subsets(
     Uniform integers use 53-bit uniforms (relative bias below total * 2**-53), named by
     the row's position in its sample, the slot, the level and the round, so a row's
     draw does not depend on the other rows. Every row takes part (rows that draw nothing
-    hold only padding), so no row list is gathered.
+    hold only padding), so no row list is gathered. ``deeper`` (bool (R,), optional) names
+    the draws of its rows by ``level + 1`` instead of ``level``: the finishes of two levels
+    in one call, each row's numbers exactly those of its own level's call.
     """
     complement = 2 * size > total
     draw = torch.where(complement, total - size, size)
@@ -311,7 +328,8 @@ def _small_subsets(
             part = slice(start, start + chunk)
             names = (stream.row_salt[part].unsqueeze(1), stream.row_counter[part].unsqueeze(1) * _ROW_STRIDE)
             positions = offset[part].unsqueeze(1) + _distinct_positions(
-                draw[part].unsqueeze(1), total[part].unsqueeze(1), names, width, level
+                draw[part].unsqueeze(1), total[part].unsqueeze(1), names, width, level,
+                None if deeper is None else deeper[part],
             )
             # Padding slots hold large negative positions: they add 0 at entry 0.
             held = positions >= 0
@@ -328,15 +346,27 @@ _UNCHECKED_ROUNDS = 4
 _ROW_STRIDE = 2**32
 
 
-def _uniform53_rounds(salt: Tensor, counter: Tensor, purposes: list[int]) -> Tensor:
+def _round_tags(level: int, rounds: range, deeper: Tensor | None, device: torch.device) -> Tensor:
+    """The hash tags of purposes ``1_000 + 64 level + r`` (r in ``rounds``) as int32
+    (rounds, 1, 1), or per row (rounds, rows, 1) with the rows of ``deeper`` at ``level + 1``."""
+    def tag(lvl: int, r: int) -> int:
+        return _int32((1_000 + 64 * lvl + r) * 0x27D4EB2F + 0x165667B1)
+
+    if deeper is None:
+        return torch.tensor([tag(level, r) for r in rounds], dtype=torch.int32, device=device).view(-1, 1, 1)
+    table = torch.tensor([[tag(level, r), tag(level + 1, r)] for r in rounds], dtype=torch.int32, device=device)
+    return table.index_select(1, deeper.to(torch.int64)).unsqueeze(2)
+
+
+def _uniform53_rounds(salt: Tensor, counter: Tensor, tags: Tensor) -> Tensor:
     """``torch.stack([uniform53(salt, counter, p) for p in purposes])``, bit for bit, in fewer
-    ops: the purpose-free first mix of the hash once, then one mix per purpose over the stack."""
+    ops, for the (rounds, ...) int32 hash ``tags`` of the purposes (:func:`_round_tags`): the
+    purpose-free first mix of the hash once, then one mix per purpose over the stack."""
     low = counter.to(torch.int32) if counter.dtype != torch.int32 else counter
     x = _mix(low ^ salt)
     if counter.dtype == torch.int64:
         x = x ^ (counter >> 32).to(torch.int32)
-    tags = torch.tensor([_int32(p * 0x27D4EB2F + 0x165667B1) for p in purposes], dtype=torch.int32, device=x.device)
-    return _to53(_mix(x.unsqueeze(0) ^ tags.view(-1, *([1] * x.dim()))))
+    return _to53(_mix(x.unsqueeze(0) ^ tags))
 
 
 def _fresh(u: Tensor, scale: Tensor, top: Tensor) -> Tensor:
@@ -344,10 +374,13 @@ def _fresh(u: Tensor, scale: Tensor, top: Tensor) -> Tensor:
     return torch.minimum(u.mul_(scale).to(torch.int64), top).mul_(2).add_(1)
 
 
-def _distinct_positions(want: Tensor, have: Tensor, names: tuple[Tensor, Tensor], width: int, level: int) -> Tensor:
+def _distinct_positions(
+    want: Tensor, have: Tensor, names: tuple[Tensor, Tensor], width: int, level: int, deeper: Tensor | None = None
+) -> Tensor:
     """Per row, ``want`` (<= ``width``) distinct uniform positions in [0, have) (see
     :func:`_small_subsets`). ``names`` are each row's salt and first counter: slot k of
-    round r draws the uniform named (salt, counter + k) for purpose (level, r).
+    round r draws the uniform named (salt, counter + k) for purpose (level, r), or
+    (level + 1, r) for the rows of ``deeper``.
 
     Returns (rows, width) int64; padding slots hold -2**62, so ``offset + result >= 0``
     selects the drawn positions. Positions are carried doubled, as ``2 v`` for a held value
@@ -364,8 +397,8 @@ def _distinct_positions(want: Tensor, have: Tensor, names: tuple[Tensor, Tensor]
     top = have - 1
     # the unchecked rounds' fresh draws (doubled, + 1) at once: one hash of (salt, counter), then
     # one mix per round's purpose over a (rounds, rows, width) stack, the numbers uniform53 gives
-    purposes = [1_000 + 64 * level + r for r in range(1, _UNCHECKED_ROUNDS + 1)]
-    drawn = _fresh(_uniform53_rounds(salt, counter, purposes), scale, top)
+    tags = _round_tags(level, range(1, _UNCHECKED_ROUNDS + 1), deeper, device)
+    drawn = _fresh(_uniform53_rounds(salt, counter, tags), scale, top)
     rounds = 0
     while True:
         empty = key < 0
@@ -375,7 +408,8 @@ def _distinct_positions(want: Tensor, have: Tensor, names: tuple[Tensor, Tensor]
         if rounds <= _UNCHECKED_ROUNDS:
             fresh = drawn[rounds - 1]
         else:
-            fresh = _fresh(uniform53(salt, counter, 1_000 + 64 * level + rounds), scale, top)  # (rows, width), small
+            tags = _round_tags(level, range(rounds, rounds + 1), deeper, device)
+            fresh = _fresh(_uniform53_rounds(salt, counter, tags)[0], scale, top)  # (rows, width), small
         key, _ = torch.where(empty, fresh, key).sort(dim=1)
         value = key >> 1
         repeated = torch.nn.functional.pad(value[:, 1:] == value[:, :-1], (1, 0))

@@ -305,7 +305,7 @@ def _stirling_tail(k: Tensor) -> Tensor:
     return torch.where(k < 10, small, series)
 
 
-def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> Tensor:
+def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int, largest: int | None = None) -> Tensor:
     """Exact ``Binomial(counts[i], prob[i])`` draws, counter-based: one per entry, vectorised.
 
     Entry i's numbers are hashes of its key ``keys[i]`` (:func:`entry_keys` of its sample's
@@ -331,6 +331,8 @@ def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> 
         counts: (m,) integer counts ``n >= 0`` (exact in float64: below 2**53).
         prob: (m,) float64 probabilities in [0, 1].
         purpose: names the draw; ``purpose``, ``purpose + 1`` and ``purpose + 2`` are used.
+        largest: an upper bound of ``counts`` if known on the host: the inversion's CDF then
+            stops at ``largest + 1`` terms (its terms above n are 0: the same draws, less work).
 
     Returns:
         (m,) int64, ``0 <= out <= counts``.
@@ -350,12 +352,22 @@ def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> 
     mean = n * p
     # inversion, for every entry (the BTRS ones are overwritten below)
     u = sub_uniform(keys, torch.zeros_like(keys), purpose, bits=53).unsqueeze(1)
-    terms = torch.arange(_INVERSION_TERMS - 1, dtype=torch.float64, device=n.device)
+    width = _INVERSION_TERMS if largest is None else max(1, min(_INVERSION_TERMS, largest + 1))
+    terms = torch.arange(width - 1, dtype=torch.float64, device=n.device)
     ratio = (n.unsqueeze(1) - terms).clamp_min_(0.0).div_(terms + 1.0).mul_(r.unsqueeze(1))
     pmf0 = torch.exp(n * torch.log1p(-p)).unsqueeze(1)
     pmf = torch.cat([pmf0, pmf0 * ratio.cumprod(1)], 1)
     out = (pmf.cumsum(1) < u).sum(1).clamp_max_(_INVERSION_TERMS - 1).to(torch.float64)
     pending = mean >= _INVERSION_MEAN
+    if bool(pending.any()):  # one flag, then one per BTRS round (most calls: no entry needs BTRS)
+        out = _btrs(out, pending, keys, n, p, q, r, mean, purpose)
+    out = out.minimum(n)
+    return torch.where(flip, n - out, out).to(torch.int64)
+
+
+def _btrs(out: Tensor, pending: Tensor, keys: Tensor, n: Tensor, p: Tensor, q: Tensor, r: Tensor, mean: Tensor,
+          purpose: int) -> Tensor:
+    """The BTRS rounds of :func:`binomial_large` for its ``pending`` entries (``n p' >= 10``)."""
     # BTRS (valid for n p' >= 10), the parameters per entry
     spq = (mean * q).sqrt()
     b = 1.15 + 2.53 * spq
@@ -367,7 +379,7 @@ def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> 
     h = _stirling_tail(m) + _stirling_tail(n - m)
     column = torch.arange(_BTRS_CANDIDATES, device=n.device)
     rounds = 0
-    while bool(pending.any()):  # one flag per round, and one to skip BTRS when no entry needs it
+    while True:
         within = (column + rounds * _BTRS_CANDIDATES).unsqueeze(0)
         key = keys.unsqueeze(1)
         us_ = sub_uniform(key, within, purpose + 1, bits=53) - 0.5
@@ -392,8 +404,8 @@ def binomial_large(keys: Tensor, counts: Tensor, prob: Tensor, purpose: int) -> 
         out = torch.where(found, chosen, out)
         pending = pending & ~found
         rounds += 1
-    out = out.minimum(n)
-    return torch.where(flip, n - out, out).to(torch.int64)
+        if not bool(pending.any()):  # one flag per round
+            return out
 
 
 def poisson_cells(keys: Tensor, lam: Tensor, cells: int, purpose: int) -> Tensor:

@@ -23,7 +23,7 @@ from torch import Tensor
 
 from .._params import Param, check_args
 from .._validation import (
-    TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, on_host, read_host,
+    HOST_READ, TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, on_host, read_host,
 )
 from ..events.batch import EventBatch
 from ..events.ingest import _frame_us
@@ -58,6 +58,8 @@ _BITS = {
     torch.float32: torch.int32,
     torch.float64: torch.int64,
 }
+#: Dtypes whose CPU ``nonzero`` goes through numpy (:func:`_entries`).
+_NUMPY_NONZERO = (torch.bool, torch.uint8, torch.int8, torch.int16, torch.int32, torch.int64)
 
 
 # --------------------------------------------------------------------------- declarations
@@ -324,7 +326,13 @@ def _entries(batch: Tensor) -> tuple[Tensor, Tensor, Tensor]:
     b, t, p, h, w = batch.shape
     flat = batch.reshape(-1)
     bits = flat.view(_BITS[flat.dtype]) if flat.dtype in _BITS else flat
-    index = bits.nonzero(as_tuple=True)[0]
+    if bits.device.type == "cpu" and bits.dtype in _NUMPY_NONZERO and not torch.compiler.is_compiling():
+        # numpy's ``!= 0`` then ``flatnonzero`` of the bools: about half the time of torch's
+        # ``nonzero`` on one CPU thread (a host read of the data-dependent size, as nonzero)
+        with torch.profiler.record_function(HOST_READ):
+            index = torch.from_numpy(np.flatnonzero(bits.detach().numpy() != 0).astype(np.int64, copy=False))
+    else:
+        index = bits.nonzero(as_tuple=True)[0]
     return index, index.div(t * p * h * w, rounding_mode="floor"), flat.index_select(0, index)
 
 
@@ -355,7 +363,9 @@ def _draw_moved(
     counts = values.to(torch.int64)  # used only once the check below has passed
     if index.numel() == 0:
         return counts, 0.0
-    stream = Stream.of_samples(seeds, sample, index - sample * (t * p * h * w), t * p)
+    counter = index - sample * (t * p * h * w)  # the entry's place in its sample
+    # int32 counters when they fit: the same hash (its high word is 0), three passes fewer
+    stream = Stream.of_samples(seeds, sample, counter.to(torch.int32) if t * p * h * w < 2**31 else counter, t * p)
     limit = min(2**53, 2**62 // (h * w))  # float64-exact counts; row totals fit in int64
     if mode == "binomial":
         high, events = count_stats(values, counts, hint=hint, extra=[counts.clamp_max(_EXPAND_MAX).sum()])
@@ -373,7 +383,7 @@ def _draw_moved(
     high, *stats = count_stats(values, counts, hint=hint, extra=needs)
     _check_limit(high, limit)
     return multivariate_hypergeometric(
-        counts, row, size, total=total, stream=stream, stats=(stats[0], stats[1]), expansion=(high, stats[2])
+        counts, row, size, total=total, stream=stream, stats=int(stats[0]), expansion=(high, int(stats[1])),
     ), high
 
 
@@ -738,10 +748,11 @@ def _shift_events(
 def _exact_fixup(group: Tensor, groups: int, u: Tensor, moved: Tensor, fraction: Tensor, n_frames: int) -> Tensor:
     """Turn the binomial choice ``moved`` into exactly round(ζ N) smallest keys per group."""
     device = group.device
-    ones = torch.ones((), dtype=torch.int32, device=device).expand(group.shape[0])
-    total = torch.zeros(groups + 1, dtype=torch.int32, device=device).index_add_(0, group, ones)[:groups].to(torch.int64)
-    chosen = torch.zeros(groups + 1, dtype=torch.int32, device=device).index_add_(
-        0, group, moved.to(torch.int32))[:groups].to(torch.int64)
+    # events and chosen events per group in one scatter: 1 + 2**32 per chosen event, 1 per other
+    # (a group holds fewer than 2**31 events: the low word counts them, the high word the chosen)
+    both = torch.zeros(groups + 1, dtype=torch.int64, device=device).index_add_(
+        0, group, torch.where(moved, 2**32 + 1, 1))[:groups]
+    total, chosen = both & 0xFFFFFFFF, both >> 32
     group_zeta = fraction.to(torch.float64).repeat_interleave(n_frames * 2).to(device)
     want = torch.round(group_zeta * total.to(torch.float64)).to(torch.int64)
     surplus = chosen - want
