@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import torch
 
-from benchmarks import default_model
+from benchmarks import default_model, model_sweep
 from event_transforms.tactile.copies import SceneData
 from event_transforms.tactile.report import run_verdicts
 from event_transforms.tactile.scenes import get_scene
@@ -25,6 +26,7 @@ def tiny_data(scenes: list[str], seed: int = 0) -> dict[str, SceneData]:
             for s in scenes}
 
 
+@pytest.mark.slow  # two protocol runs of 3 steps: ~3 s alone, ~7 s on a loaded machine
 def test_default_model_comparison_page(tmp_path: Path) -> None:
     scenes = ["paper", "timing"]
     data = tiny_data(scenes)
@@ -41,3 +43,45 @@ def test_default_model_comparison_page(tmp_path: Path) -> None:
     assert f"Of the {len(shared)} verdicts both runs print" in page
     assert "## Summary table, quick model" in page and "## Summary table, default model" in page
     assert "a note" in page and "| default | (8, 16) | 4 |" in page
+
+
+def test_model_sweep_table(tmp_path: Path) -> None:
+    data = tiny_data(["control", "paper"])
+    data["timing"] = SceneData(get_scene("timing"), data["control"].train, data["control"].val, data["control"].test,
+                               data["control"].noise_bank, holdout=data["control"].holdout)
+    assert model_sweep.distinct_training_sets(data) == {"control": ["control", "timing"], "paper": ["paper"]}
+    configs = [((2,), 14, 3), ((2,), 7, 3)]
+    state_path = tmp_path / "state.json"
+    state = model_sweep.run_sweep(data, configs, [0, 1], state_path, eval_every=1, batch_size=2)
+    assert list(state["configs"]) == ["(2,) / pool 14 / 3 steps", "(2,) / pool 7 / 3 steps"]
+    row = state["configs"]["(2,) / pool 14 / 3 steps"]
+    assert len(row["control"]["holdout_mse"]) == 2 and row["control"]["s_per_member_step"] > 0
+    assert set(state["baselines"]) == {"control", "paper"}
+    # a rerun reads finished configurations back instead of training them again
+    again = model_sweep.run_sweep(data, configs, [0, 1], state_path, eval_every=1, batch_size=2)
+    assert again["configs"] == state["configs"]
+    plan = model_sweep.parse_plan("x members (method × seed), 1,000 member-steps; 600 member-steps are trained in "
+                                  "the main phase; total at most 5,000")
+    assert plan == {"total": 5000, "main": 1000, "main_trained": 600, "trained": 4600}
+    page = model_sweep.format_sweep(state, {3: plan}, header=["# head"])
+    lines = page.splitlines()
+    assert lines[0] == "# head" and "| control test | control hold-out | paper hold-out |" in lines[1]
+    assert len([line for line in lines if line.startswith("| (2,)")]) == 2
+    assert sum("(baseline)" in line for line in lines) == 2
+    assert "both baselines on the control's test set and on every training-session hold-out" in page
+
+
+def test_model_sweep_winners_are_below_both_baselines() -> None:
+    def scores(value: float) -> dict:
+        return {"holdout_mse": [value, value], "test_mse": [value, value], "s_per_member_step": 0.01}
+
+    state = {"control": "control", "training_sets": {"control": ["control"], "paper": ["paper"]},
+             "baselines": {s: {name: {"holdout_mse": [1.0], "test_mse": [1.0]} for name in model_sweep.BASELINES}
+                           for s in ("control", "paper")},
+             "configs": {"good": {"steps": 3, "control": scores(0.5), "paper": scores(0.9)},
+                         "bad": {"steps": 3, "control": scores(0.5), "paper": scores(1.1)}}}
+    plan = {"total": 6000, "main": 1000, "main_trained": 400, "trained": 5400}
+    page = model_sweep.format_sweep(state, {3: plan})
+    assert "| good | **0.500** | **0.500** | **0.900** | 3/3 | 0.0100 | 0.5 / 0.5 |" in page
+    assert "| bad | **0.500** | **0.500** | 1.100 | 2/3 |" in page
+    assert "hold-out: good (≈ 0.5 min main job)." in page
