@@ -195,24 +195,26 @@ def format_sweep(state: Mapping[str, Any], plans: Mapping[int, Mapping[str, int]
     bar = [min(base[name][i] for name in BASELINES) for i in range(len(columns))]
     lines = list(header) + [
         "| configuration (channels / input pool / steps) | " + " | ".join(columns)
-        + " | beats both | s per member-step | est. main job, min (trained / plan total) |",
-        "|---|" + "---|" * (len(columns) + 3),
+        + " | beats both | s per member-step | relative cost | est. main job, min (trained / plan total) |",
+        "|---|" + "---|" * (len(columns) + 4),
     ]
     winners = []
+    first = None
     for label, row in state["configs"].items():
         scores = [_mean(row[control]["test_mse"]), *(_mean(row[s]["holdout_mse"]) for s in sets)]
         beats = [value < limit for value, limit in zip(scores, bar)]
         per_step = _mean([row[s]["s_per_member_step"] for s in sets])
+        first = first or per_step
         plan = plans.get(row["steps"])
         estimate = (f"{plan['trained'] * per_step / jobs / 60:.1f} / {plan['total'] * per_step / jobs / 60:.1f}"
                     if plan else "—")
         cells = [f"**{v:.3f}**" if b else f"{v:.3f}" for v, b in zip(scores, beats)]
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {sum(beats)}/{len(beats)} | {per_step:.4f} | "
-                     f"{estimate} |")
+                     f"{per_step / first:.1f}× | {estimate} |")
         if all(beats):
             winners.append((label, plan["trained"] * per_step / jobs / 60 if plan else float("nan")))
     for name in BASELINES:
-        lines.append(f"| *{name}* (baseline) | " + " | ".join(f"{v:.3f}" for v in base[name]) + " | — | — | — |")
+        lines.append(f"| *{name}* (baseline) | " + " | ".join(f"{v:.3f}" for v in base[name]) + " | — | — | — | — |")
     lines.append("")
     if winners:
         lines.append("Beat both baselines on the control's test set and on every training-session hold-out: "
@@ -264,7 +266,7 @@ def main(argv: Sequence[str] | None = None) -> str:
     parser.add_argument("--output", type=Path, default=OUTPUT)
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    commit, start = git_commit(), time.perf_counter()
+    commit = git_commit()
 
     def log(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
@@ -283,8 +285,8 @@ def main(argv: Sequence[str] | None = None) -> str:
         f"Produced by `python benchmarks/model_sweep.py` at commit `{commit}`; CPU {env['cpu_model']} "
         f"({env['cpu_capability']} kernels), torch {env['torch']}, 1 thread; allocator "
         f"{allocator or 'glibc defaults'}; a shared 2-core machine (another 1-thread job ran beside it), so the "
-        f"seconds are as measured, not a cost table. Sweep wall time {time.perf_counter() - start:.0f} s "
-        "(configurations finished in an earlier invocation read back).",
+        f"seconds are as measured, not a cost table. Training wall time, summed over configurations: "
+        f"{sum(r[s]['wall_s'] for r in state['configs'].values() for s in sets):.0f} s.",
         "",
         f"`none`, seeds {', '.join(map(str, state['seeds']))}, through the protocol's trainer with the quick "
         f"configuration's settings (batch {QUICK['batch_size']}, lr {QUICK['lr']}, hold-out every "
@@ -295,7 +297,8 @@ def main(argv: Sequence[str] | None = None) -> str:
         "minimum over the checks, slightly optimistic); the control's test MSE is on each seed's resample of the "
         "test sequences. Baselines fitted per seed on the same training resample, scored on the same sequences. "
         "Bold: below both baselines. s per member-step: the `train` call's wall time (copies and hold-out passes "
-        "included) over 4 members × steps, mean over the training sets. Est. main job: `event-transforms "
+        "included) over 4 members × steps, mean over the training sets; relative cost: against the first row, "
+        "measured in the same run (steadier than the seconds on a shared machine). Est. main job: `event-transforms "
         "reproduce --plan --steps N`'s member-steps × s per member-step / 2 jobs; *trained* leaves out the main "
         "phase's members that train once and are shared, *plan total* is the plan's \"total at most\" (equal cost "
         "at its maximum); neither counts data loading, scoring or the cost table. The main job's ensembles are "

@@ -82,6 +82,6 @@ def test_model_sweep_winners_are_below_both_baselines() -> None:
                          "bad": {"steps": 3, "control": scores(0.5), "paper": scores(1.1)}}}
     plan = {"total": 6000, "main": 1000, "main_trained": 400, "trained": 5400}
     page = model_sweep.format_sweep(state, {3: plan})
-    assert "| good | **0.500** | **0.500** | **0.900** | 3/3 | 0.0100 | 0.5 / 0.5 |" in page
+    assert "| good | **0.500** | **0.500** | **0.900** | 3/3 | 0.0100 | 1.0× | 0.5 / 0.5 |" in page
     assert "| bad | **0.500** | **0.500** | 1.100 | 2/3 |" in page
     assert "hold-out: good (≈ 0.5 min main job)." in page
