@@ -139,6 +139,25 @@ def sweep_config(config: ProtocolConfig, data: SceneData, seeds: Sequence[int]) 
             "train_s": trained.result.train_s, "s_per_member_step": wall / (len(trained.seeds) * config.steps)}
 
 
+def time_configs(data: SceneData, configs: Sequence[tuple[tuple[int, ...], int, int]], seeds: Sequence[int], *,
+                 steps: int = 60, repeats: int = 3, batch_size: int = int(QUICK["batch_size"])) -> dict[str, float]:
+    """Seconds per member-step of each configuration's model, interleaved: ``repeats`` rounds, each
+    training every (channels, pool) for ``steps`` steps (one hold-out pass, as the main job makes
+    one per ``eval_every`` = 50 steps) in turn; the median per configuration, keyed by
+    :func:`_label` (a configuration's step count does not change its cost per step). Interleaving
+    spreads a shared machine's slow spells over every configuration."""
+    models = list(dict.fromkeys((tuple(c), p) for c, p, _ in configs))
+    times: dict[tuple[tuple[int, ...], int], list[float]] = {m: [] for m in models}
+    for _ in range(repeats):
+        for channels, pool in models:
+            config = ProtocolConfig(steps=steps, eval_every=steps, batch_size=batch_size, lr=float(QUICK["lr"]),
+                                    hidden_channels=channels, input_pool=pool)
+            tick = time.perf_counter()
+            train(data, ["none"], seeds, **config.training_settings(), progress=False)
+            times[(channels, pool)].append((time.perf_counter() - tick) / (len(seeds) * steps))
+    return {_label(c, p, n): statistics.median(times[(tuple(c), p)]) for c, p, n in configs}
+
+
 _PLAN_TOTAL = re.compile(r"total at most ([\d,]+)")
 _PLAN_MAIN = re.compile(r"members \(method × seed\), ([\d,]+) member-steps")
 _PLAN_TRAINED = re.compile(r"([\d,]+) member-steps are trained in the main phase")
@@ -195,26 +214,28 @@ def format_sweep(state: Mapping[str, Any], plans: Mapping[int, Mapping[str, int]
     bar = [min(base[name][i] for name in BASELINES) for i in range(len(columns))]
     lines = list(header) + [
         "| configuration (channels / input pool / steps) | " + " | ".join(columns)
-        + " | beats both | s per member-step | relative cost | est. main job, min (trained / plan total) |",
-        "|---|" + "---|" * (len(columns) + 4),
+        + " | beats both | s per member-step (sweep) | s per member-step (timed) | relative cost "
+        "| est. main job, min (trained / plan total) |",
+        "|---|" + "---|" * (len(columns) + 5),
     ]
     winners = []
     first = None
     for label, row in state["configs"].items():
         scores = [_mean(row[control]["test_mse"]), *(_mean(row[s]["holdout_mse"]) for s in sets)]
         beats = [value < limit for value, limit in zip(scores, bar)]
-        per_step = _mean([row[s]["s_per_member_step"] for s in sets])
+        swept = _mean([row[s]["s_per_member_step"] for s in sets])
+        per_step = state.get("timing", {}).get(label, swept)
         first = first or per_step
         plan = plans.get(row["steps"])
         estimate = (f"{plan['trained'] * per_step / jobs / 60:.1f} / {plan['total'] * per_step / jobs / 60:.1f}"
                     if plan else "—")
         cells = [f"**{v:.3f}**" if b else f"{v:.3f}" for v, b in zip(scores, beats)]
-        lines.append(f"| {label} | " + " | ".join(cells) + f" | {sum(beats)}/{len(beats)} | {per_step:.4f} | "
-                     f"{per_step / first:.1f}× | {estimate} |")
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {sum(beats)}/{len(beats)} | {swept:.4f} | "
+                     f"{per_step:.4f} | {per_step / first:.1f}× | {estimate} |")
         if all(beats):
             winners.append((label, plan["trained"] * per_step / jobs / 60 if plan else float("nan")))
     for name in BASELINES:
-        lines.append(f"| *{name}* (baseline) | " + " | ".join(f"{v:.3f}" for v in base[name]) + " | — | — | — | — |")
+        lines.append(f"| *{name}* (baseline) | " + " | ".join(f"{v:.3f}" for v in base[name]) + " | — | — | — | — | — |")
     lines.append("")
     if winners:
         lines.append("Beat both baselines on the control's test set and on every training-session hold-out: "
@@ -276,7 +297,11 @@ def main(argv: Sequence[str] | None = None) -> str:
     log(f"distinct training sets: {sets}")
     configs = [c for c in CONFIGS if _label(*c) not in args.skip]
     state = run_sweep(data, configs, list(range(args.seeds)), args.state, log=log)
-    plans = {steps: reproduce_plan(steps) for steps in sorted({c[2] for c in configs})}
+    done = [c for c in configs if _label(*c) in state["configs"]]
+    log("timing each model, interleaved")
+    state["timing"] = time_configs(data["control"], done, list(range(args.seeds)))
+    args.state.write_text(json.dumps(state, indent=1))
+    plans = {steps: reproduce_plan(steps) for steps in sorted({c[2] for c in done})}
     env = environment("cpu", 1)
     allocator = ", ".join(f"{k}={v}" for k, v in sorted(os.environ.items()) if k.startswith("MALLOC_"))
     header = [
@@ -296,15 +321,18 @@ def main(argv: Sequence[str] | None = None) -> str:
         "seeds (N²); the hold-out is the training session's (the stopping rule's data: the network's figure is its "
         "minimum over the checks, slightly optimistic); the control's test MSE is on each seed's resample of the "
         "test sequences. Baselines fitted per seed on the same training resample, scored on the same sequences. "
-        "Bold: below both baselines. s per member-step: the `train` call's wall time (copies and hold-out passes "
-        "included) over 4 members × steps, mean over the training sets; relative cost: against the first row, "
-        "measured in the same run (steadier than the seconds on a shared machine). Est. main job: `event-transforms "
-        "reproduce --plan --steps N`'s member-steps × s per member-step / 2 jobs; *trained* leaves out the main "
+        "Bold: below both baselines. s per member-step (sweep): the sweep's `train` calls' wall time (copies and "
+        "hold-out passes included) over 4 members × steps, mean over the training sets, as the machine's load "
+        "came; (timed): the median of 3 interleaved rounds of 60 steps of each model on the control's data, "
+        "after the sweep (steadier); relative cost: the timed figure against the first row's. Est. main job: `event-transforms "
+        "reproduce --plan --steps N`'s member-steps × s per member-step (timed) / 2 jobs; *trained* leaves out the main "
         "phase's members that train once and are shared, *plan total* is the plan's \"total at most\" (equal cost "
         "at its maximum); neither counts data loading, scoring or the cost table. The main job's ensembles are "
         "larger than these 4-member ones, so its seconds per member-step may be lower.",
         "",
     ]
+    if args.skip:
+        header[-1:-1] = [f"Left out for time (`--skip`): {'; '.join(args.skip)}.", ""]
     page = format_sweep(state, plans, header=header)
     args.output.write_text(page + "\n")
     print(page)

@@ -63,7 +63,9 @@ def test_model_sweep_table(tmp_path: Path) -> None:
     plan = model_sweep.parse_plan("x members (method × seed), 1,000 member-steps; 600 member-steps are trained in "
                                   "the main phase; total at most 5,000")
     assert plan == {"total": 5000, "main": 1000, "main_trained": 600, "trained": 4600}
-    page = model_sweep.format_sweep(state, {3: plan}, header=["# head"])
+    timing = model_sweep.time_configs(data["control"], configs, [0, 1], steps=2, repeats=2, batch_size=2)
+    assert list(timing) == list(state["configs"]) and all(value > 0 for value in timing.values())
+    page = model_sweep.format_sweep({**state, "timing": timing}, {3: plan}, header=["# head"])
     lines = page.splitlines()
     assert lines[0] == "# head" and "| control test | control hold-out | paper hold-out |" in lines[1]
     assert len([line for line in lines if line.startswith("| (2,)")]) == 2
@@ -82,6 +84,6 @@ def test_model_sweep_winners_are_below_both_baselines() -> None:
                          "bad": {"steps": 3, "control": scores(0.5), "paper": scores(1.1)}}}
     plan = {"total": 6000, "main": 1000, "main_trained": 400, "trained": 5400}
     page = model_sweep.format_sweep(state, {3: plan})
-    assert "| good | **0.500** | **0.500** | **0.900** | 3/3 | 0.0100 | 1.0× | 0.5 / 0.5 |" in page
+    assert "| good | **0.500** | **0.500** | **0.900** | 3/3 | 0.0100 | 0.0100 | 1.0× | 0.5 / 0.5 |" in page
     assert "| bad | **0.500** | **0.500** | 1.100 | 2/3 |" in page
     assert "hold-out: good (≈ 0.5 min main job)." in page
