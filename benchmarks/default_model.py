@@ -188,6 +188,9 @@ def main(argv: Sequence[str] | None = None) -> str:
         notes.append("Sized for the machine: `stretch` was left out (`--no-stretch`), so each scene has `none` and "
                      "its first matched method (the pre-declared headline) only; the default model costs about 30 "
                      "times the quick one per member-step, and the machine was shared with other work.")
+    left_out = [s for s in SCENES if s not in args.scenes]
+    if left_out:
+        notes.append(f"Sized for the machine: the scene(s) {', '.join(left_out)} were left out (`--scenes`).")
     note = " ".join(notes)
     page = format_comparison(runs, seeds, note)
     args.output.write_text(page + "\n")
