@@ -80,10 +80,13 @@ def test_model_sweep_winners_are_below_both_baselines() -> None:
     state = {"control": "control", "training_sets": {"control": ["control"], "paper": ["paper"]},
              "baselines": {s: {name: {"holdout_mse": [1.0], "test_mse": [1.0]} for name in model_sweep.BASELINES}
                            for s in ("control", "paper")},
-             "configs": {"good": {"steps": 3, "control": scores(0.5), "paper": scores(0.9)},
-                         "bad": {"steps": 3, "control": scores(0.5), "paper": scores(1.1)}}}
+             "configs": {"good": {"steps": 3, "hidden_channels": [2], "input_pool": 4, "control": scores(0.5), "paper": scores(0.9)},
+                         "bad": {"steps": 3, "hidden_channels": [2], "input_pool": 4, "control": scores(0.5), "paper": scores(1.1)}}}
     plan = {"total": 6000, "main": 1000, "main_trained": 400, "trained": 5400}
     page = model_sweep.format_sweep(state, {3: plan})
     assert "| good | **0.500** | **0.500** | **0.900** | 3/3 | 0.0100 | 0.0100 | 1.0× | 0.5 / 0.5 |" in page
     assert "| bad | **0.500** | **0.500** | 1.100 | 2/3 |" in page
-    assert "hold-out: good (≈ 0.5 min main job)." in page
+    assert "hold-out: good (main job ≈ 0.5 min, est.)." in page
+    scaled = model_sweep.format_sweep(state, {3: plan}, recorded_min=10.0)
+    assert "| 3/3 | 0.0100 | 0.0100 | 1.0× | 0.5 / 0.5 | 10.0 |" in scaled
+    assert "hold-out: good (main job ≈ 10.0 min, scaled from the recorded main job)." in scaled
