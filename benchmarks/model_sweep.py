@@ -338,7 +338,7 @@ def main(argv: Sequence[str] | None = None) -> str:
         "",
         f"Produced by `python benchmarks/model_sweep.py` at commit `{commit}`; CPU {env['cpu_model']} "
         f"({env['cpu_capability']} kernels), torch {env['torch']}, 1 thread; allocator "
-        f"{allocator or 'glibc defaults'}; a shared 2-core machine (another 1-thread job ran beside it), so the "
+        f"{allocator or 'glibc defaults'}; a shared 2-core machine (load average 3-5: another 1-thread job of this branch and other work ran beside it), so the "
         f"seconds are as measured, not a cost table. Training wall time, summed over configurations: "
         f"{sum(r[s]['wall_s'] for r in state['configs'].values() for s in sets):.0f} s.",
         "",
@@ -361,8 +361,8 @@ def main(argv: Sequence[str] | None = None) -> str:
         "",
     ]
     if args.skip:
-        header[-1:-1] = [f"Left out for time (`--skip`): {'; '.join(args.skip)}.", ""]
-    header[-1:-1] = [
+        header += [f"Left out for time (`--skip`): {'; '.join(args.skip)}.", ""]
+    header += [
         f"Scaled from the recorded main job: {args.recorded_main_job} min "
         f"({RECORDED_MAIN_JOB[1] if args.recorded_main_job == RECORDED_MAIN_JOB[0] else 'given'}) for the first row, "
         "times the row's model cost relative to the first row's (the sweep's seconds per member-step, averaged over "
