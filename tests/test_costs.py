@@ -10,6 +10,7 @@ import pytest
 from event_transforms.tactile.protocol import run_protocol
 from event_transforms.tactile.protocol.costs import (
     COST_TABLE_FORMAT,
+    QUICK_COST_TABLE,
     cost_key,
     equal_cost_steps,
     load_cost_table,
@@ -59,3 +60,21 @@ def test_a_run_without_a_table_measures_and_keeps_one(tmp_path):
                  equal_time=True)
     kept = json.loads((tmp_path / "cost_table.json").read_text())
     assert kept["ratios"]["timing"]["fs2"] >= 1.0 and "measured" in kept["source"]
+
+
+def test_the_committed_table_covers_the_quick_run():
+    """The README's quick run reads the committed table: it names its machine and commit and
+    holds a ratio for every scene and method the quick run trains; `--plan` states the time from it."""
+    from benchmarks.cost_table import quick_config
+    from event_transforms.tactile.commands import QUICK
+    from event_transforms.tactile.protocol.plan import choose_methods
+
+    table = load_cost_table(QUICK_COST_TABLE)
+    assert table["config"] == cost_key(quick_config())
+    assert table["environment"]["cpu_model"] and len(str(table["commit"])) >= 7
+    assert 0 < table["ensemble_s_per_member_step"] < table["train_s_per_step"]
+    scenes = list(QUICK["scenes"])
+    for scene, methods in choose_methods(scenes).items():
+        for method in methods:
+            assert ratio_of(table, scene, method) >= 1.0
+        assert ratio_of(table, scene, "none") == 1.0

@@ -27,7 +27,7 @@ def test_plan_runs_nothing_and_publishes_nothing(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(reproduce_quick, "ROOT", tmp_path)  # nothing may be written under the checkout
     assert reproduce_quick.main(["--out", str(tmp_path / "run"), "--", "--plan"]) == 0
     out = capsys.readouterr().out
-    assert "member-steps" in out and "equal cost: at most" in out and "cost curve: none at 450 steps" in out
+    assert "member-steps" in out and "equal cost: at most" in out and "cost curve: none at 450 steps" in out and "time: about" in out
     assert not (tmp_path / "benchmarks").exists() and not (tmp_path / "run" / "results.md").exists()
 
 
