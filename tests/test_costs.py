@@ -78,3 +78,13 @@ def test_the_committed_table_covers_the_quick_run():
         for method in methods:
             assert ratio_of(table, scene, method) >= 1.0
         assert ratio_of(table, scene, "none") == 1.0
+
+
+def test_equal_cost_units_carry_their_own_steps():
+    """The equal-cost phase runs as one phase over every job: each unit at its own step count,
+    named and keyed by it, so units of two step counts never overwrite each other."""
+    from event_transforms.tactile.protocol.plan import Unit
+
+    a, b = Unit("paper", ("stretch",), (), 229), Unit("paper", ("stretch",), (), 207)
+    assert a.slug == "paper__stretch@229" and b.slug == "paper__stretch@207"
+    assert Unit("paper", ("stretch",)).slug == "paper__stretch"

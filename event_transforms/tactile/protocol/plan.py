@@ -26,15 +26,18 @@ __all__ = ["Unit", "resolve_scene", "work_units", "budget_scenes", "choose_metho
 class Unit:
     """A unit of work: ``methods`` of ``scene``, trained together as one ensemble, and scored too
     for the ``also`` members other scenes borrow (``(method, scene, its method)``; see
-    :mod:`~event_transforms.tactile.protocol.shared`)."""
+    :mod:`~event_transforms.tactile.protocol.shared`), for ``steps`` steps where it names its own."""
 
     scene: str
     methods: tuple[str, ...]
     also: tuple[tuple[str, str, str], ...] = ()
+    #: the unit's own step count (the equal-cost phase: one per cost ratio); ``None``: the phase's
+    steps: int | None = None
 
     @property
     def slug(self) -> str:
-        return re.sub(r"[^a-z0-9.+-]+", "_", f"{self.scene}__{'+'.join(self.methods)}".lower())
+        at = "" if self.steps is None else f"@{self.steps}"
+        return re.sub(r"[^a-z0-9.+@-]+", "_", f"{self.scene}__{'+'.join(self.methods)}{at}".lower())
 
 
 def resolve_scene(scene: str, data: dict[str, SceneData] | None) -> BenchmarkScene:

@@ -119,7 +119,7 @@ def _work(
         torch.set_num_threads(threads)
     cache: dict[str, SceneData] = dict(given or {})
     mine = [(index, unit) for index, unit in enumerate(units) if index % world == rank]
-    cost = {index: len(unit.methods) * len(seeds) * config.steps for index, unit in mine}
+    cost = {index: len(unit.methods) * len(seeds) * (unit.steps or config.steps) for index, unit in mine}
     plain = progress is None and not sys.stderr.isatty()
     tracker = _Progress(list(cost.values()), later_cost / world)
     for index, unit in mine:
@@ -137,7 +137,8 @@ def _work(
             if scene not in cache:
                 cache[scene] = load_scene_data(scene, root, paper_split=False)
         tick = time.perf_counter()
-        result = run_unit(unit.scene, unit.methods, seeds, config, cache[unit.scene], device=device,
+        own = config if unit.steps is None else ProtocolConfig(**{**asdict(config), "steps": unit.steps})
+        result = run_unit(unit.scene, unit.methods, seeds, own, cache[unit.scene], device=device,
                           progress=False if plain else progress, description=label,
                           on_validation=tracker.callback(label, cost[index]) if plain else None,
                           also=unit.also, also_data=cache)
@@ -163,7 +164,8 @@ def _runwork_units(
     folder = folder_key(config, seeds)
     runs = out / "runs" / folder_name(config, seeds)
     keys = {u.slug: {**unit_key(folder, u.scene, u.methods, data_keys[u.scene]),
-                     **({"also": [[m, s_, n, data_keys[s_]] for m, s_, n in u.also]} if u.also else {})}
+                     **({"also": [[m, s_, n, data_keys[s_]] for m, s_, n in u.also]} if u.also else {}),
+                     **({"steps": u.steps} if u.steps is not None else {})}
             for u in units}
     arguments = (units, seeds, config, runs, *options, phase, later_cost, keys)
     write_json_atomic(runs / "config.json", folder)
@@ -468,17 +470,24 @@ def run_protocol(
         if distributed.current_group() is not None:
             steps_of = distributed.broadcast_from_rank0(steps_of)
         equal_runs: dict[str, dict[str, list]] = {}
+        # one phase over every job: a unit per scene and step count (members sharing their training
+        # at a step count trained once), each at its own steps, the longest first
+        equal_units: list[Unit] = []
+        subsets: list[tuple[list[Unit], dict[str, tuple[str, ...]]]] = []
         for steps in sorted({n for per in steps_of.values() for n in per.values() if n < config.steps},
                             reverse=True):
             subset = {s_: tuple(m for m, n in per.items() if n == steps) for s_, per in steps_of.items()}
             subset = {s_: ms for s_, ms in subset.items() if ms}
-            equal_units = work_units(list(subset), subset, group, given, plan_sharing(subset, data))
-            shorter = ProtocolConfig(**{**asdict(config), "steps": steps})
-            done = _runwork_units(equal_units, seeds, shorter, out, jobs, options, f"equal time ({steps} steps)", 0.0,
-                              data_keys)
-            if done is not None:
+            mine = [Unit(u.scene, u.methods, u.also, steps)
+                    for u in work_units(list(subset), subset, group, given, plan_sharing(subset, data))]
+            equal_units += mine
+            subsets.append((mine, subset))
+        done = (_runwork_units(equal_units, seeds, config, out, jobs, options, "equal cost", 0.0, data_keys)
+                if equal_units else {})
+        if done is not None:
+            for mine, subset in subsets:
                 for scene, names in subset.items():
-                    equal_runs.setdefault(scene, {}).update(_per_method(equal_units, done, scene, names))
+                    equal_runs.setdefault(scene, {}).update(_per_method(mine, done, scene, names))
         for scene, per in steps_of.items() if rank0 else ():
             _attach_equal_time(scene_results[scene], per, equal_runs.get(scene, {}), config.steps)
     if not rank0:  # a torchrun rank other than 0
