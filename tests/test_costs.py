@@ -86,5 +86,5 @@ def test_equal_cost_units_carry_their_own_steps():
     from event_transforms.tactile.protocol.plan import Unit
 
     a, b = Unit("paper", ("stretch",), (), 229), Unit("paper", ("stretch",), (), 207)
-    assert a.slug == "paper__stretch@229" and b.slug == "paper__stretch@207"
-    assert Unit("paper", ("stretch",)).slug == "paper__stretch"
+    assert a.slug == "paper_stretch@229" and b.slug == "paper_stretch@207"
+    assert Unit("paper", ("stretch",)).slug == "paper_stretch"
