@@ -385,9 +385,9 @@ def replicated(mean: float, blocks: Sequence[dict[str, Any]]) -> bool:
     unadjusted 95 % interval excludes 0 on the side of ``mean`` (:func:`seed_blocks`).
 
     This is the perturbation a run makes itself before it prints a verdict as resolved: a
-    verdict that does not replicate in both blocks of its seeds is printed "borderline" (a
-    verdict that does is the one that survived another CPU kernel set in the measurements of
-    issue 33).
+    verdict that does not replicate in both blocks of its seeds is printed "borderline". It is
+    not enough on its own: under another CPU kernel set 7 of the 12 verdicts the quick run
+    printed as resolved were not resolved (``docs/results.md``).
 
     Example:
         >>> replicated(-0.7, [{"ci95": [-1.0, -0.2]}, {"ci95": [-0.9, -0.1]}])
