@@ -167,6 +167,39 @@ def _field(message: Any, name: str) -> float:
     return float(value)
 
 
+def _open_topic(path: str | os.PathLike[str], topic: str, option: str, stamps: str) -> tuple[Path, Any, list[Any]]:
+    """The bag's reader and ``topic``'s connections, ``stamps`` checked (the reader is closed
+    again when the topic is missing)."""
+    if stamps not in ("header", "receive"):
+        raise ValueError(f"stamps must be 'header' or 'receive', got {stamps!r}")
+    path = Path(path)
+    reader = _bag_reader(path)
+    try:
+        return path, reader, _connections(reader, path, topic, option)
+    except BaseException:
+        reader.close()
+        raise
+
+
+def _stamp(where: str, msgtype: str, message: Any, received: int, stamps: str) -> int:
+    """A message's time in nanoseconds: its ``header.stamp``, or the time the bag received it.
+
+    Raises:
+        ValueError: with ``stamps="header"``, a message without a header or stamped 0, named by ``where``.
+    """
+    if stamps == "receive":
+        return int(received)
+    header = getattr(message, "header", None)
+    if header is None:
+        raise ValueError(f"{where} ({msgtype}) has no header to stamp it; pass --stamps receive to use the time "
+                         "the bag recorded it")
+    stamp = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+    if stamp == 0:
+        raise ValueError(f"{where}: the header stamp is 0 (the publisher did not stamp it); pass --stamps receive "
+                         "to use the time the bag recorded it")
+    return stamp
+
+
 def read_bag_values(
     path: str | os.PathLike[str], topic: str, *, field: str | None = None, stamps: str = "header",
 ) -> tuple[np.ndarray, np.ndarray, str]:
@@ -196,14 +229,10 @@ def read_bag_values(
         ...
         ValueError: ...
     """
-    path = Path(path)
-    if stamps not in ("header", "receive"):
-        raise ValueError(f"stamps must be 'header' or 'receive', got {stamps!r}")
-    reader = _bag_reader(path)
+    path, reader, connections = _open_topic(path, topic, "force", stamps)
     times: list[int] = []
     values: list[float] = []
     try:
-        connections = _connections(reader, path, topic, "force")
         msgtype = connections[0].msgtype
         wrench = msgtype.endswith("WrenchStamped") or msgtype.endswith("/Wrench")
         chosen = field or ("magnitude" if wrench else None)
@@ -230,18 +259,7 @@ def read_bag_values(
             if not np.isfinite(value):
                 raise ValueError(f"{where}: {chosen} is {value} (NaN or infinite); drop or filter the message "
                                  "before converting")
-            if stamps == "header":
-                header = getattr(message, "header", None)
-                if header is None:
-                    raise ValueError(f"{where} ({msgtype}) has no header to stamp it; pass --stamps receive to use "
-                                     "the time the bag recorded it")
-                stamp = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-                if stamp == 0:
-                    raise ValueError(f"{where}: the header stamp is 0 (the publisher did not stamp it); pass --stamps "
-                                     "receive to use the time the bag recorded it")
-            else:
-                stamp = int(received)
-            times.append(stamp)
+            times.append(_stamp(where, msgtype, message, received, stamps))
             values.append(value)
     finally:
         reader.close()
@@ -269,23 +287,13 @@ def read_bag_stamps(path: str | os.PathLike[str], topic: str, *, stamps: str = "
         ...
         ValueError: ...
     """
-    path = Path(path)
-    if stamps not in ("header", "receive"):
-        raise ValueError(f"stamps must be 'header' or 'receive', got {stamps!r}")
-    reader = _bag_reader(path)
+    path, reader, connections = _open_topic(path, topic, "triggers", stamps)
     times: list[int] = []
     try:
-        connections = _connections(reader, path, topic, "triggers")
         for k, (connection, received, raw) in enumerate(reader.messages(connections=connections)):
-            if stamps == "receive":
-                times.append(int(received))
-                continue
-            header = getattr(reader.deserialize(raw, connection.msgtype), "header", None)
-            stamp = 0 if header is None else int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-            if stamp == 0:
-                raise ValueError(f"{path}: topic {topic!r}, message {k} ({connection.msgtype}) has no header stamp; "
-                                 "pass --stamps receive to use the time the bag recorded it")
-            times.append(stamp)
+            message = None if stamps == "receive" else reader.deserialize(raw, connection.msgtype)
+            times.append(_stamp(f"{path}: topic {topic!r}, message {k}", connection.msgtype, message, received,
+                                stamps))
     finally:
         reader.close()
     return np.asarray(times, dtype=np.int64)

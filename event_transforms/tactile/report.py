@@ -480,7 +480,14 @@ def scene_table_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
 def run_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
     """Every verdict a run's ``results.md`` prints: the summary table's (Δ vs none, Δ vs
     matched, the budget check) and the scene tables' Δ at equal cost. A README (summary
-    table only) gives the summary's."""
+    table only) gives the summary's.
+
+    Example:
+        >>> text = "\\n".join(["| " + " | ".join(SUMMARY_COLUMNS) + " |", "|---" * 8 + "|",
+        ...     "| timing | fs2 | 4.80 | **-3.16 [-3.86, -2.45]** | — | — | — | robust: Δ -3.35 at 600 steps |"])
+        >>> sorted(column for _, _, column in run_verdicts(text))
+        ['budget check', 'vs none']
+    """
     return {**summary_verdicts(text), **scene_table_verdicts(text)}
 
 

@@ -44,6 +44,10 @@ def check_resample(resample: object) -> str:
 
     Raises:
         ValueError: anything else, named.
+
+    Example:
+        >>> check_resample("bootstrap")
+        'bootstrap'
     """
     if resample not in RESAMPLING:
         raise ValueError(f"resample must be one of {RESAMPLING}, got {resample!r}")
@@ -93,20 +97,38 @@ def item_groups(dataset: object) -> list[Hashable] | None:
     """The recording each item of ``dataset`` comes from, where the data set says so (a
     ``meta(index)`` method whose dicts carry ``"recording"``, as a folder of recordings'
     :class:`~event_transforms.tactile.recordings.RecordingSet` does); ``None`` otherwise
-    (simulated grasps: every item is its own grasp)."""
+    (simulated grasps: every item is its own grasp; the first item without one decides).
+
+    Example:
+        >>> class Folder(list):
+        ...     def meta(self, index):
+        ...         return {"recording": self[index]}
+        >>> item_groups(Folder(["a.npy", "a.npy", "b.npy"])), item_groups([1, 2])
+        (['a.npy', 'a.npy', 'b.npy'], None)
+    """
     meta = getattr(dataset, "meta", None)
     if not callable(meta):
         return None
+    labels: list[Hashable] = []
     try:
-        labels = [meta(index).get("recording") for index in range(len(dataset))]  # type: ignore[arg-type]
+        for index in range(len(dataset)):  # type: ignore[arg-type]
+            label = meta(index).get("recording")
+            if label is None:  # simulated grasps say no recording: stop at the first item
+                return None
+            labels.append(label)
     except (TypeError, AttributeError):
         return None
-    return None if any(label is None for label in labels) else labels
+    return labels
 
 
 def split_resample(dataset: object, seed: int, split: str) -> Tensor:
     """:func:`bootstrap_indices` for ``dataset``'s items, grouped by recording where it has
-    recordings (:func:`item_groups`)."""
+    recordings (:func:`item_groups`).
+
+    Example:
+        >>> torch.equal(split_resample([10, 20, 30], 1, "val"), bootstrap_indices(3, 1, "val"))
+        True
+    """
     return bootstrap_indices(len(dataset), seed, split, item_groups(dataset))  # type: ignore[arg-type]
 
 

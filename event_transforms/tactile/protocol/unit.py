@@ -14,7 +14,7 @@ from typing import Any
 import torch
 
 from ..copies import SceneData
-from ..resampling import bootstrap_indices, split_resample
+from ..resampling import bootstrap_indices, item_groups
 from ..scenes import BenchmarkScene, get_scene
 from ..training import evaluate, phase_mse, train
 from .config import ProtocolConfig
@@ -65,34 +65,35 @@ def run_unit(
     for target, names, prefix in scored:
         val_pred, val_target = evaluate(trained.model, target.val)
         test_pred, test_target = evaluate(trained.model, target.test)
+        picks: dict[int, tuple[torch.Tensor, torch.Tensor]] = {}
+        if config.resample == "bootstrap":  # each seed's resamples, the recordings grouped once per split
+            groups = item_groups(target.val), item_groups(target.test)
+            picks = {seed: (bootstrap_indices(len(target.val), seed, "val", groups[0]),
+                            bootstrap_indices(len(target.test), seed, "test", groups[1]))
+                     for seed in set(trained.seeds)}
         for index, record in enumerate(result.members):
             for name in names.get(trained.methods[index].name, ()):
                 key = f"{prefix}{SHARED_SEPARATOR}{name}" if prefix else name
                 out.setdefault(key, []).append(_record(trained, index, record, result, holdout, passes,
                                                        val_pred, val_target, test_pred, test_target,
-                                                       resample=config.resample, target=target))
+                                                       picks=picks.get(trained.seeds[index])))
     return out
 
 
 def _record(trained: Any, index: int, record: Any, result: Any, holdout: bool, passes: int,
             val_pred: torch.Tensor, val_target: torch.Tensor, test_pred: torch.Tensor,
-            test_target: torch.Tensor, *, resample: str = "none", target: SceneData | None = None) -> dict[str, Any]:
+            test_target: torch.Tensor, *, picks: tuple[torch.Tensor, torch.Tensor] | None = None) -> dict[str, Any]:
     """One member's record: its training (shared by every scene that scores it) and its scores,
-    on its seed's resample of the validation and test sequences with ``resample="bootstrap"``
+    on its seed's resample of the validation and test sequences where ``picks`` gives them
     (the paper's 6 + 6 split and the examples read the first sequences as they are)."""
     method = trained.methods[index]
     size = trained.train_items[index]
     member_augment = trained.augment[index]
     val_scored, val_measured = val_pred[index], val_target
     test_scored, test_measured = test_pred[index], test_target
-    if resample == "bootstrap":
-        seed = trained.seeds[index]
-        pick = (bootstrap_indices(val_target.shape[0], seed, "val") if target is None
-                else split_resample(target.val, seed, "val"))
-        val_scored, val_measured = val_scored[pick], val_measured[pick]
-        pick = (bootstrap_indices(test_target.shape[0], seed, "test") if target is None
-                else split_resample(target.test, seed, "test"))
-        test_scored, test_measured = test_scored[pick], test_measured[pick]
+    if picks is not None:
+        val_scored, val_measured = val_scored[picks[0]], val_measured[picks[0]]
+        test_scored, test_measured = test_scored[picks[1]], test_measured[picks[1]]
     test_phases = phase_mse(test_scored, test_measured)
     return {
         "seed": trained.seeds[index],
