@@ -189,6 +189,21 @@ class TestBenchmarkScenes:
             scene = inferred_scene(name)
             assert "timing" not in scene.gaps and scene.lag_shifts is None, name
 
+    def test_inferred_is_the_matched_policy_on_the_two_gap_scenes(self):
+        """Done-when of issue 33: ``inferred`` equals the matched row on ``paper-offset`` and
+        ``paper-membrane``: the built policies are the same (so the protocol trains them once
+        and prints ``= row matched``); the single-gap timing scene's is its matched ``fs2``."""
+        from event_transforms.tactile.methods import methods_for, parse_method
+        from event_transforms.tactile.policies import build_policy
+
+        for name in ("paper-offset", "paper-membrane"):
+            assert "matched" in methods_for(name)
+            matched = parse_method("matched", scene=name).build()
+            inferred = build_policy("inferred", name)
+            assert repr(inferred) == repr(matched), name
+            kinds = [type(t).__name__ for t in matched.transforms]  # type: ignore[union-attr]
+            assert kinds == ["RandomFrameShift", "StretchToTarget"], name
+
     def test_the_onset_offset_on_no_delay_scenes_is_the_start_draw(self):
         """The onset differs by about +4.5 ms on scenes without a delay because the validation
         grasps start later; the lags, measured against the force, do not."""
@@ -218,3 +233,9 @@ def test_reproduce_data_on_an_exported_scene_infers_the_matched_shift(tmp_path, 
     assert set(data.scene.gaps) == {"timing", "size"} and inferred.lag_shifts == (-1,)
     assert inferred.evidence["timing"]["train"]["n"] == 48 and inferred.evidence["timing"]["deploy"]["n"] == 24
     assert "lags from 48 training and 24 validation recordings" in data.dataset["inferred_from"]
+    # the policy inferred from the exported recordings is the built-in scene's matched policy
+    from event_transforms.tactile.methods import parse_method
+
+    assert repr(inferred.policy("independent")) == repr(parse_method("matched", scene="paper-offset").build())
+    with pytest.raises(ValueError, match="made of recordings, whose gaps are only inferred"):
+        parse_method("matched", scene=data.scene)

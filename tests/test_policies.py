@@ -68,3 +68,25 @@ def test_inferred_uses_the_deployment_validation_frames():
     assert isinstance(policy, et.OneOf)
     (shift,) = policy.transforms
     assert isinstance(shift, et.RandomFrameShift) and shift.shifts == (2,)
+
+
+def test_matched_is_every_gap_s_matched_augmentation():
+    """``matched`` (issue 33): the scene's declared gaps, each with its matched augmentation and
+    the physics' stretch for size, one per copy; refused where there is nothing to combine."""
+    matched = parse_method("matched", scene="paper-offset").build()
+    assert isinstance(matched, et.OneOf)
+    lag, size = matched.transforms
+    assert isinstance(lag, et.RandomFrameShift) and tuple(lag.shifts) == (-1,)
+    assert isinstance(size, et.StretchToTarget) and size.target_size == 15.0
+    membrane = parse_method("matched", scene="paper-membrane").build()
+    assert tuple(membrane.transforms[0].shifts) == (1,)
+    # a single gap: the one matched augmentation (the protocol runs it only where it combines)
+    assert [type(t).__name__ for t in parse_method("matched", scene="timing").build().transforms] == [
+        "RandomFrameShift"]
+    assert parse_method("matched", scene="noise").needs_noise_bank
+    with pytest.raises(ValueError, match="scene 'control' has none"):
+        parse_method("matched", scene="control")
+    frames, meta = _batch()
+    before = frames.clone()
+    out = matched(frames, metadata=meta, generator=torch.Generator().manual_seed(1))
+    assert out.shape == frames.shape and torch.equal(frames, before)

@@ -185,3 +185,150 @@ def test_a_verdict_from_models_still_falling_at_the_cap_is_not_resolved():
     assert not delta["significant"] and delta["not_converged"]
     assert _ci_text(delta).endswith("(not converged)") and "**" not in _ci_text(delta)
     assert not still_falling(None, 40)
+
+
+class TestModeratedVariance:
+    """Issue 33 item 5: each family's variances are moderated (Smyth 2004's empirical Bayes), so
+    an interval's width does not turn on one row's 7-degree-of-freedom variance."""
+
+    def test_digamma_and_trigamma_against_closed_forms_and_recurrences(self):
+        from event_transforms.tactile.stats import digamma, trigamma
+
+        gamma = 0.5772156649015329
+        assert digamma(1.0) == pytest.approx(-gamma, abs=1e-12)
+        assert digamma(0.5) == pytest.approx(-gamma - 2 * math.log(2), abs=1e-12)
+        assert trigamma(1.0) == pytest.approx(math.pi ** 2 / 6, abs=1e-11)
+        assert trigamma(0.5) == pytest.approx(math.pi ** 2 / 2, abs=1e-11)
+        for x in (0.05, 0.7, 3.3, 12.0, 250.0):
+            assert digamma(x + 1) == pytest.approx(digamma(x) + 1 / x, rel=1e-12, abs=1e-12)
+            assert trigamma(x + 1) == pytest.approx(trigamma(x) - 1 / x ** 2, rel=1e-10, abs=1e-14)
+        with pytest.raises(ValueError, match="x must be > 0"):
+            digamma(0.0)
+        with pytest.raises(ValueError, match="x must be > 0"):
+            trigamma(-1.0)
+
+    def test_variance_prior_recovers_the_prior_it_was_drawn_from(self):
+        """Row variances σ² with 1/σ² ~ χ²(d₀) / (d₀ s₀²), sample variances s² ~ σ² χ²(d) / d: the
+        moment estimates come back (4,000 rows)."""
+        import random
+
+        from event_transforms.tactile.stats import variance_prior
+
+        rng = random.Random(0)
+        d0, s0, d = 6.0, 2.5, 7
+        chi2 = lambda k: 2.0 * rng.gammavariate(k / 2.0, 1.0)  # noqa: E731
+        variances = [(d0 * s0 / chi2(d0)) * chi2(d) / d for _ in range(4000)]
+        prior = variance_prior(variances, d)
+        assert prior["rows"] == 4000
+        assert prior["df"] == pytest.approx(d0, rel=0.15)
+        assert prior["s2"] == pytest.approx(s0, rel=0.05)
+
+    def test_variance_prior_edge_cases(self):
+        from event_transforms.tactile.stats import variance_prior
+
+        assert variance_prior([1.0], 7) is None
+        assert variance_prior([1.0, 0.0, float("nan")], 7) is None  # zeros and NaN are left out
+        same = variance_prior([2.0, 2.0, 2.0], 7)
+        assert same["df"] == 14.0  # no scatter beyond sampling: the cap, (rows - 1) x df
+        with pytest.raises(ValueError, match="df must be a positive int, got 0"):
+            variance_prior([1.0, 2.0], 0)
+        with pytest.raises(ValueError, match="df must be a positive int, got True"):
+            variance_prior([1.0, 2.0], True)
+
+    def test_the_moderated_interval_by_hand(self):
+        from event_transforms.tactile.stats import paired_delta, student_t_quantile
+
+        seeds = list(range(8))
+        none = [2.0] * 8
+        method = [1.0, 1.4, 0.8, 1.2, 1.1, 0.7, 1.3, 0.9]
+        prior = {"df": 10.0, "s2": 0.5, "rows": 3}
+        delta = paired_delta({"seeds": seeds, "x": none}, {"seeds": seeds, "x": method}, "x", 4, prior)
+        diffs = [m - 2.0 for m in method]
+        mean = sum(diffs) / 8
+        s2 = sum((d - mean) ** 2 for d in diffs) / 7
+        moderated = (10.0 * 0.5 + 7 * s2) / 17.0
+        half = student_t_quantile(1 - 0.05 / 8, 17.0) * math.sqrt(moderated / 8)
+        assert delta["ci_family"] == pytest.approx([mean - half, mean + half])
+        assert delta["sd"] == pytest.approx(math.sqrt(moderated)) and delta["sd_raw"] == pytest.approx(math.sqrt(s2))
+        assert delta["variance_prior"] == prior
+        plain = paired_delta({"seeds": seeds, "x": none}, {"seeds": seeds, "x": method}, "x", 4)
+        assert plain["sd"] == pytest.approx(math.sqrt(s2)) and plain["variance_prior"] is None
+
+    def test_a_family_is_moderated_with_its_own_prior(self):
+        from event_transforms.tactile.stats import deltas_vs_none, family_prior
+
+        seeds = list(range(8))
+        methods = {"none": {"seeds": seeds, "x": [2.0, 2.1, 1.9, 2.05, 2.0, 1.95, 2.1, 2.0]},
+                   "a": {"seeds": seeds, "x": [1.0, 1.3, 0.8, 1.2, 1.1, 0.7, 1.3, 0.9]},
+                   "b": {"seeds": seeds, "x": [2.2, 2.0, 2.4, 1.9, 2.3, 2.1, 1.8, 2.5]},
+                   "c": {"seeds": seeds, "x": [2.0, 2.1, 1.9, 2.05, 2.0, 1.95, 2.1, 2.01]}}
+        out = deltas_vs_none(methods, "x")
+        prior = family_prior(methods["none"], {k: v for k, v in methods.items() if k != "none"}, "x")
+        assert all(d["variance_prior"] == prior for d in out.values())
+        # every row's spread moves toward the family's: none is taken at its own 7 degrees of freedom
+        for name in "abc":
+            low, high = sorted((out[name]["sd_raw"], math.sqrt(prior["s2"])))
+            assert low < out[name]["sd"] < high, name
+
+
+class TestConvergenceOfTheEnsemble:
+    def test_holdout_drop_of_the_mean_curve(self):
+        from event_transforms.tactile.stats import converged, holdout_drop
+
+        flat = {"steps": [10, 20, 30, 40], "mse": [4.0, 2.0, 2.0, 2.0]}
+        falling = {"steps": [10, 20, 30, 40], "mse": [4.0, 2.0, 2.0, 1.6]}
+        # 1 of 2 members still falling by 20 %: the mean falls by 10 %, past the 5 % tolerance
+        assert holdout_drop([flat, falling], 40) == pytest.approx(0.1)
+        assert not converged(holdout_drop([flat, falling], 40))
+        assert holdout_drop([flat, flat, flat, flat, falling], 40) == pytest.approx(0.04)
+        assert converged(holdout_drop([flat, flat, flat, flat, falling], 40))
+        assert holdout_drop([None, {}], 40) is None and converged(None)
+        assert holdout_drop([{"steps": [40], "mse": [1.0]}], 40) is None  # no check in the first 3/4
+        with pytest.raises(ValueError, match="share their check steps"):
+            holdout_drop([flat, {"steps": [5, 20, 30, 40], "mse": [1, 1, 1, 1]}], 40)
+
+    def test_half_the_members_falling_hard_is_not_converged(self):
+        """The old rule (more than half the members still falling) called this converged."""
+        from event_transforms.tactile.scenes import get_scene
+        from event_transforms.tactile.stats import summarize_scene
+
+        def runs(values, falling):
+            out = []
+            for s, v in enumerate(values):
+                last = 1.0 if (falling and s % 2) else 2.45
+                out.append({"seed": s, "test_mse": v, "val_mse": v, "test_mse_paper_split": v,
+                            "val_mse_paper_split": v, "best_step": 40, "holdout_mse": 1.0,
+                            "holdout_history": {"steps": [10, 20, 30, 40], "mse": [4.0, 3.0, 2.5, last]},
+                            "steps": 40, "copies": 1, "train_items": 6, "aug_s_once": 0.0, "aug_s_per_epoch": 0.0,
+                            "train_s": 1.0, "test_phase_mse": {"grasp": v, "hold": v, "release": v}})
+            return out
+
+        none, better = [2.0, 2.1, 2.2, 2.05, 2.15, 2.0], [1.0, 1.1, 1.2, 1.05, 1.15, 1.0]
+        out = summarize_scene(get_scene("timing"), {"none": runs(none, True), "fs2": runs(better, False)}, {}, {})
+        assert out["methods"]["none"]["still_falling"] == 0.5
+        assert out["methods"]["none"]["holdout_drop"] > 0.05 and not out["methods"]["none"]["converged"]
+        assert out["methods"]["fs2"]["delta_vs_none"]["not_converged"]
+
+    def test_only_the_side_behind_withholds_a_verdict(self):
+        """``none`` still falling withholds "better" (it may catch up) but not "worse"."""
+        from event_transforms.tactile.scenes import get_scene
+        from event_transforms.tactile.stats import behind_unconverged, summarize_scene
+
+        def runs(values, falling):
+            last = 1.0 if falling else 2.45
+            return [{"seed": s, "test_mse": v, "val_mse": v, "test_mse_paper_split": v, "val_mse_paper_split": v,
+                     "best_step": 40, "holdout_mse": 1.0,
+                     "holdout_history": {"steps": [10, 20, 30, 40], "mse": [4.0, 3.0, 2.5, last]},
+                     "steps": 40, "copies": 1, "train_items": 6, "aug_s_once": 0.0, "aug_s_per_epoch": 0.0,
+                     "train_s": 1.0, "test_phase_mse": {"grasp": v, "hold": v, "release": v}} for s, v in enumerate(values)]
+
+        none = [2.0, 2.1, 2.2, 2.05, 2.15, 2.0]
+        worse, better = [v + 1.0 for v in none], [v - 1.0 for v in none]
+        worse[0] += 0.01
+        better[0] += 0.01
+        out = summarize_scene(get_scene("timing"), {"none": runs(none, True), "fs2": runs(worse, False),
+                                                     "tes2:0.5": runs(better, False)}, {}, {})
+        assert out["methods"]["fs2"]["delta_vs_none"]["significant"]
+        assert not out["methods"]["fs2"]["delta_vs_none"].get("not_converged")
+        assert out["methods"]["tes2:0.5"]["delta_vs_none"]["not_converged"]
+        assert behind_unconverged(0.0, True, False) and not behind_unconverged(0.0, True, True)

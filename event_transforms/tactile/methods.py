@@ -8,6 +8,9 @@
 ``noise``          ``AddNoise`` with static-scene frames of the deployment camera
 ``fs<j>``          ``FrameShift(j)``, e.g. ``fs-1`` (one frame earlier), ``fs2``
 ``tes<j>:<ζ>``     ``TemporalEventShift(j, ζ)``, e.g. ``tes-2:0.5``
+``matched``        every gap's matched augmentation, one per copy (``OneOf``): the oracle of
+                   a scene with two gaps or more (``paper-offset``: FS-1 or the physics
+                   stretch to 15 mm), the policy ``inferred`` should find; simulated scenes only
 ``independent``    the scene's policy, one effect per copy (``OneOf``); on ``paper`` and
                    ``optical-paper``, the paper's resize or FS-1
 ``hybrid``         the same effects stacked on every copy (``Compose``)
@@ -100,7 +103,7 @@ class Method:
 
 _NUMBER = r"[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?"
 _PATTERN = re.compile(
-    rf"^(?P<base>none|resize-hertz|resize|noise|independent|hybrid|stretch|inferred|prior|everything"
+    rf"^(?P<base>none|resize-hertz|resize|noise|independent|hybrid|matched|stretch|inferred|prior|everything"
     rf"|rot(?P<deg>{_NUMBER})"
     rf"|fs(?P<fs>[+-]?\d+)|tes(?P<tes>[+-]?\d+):(?P<frac>{_NUMBER}))(?:x(?P<copies>\d+))?$"
 )
@@ -139,7 +142,8 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
     if match is None:
         raise ValueError(
             f"unknown method {name!r}; expected none, rot<deg>, resize, resize-hertz, stretch, noise, fs<j>, "
-            "tes<j>:<fraction>, independent, hybrid, inferred, prior or everything, optionally followed by x<copies>"
+            "tes<j>:<fraction>, independent, hybrid, matched, inferred, prior or everything, optionally followed by "
+            "x<copies>"
         )
     base = match["base"]
     if match["copies"] is not None:
@@ -165,6 +169,8 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
         return Method(name, lambda bank: ResizeToTarget(target, exponent=exponent), copies)
     if base == "noise":
         return Method(name, _add_noise, copies, needs_noise_bank=True)
+    if base == "matched":
+        return _matched(name, scene, copies)
     if base in ("independent", "hybrid"):
         if scene.name in ("paper", "optical-paper"):  # the paper's combination, on both generators
             return Method.from_scene(name, PAPER_SCENE, copies, combination=base)
@@ -197,6 +203,33 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
     return Method(name, make, copies)
 
 
+def _matched(name: str, scene: BenchmarkScene, copies: int) -> Method:
+    """``matched``: the scene's declared gaps, each closed by its matched augmentation with the
+    physics' size transform (``stretch``), one per copy; refused where no gap is declared."""
+    if getattr(scene, "inferred", None) is not None:
+        raise ValueError(f"method {name!r} needs a simulated scene whose gaps are known; scene {scene.name!r} is "
+                         "made of recordings, whose gaps are only inferred: use 'inferred'")
+    if not scene.gaps:
+        raise ValueError(f"method {name!r} simulates a scene's gaps; scene {scene.name!r} has none")
+    needs_bank = "noise" in scene.gaps
+    if not scene.library_scene(torch.zeros(1, 2, 1, 1) if needs_bank else None,
+                               size_transform="stretch").policy("independent").transforms:
+        raise ValueError(f"method {name!r}: scene {scene.name!r}'s gaps ({', '.join(scene.gaps)}) have no matched "
+                         "augmentation")
+    return Method(name, lambda bank: scene.library_scene(bank, size_transform="stretch").policy("independent"),
+                  copies, needs_noise_bank=needs_bank)
+
+
+def _combines(scene: BenchmarkScene) -> bool:
+    """Whether ``matched`` combines two matched augmentations or more on ``scene``."""
+    try:
+        method = _matched("matched", scene, 1)
+    except ValueError:
+        return False
+    policy = method.build(torch.zeros(1, 2, 1, 1) if method.needs_noise_bank else None)
+    return policy is not None and len(getattr(policy, "transforms", ())) >= 2
+
+
 #: Quick mode's methods of the scenes without a paper list: none and the matched ones;
 #: the control runs the other scenes' matched methods that need no size gap.
 QUICK_METHODS: dict[str, tuple[str, ...]] = {
@@ -215,22 +248,29 @@ def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str
     """The methods a scene runs: quick — ``none`` + its matched methods (the paper's list on
     ``paper``, other scenes' matched methods on ``control``); full — the paper's list (where
     defined) and every scene's matched methods that the scene can build (``independent`` and
-    ``hybrid`` only where they combine two effects or more: on ``paper``); both followed by
-    the :data:`EXTRA_METHODS` the scene can build.
+    ``hybrid`` only where they combine two effects or more: on ``paper``); both with
+    ``matched`` where it combines two matched augmentations or more, and followed by the
+    :data:`EXTRA_METHODS` the scene can build.
 
     Example:
         >>> methods_for("timing")
         ('none', 'fs2', 'tes2:0.5', 'inferred', 'prior', 'everything')
+        >>> methods_for("paper-offset")
+        ('none', 'fs-1', 'tes-2:0.5', 'matched', 'stretch', 'inferred', 'prior', 'everything')
     """
     scene = get_scene(scene)
     if not full:
         names = list(QUICK_METHODS.get(scene.name, ("none", *scene.matched_methods)))
+        names += ["matched"] if _combines(scene) else []
         return tuple(dict.fromkeys(names + [m for m in EXTRA_METHODS if _buildable(m, scene)]))
-    names = list(PAPER_METHODS) + [m for s in SCENES.values() for m in s.matched_methods] + list(EXTRA_METHODS)
+    names = list(PAPER_METHODS) + [m for s in SCENES.values() for m in s.matched_methods] + ["matched"]
+    names += list(EXTRA_METHODS)
     usable = []
     for name in dict.fromkeys(names):
         if name in ("independent", "hybrid") and scene.name != "paper" and len(scene.gaps) < 2:
             continue  # with one effect or none, the combinations are the matched method or a copy
+        if name == "matched" and not _combines(scene):
+            continue
         if _buildable(name, scene):
             usable.append(name)
     return tuple(usable)

@@ -175,10 +175,22 @@ def format_summary_table(results: dict[str, Any]) -> str:
             method = cells["method"].removesuffix(" (matched)")
             verdict = "—"
             if check and method == check["method"]:
-                verdict = f"{'robust' if check['robust'] else 'not robust'}: Δ {check['delta_2n']:+.2f} at {check['steps_2n']} steps"
+                word = budget_word(check)
+                ci = check.get("ci95_2n") if word == "resolved at 2×" else None
+                interval = f" [{ci[0]:+.2f}, {ci[1]:+.2f}]" if ci else ""
+                verdict = f"{word}: Δ {check['delta_2n']:+.2f}{interval} at {check['steps_2n']} steps"
             values = {**cells, "scene": name, "budget check (headline)": verdict}
             rows.append("| " + " | ".join(values[c] for c in SUMMARY_COLUMNS) + " |")
     return "\n".join(rows)
+
+
+def budget_word(check: dict[str, Any]) -> str:
+    """The budget check's verdict: ``"robust"``, ``"not robust"``, ``"resolved at 2×"`` (the
+    headline's models had not converged at the run's steps and the twice-as-long run resolves it)
+    or ``"unresolved"`` (the headline is not resolved: there is no verdict to re-check)."""
+    if check.get("robust") is None:
+        return "resolved at 2×" if check.get("resolved_2n") else "unresolved"
+    return "robust" if check["robust"] else "not robust"
 
 
 def format_budget_check(check: dict[str, Any] | None) -> str:
@@ -192,8 +204,11 @@ def format_budget_check(check: dict[str, Any] | None) -> str:
     """
     if not check:
         return "budget check: not run (no gap, or no matched method beside none)"
-    verdict = ("robust (same sign, moved less than the Bonferroni half-width)" if check["robust"]
-               else "not robust (the verdict moves with the budget)")
+    verdict = {"robust": "robust (same sign, moved less than the Bonferroni half-width)",
+               "not robust": "not robust (the verdict moves with the budget)",
+               "resolved at 2×": "resolved at twice the steps (its models had not converged at the run's steps; "
+                                 "both converged at twice as many, and the paired 95 % interval excludes 0)",
+               "unresolved": "not judged (the headline is not resolved at the run's steps)"}[budget_word(check)]
     half = check.get("ci_family_halfwidth", check.get("ci95_halfwidth", math.nan))
     return (f"budget check of the headline: {check['method']} Δ {check['delta']:+.2f} at {check['steps']} steps, "
             f"{check['delta_2n']:+.2f} at {check['steps_2n']} (Bonferroni half-width {half:.2f}): {verdict}")
@@ -337,12 +352,12 @@ class Verdict:
 
     Attributes:
         mean: the Δ as printed (N²).
-        significant: its family-wise interval excludes 0 and the Δ replicates in both blocks
-            of seeds (the cell is bold).
-        borderline: the interval excludes 0 but the Δ does not replicate in both blocks (the
+        significant: its family-wise interval excludes 0 and the Δ's direction holds in both
+            blocks of seeds (the cell is bold).
+        borderline: the interval excludes 0 but one block of seeds points the other way (the
             cell says "(borderline)"; not significant).
         label: the word of a cell that is no interval (the budget check: ``"robust"`` /
-            ``"not robust"``, ``significant`` meaning robust).
+            ``"not robust"`` / ``"unresolved"``, ``significant`` meaning robust).
     """
 
     mean: float
@@ -358,7 +373,7 @@ class Verdict:
     @property
     def word(self) -> str:
         """``"better"`` / ``"worse"`` when significant, else ``"unresolved"`` (``"borderline"``
-        where the interval excluded 0 without replicating in both blocks of seeds); a cell
+        where the interval excluded 0 but one block of seeds pointed the other way); a cell
         that is no interval says its ``label``."""
         if self.label is not None:
             return self.label
@@ -374,7 +389,8 @@ VERDICT_COLUMNS = {"Δ vs none [Bonferroni 95 % CI]": "vs none", "Δ vs matched 
 BUDGET_COLUMN, BUDGET_SHORT = "budget check (headline)", "budget check"
 EQUAL_COST_COLUMNS = ("Δ vs none at equal cost [Bonferroni 95 % CI]", "Δ vs none at equal time [Bonferroni 95 % CI]")
 EQUAL_COST_SHORT = "at equal cost"
-_BUDGET_CELL = re.compile(r"^(?P<word>robust|not robust): Δ (?P<mean>[+-]?\d+\.\d+) at \d+ steps$")
+_BUDGET_CELL = re.compile(r"^(?P<word>robust|not robust|unresolved|resolved at 2×): Δ (?P<mean>[+-]?\d+\.\d+)"
+                          r"(?: \[[+-]?\d+\.\d+, [+-]?\d+\.\d+\])? at \d+ steps$")
 _CELL = re.compile(r"^(?:(?P<ref>[^:\[\]*]+): )?(?P<bold>\*\*)?(?P<mean>[+-]?\d+\.\d+) "
                    r"\[[+-]?\d+\.\d+, [+-]?\d+\.\d+\](?P=bold)?(?: \((?P<note>not converged|borderline)\))?$")
 
@@ -428,7 +444,7 @@ def summary_verdicts(text: str) -> dict[tuple[str, str, str], Verdict]:
         budget = _BUDGET_CELL.match(row.get(BUDGET_COLUMN, row.get("budget check", "—")))
         if budget is not None:
             verdicts[(row["scene"], method, BUDGET_SHORT)] = Verdict(
-                float(budget["mean"]), budget["word"] == "robust", label=budget["word"])
+                float(budget["mean"]), budget["word"] in ("robust", "resolved at 2×"), label=budget["word"])
     return verdicts
 
 

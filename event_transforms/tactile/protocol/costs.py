@@ -182,7 +182,7 @@ def cost_curve(methods: Mapping[str, Any], none_at: Mapping[float, Mapping[str, 
         >>> sorted(curve["fs1"]), round(curve["fs1"]["2.0"]["mean"], 2)
         (['1.0', '2.0'], -0.47)
     """
-    from ..stats import paired_delta
+    from ..stats import family_prior, paired_delta
 
     family = [m for m, s in methods.items() if m != "none" and not s.get("duplicate_of")]
     out: dict[str, dict[str, Any]] = {m: {} for m in family}
@@ -190,8 +190,9 @@ def cost_curve(methods: Mapping[str, Any], none_at: Mapping[float, Mapping[str, 
     for ratio, none in sorted(points.items()):
         if none is None:
             continue
+        prior = family_prior(dict(none), {m: dict(methods[m]) for m in family}, "test_mse")
         for method in family:
-            delta = paired_delta(dict(none), dict(methods[method]), "test_mse", len(family))
+            delta = paired_delta(dict(none), dict(methods[method]), "test_mse", len(family), prior)
             if delta is not None:
                 out[method][f"{ratio:.1f}"] = delta
     return out

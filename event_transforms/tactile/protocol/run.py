@@ -29,7 +29,10 @@ from ..resampling import split_resample
 from ..report import format_report
 from ..runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
 from ..scenes import SCENES
-from ..stats import deltas_vs_none, paired_t, still_falling, summarize_scene
+from ..stats import (
+    behind_unconverged, converged, deltas_vs_none, holdout_drop, paired_t, replicated, seed_blocks, significant,
+    summarize_scene,
+)
 from .config import ProtocolConfig
 from .environment import environment, git_commit
 from .plan import Unit, choose_methods, plan_run, work_units
@@ -209,18 +212,29 @@ def headline(scene: str, chosen: Mapping[str, Sequence[str]], data: Mapping[str,
 
 
 def _budget_check(method: str, steps: int, delta: dict[str, Any], runs_2n: dict[str, list]) -> dict[str, Any]:
-    """The headline's Δ at ``steps`` and at twice the steps; robust when the sign agrees and the
-    change is smaller than the half-width of its Bonferroni interval at ``steps`` (the interval
-    the table shows)."""
+    """The headline's Δ at ``steps`` and at twice the steps. A headline resolved at ``steps`` is
+    robust when the sign agrees at twice the steps and the change is smaller than the half-width
+    of its Bonferroni interval at ``steps`` (the interval the table shows). A headline that is not
+    resolved at ``steps`` is not judged (``robust`` is ``None``); if its models had not converged
+    there, the twice-as-long run answers instead (``resolved_2n``: both ensembles converged, its
+    paired 95 % interval, a pre-declared family of one, excludes 0 and the direction holds in each
+    block of seeds): more steps is what an unconverged verdict lacked."""
     none = {r["seed"]: r["test_mse"] for r in runs_2n["none"]}
     pairs = [(none[r["seed"]], r["test_mse"]) for r in runs_2n[method] if r["seed"] in none]
-    test = paired_t([a for a, _ in pairs], [b for _, b in pairs])
+    first, second = [a for a, _ in pairs], [b for _, b in pairs]
+    test = paired_t(first, second)
     ci = delta.get("ci_family") or delta.get("ci95")
     half = (ci[1] - ci[0]) / 2 if ci else math.nan
-    robust = bool(ci) and (delta["mean"] > 0) == (test.mean > 0) and abs(delta["mean"] - test.mean) < half
+    robust: bool | None = None
+    if significant(delta):
+        robust = bool(ci) and (delta["mean"] > 0) == (test.mean > 0) and abs(delta["mean"] - test.mean) < half
+    converged_2n = all(converged(holdout_drop([r.get("holdout_history") for r in runs_2n[m]], 2 * steps))
+                       for m in ("none", method))
+    resolved_2n = bool(delta.get("not_converged") and converged_2n and test.ci is not None
+                       and (test.ci[1] < 0 or test.ci[0] > 0) and replicated(test.mean, seed_blocks(first, second)))
     return {"method": method, "steps": steps, "steps_2n": 2 * steps, "delta": delta["mean"],
             "delta_2n": test.mean, "ci95_2n": list(test.ci) if test.ci else None, "ci_family_halfwidth": half,
-            "robust": robust}
+            "robust": robust, "converged_2n": converged_2n, "resolved_2n": resolved_2n}
 
 
 def _attach_equal_time(summary: dict[str, Any], steps_of: dict[str, int], runs: dict[str, list],
@@ -239,10 +253,10 @@ def _attach_equal_time(summary: dict[str, Any], steps_of: dict[str, int], runs: 
     deltas = deltas_vs_none(table, "test_mse")
     for method, n in steps_of.items():
         records = runs.get(method, []) if n < steps else []
-        falling = statistics.fmean(1.0 if still_falling(r.get("holdout_history"), r["steps"]) else 0.0
-                                   for r in records) if records else 1.0 - float(methods[method].get("converged", True))
+        done = (converged(holdout_drop([r.get("holdout_history") for r in records], n)) if records
+                else bool(methods[method].get("converged", True)))
         delta = deltas.get(method)
-        if delta is not None and (falling > 0.5 or not none.get("converged", True)):
+        if delta is not None and behind_unconverged(delta["mean"], none.get("converged", True), done):
             delta["not_converged"], delta["significant"] = True, False  # no resolved verdict from unconverged models
         methods[method]["equal_time"] = {"steps": n, "test_mse": table[method]["test_mse"],
                                          "delta_vs_none": delta}
@@ -439,14 +453,26 @@ def run_protocol(
                 s_["online_wall_s"] = wall["median"] + (cost or 0.0) * epochs_of(s_)
         if curve_results:
             none_at: dict[float, Any] = {}
+            none_runs: dict[float, list[dict[str, Any]]] = {}
             for ratio, (curve_units, done) in curve_results.items():
                 if done is not None:
-                    none_at[ratio] = _seed_values(_per_method(curve_units, done, scene, ("none",))["none"])
+                    none_runs[ratio] = _per_method(curve_units, done, scene, ("none",))["none"]
             if scene in budget_methods:
-                none_at[2.0] = _seed_values(_per_method(budget_units, budget_results, scene, ("none",))["none"])
+                none_runs[2.0] = _per_method(budget_units, budget_results, scene, ("none",))["none"]
+            none_at = {ratio: _seed_values(records) for ratio, records in none_runs.items()}
+            curve = cost_curve(summary["methods"], none_at)
+            for ratio, records in none_runs.items():  # no resolved verdict from unconverged models
+                if not records:
+                    continue
+                none_done = converged(holdout_drop([r.get("holdout_history") for r in records], records[0]["steps"]))
+                for method, points in curve.items():
+                    point = points.get(f"{ratio:.1f}")
+                    if point is not None and behind_unconverged(
+                            point["mean"], none_done, summary["methods"][method].get("converged", True)):
+                        point["not_converged"], point["significant"] = True, False
             summary["cost_curve"] = {"ratios": [1.0, *sorted(none_at)],
                                      "steps": {f"{r:.1f}": round(r * config.steps) for r in [1.0, *sorted(none_at)]},
-                                     "methods": cost_curve(summary["methods"], none_at)}
+                                     "methods": curve}
         if scene in choices:
             method = choices[scene]
             summary["budget_check"] = _budget_check(
