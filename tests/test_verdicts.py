@@ -184,7 +184,7 @@ def test_command_runs_as_a_module():
 
 
 class TestBorderline:
-    """Issue 33 item 5: a verdict is resolved only when it replicates in both blocks of seeds."""
+    """Issue 33 item 5: a verdict is resolved only when its direction holds in both blocks of seeds."""
 
     def test_blocks_against_a_hand_computed_paired_t(self):
         from event_transforms.tactile.stats import paired_t, seed_blocks
@@ -342,3 +342,21 @@ class TestBudgetCheck:
         # an unresolved (converged) headline is not judged
         flat = _budget_check("fs2", 300, self._delta(-0.1, -0.5, 0.3, significant=False), runs)
         assert flat["robust"] is None and not flat["resolved_2n"] and budget_word(flat) == "unresolved"
+
+
+class TestTheQuickRunUnderTheDefaultKernels:
+    """Issue 33 item 5, measured: the README's run and the same run under
+    ``ATEN_CPU_CAPABILITY=default`` (both committed). What the results page says of them."""
+
+    DEFAULT_RUN = ROOT / "benchmarks" / "reproduce_quick_kernel_default.md"
+
+    def test_the_pair_as_the_results_page_states_it(self):
+        from event_transforms.tactile.report import run_verdicts
+
+        here, there = run_verdicts(README_RUN.read_text()), run_verdicts(self.DEFAULT_RUN.read_text())
+        outcome = compare_verdicts(here, there)
+        assert outcome["reversed"] == [] and len(outcome["same"]) == 79 and len(outcome["significance"]) == 5
+        resolved = [k for k, v in here.items() if v.significant]
+        lost = [k for k in resolved if not (there[k].significant and there[k].sign == here[k].sign)]
+        assert len(resolved) == 32
+        assert lost == [("paper-offset", "prior", "vs matched")]
