@@ -203,31 +203,36 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
     return Method(name, make, copies)
 
 
+def _matched_policy(scene: BenchmarkScene, bank: torch.Tensor | None) -> nn.Module:
+    """The scene's declared gaps, each closed by its matched augmentation with the physics' size
+    transform (``stretch``), one per copy."""
+    return scene.library_scene(bank, size_transform="stretch").policy("independent")
+
+
 def _matched(name: str, scene: BenchmarkScene, copies: int) -> Method:
-    """``matched``: the scene's declared gaps, each closed by its matched augmentation with the
-    physics' size transform (``stretch``), one per copy; refused where no gap is declared."""
+    """``matched`` (:func:`_matched_policy`); refused on recordings and where no gap is declared."""
     if getattr(scene, "inferred", None) is not None:
         raise ValueError(f"method {name!r} needs a simulated scene whose gaps are known; scene {scene.name!r} is "
                          "made of recordings, whose gaps are only inferred: use 'inferred'")
     if not scene.gaps:
         raise ValueError(f"method {name!r} simulates a scene's gaps; scene {scene.name!r} has none")
     needs_bank = "noise" in scene.gaps
-    if not scene.library_scene(torch.zeros(1, 2, 1, 1) if needs_bank else None,
-                               size_transform="stretch").policy("independent").transforms:
+    if not _matched_effects(scene):
         raise ValueError(f"method {name!r}: scene {scene.name!r}'s gaps ({', '.join(scene.gaps)}) have no matched "
                          "augmentation")
-    return Method(name, lambda bank: scene.library_scene(bank, size_transform="stretch").policy("independent"),
-                  copies, needs_noise_bank=needs_bank)
+    return Method(name, lambda bank: _matched_policy(scene, bank), copies, needs_noise_bank=needs_bank)
+
+
+def _matched_effects(scene: BenchmarkScene) -> int:
+    """How many matched augmentations ``matched`` combines on ``scene`` (a placeholder bank
+    stands in for the noise bank: only the policy's structure is read)."""
+    bank = torch.zeros(1, 2, 1, 1) if "noise" in scene.gaps else None
+    return len(getattr(_matched_policy(scene, bank), "transforms", ()))
 
 
 def _combines(scene: BenchmarkScene) -> bool:
     """Whether ``matched`` combines two matched augmentations or more on ``scene``."""
-    try:
-        method = _matched("matched", scene, 1)
-    except ValueError:
-        return False
-    policy = method.build(torch.zeros(1, 2, 1, 1) if method.needs_noise_bank else None)
-    return policy is not None and len(getattr(policy, "transforms", ())) >= 2
+    return getattr(scene, "inferred", None) is None and bool(scene.gaps) and _matched_effects(scene) >= 2
 
 
 #: Quick mode's methods of the scenes without a paper list: none and the matched ones;

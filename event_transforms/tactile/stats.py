@@ -57,6 +57,7 @@ __all__ = [
     "still_falling",
     "holdout_drop",
     "converged",
+    "ensemble_drop",
     "behind_unconverged",
     "digamma",
     "trigamma",
@@ -464,8 +465,27 @@ def holdout_drop(histories: Sequence[dict[str, Any] | None], steps: int) -> floa
 
 
 def converged(drop: float | None, *, tolerance: float = STILL_FALLING) -> bool:
-    """Whether an ensemble with this :func:`holdout_drop` had converged (``None``: not judged)."""
+    """Whether an ensemble with this :func:`holdout_drop` had converged (``None``: not judged).
+
+    Example:
+        >>> converged(0.03), converged(0.12), converged(None)
+        (True, False, True)
+    """
     return drop is None or drop <= tolerance
+
+
+def ensemble_drop(runs: Sequence[dict[str, Any]]) -> float | None:
+    """:func:`holdout_drop` of one ensemble's member records (``holdout_history``, ``steps``);
+    ``None`` for no records.
+
+    Example:
+        >>> runs = [{"steps": 400, "holdout_history": {"steps": [100, 200, 300, 400], "mse": [4.0, 3.0, 3.0, 2.7]}}]
+        >>> round(ensemble_drop(runs), 3), converged(ensemble_drop(runs)), ensemble_drop([])
+        (0.1, False, None)
+    """
+    if not runs:
+        return None
+    return holdout_drop([r.get("holdout_history") for r in runs], runs[0]["steps"])
 
 
 def behind_unconverged(mean: float, reference_converged: bool, method_converged: bool) -> bool:
@@ -624,7 +644,16 @@ def paired_delta(reference: dict[str, Any], method: dict[str, Any], key: str, fa
 
 def family_prior(reference: dict[str, Any], methods: dict[str, Any], key: str) -> dict[str, float] | None:
     """:func:`variance_prior` of the paired Δ (each method − ``reference``, by seed) of
-    ``methods``: the rows with the most common number of pairs, at least 2 pairs each."""
+    ``methods``: the rows with the most common number of pairs, at least 2 pairs each
+    (``None`` without two such rows).
+
+    Example:
+        >>> none = {"seeds": [0, 1, 2, 3], "x": [2.0, 2.2, 2.1, 2.3]}
+        >>> rows = {"a": {"seeds": [0, 1, 2, 3], "x": [1.0, 1.3, 1.1, 1.2]},
+        ...         "b": {"seeds": [0, 1, 2, 3], "x": [2.5, 2.6, 2.2, 2.9]}}
+        >>> family_prior(none, rows, "x")["rows"], family_prior(none, {"a": rows["a"]}, "x")
+        (2, None)
+    """
     base = dict(zip(reference["seeds"], reference[key]))
     rows: list[list[float]] = []
     for method in methods.values():
@@ -643,23 +672,21 @@ def mean_sd(values: Sequence[float]) -> tuple[float, float]:
     return statistics.fmean(values), (statistics.stdev(values) if len(values) > 1 else math.nan)
 
 
-def deltas_vs_none(methods: dict[str, Any], key: str, *, exclude: Sequence[str] = (),
-                   prior: dict[str, float] | None = None) -> dict[str, dict[str, Any]]:
+def deltas_vs_none(methods: dict[str, Any], key: str, *, exclude: Sequence[str] = ()) -> dict[str, dict[str, Any]]:
     """Δ of ``key`` vs ``none`` for every other method not in ``exclude`` (one family),
     paired seed by seed (:func:`paired_delta`): the moderated paired t-interval unadjusted
     and family-wise, the t and exact Wilcoxon p-values, raw, Holm-corrected and Bonferroni
     (``*_family``), the family's Wilcoxon floor; beside them the unpaired (Welch) interval
     and the correlation of the per-seed values, which say what the pairing bought.
 
-    The variances are moderated with ``prior``, by default the family's own
-    (:func:`family_prior`). ``methods`` maps a name to ``{"seeds": [...], key: [...]}``.
+    The variances are moderated with the family's own prior (:func:`family_prior`; every Δ
+    keeps it as ``variance_prior``). ``methods`` maps a name to ``{"seeds": [...], key: [...]}``.
     """
     reference = methods.get("none")
     if reference is None:
         return {}
     family = [name for name in methods if name != "none" and name not in exclude]
-    if prior is None:
-        prior = family_prior(reference, {name: methods[name] for name in family}, key)
+    prior = family_prior(reference, {name: methods[name] for name in family}, key)
     out = {}
     for name in family:
         delta = paired_delta(reference, methods[name], key, len(family), prior)
@@ -707,7 +734,7 @@ def summarize_scene(
             "still_falling": statistics.fmean(1.0 if still_falling(r.get("holdout_history"), r["steps"]) else 0.0
                                               for r in runs),
             # the ensemble's mean hold-out curve: its fall in the last quarter (the convergence rule)
-            "holdout_drop": holdout_drop([r.get("holdout_history") for r in runs], runs[0]["steps"]),
+            "holdout_drop": ensemble_drop(runs),
             "steps": runs[0]["steps"],
             "copies": runs[0]["copies"],
             "train_items": runs[0]["train_items"],
@@ -726,11 +753,8 @@ def summarize_scene(
     done = {name: converged(m["holdout_drop"]) for name, m in methods.items()}
     for name in methods:
         methods[name]["converged"] = done[name]
-    priors: dict[str, dict[str, float] | None] = {}
     for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
-        family = {n: m for n, m in methods.items() if n != "none" and n not in dupes}
-        priors[key] = family_prior(methods["none"], family, key) if "none" in methods else None
-        for name, delta in deltas_vs_none(methods, key, exclude=tuple(dupes), prior=priors[key]).items():
+        for name, delta in deltas_vs_none(methods, key, exclude=tuple(dupes)).items():
             if behind_unconverged(delta["mean"], done.get("none", True), done[name]):  # more steps could close it
                 delta["not_converged"] = True
                 delta["significant"] = False
@@ -759,7 +783,5 @@ def summarize_scene(
         "matched_methods": list(scene.matched_methods),
         "split_sizes": dict(split_sizes),
         "baselines": baselines,
-        # the variance prior of the scene's Δ vs none on test MSE (each family has its own)
-        "variance_prior": priors.get("test_mse"),
         "methods": methods,
     }

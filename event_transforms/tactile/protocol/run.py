@@ -30,7 +30,7 @@ from ..report import format_report
 from ..runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
 from ..scenes import SCENES
 from ..stats import (
-    behind_unconverged, converged, deltas_vs_none, holdout_drop, paired_t, replicated, seed_blocks, significant,
+    behind_unconverged, converged, deltas_vs_none, ensemble_drop, paired_t, replicated, seed_blocks, significant,
     summarize_scene,
 )
 from .config import ProtocolConfig
@@ -228,8 +228,7 @@ def _budget_check(method: str, steps: int, delta: dict[str, Any], runs_2n: dict[
     robust: bool | None = None
     if significant(delta):
         robust = bool(ci) and (delta["mean"] > 0) == (test.mean > 0) and abs(delta["mean"] - test.mean) < half
-    converged_2n = all(converged(holdout_drop([r.get("holdout_history") for r in runs_2n[m]], 2 * steps))
-                       for m in ("none", method))
+    converged_2n = all(converged(ensemble_drop(runs_2n[m])) for m in ("none", method))
     resolved_2n = bool(delta.get("not_converged") and converged_2n and test.ci is not None
                        and (test.ci[1] < 0 or test.ci[0] > 0) and replicated(test.mean, seed_blocks(first, second)))
     return {"method": method, "steps": steps, "steps_2n": 2 * steps, "delta": delta["mean"],
@@ -253,8 +252,7 @@ def _attach_equal_time(summary: dict[str, Any], steps_of: dict[str, int], runs: 
     deltas = deltas_vs_none(table, "test_mse")
     for method, n in steps_of.items():
         records = runs.get(method, []) if n < steps else []
-        done = (converged(holdout_drop([r.get("holdout_history") for r in records], n)) if records
-                else bool(methods[method].get("converged", True)))
+        done = converged(ensemble_drop(records)) if records else bool(methods[method].get("converged", True))
         delta = deltas.get(method)
         if delta is not None and behind_unconverged(delta["mean"], none.get("converged", True), done):
             delta["not_converged"], delta["significant"] = True, False  # no resolved verdict from unconverged models
@@ -462,9 +460,7 @@ def run_protocol(
             none_at = {ratio: _seed_values(records) for ratio, records in none_runs.items()}
             curve = cost_curve(summary["methods"], none_at)
             for ratio, records in none_runs.items():  # no resolved verdict from unconverged models
-                if not records:
-                    continue
-                none_done = converged(holdout_drop([r.get("holdout_history") for r in records], records[0]["steps"]))
+                none_done = converged(ensemble_drop(records))
                 for method, points in curve.items():
                     point = points.get(f"{ratio:.1f}")
                     if point is not None and behind_unconverged(
