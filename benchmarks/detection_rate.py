@@ -10,7 +10,7 @@ factor. Blocks share seeds across points (common random numbers), so the points 
 only in the changed setting. The ``none`` point measures false gaps.
 
 The ``labelled k/side`` columns run the timing test again from the lags of the first k
-grasps of each side measured against their force labels (:mod:`event_transforms.lags`).
+grasps of each side measured against their force labels (:mod:`event_transforms.tactile.lags`).
 
 Run: ``python benchmarks/detection_rate.py`` (20 blocks; ``--quick``: 2 blocks of 12 + 6).
 """
@@ -31,6 +31,7 @@ else:  # run as a script
     )
 
 from event_transforms.inference import infer_scene
+from event_transforms.tactile.lags import infer_scene_with_lags
 from event_transforms.tactile.scenes import BASE_SESSION
 from event_transforms.tactile.simulation import simulate_grasps
 
@@ -73,9 +74,9 @@ def run(blocks: int = 20, n_train: int = 48, n_deploy: int = 24) -> dict[str, di
             if factor in (None, "timing"):  # the timing test from k labelled recordings a side
                 for k in LABELLED:
                     if k <= min(n_train, n_deploy):
-                        labelled = infer_scene(train, deploy, frame_ms=train_session.config.frame_ms,
-                                               labelled_train=(train[:k], train_force[:k]),
-                                               labelled_deploy=(deploy[:k], deploy_force[:k]))
+                        labelled = infer_scene_with_lags(train, deploy, frame_ms=train_session.config.frame_ms,
+                                                         labelled_train=(train[:k], train_force[:k]),
+                                                         labelled_deploy=(deploy[:k], deploy_force[:k]))
                         out[name]["labelled"][k].append(
                             (labelled.lag_shifts[0] if labelled.lag_shifts else 0, "timing" in labelled.gaps))
             scene = infer_scene(train, deploy, frame_ms=train_session.config.frame_ms)

@@ -13,9 +13,6 @@ The library:
 - :mod:`event_transforms.data`: :class:`AugmentedDataset`, synthetic copies of any data set;
 - :mod:`event_transforms.viz`: pictures of event frames.
 
-The tactile application built on it (simulator, data sets, reference model, training,
-protocol, command line) lives in :mod:`event_transforms.tactile`.
-
 Names are imported on first use (PEP 562), so ``import event_transforms`` costs little
 and the command line answers ``--help`` without importing torch.
 """
@@ -42,13 +39,13 @@ _NAMES: dict[str, str] = {
     "compiled_kernels": "_compile",
     "compiled_kernels_enabled": "_compile",
 }
-_SUBMODULES = ("functional", "events", "transforms", "scenes", "inference", "data", "viz", "tactile")
+_SUBMODULES = ("functional", "events", "transforms", "scenes", "inference", "data", "viz")
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     # the `as` aliases mark these as re-exports (__all__ is computed, so linters cannot see it)
     from . import data as data, functional as functional, inference as inference, scenes as scenes
-    from . import tactile as tactile, transforms as transforms, viz as viz
+    from . import transforms as transforms, viz as viz
     from .data import AugmentedDataset as AugmentedDataset
     from .events import EventBatch as EventBatch, collate_events as collate_events, count_dropped as count_dropped
     from ._compile import compiled_kernels as compiled_kernels, compiled_kernels_enabled as compiled_kernels_enabled

@@ -3,7 +3,7 @@
 A user of the library rarely knows the numbers a :class:`~event_transforms.Scene` asks for:
 how much later the deployment camera's events come, how far the contact turns, how noisy
 the new camera is. They do have training recordings and recordings from the deployment
-setup without force labels (the force sensor is what they want to replace). Each physical
+setup without labels (the sensor that gives the labels is what they want to replace). Each physical
 factor leaves a trace in the frames that needs no label:
 
 ==============  =====================================================  =====================
@@ -20,7 +20,7 @@ noise           background rate: events per pixel and frame in the     the deplo
                 in every one of those frames                           noise bank
 size            contact half-width: twice the contact pixels' median   stretch to the
                 distance across the axis (reported); the gap itself    deployment size
-                comes from the bolt sizes the user gives (below)
+                comes from the object sizes the user gives (below)
 ==============  =====================================================  =====================
 
 Each estimate is a distribution over sequences; the gap test compares training and
@@ -43,35 +43,26 @@ with L = ``z_gap`` × the standard error. Measured on the package's simulator wi
 training and 24 deployment recordings (``benchmarks/detection_rate.py``, RESULTS.md
 "infer_scene detection rate"): under the benchmark's 60 ms start jitter the onset's
 standard error is 5–6 ms per side, so a timing gap under about 17 ms (under two 10 ms
-frames) is not resolvable — one-frame clock offsets and membrane lags go undetected —
+frames) is not resolvable — one-frame clock offsets and short lags go undetected —
 while a 20 ms delay is found in most blocks; orientation, background-rate and hot-pixel
 gaps of the sizes in RESULTS.md are found reliably, and no gap was declared where none
 existed.
 
-**Labelled recordings.** Recordings with force labels (the deployment's validation
-recordings, say) show the timing gap directly: :func:`~event_transforms.lags.recording_lags`
-fits each recording's OFF − ON events per frame to the change of √F of a delayed,
-first-order membrane, and its lag is the delay plus the time constant. Given labelled
-recordings of both sessions (``labelled_train``, ``labelled_deploy``), the timing test
-compares the sessions' median lags (standard error 1.2533 × 1.4826 MAD / √n per side):
-a timing gap where ``|z| > z_gap`` and the difference is at least 3 ms, a frame shift by
-the rounded difference in frames (TES under half a frame). The unlabeled onset test stays
-in ``evidence["timing"]["onset"]``. With fewer than 2 labelled recordings with a lag on a
-side (or a zero standard error from fewer than ``MIN_WINDOWS``), the onset test decides and
-the verdict says the lags were not resolvable. Measured on the simulator (48 training and
-24 deployment validation grasps, ``benchmarks/detection_rate.py``): per-recording lags
-within about 2 ms sd of the drawn delay + τ; ``paper-offset`` −14.2 ms (true −13.7, so
-FS-1), ``paper-membrane`` +10.7 (true +9.2, FS1), ``timing`` +17.4 (true +16.7, FS2),
-``paper`` −0.02 (no gap).
+**Timing measured another way.** An application with more than frames (force labels, say)
+can measure the timing gap directly and pass its test as ``timing=``: a mapping with the keys
+:func:`difference_test` returns (``train``, ``deploy``, ``difference``, ``se``, ``z``,
+``resolvable``, ``gap``), a ``statistic`` and a ``source`` naming what it read, and a
+``verdict`` sentence for when it is not resolvable. A resolvable test replaces the onset test,
+which stays in ``evidence["timing"]["onset"]``; an unresolvable one is kept under
+``evidence["timing"]["alternative"]`` and the onset test decides. The tactile application's
+:func:`event_transforms.tactile.lags.infer_scene_with_lags` builds it from labelled recordings
+(lags of events against force).
 
-**Why the onset reads +4.5 ms on scenes without a delay.** The onset is when the grasp
-*starts* plus the lag: the 60 ms start jitter (sd 17 ms) enters it whole. The benchmark's
-24 validation grasps happen to start 5.1 ms later on average than its 48 training grasps
-(32.1 vs 27.1 ms; the standard error of that difference is about 4 ms), and every scene
-without a timing gap draws the same grasps, so the onset difference is +4.5 ms on each.
-The estimator itself is not biased (onset − start: 5.8 ms training, 5.2 ms validation).
-The lag from labelled recordings measures the events against their own force, so the start
-cancels (its difference on those scenes: −0.4 to 0.0 ms).
+**A start jitter enters the onset whole.** The onset is when a recording *starts* plus its
+lag, so two sessions whose recordings happen to start at different times on average differ in
+onset without any delay: on the tactile application's simulated sessions (60 ms start jitter)
+that reads +4.5 ms on every scene without a timing gap, inside the standard error. A timing
+test that measures events against labels cancels the start.
 
 **Small samples.** A test with fewer than 2 windows on a side, or whose standard error is 0
 (every value alike) with fewer than ``MIN_WINDOWS`` windows on a side, cannot declare
@@ -79,29 +70,27 @@ anything: its verdict is "not resolvable" with what would resolve it, never "gap
 standard error made any difference infinitely significant) nor "no gap". Below ``MIN_WINDOWS`` (8) windows on a side, :func:`infer_scene` warns
 (:class:`SmallSampleWarning`): the standard errors are then themselves unreliable.
 
-**Size is not identifiable from unlabeled frames.** The strip's half-width grows as √(F·D)
-(Hertz line contact): without force labels, a bolt of another size hides in the force
-distribution (with forces over 1–24 N, a 12 + 18 mm mixture and a 15 mm set differ mostly in
-the variance of log-width, by a few per cent). The user knows the bolt sizes; give them as
-``train_sizes`` and ``deploy_sizes`` and a size gap is declared from them, stretched by
-(D₂/D₁)^½. The width ratio is reported, never used to declare a gap.
+**Size is not identifiable from unlabeled frames.** Where the contact's width grows with both
+the load and the object's size, a larger object hides in the load distribution: the frames
+alone cannot tell them apart. The user knows the object sizes; give them as ``train_sizes``
+and ``deploy_sizes`` and a size gap is declared from them, stretched by (D₂/D₁)^½. The width
+ratio is reported, never used to declare a gap.
 """
 
 from __future__ import annotations
 
-__all__ = ["infer_scene", "sequence_statistics", "FACTOR_TESTS", "MIN_WINDOWS", "SmallSampleWarning"]
+__all__ = ["infer_scene", "sequence_statistics", "difference_test", "FACTOR_TESTS", "MIN_WINDOWS", "SmallSampleWarning"]
 
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import torch
 from torch import Tensor
 
 from ._validation import check_frames, describe
-from .functional.stretch import _axis_radians
-from .lags import as_labelled, recording_lags, session_lag
+from .functional._warp import axis_radians
 from .scenes import Scene
 
 #: The gap test of each frame-based factor: (statistic, smallest difference that matters).
@@ -213,7 +202,7 @@ def sequence_statistics(frames: Tensor, *, frame_ms: float = 10.0) -> dict[str, 
     c_xx = (weight * dx * dx).sum((1, 2)) / mass
     c_xy = (weight * dx * dy).sum((1, 2)) / mass
     covariance = torch.stack([c_yy, c_xx, c_xy], 1)
-    angle = torch.rad2deg(_axis_radians(covariance)) + 0.0  # no -0.0
+    angle = torch.rad2deg(axis_radians(covariance)) + 0.0  # no -0.0
     # width and length: twice the weighted median distance from the strip's median line,
     # across and along the axis (a uniform strip of half-width b gives b); medians, not
     # second moments, so that scattered background pixels cannot own them
@@ -227,7 +216,7 @@ def sequence_statistics(frames: Tensor, *, frame_ms: float = 10.0) -> dict[str, 
     length = 2 * _weighted_median((along.reshape(n, -1) - _weighted_median(along.reshape(n, -1), flat).unsqueeze(1)).abs(), flat)
     # timing: the contact pixels' event rate (background removed) first reaches a fraction
     # of its peak, interpolated between frame centres (the release is no reference: a slow
-    # membrane's release runs past the end of the recording)
+    # contact's release runs past the end of the recording)
     contact = (weight > 0).double()  # (N, H, W)
     rate = (torch.einsum("nthw,nhw->nt", counts.sum(2), contact) - (background * contact.sum((1, 2))).view(n, 1))
     rate = rate.clamp_min(0)
@@ -246,7 +235,7 @@ def sequence_statistics(frames: Tensor, *, frame_ms: float = 10.0) -> dict[str, 
     }
 
 
-#: Share trimmed from each end for the location estimates (Yuen's trimmed mean): a grasp
+#: Share trimmed from each end for the location estimates (Yuen's trimmed mean): a contact
 #: too weak to rise above the background gives a wild onset or angle, and must not decide.
 _TRIM = 0.2
 
@@ -292,10 +281,31 @@ def _summary(values: Tensor) -> dict[str, float]:
     }
 
 
-def _difference_test(a: dict[str, Any], b: dict[str, Any], difference: float, se: float, min_effect: float,
-                     z_gap: float) -> dict[str, Any]:
-    """The two sessions' summaries ``a`` (training) and ``b`` (deployment), their difference, its
-    z and the verdict: a gap when resolvable, ``|z| > z_gap`` and ``|difference| >= min_effect``."""
+def difference_test(a: dict[str, Any], b: dict[str, Any], difference: float, se: float, min_effect: float,
+                    z_gap: float) -> dict[str, Any]:
+    """The gap test between two sessions' summaries, as every factor of :func:`infer_scene` runs it.
+
+    Args:
+        a, b: the training and deployment summaries; each needs ``n`` (how many windows or
+            recordings it summarises), the rest is reported as given.
+        difference: the deployment's location minus the training's.
+        se: the standard error of ``difference``.
+        min_effect: the smallest ``|difference|`` that matters.
+        z_gap: the ``|z|`` a difference must exceed.
+
+    Returns:
+        ``{"train": a, "deploy": b, "difference", "se", "z", "resolvable", "gap"}``: resolvable
+        when both sides hold at least 2 and the standard error is positive (or both hold at
+        least ``MIN_WINDOWS``); a gap when resolvable, ``|z| > z_gap`` and
+        ``|difference| >= min_effect``.
+
+    Example:
+        >>> test = difference_test({"n": 10}, {"n": 12}, 8.0, 2.0, 3.0, 3.0)
+        >>> test["z"], test["gap"]
+        (4.0, True)
+        >>> difference_test({"n": 1}, {"n": 12}, 8.0, 2.0, 3.0, 3.0)["resolvable"]
+        False
+    """
     # a zero standard error resolves nothing from a few windows (one window, or a handful that happen
     # to agree): no z, no gap; from MIN_WINDOWS a side, every window agreeing is evidence itself
     resolvable = a["n"] >= 2 and b["n"] >= 2 and (se > 0 or min(a["n"], b["n"]) >= MIN_WINDOWS)
@@ -314,7 +324,7 @@ def _difference_test(a: dict[str, Any], b: dict[str, Any], difference: float, se
 
 def _compare(train: Tensor, deploy: Tensor, min_effect: float, z_gap: float) -> dict[str, Any]:
     a, b = _summary(train), _summary(deploy)
-    return _difference_test(a, b, b["mean"] - a["mean"], math.sqrt(a["se"] ** 2 + b["se"] ** 2), min_effect, z_gap)
+    return difference_test(a, b, b["mean"] - a["mean"], math.sqrt(a["se"] ** 2 + b["se"] ** 2), min_effect, z_gap)
 
 
 def _verdicts(evidence: dict[str, Any], z_gap: float, n_deploy: int) -> dict[str, str]:
@@ -331,50 +341,13 @@ def _verdicts(evidence: dict[str, Any], z_gap: float, n_deploy: int) -> dict[str
         elif test["gap"]:
             out[factor] = "gap"
         elif limit > min_effect and abs(test["difference"]) < limit:
-            source = (f"{test['deploy']['n']} labelled" if test.get("source") == "labelled recordings"
-                      else f"{n_deploy} unlabeled")
-            out[factor] = (f"not resolvable from {source} recordings: a difference below "
+            source = (f"{test['deploy']['n']} {test['source']}" if "source" in test
+                      else f"{n_deploy} unlabeled recordings")
+            out[factor] = (f"not resolvable from {source}: a difference below "
                            f"{limit:.3g}{_UNITS[factor]} would not be seen (measured {test['difference']:+.3g})")
         else:
             out[factor] = "no gap"
     return out
-
-
-#: The smallest lag difference that matters (ms): the onset test's.
-_LAG_EFFECT = FACTOR_TESTS["timing"][1]
-
-
-def _lag_test(labelled_train: object, labelled_deploy: object, grid: tuple[int, ...], frame_ms: float,
-              max_lag_ms: float, z_gap: float) -> dict[str, Any]:
-    """The timing test from labelled recordings: per-recording lags, each session's median,
-    their difference and its z (see *Labelled recordings* in the module docstring)."""
-    sides = {}
-    for side, value in (("train", labelled_train), ("deploy", labelled_deploy)):
-        name = f"labelled_{side}"
-        frames, forces = as_labelled(value, name)
-        for i, f in enumerate(frames):
-            if tuple(f.shape[1:]) != tuple(grid):
-                raise ValueError(f"{name}: recording {i} has frames of (2, H, W) = {tuple(f.shape[1:])}, the "
-                                 f"unlabeled frames {tuple(grid)}; give one grid")
-        sides[side] = recording_lags((frames, forces), frame_ms=frame_ms, max_lag_ms=max_lag_ms)
-    a, b = session_lag(sides["train"]["lag_ms"]), session_lag(sides["deploy"]["lag_ms"])
-    for summary in (a, b):  # the location every test reports under "mean", and its spread under "std"
-        summary["mean"], summary["std"] = summary["median"], summary["spread"]
-    difference = b["median"] - a["median"]
-    se = math.sqrt(a["se"] ** 2 + b["se"] ** 2) if a["n"] and b["n"] else math.nan
-    test: dict[str, Any] = {
-        "statistic": "lag_ms",
-        "source": "labelled recordings",
-        **_difference_test(a, b, difference, se, _LAG_EFFECT, z_gap),
-        "lags": {side: {key: lags[key].tolist() for key in ("lag_ms", "release_lag_ms", "correlation")}
-                 for side, lags in sides.items()},
-        "at_edge": int(sum(float(lags["at_edge"].sum()) for lags in sides.values())),
-    }
-    if not test["resolvable"]:
-        test["verdict"] = (
-            f"labelled lags not resolvable from {a['n']} training and {b['n']} deployment labelled recordings with a "
-            f"lag (standard error {se:.3g} ms): give at least 2 a side whose force changes, with different lags")
-    return test
 
 
 def _sizes(value: object, name: str) -> tuple[float, ...] | None:
@@ -385,7 +358,7 @@ def _sizes(value: object, name: str) -> tuple[float, ...] | None:
     if isinstance(value, Tensor):
         value = value.flatten().tolist()
     if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or not value:
-        raise TypeError(f"{name} must be bolt sizes (a number or a sequence of numbers), got {describe(value)}")
+        raise TypeError(f"{name} must be object sizes (a number or a sequence of numbers), got {describe(value)}")
     sizes = tuple(float(v) for v in value)
     if not all(s > 0 and math.isfinite(s) for s in sizes):
         raise ValueError(f"{name} must hold positive sizes, got {value!r}")
@@ -400,32 +373,24 @@ def infer_scene(
     deploy_sizes: float | Sequence[float] | None = None,
     frame_ms: float = 10.0,
     z_gap: float = 3.0,
-    labelled_train: tuple[Tensor | Sequence[Tensor], Tensor | Sequence[Tensor]] | None = None,
-    labelled_deploy: tuple[Tensor | Sequence[Tensor], Tensor | Sequence[Tensor]] | None = None,
-    max_lag_ms: float = 50.0,
+    timing: Mapping[str, Any] | None = None,
 ) -> Scene:
     """Estimate each factor in training and deployment frames and declare the gaps between them.
 
-    Labels are never read: ``deploy`` may be recordings without force labels. See the
-    module docstring for the estimators and why size comes from the bolt sizes you give.
+    No label is read: ``deploy`` may be recordings without labels. See the module docstring
+    for the estimators and why size comes from the object sizes you give.
 
     Args:
         train: training frames ``(N, T, 2, H, W)`` (or a list of ``(T, 2, H, W)``).
         deploy: deployment frames, same layout (unlabeled).
-        train_sizes: the training bolt sizes (a number or a sequence, each size once or
+        train_sizes: the training object sizes (a number or a sequence, each size once or
             one per sequence); with ``deploy_sizes``, a size gap is declared when a
             deployment size is not among the training sizes.
-        deploy_sizes: the deployment bolt sizes (one size for the stretch target).
+        deploy_sizes: the deployment object sizes (one size for the stretch target).
         frame_ms: frame length in milliseconds (timing in ms, shifts in frames).
         z_gap: the Welch z a difference must exceed to be a gap.
-        labelled_train: labelled training recordings ``(frames, forces)`` (frames
-            ``(N, T, 2, H, W)`` or a list of ``(T_i, 2, H, W)``, forces ``(N, T)`` or a list
-            of ``(T_i,)``, one reading per frame centre), or ``None``. With
-            ``labelled_deploy``, the timing test compares lags measured from events against
-            force (:mod:`event_transforms.lags`) instead of the unlabeled onset.
-        labelled_deploy: labelled deployment recordings, the same layout (for example the
-            deployment's validation recordings), or ``None``.
-        max_lag_ms: the lag search's half-range for the labelled recordings.
+        timing: a timing test measured another way (see *Timing measured another way* in
+            the module docstring), or ``None`` for the onset test alone.
 
     Shape:
         - train: ``(N, T, 2, H, W)`` or a list of ``(T, 2, H, W)``.
@@ -442,22 +407,19 @@ def infer_scene(
         error, n, min, max), their difference, its standard error, z, the verdict and the
         ``resolvable_limit`` (``z_gap`` standard errors); ``evidence["verdicts"]`` says per
         factor "gap", "no gap" or "not resolvable from N unlabeled recordings: ..." (see
-        the module docstring's detection limits). With labelled recordings on both sides,
-        ``evidence["timing"]`` is the lag test (``statistic`` ``"lag_ms"``, ``source``
-        ``"labelled recordings"``; ``train``/``deploy`` hold the median lag, also under
-        ``mean``, its ``spread`` and standard error; ``lags`` the per-recording lags) and
-        the onset test moves to ``evidence["timing"]["onset"]``; see *Labelled recordings*
-        in the module docstring.
+        the module docstring's detection limits). With a resolvable ``timing``,
+        ``evidence["timing"]`` is that test and the onset test moves to
+        ``evidence["timing"]["onset"]``.
 
     Example:
         >>> g = torch.Generator().manual_seed(0)
-        >>> def grasps(n, start):
+        >>> def recordings(n, start):
         ...     frames = torch.poisson(torch.full((n, 12, 2, 16, 20), 0.05), generator=g)
         ...     for i in range(n):
         ...         s = start + int(torch.randint(0, 2, (), generator=g))
         ...         frames[i, s:s + 5, 0, 7:9, 3:17] += 4.0  # a horizontal strip
         ...     return frames
-        >>> scene = infer_scene(grasps(16, 2), grasps(16, 5), train_sizes=(12.0, 18.0), deploy_sizes=15.0)
+        >>> scene = infer_scene(recordings(16, 2), recordings(16, 5), train_sizes=(12.0, 18.0), deploy_sizes=15.0)
         >>> scene.gaps, scene.lag_shifts
         (('timing', 'size'), (3,))
     """
@@ -499,21 +461,20 @@ def infer_scene(
     size_gap = sizes_a is not None and sizes_b is not None and not set(sizes_b) <= set(sizes_a)
     evidence["size"] = {"width_px": width, "train_sizes": sizes_a, "deploy_sizes": sizes_b, "gap": size_gap}
     evidence["orientation"]["angle_deg"] = {"train": _summary(a["angle_deg"]), "deploy": _summary(b["angle_deg"])}
-    if (labelled_train is None) != (labelled_deploy is None):
-        given, missing = ("labelled_train", "labelled_deploy") if labelled_deploy is None else (
-            "labelled_deploy", "labelled_train")
-        raise ValueError(f"{given} needs {missing}: lags are compared between the sessions, got {missing}=None")
-    lag_test = None
-    if labelled_train is not None:
-        lag_test = _lag_test(labelled_train, labelled_deploy, train_frames.shape[2:], frame_ms, max_lag_ms, z_gap)
-        if lag_test["resolvable"]:
-            lag_test["onset"] = evidence["timing"]
-            evidence["timing"] = lag_test
+    if timing is not None:
+        missing = [key for key in ("resolvable", "gap", "difference", "source") if key not in timing]
+        if not isinstance(timing, Mapping) or missing:
+            raise TypeError(f"timing must be a mapping with the keys of difference_test and a source, got "
+                            f"{describe(timing)}" + (f" without {missing}" if isinstance(timing, Mapping) else ""))
+        timing = dict(timing)
+        if timing["resolvable"]:
+            timing["onset"] = evidence["timing"]
+            evidence["timing"] = timing
         else:
-            evidence["timing"]["labelled"] = lag_test
+            evidence["timing"]["alternative"] = timing
     evidence["verdicts"] = _verdicts(evidence, z_gap, deploy_frames.shape[0])
-    if lag_test is not None and not lag_test["resolvable"]:
-        evidence["verdicts"]["timing"] += f"; {lag_test['verdict']}"
+    if timing is not None and not timing["resolvable"] and timing.get("verdict"):
+        evidence["verdicts"]["timing"] += f"; {timing['verdict']}"
 
     kwargs: dict[str, Any] = {}
     if evidence["timing"]["gap"]:

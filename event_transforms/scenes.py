@@ -26,9 +26,9 @@ paper's better combination: 5.71 N against 7.20 N for the hybrid) or stacks them
 (``combination="hybrid"``) in physical order: lag first (event shifting needs whole
 counts, so it runs before interpolation), then size, orientation, position, and noise last.
 
-Effects a tactile grasp does *not* call for, so no scene declares them: time reversal (a
-grasp never plays backwards: loading and release differ), polarity flip (ON and OFF events
-mark pressing and releasing), mixing of two grasps (CutMix/MixUp are regularisers, not
+Effects a contact does *not* call for, so no scene declares them: time reversal (a
+contact never plays backwards: loading and release differ), polarity flip (ON and OFF events
+mark pressing and releasing), mixing of two recordings (CutMix/MixUp are regularisers, not
 physical effects), and crops that change the frame size.
 """
 
@@ -63,7 +63,7 @@ _COMBINATIONS = ("independent", "hybrid")
 #: ``"resize"``, the paper's isotropic zoom.
 SIZE_TRANSFORMS = ("stretch", "resize")
 #: The width exponent γ of each size transform's default: the contact strip's half-width
-#: grows as √D under Hertz line contact (γ = ½); the paper's zoom uses β = D₂/D₁ (γ = 1).
+#: grows as √D under line contact (γ = ½); the paper's zoom uses β = D₂/D₁ (γ = 1).
 _DEFAULT_EXPONENT = {"stretch": 0.5, "resize": 1.0}
 
 Metadata = Mapping[str, Any] | Sequence[Mapping[str, Any]] | None
@@ -129,7 +129,7 @@ class ResizeToTarget(_ToTarget, _Zoom):
     :func:`metadata_values`: a dict of numbers or (B,) values, or a list of dicts) and
     stores β in ``params["scale"]``; containers hand the batch's metadata to it. The
     exponent ``e`` is 1 for the paper's β = target / source; a contact whose width grows as
-    √D (Hertz line contact) calls for ``e = 1/2``.
+    √D (line contact) calls for ``e = 1/2``.
 
     Args:
         target_size: the size to imitate (e.g. 15.0 mm).
@@ -182,8 +182,8 @@ class StretchToTarget(_ToTarget, _StretchWarp):
     """Stretch each sample across its contact strip so its object looks ``target_size``
     large: factor (target / source)^γ.
 
-    The scene's simulation of a size gap. A bolt pressed by a parallel gripper makes a
-    contact strip whose half-width grows as √(F·D) under Hertz line contact while the pad
+    The scene's simulation of a size gap. A cylinder pressed into an elastic layer makes a
+    contact strip whose half-width grows as √(F·D) under line contact while the pad
     fixes its length, so γ = ½ and only the width changes (thin layers behave closer to
     γ = ⅓). The paper's isotropic zoom (:class:`ResizeToTarget`, β = D₂/D₁) also lengthens
     the strip and multiplies its events by β²; see
@@ -244,15 +244,15 @@ class Scene:
     transform for it, and an effect that is absent costs nothing.
 
     Attributes:
-        training_sizes: object sizes in the training data (e.g. ``(12.0, 18.0)`` mm bolts).
+        training_sizes: object sizes in the training data (e.g. ``(12.0, 18.0)`` mm).
         target_size: object size to generalise to (e.g. ``15.0``); with the training sizes
             differing from it, the policy makes each sample look that size.
         size_key: the metadata entry holding each sample's size.
         size_transform: ``"stretch"`` (default): :class:`StretchToTarget`, across the
-            contact strip only, the physics of a bolt in a parallel gripper; ``"resize"``:
+            contact strip only, the physics of a cylinder pressed into an elastic layer; ``"resize"``:
             :class:`ResizeToTarget`, the paper's isotropic zoom, kept for comparison.
         size_exponent: factor = (target / source) ** size_exponent; ``None`` for the size
-            transform's own: ½ for the stretch (Hertz line contact: width ∝ √D), 1 for the
+            transform's own: ½ for the stretch (line contact: width ∝ √D), 1 for the
             paper's resize (β = D₂/D₁).
         orientation_deg: range of the contact orientation, ``d`` for ±d or ``(min, max)``
             degrees; ``None`` or 0 if the orientation does not vary.
@@ -263,8 +263,8 @@ class Scene:
         contact_shift_px: how far the contact centre moves between recordings, in pixels
             of the frames: ``m`` or ``(max_dy, max_dx)`` for integer shifts in ±m; ``None``
             or 0 if the contact is always at the same place.
-        noise: background activity: static-scene frames ``(N, 2, H, W)`` (e.g. from
-            :func:`event_transforms.tactile.datasets.noise_bank`) or a rate in Hz per pixel and
+        noise: background activity: static-scene frames ``(N, 2, H, W)`` (e.g. quiet
+            frames of recordings) or a rate in Hz per pixel and
             polarity (a number or ``(min, max)``); ``None`` for none.
         frame_ms: frame length, for a noise rate.
         evidence: what the scene was inferred from, if it was

@@ -149,7 +149,7 @@ def save_event_grid(frames: Tensor, path: str | os.PathLike[str], **kwargs: Any)
 
     Example:
         >>> import tempfile, pathlib
-        >>> path = pathlib.Path(tempfile.mkdtemp()) / "grasp.png"
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "frames.png"
         >>> save_event_grid(torch.zeros(3, 2, 4, 4), path).exists()
         True
     """
@@ -353,22 +353,22 @@ def plot_scene(
     every: int = 4,
     upscale: int = 1,
 ) -> Any:
-    """A scene at a glance: training grasps above deployment grasps, and what differs.
+    """A scene at a glance: training recordings above deployment recordings, and what differs.
 
-    Left: ``rows`` training and ``rows`` deployment grasps (every ``every``-th frame,
+    Left: ``rows`` training and ``rows`` deployment recordings (every ``every``-th frame,
     labelled by session and time). Right: the mean contact-event rate per frame of each
-    session (timing gaps show as shifted curves), and histograms over all given grasps of
+    session (timing gaps show as shifted curves), and histograms over all given recordings of
     the contact width, the contact angle and the background rate
     (:func:`event_transforms.inference.sequence_statistics`): size, orientation and noise
     gaps show as shifted histograms. The title names the gaps. Needs matplotlib.
 
     Args:
-        train, deploy: grasps ``(N, T, 2, H, W)`` of each session (N ≥ ``rows``).
+        train, deploy: recordings ``(N, T, 2, H, W)`` of each session (N ≥ ``rows``).
         path: where to write the PNG (optional).
         title: the figure's title (e.g. the scene's name and description).
         gaps: the scene's gaps, named in the title.
         frame_ms: frame length.
-        rows: grasps of each session drawn as frames.
+        rows: recordings of each session drawn as frames.
         every: show every n-th frame.
         upscale: integer magnification of the frames.
 
@@ -384,7 +384,7 @@ def plot_scene(
         raise ValueError(f"rows must be a positive integer, got {rows!r}")
     if train.dim() != 5 or deploy.dim() != 5 or rows > min(train.shape[0], deploy.shape[0]):
         raise ValueError(
-            f"rows={rows} asks for more grasps than the sessions hold (train {tuple(train.shape)}, deploy "
+            f"rows={rows} asks for more recordings than the sessions hold (train {tuple(train.shape)}, deploy "
             f"{tuple(deploy.shape)}): pass (N, T, 2, H, W) with N >= rows"
         )
     shown = torch.cat([train[:rows], deploy[:rows]]).detach().cpu().double()[:, ::every]

@@ -1,4 +1,4 @@
-"""Lags from labelled recordings (issue 33, item 7): recording_lags and session_lag against
+"""Lags from labelled recordings: recording_lags and session_lag against
 synthetic recordings with a known lag, infer_scene's timing test from them, the protocol's
 ``inferred`` policy and ``reproduce --data`` on an exported scene."""
 
@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from event_transforms.inference import infer_scene
-from event_transforms.lags import recording_lags, session_lag
+from event_transforms.tactile.lags import infer_scene_with_lags, recording_lags, session_lag
 
 FRAME_MS = 10.0
 
@@ -130,7 +130,7 @@ def _scene_inputs(lag_train: float, lag_deploy: float, n_train: int = 12, n_depl
 class TestInferScene:
     def test_a_two_frame_gap_from_labels(self):
         (tf, tF), (df, dF) = _scene_inputs(5.0, 25.0)
-        scene = infer_scene(tf, df, labelled_train=(tf, tF), labelled_deploy=(df, dF))
+        scene = infer_scene_with_lags(tf, df, labelled_train=(tf, tF), labelled_deploy=(df, dF))
         timing = scene.evidence["timing"]
         assert timing["source"] == "labelled recordings" and timing["statistic"] == "lag_ms"
         assert timing["difference"] == pytest.approx(20.0, abs=1.5) and timing["gap"]
@@ -140,31 +140,39 @@ class TestInferScene:
 
     def test_zero_lag_difference_declares_nothing(self):
         (tf, tF), (df, dF) = _scene_inputs(6.0, 6.0)
-        scene = infer_scene(tf, df, labelled_train=(tf, tF), labelled_deploy=(df, dF))
+        scene = infer_scene_with_lags(tf, df, labelled_train=(tf, tF), labelled_deploy=(df, dF))
         assert "timing" not in scene.gaps and scene.lag_shifts is None
         assert abs(scene.evidence["timing"]["difference"]) < 1.0
 
     def test_a_single_labelled_recording_a_side_is_not_resolvable(self):
         (tf, tF), (df, dF) = _scene_inputs(5.0, 25.0)
-        scene = infer_scene(tf, df, labelled_train=(tf[:1], tF[:1]), labelled_deploy=(df[:1], dF[:1]))
+        scene = infer_scene_with_lags(tf, df, labelled_train=(tf[:1], tF[:1]), labelled_deploy=(df[:1], dF[:1]))
         timing = scene.evidence["timing"]
-        assert timing["statistic"] == "onset_ms" and not timing["labelled"]["resolvable"]
+        assert timing["statistic"] == "onset_ms" and not timing["alternative"]["resolvable"]
         assert "labelled lags not resolvable from 1 training and 1 deployment labelled recordings" in \
             scene.evidence["verdicts"]["timing"]
 
     def test_without_labels_nothing_changes(self):
         (tf, tF), (df, dF) = _scene_inputs(5.0, 25.0)
         plain = infer_scene(tf, df)
-        assert plain.evidence["timing"]["statistic"] == "onset_ms" and "labelled" not in plain.evidence["timing"]
+        assert plain.evidence["timing"]["statistic"] == "onset_ms" and "alternative" not in plain.evidence["timing"]
+
+    def test_the_library_takes_a_timing_test_from_anywhere(self):
+        (tf, tF), (df, dF) = _scene_inputs(5.0, 25.0)
+        from event_transforms.tactile.lags import lag_test
+        test = lag_test((tf, tF), (df, dF))
+        assert infer_scene(tf, df, timing=test).lag_shifts == (2,)
+        with pytest.raises(TypeError, match=r"timing must be a mapping .* without \['source'\]"):
+            infer_scene(tf, df, timing={k: v for k, v in test.items() if k != "source"})
 
     def test_bad_labelled_input(self):
         (tf, tF), (df, dF) = _scene_inputs(5.0, 5.0)
         with pytest.raises(ValueError, match="labelled_train needs labelled_deploy"):
-            infer_scene(tf, df, labelled_train=(tf, tF))
+            infer_scene_with_lags(tf, df, labelled_train=(tf, tF))
         with pytest.raises(ValueError, match="labelled_deploy: recording 0 has frames of"):
-            infer_scene(tf, df, labelled_train=(tf, tF), labelled_deploy=(df[:, :, :, :2], dF))
+            infer_scene_with_lags(tf, df, labelled_train=(tf, tF), labelled_deploy=(df[:, :, :, :2], dF))
         with pytest.raises(ValueError, match="labelled_train: recording 0 has 36 frames but 35"):
-            infer_scene(tf, df, labelled_train=(tf, tF[:, :35]), labelled_deploy=(df, dF))
+            infer_scene_with_lags(tf, df, labelled_train=(tf, tF[:, :35]), labelled_deploy=(df, dF))
 
 
 @pytest.mark.slow

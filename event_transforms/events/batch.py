@@ -11,7 +11,7 @@ device (no host synchronisation); only a transform whose output size depends on 
 
 Memory: 2 + 2 + 8 + 1 = **13 bytes per event** (plus 8 bytes per stream of offsets, and
 4 bytes per event for the per-event sample index a batched kernel builds once and the
-batch keeps). 32 simulated grasps of 36 × 10 ms hold about 1.3 M events: 17 MB, against
+batch keeps). 32 simulated recordings of 36 × 10 ms hold about 1.3 M events: 17 MB, against
 48 MB for the float32 frames ``(32, 36, 2, 70, 75)`` they bin to (2.8× smaller; 23×
 smaller than the full-sensor float32 ``(32, 36, 2, 180, 240)`` frames). A torch
 nested (jagged) tensor was not used: its kernels cover few of the ops needed here (no

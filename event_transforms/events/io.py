@@ -2,7 +2,7 @@
 
 :func:`read_events` reads a whole file as numpy columns ``x, y, t, p``; :class:`EventFile`
 reads one in chunks (memory-mapped ``.npy``, HDF5 datasets sliced lazily), as
-:class:`~event_transforms.tactile.recordings.RecordingSet` and ``event-transforms predict`` do.
+a data set over a folder of recordings does.
 
 Formats:
 

@@ -46,8 +46,7 @@ def iter_frames(
     them). A frame is yielded as soon as a later event shows its bin is complete (the
     last one when the chunks run out); empty bins between events are yielded as zeros. The
     frames equal :func:`events_to_frames` on the whole stream with the same options, and
-    feed :meth:`~event_transforms.tactile.models.ForceRegressor.step` directly (after
-    ``frame.unsqueeze(0)``). Memory: one chunk plus ``frames_per_step`` frames.
+    feed a recurrent model's per-frame step directly (after ``frame.unsqueeze(0)``). Memory: one chunk plus ``frames_per_step`` frames.
 
     Args:
         chunks: an iterable of event chunks, sorted by time across and within chunks.

@@ -10,6 +10,7 @@ events kept on the sensor) live here too, so no topic file imports another's pri
 from __future__ import annotations
 
 import functools
+import math
 import warnings
 from collections.abc import Sequence
 
@@ -324,3 +325,13 @@ def _bilinear(field: Tensor, bases: tuple[Tensor, ...], y: Tensor, x: Tensor, he
 
 def _at(field: Tensor, base: Tensor, y: Tensor, x: Tensor, width: int) -> Tensor:
     return field.index_select(0, base + y * width + x)
+
+
+def axis_radians(covariance: Tensor) -> Tensor:
+    """Angle of the major axis of each (B, 3) ``[c_yy, c_xx, c_xy]``, counter-clockwise on the
+    displayed image (row 0 at the top), in (-π/2, π/2]; 0 for an isotropic or empty sequence."""
+    c_yy, c_xx, c_xy = covariance.unbind(1)
+    # in pixel coordinates (y down) the major axis is at 0.5·atan2(2 c_xy, c_xx - c_yy);
+    # on the displayed image (y up) the angle changes sign
+    angle = -0.5 * torch.atan2(2 * c_xy, c_xx - c_yy)
+    return torch.where(angle <= -math.pi / 2, angle + math.pi, angle)

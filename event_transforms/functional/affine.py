@@ -8,7 +8,7 @@ sequence into channels and calls ``affine_grid`` and ``grid_sample`` once with a
 matrix built on the host (the same sampling as kornia's ``warp_affine``, without its
 float64 matrix helpers and at a quarter of its dispatched ops; see
 ``benchmarks/kornia_warp.py``), so one sampling grid serves every frame of a sequence (the
-grasp keeps its orientation), no (B·T) grids are built, and the device is never asked for
+contact keeps its orientation), no (B·T) grids are built, and the device is never asked for
 a number.
 
 The warp core (centroid, sampling matrices, ``grid_sample``) lives in the private
@@ -158,7 +158,7 @@ def resize(
     """Zoom each sequence by ``scale`` about its centre, keeping H×W (zero margin).
 
     ``scale`` is the paper's β = target object size / source object size: 1.25 makes a
-    12 mm bolt's contact look like a 15 mm bolt's, 0.83 shrinks an 18 mm one. With
+    12 mm object's contact look like a 15 mm object's, 0.83 shrinks an 18 mm one. With
     bilinear sampling the total count scales by about β² as in image resizing; shrinking
     samples the source without anti-aliasing, as the paper's linear resize does. On an
     EventBatch each event moves to the nearest pixel (:func:`resize_events`).

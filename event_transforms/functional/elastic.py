@@ -95,7 +95,7 @@ def elastic(
     The elastic distortion of Simard et al. (2003), as torchvision's ``ElasticTransform``:
     the field is ``alpha`` times ``noise`` smoothed by a Gaussian of ``sigma`` pixels (zero
     outside the frame); output pixel (y, x) samples the input at (y, x) + field(y, x). All
-    T·2 frames of a sequence share the field (the membrane deforms, the contact keeps its
+    T·2 frames of a sequence share the field (the surface deforms, the contact keeps its
     shape over time) and are sampled at one grid (kornia's ``elastic_transform2d`` with
     its ``alpha`` in pixels gives the same result, frame by frame). Pixels that come from
     outside the frame are zero.

@@ -1,8 +1,8 @@
 """Stretch kernel: scale across one axis through the event centroid, leaving the other alone.
 
-A bolt pressed by a parallel gripper makes a contact *strip*: its half-width grows as
-√(F·D) (Hertz line contact) while its length is fixed by the gripper pad. So a change of
-bolt size D₁ → D₂ is a stretch across the strip by (D₂/D₁)^½, not the paper's isotropic
+A cylinder pressed into an elastic layer makes a contact *strip* whose half-width grows as
+√(F·D) while its length is fixed by the pad. So a change of
+object size D₁ → D₂ is a stretch across the strip by (D₂/D₁)^½, not the paper's isotropic
 zoom (which also lengthens the strip and multiplies its events by β²). :func:`stretch` goes
 through the one affine warp of :mod:`event_transforms.functional.affine` (one sampling
 grid per sequence, all T·2 frames folded into channels).
@@ -10,7 +10,6 @@ grid per sequence, all T·2 frames folded into channels).
 
 from __future__ import annotations
 
-import math
 
 import torch
 from torch import Tensor
@@ -20,7 +19,7 @@ from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, kernel_for, register_kernel
 from ._event_ops import _round_to
-from ._warp import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _warp
+from ._warp import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _warp, axis_radians
 from ._frame_ops import _output_dtype
 
 __all__ = ["stretch", "stretch_frames", "stretch_events", "contact_axis"]
@@ -61,23 +60,13 @@ def _second_moments(batch: Tensor) -> tuple[Tensor, Tensor]:
     return centre, torch.stack([c_yy, c_xx, c_xy], 1)
 
 
-def _axis_radians(covariance: Tensor) -> Tensor:
-    """Angle of the major axis of each (B, 3) ``[c_yy, c_xx, c_xy]``, counter-clockwise on the
-    displayed image (row 0 at the top), in (-π/2, π/2]; 0 for an isotropic or empty sequence."""
-    c_yy, c_xx, c_xy = covariance.unbind(1)
-    # in pixel coordinates (y down) the major axis is at 0.5·atan2(2 c_xy, c_xx - c_yy);
-    # on the displayed image (y up) the angle changes sign
-    angle = -0.5 * torch.atan2(2 * c_xy, c_xx - c_yy)
-    return torch.where(angle <= -math.pi / 2, angle + math.pi, angle)
-
-
 def contact_axis(frames: Tensor) -> Tensor:
     """The contact axis of each sequence: the major axis of its events' spatial spread.
 
     The events of all frames and both polarities weight the pixels; the axis is the
     eigenvector of the larger eigenvalue of their second central moments, computed in
-    float64. A bolt pressed by a parallel gripper makes a contact *strip*, long along the
-    bolt and narrow across it, so this is the bolt's axis. An empty sequence, or one whose
+    float64. A cylinder pressed into an elastic layer makes a contact *strip*, long along
+    the cylinder and narrow across it, so this is the cylinder's axis. An empty sequence, or one whose
     spread is isotropic, has no axis and gives 0.
 
     Args:
@@ -103,7 +92,7 @@ def contact_axis(frames: Tensor) -> Tensor:
     if batch.shape[0] == 0:
         return unbatch(torch.zeros(0, dtype=torch.float64, device=batch.device))
     _, covariance = _second_moments(batch)
-    return unbatch(torch.rad2deg(_axis_radians(covariance)))
+    return unbatch(torch.rad2deg(axis_radians(covariance)))
 
 
 def stretch_frames(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Center, mode: str) -> Tensor:
@@ -139,7 +128,7 @@ def stretch_frames(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Ce
     if need_moments:
         centre, covariance = _second_moments(batch)
     if isinstance(axis, str):
-        radians = _axis_radians(covariance)
+        radians = axis_radians(covariance)
     else:
         radians = torch.deg2rad(axis.to(device, f64))
     if isinstance(center, str) and center == "mass":
@@ -177,19 +166,19 @@ def stretch(
     """Scale each sequence by ``factor`` across an axis through its centre; the axis's own
     direction is left alone.
 
-    **Why stretch, not zoom.** A bolt of diameter D pressed by a parallel gripper makes a
-    contact *strip* on the membrane: Hertz line contact gives its half-width as √(F·D), and
-    the pad fixes its length. So a bolt of another size changes the strip's width only, by
+    **Why stretch, not zoom.** A cylinder of diameter D pressed into an elastic layer makes
+    a contact *strip*: line contact gives its half-width as √(F·D), and
+    the pad fixes its length. So a cylinder of another size changes the strip's width only, by
     (D₂/D₁)^½, and its events in proportion. An isotropic zoom by β (the paper's resize)
     also lengthens the strip and multiplies its events by β². Measured on the simulator with
-    a least-squares force model fitted on real 15 mm grasps, 12 mm grasps made to look like
+    a least-squares model fitted on simulated 15 mm contacts, 12 mm contacts made to look like
     15 mm score 92 N² after the paper's zoom, 6.5 after a zoom by β^½, and 0.42 after this
-    stretch by √(15/12), against 0.38 for real 15 mm grasps (``benchmarks/fidelity.py``).
+    stretch by √(15/12), against 0.38 for simulated 15 mm contacts (``benchmarks/fidelity.py``).
 
     The forward map is ``dst = c + (I + (k - 1) n nᵀ)(src - c)``, n the unit normal of the
     axis. By default the axis is the sequence's contact axis (:func:`contact_axis`: the
     major axis of its events' second moments, all frames and both polarities, float64), so
-    each grasp is stretched across its own strip whatever its orientation; an empty
+    each sequence is stretched across its own strip whatever its orientation; an empty
     sequence stays empty. One sampling matrix per sequence, built on the frames' device,
     and one ``grid_sample`` for all its frames, the warp of :func:`rotate` and
     :func:`resize`. With bilinear sampling the total count grows by about ``factor``, as the
@@ -295,7 +284,7 @@ def stretch_events(batch: EventBatch, factor: Tensor, axis: str | Tensor, center
     need_moments = isinstance(axis, str) or (isinstance(center, str) and center == "mass")
     if need_moments:
         centre, covariance = _event_moments(batch)
-    radians = _axis_radians(covariance) if isinstance(axis, str) else torch.deg2rad(axis.to(device, f64))
+    radians = axis_radians(covariance) if isinstance(axis, str) else torch.deg2rad(axis.to(device, f64))
     if isinstance(center, str):
         yx = centre if center == "mass" else torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=f64, device=device)
     else:

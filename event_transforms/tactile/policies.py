@@ -129,12 +129,12 @@ def everything_policy(scene: str | BenchmarkScene, bank: Tensor | None = None) -
 
 @functools.lru_cache(maxsize=16)
 def _inferred(scene: BenchmarkScene, root: str | None) -> Scene:
-    from ..inference import infer_scene
+    from .lags import infer_scene_with_lags
     from .datasets import TactileGrasps
 
     train = TactileGrasps("train", root=root, scene=scene)
     deploy = TactileGrasps("val", root=root, scene=scene)
-    return infer_scene(
+    return infer_scene_with_lags(
         train.frames,
         deploy.frames,
         train_sizes=scene.train.diameters_mm,

@@ -2,7 +2,7 @@
 
 :class:`Rotate`, :class:`RandomRotation`, :class:`Resize`, :class:`RandomResize`,
 :class:`Affine` and :class:`RandomAffine` are one affine warp per sequence (every frame of
-a grasp keeps the same orientation), about the event centroid by default; rotation and
+a sequence keeps the same orientation), about the event centroid by default; rotation and
 resize are special cases of the affine warp. :class:`RandomPerspective` and
 :class:`RandomElastic` warp all frames of a sequence with one homography or one smooth
 displacement field. Bilinear sampling returns the

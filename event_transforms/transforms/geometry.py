@@ -73,7 +73,7 @@ class Translate(_Roll):
 class RandomTranslate(_Roll):
     """Move each sequence by its own whole-pixel shift, zero fill (rolling without wrap-around).
 
-    Neuromorphic Data Augmentation's rolling; in a tactile scene, a contact centre that
+    Neuromorphic Data Augmentation's rolling; in a scene, a contact centre that
     moves between recordings. dy and dx are drawn uniformly among the integers in
     ``[-max_dy, max_dy]`` and ``[-max_dx, max_dx]``. Counts moved past the border are lost;
     the dtype is kept.

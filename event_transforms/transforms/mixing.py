@@ -27,9 +27,9 @@ on the whole batch), while :class:`~event_transforms.OneOf` and
 :class:`~event_transforms.RandomApply`, which hand members sub-batches, refuse them at
 construction with a ``TypeError`` (use ``CutMix(p=...)`` for a per-sample gate).
 
-Mixing the force of two grasps is a regression heuristic (a pasted box does not carry a
-share of the force proportional to its area); it is offered because NDA uses CutMix, not
-because it simulates a physical effect of a tactile scene.
+Mixing the regression targets of two sequences is a heuristic (a pasted box does not carry
+a share of the target proportional to its area); it is offered because NDA uses CutMix, not
+because it simulates a physical effect a scene declares.
 """
 
 from __future__ import annotations

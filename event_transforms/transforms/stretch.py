@@ -1,7 +1,7 @@
 """Stretch modules: scale across the contact axis about the event centroid (one warp per sequence).
 
-Why stretch, not zoom: under Hertz line contact a bolt's contact strip widens as √(F·D)
-while the gripper pad fixes its length, so a size change D₁ → D₂ is a stretch across the
+Why stretch, not zoom: under line contact a cylinder's contact strip widens as √(F·D)
+while the pad fixes its length, so a size change D₁ → D₂ is a stretch across the
 strip by (D₂/D₁)^½; the paper's isotropic zoom also lengthens the strip and multiplies its
 events by β². See :func:`event_transforms.functional.stretch`.
 """
@@ -53,8 +53,8 @@ class _StretchWarp(EventTransform):
 class Stretch(_StretchWarp):
     """Stretch every sequence by a fixed factor across its contact axis (or a given axis).
 
-    The physically matched simulation of another bolt size: the contact strip of a bolt
-    pressed by a parallel gripper widens as √D (Hertz line contact) while the pad fixes its
+    The physically matched simulation of another object size: the contact strip of a cylinder
+    pressed into an elastic layer widens as √D (line contact) while the pad fixes its
     length, so a D₁ → D₂ change is a stretch across the strip by (D₂/D₁)^½, not the
     paper's isotropic zoom by D₂/D₁ (see :func:`event_transforms.functional.stretch`, which
     it calls, for the maths and the measured fidelity). On an EventBatch each event moves to
@@ -97,7 +97,7 @@ class RandomStretch(_StretchWarp):
     """Stretch each sequence by its own random factor across its contact axis.
 
     Give either ``factor``, a ``(min, max)`` range drawn uniformly, or ``choices``, factors
-    drawn with equal probability (e.g. ``((15/18) ** 0.5, (15/12) ** 0.5)``, the Hertz
+    drawn with equal probability (e.g. ``((15/18) ** 0.5, (15/12) ** 0.5)``, the line-contact
     match of the paper's 12 + 18 → 15 mm split). Why a stretch and not a zoom:
     :func:`event_transforms.functional.stretch`.
 

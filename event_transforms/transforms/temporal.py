@@ -249,8 +249,8 @@ class TimeReversal(EventTransform):
 
     See :func:`~event_transforms.functional.time_reversal`. Per-frame labels (force)
     are *not* reversed (extra inputs pass through); reverse them yourself if a reversed
-    sequence should keep its pairing, or do not use it where time has a direction (a grasp
-    never plays backwards: a tactile scene declares no time reversal).
+    sequence should keep its pairing, or do not use it where time has a direction (a contact
+    never plays backwards: a scene declares no time reversal).
 
     Args:
         p: probability that a sample is reversed.

@@ -49,7 +49,8 @@ def load_recording_data(
         A ``SceneData`` whose ``dataset`` attribute describes the data (folder, files,
         content hash, settings, crop, recordings and windows per split).
     """
-    from ...inference import infer_scene, sequence_statistics
+    from ...inference import sequence_statistics
+    from ..lags import infer_scene_with_lags
     from ..copies import SceneData
 
     start = time.perf_counter()
@@ -79,10 +80,10 @@ def load_recording_data(
     # never test data), one per whole recording
     labelled_train, labelled_deploy = splits["train"].labelled, splits["val"].labelled
     labelled = labelled_train is not None and labelled_deploy is not None
-    inferred = infer_scene(train_frames, deploy_frames, train_sizes=train_sizes,
-                           deploy_sizes=deploy_sizes if deploy_sizes and len(deploy_sizes) == 1 else None,
-                           frame_ms=settings.frame_ms, labelled_train=labelled_train if labelled else None,
-                           labelled_deploy=labelled_deploy if labelled else None)
+    inferred = infer_scene_with_lags(train_frames, deploy_frames, train_sizes=train_sizes,
+                                     deploy_sizes=deploy_sizes if deploy_sizes and len(deploy_sizes) == 1 else None,
+                                     frame_ms=settings.frame_ms, labelled_train=labelled_train if labelled else None,
+                                     labelled_deploy=labelled_deploy if labelled else None)
 
     def quiet(frames: Tensor) -> Tensor:
         stats = sequence_statistics(frames, frame_ms=settings.frame_ms)

@@ -46,7 +46,7 @@ medians with these standard errors.
 
 from __future__ import annotations
 
-__all__ = ["MEMBRANE_GRID", "recording_lags", "session_lag", "as_labelled"]
+__all__ = ["MEMBRANE_GRID", "recording_lags", "session_lag", "as_labelled", "lag_test", "infer_scene_with_lags"]
 
 import math
 from collections.abc import Sequence
@@ -55,7 +55,9 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from ._validation import check_frames, describe
+from .._validation import check_frames, describe
+from ..inference import FACTOR_TESTS, difference_test, infer_scene
+from ..scenes import Scene
 
 #: Grid steps per frame of the delay search, and fine-grid substeps per frame of the membrane.
 _STEPS_PER_FRAME = 20
@@ -291,3 +293,136 @@ def session_lag(lags: Tensor) -> dict[str, Any]:
         "min": float(ordered[0]),
         "max": float(ordered[-1]),
     }
+
+
+#: The smallest lag difference that matters (ms): the onset test's.
+_LAG_EFFECT = FACTOR_TESTS["timing"][1]
+
+
+def lag_test(
+    labelled_train: tuple[Tensor | Sequence[Tensor], Tensor | Sequence[Tensor]],
+    labelled_deploy: tuple[Tensor | Sequence[Tensor], Tensor | Sequence[Tensor]],
+    *,
+    grid: Sequence[int] | None = None,
+    frame_ms: float = 10.0,
+    max_lag_ms: float = 50.0,
+    z_gap: float = 3.0,
+) -> dict[str, Any]:
+    """The timing test from labelled recordings, in the form :func:`event_transforms.infer_scene`
+    takes as ``timing=``: per-recording lags (:func:`recording_lags`), each session's median
+    (:func:`session_lag`), their difference and its z.
+
+    A timing gap where ``|z| > z_gap`` and the difference is at least 3 ms (the onset test's
+    smallest effect); with fewer than 2 recordings with a lag on a side (or a zero standard
+    error from a few), ``resolvable`` is false and ``verdict`` says what would resolve it.
+
+    Args:
+        labelled_train, labelled_deploy: ``(frames, forces)`` of each session, as
+            :func:`recording_lags` takes them.
+        grid: the ``(2, H, W)`` every recording's frames must have (the unlabeled frames'),
+            or ``None`` for any.
+        frame_ms: frame length in milliseconds.
+        max_lag_ms: the lag search's half-range.
+        z_gap: the ``|z|`` a difference must exceed.
+
+    Returns:
+        :func:`~event_transforms.inference.difference_test`'s keys (``train``/``deploy`` hold the
+        median lag, also under ``mean``, its ``spread`` under ``std``, and its standard error),
+        ``statistic`` ``"lag_ms"``, ``source`` ``"labelled recordings"``, ``lags`` (the
+        per-recording lags, release lags and correlations), ``at_edge`` and, when not
+        resolvable, ``verdict``.
+
+    Example:
+        >>> force = torch.zeros(4, 20)
+        >>> force[:, 5:15] = torch.tensor([1, 4, 9, 16, 16, 16, 16, 9, 4, 1.0])
+        >>> def late(by):
+        ...     frames = torch.zeros(4, 20, 2, 4, 4)
+        ...     change = force.sqrt().diff(dim=1)
+        ...     frames[:, by:, 0, 0, 0] = change[:, :20 - by].clamp_min(0)
+        ...     frames[:, by:, 1, 0, 0] = (-change[:, :20 - by]).clamp_min(0)
+        ...     return frames
+        >>> test = lag_test((late(1), force), (late(3), force))
+        >>> test["source"], round(test["difference"])
+        ('labelled recordings', 20)
+    """
+    sides = {}
+    for side, value in (("train", labelled_train), ("deploy", labelled_deploy)):
+        name = f"labelled_{side}"
+        frames, forces = as_labelled(value, name)
+        for i, f in enumerate(frames):
+            if grid is not None and tuple(f.shape[1:]) != tuple(grid):
+                raise ValueError(f"{name}: recording {i} has frames of (2, H, W) = {tuple(f.shape[1:])}, the "
+                                 f"unlabeled frames {tuple(grid)}; give one grid")
+        sides[side] = recording_lags((frames, forces), frame_ms=frame_ms, max_lag_ms=max_lag_ms)
+    a, b = session_lag(sides["train"]["lag_ms"]), session_lag(sides["deploy"]["lag_ms"])
+    for summary in (a, b):  # the location every test reports under "mean", and its spread under "std"
+        summary["mean"], summary["std"] = summary["median"], summary["spread"]
+    difference = b["median"] - a["median"]
+    se = math.sqrt(a["se"] ** 2 + b["se"] ** 2) if a["n"] and b["n"] else math.nan
+    test: dict[str, Any] = {
+        "statistic": "lag_ms",
+        "source": "labelled recordings",
+        **difference_test(a, b, difference, se, _LAG_EFFECT, z_gap),
+        "lags": {side: {key: lags[key].tolist() for key in ("lag_ms", "release_lag_ms", "correlation")}
+                 for side, lags in sides.items()},
+        "at_edge": int(sum(float(lags["at_edge"].sum()) for lags in sides.values())),
+    }
+    if not test["resolvable"]:
+        test["verdict"] = (
+            f"labelled lags not resolvable from {a['n']} training and {b['n']} deployment labelled recordings with a "
+            f"lag (standard error {se:.3g} ms): give at least 2 a side whose force changes, with different lags")
+    return test
+
+
+def infer_scene_with_lags(
+    train: Tensor | Sequence[Tensor],
+    deploy: Tensor | Sequence[Tensor],
+    *,
+    labelled_train: tuple[Tensor | Sequence[Tensor], Tensor | Sequence[Tensor]] | None = None,
+    labelled_deploy: tuple[Tensor | Sequence[Tensor], Tensor | Sequence[Tensor]] | None = None,
+    max_lag_ms: float = 50.0,
+    frame_ms: float = 10.0,
+    z_gap: float = 3.0,
+    **kwargs: Any,
+) -> Scene:
+    """:func:`event_transforms.infer_scene`, with the timing test from labelled recordings.
+
+    With labelled recordings of both sessions, the timing gap is measured from events against
+    force (:func:`lag_test`) instead of the unlabeled onset; the onset test stays in
+    ``evidence["timing"]["onset"]``, or decides when the lags are not resolvable (then kept
+    under ``evidence["timing"]["alternative"]``, the verdict saying why). Without them, this is
+    :func:`~event_transforms.infer_scene`.
+
+    Args:
+        train, deploy: the unlabeled frames, as :func:`~event_transforms.infer_scene` takes them.
+        labelled_train: labelled training recordings ``(frames, forces)`` (frames
+            ``(N, T, 2, H, W)`` or a list of ``(T_i, 2, H, W)``, forces ``(N, T)`` or a list of
+            ``(T_i,)``, one reading per frame centre), or ``None``.
+        labelled_deploy: labelled deployment recordings (for example the deployment's
+            validation recordings), the same layout, or ``None``.
+        max_lag_ms: the lag search's half-range.
+        frame_ms, z_gap, **kwargs: passed to :func:`~event_transforms.infer_scene`.
+
+    Example:
+        >>> frames = torch.poisson(torch.full((8, 12, 2, 8, 8), 0.1), generator=torch.Generator().manual_seed(0))
+        >>> infer_scene_with_lags(frames, frames.clone()).gaps
+        ()
+    """
+    if (labelled_train is None) != (labelled_deploy is None):
+        given, missing = ("labelled_train", "labelled_deploy") if labelled_deploy is None else (
+            "labelled_deploy", "labelled_train")
+        raise ValueError(f"{given} needs {missing}: lags are compared between the sessions, got {missing}=None")
+    timing = None
+    if labelled_train is not None and labelled_deploy is not None:
+        grid = _grid_of(train)
+        timing = lag_test(labelled_train, labelled_deploy, grid=grid, frame_ms=frame_ms, max_lag_ms=max_lag_ms,
+                          z_gap=z_gap)
+    return infer_scene(train, deploy, frame_ms=frame_ms, z_gap=z_gap, timing=timing, **kwargs)
+
+
+def _grid_of(frames: Tensor | Sequence[Tensor]) -> tuple[int, ...] | None:
+    """The ``(2, H, W)`` of unlabeled frames (a batch or a list), or ``None`` when there are none."""
+    if isinstance(frames, Tensor):
+        return tuple(frames.shape[2:]) if frames.dim() == 5 else tuple(frames.shape[1:])
+    first = next(iter(frames), None)
+    return tuple(first.shape[1:]) if isinstance(first, Tensor) else None
