@@ -85,7 +85,7 @@ def _values(tensor: Tensor) -> np.ndarray:
     return np.asarray(tensor.tolist(), dtype=np.float64 if tensor.is_floating_point() else np.int64)
 
 
-def _check_leaf(value: object, spec: Param, batch: int, owner: str, where: str, shown: str | None = None) -> Tensor:
+def check_leaf(value: object, spec: Param, batch: int, owner: str, where: str, shown: str | None = None) -> Tensor:
     """Check one ``(B, *shape)`` tensor against ``spec``; return it in the kind's dtype.
 
     ``owner`` and ``where`` name the operation or module and the argument or key;
@@ -200,5 +200,5 @@ def check_args(op: str, spec: Mapping[str, Param], batch: int, **values: object)
     for name, value in values.items():
         param = spec[name]
         shown = describe(value)
-        out[name] = _check_leaf(_as_tensor(op, name, value, param, batch), param, batch, op, name, shown)
+        out[name] = check_leaf(_as_tensor(op, name, value, param, batch), param, batch, op, name, shown)
     return out

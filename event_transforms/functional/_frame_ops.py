@@ -13,6 +13,8 @@ from torch import Tensor
 from .._validation import as_number, describe, on_host
 from ..events import batch as _batch_module
 
+#: Integer dtypes whose additions are checked for overflow.
+SMALL_INTEGERS = (torch.uint8, torch.int8, torch.int16, torch.int32)
 #: Integer frame dtypes whose sums are checked against their range.
 _NARROW_INTEGERS = (torch.uint8, torch.int8, torch.int16)
 
@@ -129,7 +131,7 @@ def _samples_by_runs(frames: Tensor, flags: np.ndarray, change: Callable[[Tensor
     return out
 
 
-def _size(value: object, name: str) -> tuple[int, int]:
+def frame_size(value: object, name: str) -> tuple[int, int]:
     """``n`` or ``(h, w)`` positive integers as (h, w)."""
     if isinstance(value, (Sequence, Tensor)) and not isinstance(value, (str, bytes)):
         if len(value) != 2:
@@ -141,3 +143,98 @@ def _size(value: object, name: str) -> tuple[int, int]:
     if min(pair) < 1:
         raise ValueError(f"{name} must be positive, got {describe(value)}")
     return pair
+
+
+def check_classes(labels: Tensor, num_classes: int | None) -> int | None:
+    if num_classes is not None:
+        num_classes = as_number(num_classes, "num_classes", integer=True, low=1)
+    if labels.dtype == torch.bool or labels.is_complex():
+        raise TypeError(f"labels must be float targets or integer class indices, got dtype {labels.dtype}")
+    if not labels.is_floating_point():
+        if num_classes is None:
+            raise TypeError(
+                f"labels of dtype {labels.dtype} are class indices: give num_classes to mix them as "
+                "soft targets (or pass float targets)"
+            )
+        if labels.dim() != 1:
+            raise ValueError(f"class indices must have shape (B,), got {tuple(labels.shape)}")
+        if labels.numel() and bool(((labels < 0) | (labels >= num_classes)).any()):
+            raise ValueError(f"class indices must lie in [0, {num_classes}), got {describe(labels)}")
+    return num_classes
+
+
+def blend_labels(labels: Tensor, partner: Tensor, weight: Tensor, num_classes: int | None) -> Tensor:
+    if not labels.is_floating_point():
+        labels = torch.nn.functional.one_hot(labels.long(), -1 if num_classes is None else num_classes).to(torch.float32)
+    work = torch.float64 if labels.dtype == torch.float64 else torch.float32
+    w = weight.to(labels.device, work, non_blocking=True).view(-1, *([1] * (labels.dim() - 1)))
+    own = labels.to(work)
+    other = own.index_select(0, partner.to(labels.device, non_blocking=True))
+    return (other + w * (own - other)).to(labels.dtype)
+
+
+def check_length(length: object, frames: int) -> int:
+    value = as_number(length, "length", integer=True)
+    if not 1 <= value <= frames:
+        raise ValueError(f"length must lie in [1, {frames}] (the number of frames T), got {length!r}")
+    return value
+
+
+def factor_pair(value: object) -> tuple[int, int]:
+    return frame_size(value, "factor")
+
+
+def pixel_mask(pixels: object, batch: int, height: int, width: int, device: torch.device) -> Tensor:
+    """``(N, 2)`` (y, x) coordinates, an ``(H, W)`` or ``(B, H, W)`` bool mask -> (B or 1, H, W) bool."""
+    if not isinstance(pixels, Tensor):
+        try:
+            pixels = torch.as_tensor(pixels)
+        except (TypeError, ValueError, RuntimeError):
+            raise TypeError(f"pixels must be (N, 2) (y, x) coordinates or a bool mask, got {pixels!r}") from None
+    if pixels.dtype == torch.bool:
+        if tuple(pixels.shape) not in ((height, width), (batch, height, width)):
+            raise ValueError(
+                f"a pixel mask must have shape ({height}, {width}) or ({batch}, {height}, {width}), got {tuple(pixels.shape)}"
+            )
+        return pixels.to(device, non_blocking=True).reshape(-1, height, width)
+    if pixels.is_floating_point() or pixels.is_complex():
+        raise TypeError(f"pixel coordinates must be integers, got dtype {pixels.dtype}")
+    if pixels.dim() != 2 or pixels.shape[1] != 2:
+        raise ValueError(f"pixel coordinates must have shape (N, 2) as (y, x), got {tuple(pixels.shape)}")
+    ys, xs = pixels[:, 0].cpu(), pixels[:, 1].cpu()
+    if pixels.numel() and bool(((ys < 0) | (ys >= height) | (xs < 0) | (xs >= width)).any()):
+        raise ValueError(f"pixel coordinates must lie inside (H, W) = ({height}, {width}), got {describe(pixels)}")
+    mask = torch.zeros(height * width, dtype=torch.bool)
+    mask[ys * width + xs] = True
+    return mask.view(1, height, width).to(device, non_blocking=True)
+
+
+def add_entries(frames: Tensor, target: Tensor, values: Tensor, name: str) -> Tensor:
+    """A copy of ``frames`` with ``values`` added at the distinct flat positions ``target``.
+
+    Integer dtypes narrower than int64 are checked for overflow first (one host
+    synchronisation, for those dtypes only); float dtypes need none.
+    """
+    out = frames.clone(memory_format=torch.contiguous_format)
+    flat = out.view(-1)
+    if frames.dtype in SMALL_INTEGERS and target.numel():
+        limit = torch.iinfo(frames.dtype).max
+        high = (flat.index_select(0, target).to(torch.int64) + values.to(torch.int64)).max()
+        if bool(high > limit):
+            raise ValueError(
+                f"adding {name} overflows {frames.dtype}: a pixel would hold {int(high)} > {limit}; "
+                "use a wider dtype"
+            )
+    return flat.index_add_(0, target, values.to(out.dtype)).view(frames.shape)
+
+
+def poisson_totals(lam: Tensor, shape: torch.Size, generator: torch.Generator | None) -> Tensor | None:
+    """Per-sample totals Poisson(λ·cells) (int64 CPU) for sparse noise, or ``None`` if dense.
+
+    ``lam`` is the (B,) mean count per cell (CPU float64). Below one event per cell the noise
+    is placed event by event (the totals, then uniform positions); otherwise cell by cell.
+    """
+    if lam.numel() == 0 or max(lam.tolist()) >= 1.0:
+        return None
+    cells = float(torch.Size(shape[1:]).numel())
+    return torch.poisson(lam * cells, generator=generator).to(torch.int64)

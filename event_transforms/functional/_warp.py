@@ -145,7 +145,7 @@ def _constants(values: Sequence[float], device: torch.device) -> Tensor:
     return torch.stack([torch.full((), v, dtype=torch.float64, device=device) for v in values])
 
 
-def _check_center(center: object, batch: int | None = None) -> Center:
+def check_center(center: object, batch: int | None = None) -> Center:
     """``"mass"``, ``"image"``, a ``(y, x)`` pair, or (with ``batch``) a ``(B, 2)`` tensor."""
     if isinstance(center, str):
         return check_choice(center, "center", ("mass", "image"))
@@ -261,7 +261,7 @@ def _sampling_matrices(
     return matrix.reshape(-1, 6, 3)
 
 
-def _image_corners(height: int, width: int) -> Tensor:
+def image_corners(height: int, width: int) -> Tensor:
     """(4, 2) float64 (y, x) corners of the frame: top-left, top-right, bottom-right, bottom-left
     pixel centres (a singleton axis spans [0, 1], so the quadrilateral never degenerates)."""
     bottom, right = max(height - 1, 1), max(width - 1, 1)

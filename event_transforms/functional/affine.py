@@ -29,7 +29,7 @@ from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, register_kernel
 from ._event_ops import _round_to
 from ._frame_ops import _output_dtype, _work_dtype
-from ._warp import Center, _check_center, _mass_moments, _sampling_matrices, _theta_on_device, _warp, center_of_mass
+from ._warp import Center, check_center, _mass_moments, _sampling_matrices, _theta_on_device, _warp, center_of_mass
 
 __all__ = [
     "center_of_mass",
@@ -147,7 +147,7 @@ def rotate(
         (torch.int16, [[0, 2]], 7)
     """
     batch, b, restore = batch_of(inputs)
-    center = _check_center(center, b)
+    center = check_center(center, b)
     angle_t = check_args("rotate", ROTATE_SPEC, b, angle=angle)["angle"]
     return restore(call_kernel(rotate, batch, angle_t, center=center, mode=check_choice(mode, "mode", INTERPOLATIONS)))
 
@@ -185,7 +185,7 @@ def resize(
         [0.0, 0.0, 0.0, 0.5, 1.0]
     """
     batch, b, restore = batch_of(inputs)
-    center = _check_center(center, b)
+    center = check_center(center, b)
     scale_t = check_args("resize", RESIZE_SPEC, b, scale=scale)["scale"]
     return restore(call_kernel(resize, batch, scale_t, center=center, mode=check_choice(mode, "mode", INTERPOLATIONS)))
 
@@ -236,7 +236,7 @@ def affine(
     batch, b, restore = batch_of(inputs)
     args = check_args("affine", AFFINE_SPEC, b, angle=angle, scale=scale, translate=translate, shear=shear)
     check_choice(mode, "mode", INTERPOLATIONS)
-    center = _check_center(center, b)
+    center = check_center(center, b)
     return restore(call_kernel(
         affine, batch, args["angle"], args["scale"], shear=args["shear"], translate=args["translate"], center=center, mode=mode
     ))

@@ -22,8 +22,9 @@ import torch
 from torch import Tensor
 
 from .._params import SEED, Param, check_args
-from .._validation import DROP_MODES, check_choice, check_generator, count_stats, describe
+from .._validation import DROP_MODES, check_choice, check_generator, count_stats
 from ..events.batch import EventBatch
+from ._frame_ops import pixel_mask
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
 from ._event_ops import DROP_KEYS, _compact, _keys, _per_event, _require_grid
 from ._hypergeometric import _EXPAND_MAX, Stream, binomial_counts
@@ -367,30 +368,6 @@ def drop_by_area_events(batch: EventBatch, top: Tensor, left: Tensor, height: Te
 _PIXEL_MASK = 1  # the purpose of the pixel draw
 
 
-def _pixel_mask(pixels: object, batch: int, height: int, width: int, device: torch.device) -> Tensor:
-    """``(N, 2)`` (y, x) coordinates, an ``(H, W)`` or ``(B, H, W)`` bool mask -> (B or 1, H, W) bool."""
-    if not isinstance(pixels, Tensor):
-        try:
-            pixels = torch.as_tensor(pixels)
-        except (TypeError, ValueError, RuntimeError):
-            raise TypeError(f"pixels must be (N, 2) (y, x) coordinates or a bool mask, got {pixels!r}") from None
-    if pixels.dtype == torch.bool:
-        if tuple(pixels.shape) not in ((height, width), (batch, height, width)):
-            raise ValueError(
-                f"a pixel mask must have shape ({height}, {width}) or ({batch}, {height}, {width}), got {tuple(pixels.shape)}"
-            )
-        return pixels.to(device, non_blocking=True).reshape(-1, height, width)
-    if pixels.is_floating_point() or pixels.is_complex():
-        raise TypeError(f"pixel coordinates must be integers, got dtype {pixels.dtype}")
-    if pixels.dim() != 2 or pixels.shape[1] != 2:
-        raise ValueError(f"pixel coordinates must have shape (N, 2) as (y, x), got {tuple(pixels.shape)}")
-    ys, xs = pixels[:, 0].cpu(), pixels[:, 1].cpu()
-    if pixels.numel() and bool(((ys < 0) | (ys >= height) | (xs < 0) | (xs >= width)).any()):
-        raise ValueError(f"pixel coordinates must lie inside (H, W) = ({height}, {width}), got {describe(pixels)}")
-    mask = torch.zeros(height * width, dtype=torch.bool)
-    mask[ys * width + xs] = True
-    return mask.view(1, height, width).to(device, non_blocking=True)
-
 def drop_pixel(inputs: Tensor | EventBatch, pixels: Tensor | Sequence[Sequence[int]]) -> Tensor | EventBatch:
     """Remove every event of the given pixels, in all frames and both polarities.
 
@@ -415,7 +392,7 @@ def drop_pixel(inputs: Tensor | EventBatch, pixels: Tensor | Sequence[Sequence[i
     """
     batch, b, restore = batch_of(inputs)
     height, width = batch.sensor_size if isinstance(batch, EventBatch) else batch.shape[-2:]
-    return restore(call_kernel(drop_pixel, batch, _pixel_mask(pixels, b, height, width, batch.device)))
+    return restore(call_kernel(drop_pixel, batch, pixel_mask(pixels, b, height, width, batch.device)))
 
 
 @register_kernel(drop_pixel, Tensor)

@@ -28,9 +28,9 @@ from ..events.batch import EventBatch
 from ._dispatch import batch_of, call_kernel, kernel_for, register_kernel
 from ._event_ops import JITTER, _mirrored, _per_event, _round_to
 from ._random import EventStream
-from ._frame_ops import _output_dtype, _work_dtype
+from ._frame_ops import _output_dtype, _work_dtype, factor_pair
 from ._frame_ops import _by_runs_on, _flags, _rows_by_flags, _samples_by_runs, _sum_in
-from ._frame_ops import _size
+from ._frame_ops import frame_size
 
 __all__ = [
     "horizontal_flip", "horizontal_flip_frames", "horizontal_flip_events",
@@ -249,7 +249,7 @@ def crop(
     """
     batch, b, restore = batch_of(inputs)
     height, width = batch.sensor_size if isinstance(batch, EventBatch) else batch.shape[-2:]
-    hw = _size(size, "size")
+    hw = frame_size(size, "size")
     _check_fits(hw, height, width)
     check_choice(mode, "mode", INTERPOLATIONS)
     corner = check_args("crop", crop_spec((height, width), hw), b, top=top, left=left)
@@ -316,7 +316,7 @@ def center_crop(frames: Tensor, size: int | Sequence[int], *, resize: bool = Fal
     """
     batch = check_frames(frames)
     height, width = batch.shape[-2:]
-    hw = _size(size, "size")
+    hw = frame_size(size, "size")
     _check_fits(hw, height, width)
     out = crop(frames, (height - hw[0]) // 2, (width - hw[1]) // 2, hw, resize=resize, mode=mode)
     assert isinstance(out, Tensor)  # frames in, frames out
@@ -360,10 +360,6 @@ def downsample_frames(batch: Tensor, factor: tuple[int, int], remainder: str = "
     return _sum_in(body.reshape(b, t, p, h, fy, w, fx), (4, 6), "downsample")
 
 
-def _factor(value: object) -> tuple[int, int]:
-    return _size(value, "factor")
-
-
 def downsample(frames: Tensor | EventBatch, factor: int | Sequence[int], *, remainder: str = "drop") -> Tensor | EventBatch:
     """Sum each ``fy × fx`` block of pixels into one (sum-pooling): counts are conserved.
 
@@ -400,9 +396,9 @@ def downsample(frames: Tensor | EventBatch, factor: int | Sequence[int], *, rema
     """
     kernel = kernel_for(downsample, frames)
     if isinstance(frames, EventBatch):
-        return kernel(frames, _factor(factor), check_choice(remainder, "remainder", REMAINDERS))
+        return kernel(frames, factor_pair(factor), check_choice(remainder, "remainder", REMAINDERS))
     batch, unbatch = as_batch(check_frames(frames))
-    return unbatch(kernel(batch, _factor(factor), check_choice(remainder, "remainder", REMAINDERS)))
+    return unbatch(kernel(batch, factor_pair(factor), check_choice(remainder, "remainder", REMAINDERS)))
 
 
 register_kernel(downsample, Tensor)(downsample_frames)

@@ -26,8 +26,9 @@ import torch
 from torch import Tensor
 
 from .._params import SEED, Param, check_args
-from .._validation import as_number, describe
+from .._validation import describe
 from ..events.batch import EventBatch
+from ._frame_ops import blend_labels, check_classes
 from ._dispatch import batch_of, kernel_for, register_kernel, shape_of
 from ._event_ops import _compact
 from ._random import draw_seeds, sample_salts, uniform
@@ -431,32 +432,6 @@ def mix_labels(labels: Tensor, partner: Scalars, weight: Scalars, *, num_classes
         raise ValueError(f"labels must have a batch axis (B, ...), got {describe(labels)}")
     b = labels.shape[0]
     args = check_args("mix_labels", mix_labels_spec(b), b, partner=partner, weight=weight)
-    return _mix_labels(labels, args["partner"], args["weight"], _check_classes(labels, num_classes))
+    return blend_labels(labels, args["partner"], args["weight"], check_classes(labels, num_classes))
 
 
-def _check_classes(labels: Tensor, num_classes: int | None) -> int | None:
-    if num_classes is not None:
-        num_classes = as_number(num_classes, "num_classes", integer=True, low=1)
-    if labels.dtype == torch.bool or labels.is_complex():
-        raise TypeError(f"labels must be float targets or integer class indices, got dtype {labels.dtype}")
-    if not labels.is_floating_point():
-        if num_classes is None:
-            raise TypeError(
-                f"labels of dtype {labels.dtype} are class indices: give num_classes to mix them as "
-                "soft targets (or pass float targets)"
-            )
-        if labels.dim() != 1:
-            raise ValueError(f"class indices must have shape (B,), got {tuple(labels.shape)}")
-        if labels.numel() and bool(((labels < 0) | (labels >= num_classes)).any()):
-            raise ValueError(f"class indices must lie in [0, {num_classes}), got {describe(labels)}")
-    return num_classes
-
-
-def _mix_labels(labels: Tensor, partner: Tensor, weight: Tensor, num_classes: int | None) -> Tensor:
-    if not labels.is_floating_point():
-        labels = torch.nn.functional.one_hot(labels.long(), -1 if num_classes is None else num_classes).to(torch.float32)
-    work = torch.float64 if labels.dtype == torch.float64 else torch.float32
-    w = weight.to(labels.device, work, non_blocking=True).view(-1, *([1] * (labels.dim() - 1)))
-    own = labels.to(work)
-    other = own.index_select(0, partner.to(labels.device, non_blocking=True))
-    return (other + w * (own - other)).to(labels.dtype)

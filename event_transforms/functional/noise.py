@@ -22,6 +22,7 @@ from .._validation import (
 )
 
 from ..events.batch import EventBatch
+from ._frame_ops import SMALL_INTEGERS
 from ._dispatch import batch_of, call_kernel, register_kernel
 from .._params import Param, check_args
 from ._event_ops import POISSON_COUNT, POISSON_P, POISSON_T, POISSON_X, POISSON_Y, _append, _require_grid
@@ -31,7 +32,6 @@ __all__ = [
     "add_poisson_noise", "add_poisson_noise_frames", "add_poisson_noise_events",
 ]
 
-_SMALL_INTEGERS = (torch.uint8, torch.int8, torch.int16, torch.int32)
 Scalars = float | Sequence[float] | Tensor
 
 
@@ -41,7 +41,7 @@ _POISSON_CELLS = 1
 
 def _add_counts(frames: Tensor, counts: Tensor, name: str) -> Tensor:
     """``frames + counts`` in the frames' dtype; raises if an integer dtype would overflow."""
-    if frames.dtype in _SMALL_INTEGERS and frames.numel():
+    if frames.dtype in SMALL_INTEGERS and frames.numel():
         limit = torch.iinfo(frames.dtype).max
         high = (frames.to(torch.int64) + counts.to(torch.int64)).max()
         if bool(high > limit):
@@ -52,25 +52,6 @@ def _add_counts(frames: Tensor, counts: Tensor, name: str) -> Tensor:
     return frames + counts.to(frames.dtype)
 
 
-def _add_entries(frames: Tensor, target: Tensor, values: Tensor, name: str) -> Tensor:
-    """A copy of ``frames`` with ``values`` added at the distinct flat positions ``target``.
-
-    Integer dtypes narrower than int64 are checked for overflow first (one host
-    synchronisation, for those dtypes only); float dtypes need none.
-    """
-    out = frames.clone(memory_format=torch.contiguous_format)
-    flat = out.view(-1)
-    if frames.dtype in _SMALL_INTEGERS and target.numel():
-        limit = torch.iinfo(frames.dtype).max
-        high = (flat.index_select(0, target).to(torch.int64) + values.to(torch.int64)).max()
-        if bool(high > limit):
-            raise ValueError(
-                f"adding {name} overflows {frames.dtype}: a pixel would hold {int(high)} > {limit}; "
-                "use a wider dtype"
-            )
-    return flat.index_add_(0, target, values.to(out.dtype)).view(frames.shape)
-
-
 def _add_events(batch: Tensor, flat_index: Tensor) -> Tensor:
     """Add one event at each flat position (repeats accumulate): O(events) beyond a clone.
 
@@ -79,7 +60,7 @@ def _add_events(batch: Tensor, flat_index: Tensor) -> Tensor:
     """
     out = batch.clone(memory_format=torch.contiguous_format)
     flat = out.view(-1)
-    if batch.dtype in _SMALL_INTEGERS and flat_index.numel():
+    if batch.dtype in SMALL_INTEGERS and flat_index.numel():
         cell, added = torch.unique(flat_index, return_counts=True)
         high = (flat.index_select(0, cell).to(torch.int64) + added).max()
         limit = torch.iinfo(batch.dtype).max
@@ -325,23 +306,11 @@ def add_poisson_noise_events(
     return _poisson_events(batch, rate_hz, seeds)
 
 
-def _poisson_totals(lam: Tensor, shape: torch.Size, generator: torch.Generator | None) -> Tensor | None:
-    """Per-sample totals Poisson(λ·cells) (int64 CPU) for sparse noise, or ``None`` if dense.
-
-    ``lam`` is the (B,) mean count per cell (CPU float64). Below one event per cell the noise
-    is placed event by event (the totals, then uniform positions); otherwise cell by cell.
-    """
-    if lam.numel() == 0 or max(lam.tolist()) >= 1.0:
-        return None
-    cells = float(torch.Size(shape[1:]).numel())
-    return torch.poisson(lam * cells, generator=generator).to(torch.int64)
-
-
 def _add_poisson_noise(batch: Tensor, lam: Tensor, *, totals: Tensor | None = None, seeds: Tensor) -> Tensor:
     """Add Poisson(λ_b) counts per cell to a (B, T, 2, H, W) batch; ``lam`` (B,) CPU float64,
     ``seeds`` (B,) int64 per-sample seeds.
 
-    With ``totals`` (B,) (CPU int64, from :func:`_poisson_totals`) the events are placed
+    With ``totals`` (B,) (CPU int64, from :func:`poisson_totals`) the events are placed
     uniformly among the cells: exactly independent Poisson(λ) per cell (Poissonisation), in
     O(events) work and with no host synchronisation; event k of sample b lands in the cell
     named by a counter-based uniform of (seed b, k). Without, every cell is drawn by

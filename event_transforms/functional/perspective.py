@@ -19,7 +19,7 @@ from .._validation import INTERPOLATIONS, check_choice
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, kernel_for, register_kernel
 from ._frame_ops import _output_dtype, _work_dtype
-from ._warp import _base_grid, _image_corners, _keep_on_sensor, _normalisation, _sample
+from ._warp import _base_grid, image_corners, _keep_on_sensor, _normalisation, _sample
 
 __all__ = ["perspective", "perspective_frames", "perspective_events"]
 
@@ -45,7 +45,7 @@ def _perspective_matrices(corners: Tensor, height: int, width: int) -> np.ndarra
     frame's corners (four point pairs, eight unknowns, one solve per sample), conjugated by
     the normalisation. NumPy, not torch: host numbers, no dispatch."""
     target = np.asarray(corners.tolist(), dtype=np.float64)[..., ::-1]  # (B, 4, 2) as (x, y): output
-    source = _image_corners(height, width).numpy()[:, ::-1]  # (4, 2) as (x, y): input
+    source = image_corners(height, width).numpy()[:, ::-1]  # (4, 2) as (x, y): input
     b = target.shape[0]
     u, v = target[..., 0], target[..., 1]  # (B, 4)
     x, y = np.broadcast_to(source[:, 0], (b, 4)), np.broadcast_to(source[:, 1], (b, 4))

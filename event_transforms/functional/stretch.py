@@ -19,7 +19,7 @@ from .._validation import INTERPOLATIONS, as_batch, check_choice, check_frames
 from ..events.batch import EventBatch
 from ._dispatch import batch_of, kernel_for, register_kernel
 from ._event_ops import _round_to
-from ._warp import Center, _center_of_mass, _check_center, _mass_moments, _mass_weight, _warp, axis_radians
+from ._warp import Center, _center_of_mass, check_center, _mass_moments, _mass_weight, _warp, axis_radians
 from ._frame_ops import _output_dtype
 
 __all__ = ["stretch", "stretch_frames", "stretch_events", "contact_axis"]
@@ -220,7 +220,7 @@ def stretch(
     axis_t = check_choice(axis, "axis", (CONTACT,)) if isinstance(axis, str) else \
         check_args("stretch", STRETCH_SPEC, b, axis=axis)["axis"]
     check_choice(mode, "mode", INTERPOLATIONS)
-    center = _check_center(center, b)
+    center = check_center(center, b)
     return unbatch(kernel(batch, factor_t, axis_t, center, mode))
 
 

@@ -23,10 +23,11 @@ from torch import Tensor
 
 from .._params import Param, check_args
 from .._validation import (
-    HOST_READ, TES_MODES, as_number, check_choice, check_counts, check_generator, count_stats, on_host, read_host,
+    HOST_READ, TES_MODES, check_choice, check_counts, check_generator, count_stats, on_host, read_host,
 )
 from ..events.batch import EventBatch
 from ..events.ingest import _frame_us
+from ._frame_ops import check_length
 from ._dispatch import batch_of, call_kernel, register_kernel, shape_of
 from ..events.drops import counting, record_dropped
 from ._event_ops import TES_KEYS, _kept, _mirrored, _keys, _per_event, _require_grid
@@ -502,12 +503,6 @@ def _reverse_times(batch: EventBatch, reverse: Tensor | None) -> EventBatch:
     t = _mirrored(batch, reverse, batch.t, end, by_streams=True)
     return batch if t is None else batch._replace(t=t.to(batch.t.dtype))
 
-def _check_length(length: object, frames: int) -> int:
-    value = as_number(length, "length", integer=True)
-    if not 1 <= value <= frames:
-        raise ValueError(f"length must lie in [1, {frames}] (the number of frames T), got {length!r}")
-    return value
-
 def crop_time(inputs: Tensor | EventBatch, start: Scalars, length: int) -> Tensor | EventBatch:
     """Keep frames ``[start, start + length)`` of each sequence (a temporal window).
 
@@ -538,7 +533,7 @@ def crop_time(inputs: Tensor | EventBatch, start: Scalars, length: int) -> Tenso
     """
     batch, b, restore = batch_of(inputs)
     shape = shape_of(batch)
-    size = _check_length(length, shape[1])
+    size = check_length(length, shape[1])
     start_t = check_args("crop_time", crop_time_spec(shape, size), b, start=start)["start"]
     return restore(call_kernel(crop_time, batch, start_t, size))
 

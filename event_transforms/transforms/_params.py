@@ -24,7 +24,7 @@ from typing import Any, Protocol, Union
 import torch
 from torch import Tensor
 
-from .._params import Param, _check_leaf
+from .._params import Param, check_leaf
 
 
 __all__ = ["Param", "Params", "Spec", "check_tree", "slice_params", "CHECK_RANGE"]
@@ -83,7 +83,7 @@ def check_tree(module: Declares, params: object, shape: torch.Size, path: str = 
                 continue
             raise ValueError(f"{owner}: {path} has no entry {key!r} (it has {sorted(params)}); pass the dict that make_params returns")
         if isinstance(entry, Param):
-            checked[key] = _check_leaf(params[key], entry, batch, owner, where)
+            checked[key] = check_leaf(params[key], entry, batch, owner, where)
         else:
             child, child_shape = entry
             checked[key] = check_tree(child, params[key], child_shape, where)

@@ -27,7 +27,7 @@ from ..functional._dispatch import call_kernel
 from ..functional.affine import AFFINE_SPEC, RESIZE_SPEC, ROTATE_SPEC
 from ..functional.elastic import elastic_spec
 from ..functional.perspective import PERSPECTIVE_SPEC
-from ..functional._warp import Center, _check_center, _image_corners
+from ..functional._warp import Center, check_center, image_corners
 from .base import EventTransform, Param, Params, choice, uniform
 
 __all__ = [
@@ -59,7 +59,7 @@ class _Affine(_Warp):
 
     def __init__(self, *, center: Center, mode: str, p: float) -> None:
         super().__init__(mode=mode, p=p)
-        self.center = _check_center(center)
+        self.center = check_center(center)
 
     def _common(self) -> str:
         return f"center={self.center!r}, mode={self.mode!r}"
@@ -431,7 +431,7 @@ class RandomPerspective(_Warp):
         reach = self.distortion_scale * torch.tensor([(height - 1) / 2, (width - 1) / 2], dtype=torch.float64)
         inwards = torch.tensor([[1.0, 1.0], [1.0, -1.0], [-1.0, -1.0], [-1.0, 1.0]], dtype=torch.float64)
         moves = uniform(0.0, 1.0, b * 8, generator).view(b, 4, 2) * reach * inwards
-        return {"corners": _image_corners(height, width) + moves}
+        return {"corners": image_corners(height, width) + moves}
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         return PERSPECTIVE_SPEC

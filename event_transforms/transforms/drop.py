@@ -21,8 +21,9 @@ from ..functional._dispatch import call_kernel
 from .._params import SEED
 from ..functional.drop import (
     DECIMATION_SPEC, DROP_BY_AREA_SPEC, DROP_BY_TIME_SPEC, DROP_RANDOM_SPEC, RANDOM_PIXEL_MASK_SPEC, REFRACTORY_PERIOD_SPEC,
-    _pixel_mask, random_pixel_mask,
+    random_pixel_mask,
 )
+from ..functional._frame_ops import pixel_mask
 from .base import EventTransform, Param, Params, apply_by_group, choice, integers, seeds, slice_params, uniform
 
 __all__ = ["RandomEventDrop", "DropPixel", "RandomDropPixel", "RefractoryPeriod", "Decimation"]
@@ -180,7 +181,7 @@ class DropPixel(EventTransform):
         else:
             b, _, _, height, width = inputs.shape
         if self.pixels is not None:
-            mask = _pixel_mask(self.pixels, b, height, width, inputs.device)
+            mask = pixel_mask(self.pixels, b, height, width, inputs.device)
         else:
             assert isinstance(inputs, Tensor) and self.rate_hz is not None  # refused above / set without pixels
             mask = F.hot_pixels(inputs, self.rate_hz, frame_ms=self.frame_ms)

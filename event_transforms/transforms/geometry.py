@@ -25,8 +25,8 @@ from .._params import check_args
 from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
-from ..functional.geometry import SPATIAL_JITTER_SPEC, TRANSLATE_SPEC, REMAINDERS, _factor, crop_spec, downsampled_size
-from ..functional._frame_ops import _size
+from ..functional.geometry import SPATIAL_JITTER_SPEC, TRANSLATE_SPEC, REMAINDERS, crop_spec, downsampled_size
+from ..functional._frame_ops import factor_pair, frame_size
 from .base import EventTransform, Param, Params, integers, seeds, uniform
 
 __all__ = [
@@ -125,7 +125,7 @@ class _Crop(EventTransform):
             raise ValueError(
                 f"p < 1 needs resize=True: a batch cannot mix cropped and uncropped sizes, got p={p!r}"
             )
-        self.size = _size(size, "size")
+        self.size = frame_size(size, "size")
         self.resize = resize
         self.mode = check_choice(mode, "mode", INTERPOLATIONS)
 
@@ -230,7 +230,7 @@ class Downsample(EventTransform):
 
     def __init__(self, factor: int | Sequence[int], *, remainder: str = "drop") -> None:
         super().__init__()
-        self.factor = _factor(factor)
+        self.factor = factor_pair(factor)
         self.remainder = check_choice(remainder, "remainder", REMAINDERS)
 
     def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:

@@ -45,10 +45,11 @@ from torch import Tensor
 
 from .._validation import as_number, check_positive
 from ..events.batch import EventBatch
-from ..functional._frame_ops import _size
+from ..functional._frame_ops import frame_size
 from .. import functional as F
 from ..functional._dispatch import call_kernel
-from ..functional.mixing import _check_classes, _mix_labels, CUTOUT_SPEC, cutmix_spec, mix_labels_spec, mixup_spec
+from ..functional._frame_ops import blend_labels, check_classes
+from ..functional.mixing import CUTOUT_SPEC, cutmix_spec, mix_labels_spec, mixup_spec
 from .base import EventTransform, Param, Params, _draw_device, integers, seeds
 
 __all__ = ["Cutout", "CutMix", "MixUp"]
@@ -144,7 +145,7 @@ class Cutout(EventTransform):
 
     def __init__(self, size: int | Sequence[int], *, p: float = 1.0) -> None:
         super().__init__(p=p)
-        self.size = _size(size, "size")
+        self.size = frame_size(size, "size")
 
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         b = shape[0]
@@ -189,12 +190,12 @@ class _Mixing(EventTransform):
 
     def apply_labels(self, labels: Tensor, params: Params) -> Tensor:
         """Mix ``labels`` (B, ...) with the partners and weights of ``params`` (the base-class hook)."""
-        return _mix_labels(labels, params["partner"], params["weight"], _check_classes(labels, self.num_classes))
+        return blend_labels(labels, params["partner"], params["weight"], check_classes(labels, self.num_classes))
 
     def keep_labels(self, labels: Tensor) -> Tensor:
         """Labels of samples the gate skips: their own, as one-hot targets for class indices."""
         own = torch.arange(labels.shape[0])
-        return _mix_labels(labels, own, torch.ones(labels.shape[0], dtype=torch.float64), _check_classes(labels, self.num_classes))
+        return blend_labels(labels, own, torch.ones(labels.shape[0], dtype=torch.float64), check_classes(labels, self.num_classes))
 
     def _common(self) -> str:
         settings = f"alpha={self.alpha}"

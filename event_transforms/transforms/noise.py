@@ -19,7 +19,8 @@ from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
 from .._params import SEED
-from ..functional.noise import ADD_POISSON_NOISE_SPEC, _add_entries, _poisson_totals
+from ..functional._frame_ops import add_entries, poisson_totals
+from ..functional.noise import ADD_POISSON_NOISE_SPEC
 from .base import EventTransform, Param, Params, integers, seeds, uniform
 
 __all__ = ["AddNoise", "AddPoissonNoise"]
@@ -122,7 +123,7 @@ class AddNoise(EventTransform):
         target_t = torch.from_numpy(target).to(frames.device)
         assert self._entry_values is not None  # a sparse bank (self._entries is set)
         values = self._entry_values.index_select(0, torch.from_numpy(select).to(frames.device))
-        return _add_entries(frames, target_t, values, "noise")
+        return add_entries(frames, target_t, values, "noise")
 
     def _settings(self) -> str:
         return f"bank=({', '.join(map(str, self.bank.shape))})"
@@ -159,7 +160,7 @@ class AddPoissonNoise(EventTransform):
     def sample_params(self, shape: torch.Size, *, generator: torch.Generator | None = None, metadata: Any = None) -> Params:
         rate = uniform(*self.rate_hz, shape[0], generator)
         params: Params = {"rate_hz": rate}
-        totals = _poisson_totals(rate * (self.frame_ms / 1000.0), shape, generator)
+        totals = poisson_totals(rate * (self.frame_ms / 1000.0), shape, generator)
         if totals is not None:
             params["count"] = totals
         params["seed"] = seeds(shape[0], generator)

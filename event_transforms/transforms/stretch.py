@@ -17,7 +17,7 @@ from torch import Tensor
 
 from .._validation import INTERPOLATIONS, as_number, check_choice, check_pair, check_positive
 from ..events.batch import EventBatch
-from ..functional._warp import Center, _check_center
+from ..functional._warp import Center, check_center
 from .. import functional as F
 from ..functional._dispatch import call_kernel
 from ..functional.stretch import CONTACT, STRETCH_SPEC
@@ -35,7 +35,7 @@ class _StretchWarp(EventTransform):
             self.axis: str | float = check_choice(axis, "axis", (CONTACT,))
         else:
             self.axis = as_number(axis, "axis")
-        self.center = _check_center(center)
+        self.center = check_center(center)
         self.mode = check_choice(mode, "mode", INTERPOLATIONS)
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:

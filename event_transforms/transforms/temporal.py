@@ -23,7 +23,8 @@ from .. import functional as F
 from ..events.batch import EventBatch
 from ..functional._dispatch import call_kernel
 from .._params import SEED
-from ..functional.temporal import FRAME_SHIFT_SPEC, TEMPORAL_EVENT_SHIFT_SPEC, _check_length, crop_time_spec
+from ..functional.temporal import FRAME_SHIFT_SPEC, TEMPORAL_EVENT_SHIFT_SPEC, crop_time_spec
+from ..functional._frame_ops import check_length
 from ..functional.timestamps import TIME_JITTER_SPEC, TIME_SKEW_SPEC
 from .base import EventTransform, Param, Params, choice, integers, seeds, uniform
 
@@ -302,7 +303,7 @@ class _CropTime(EventTransform):
             raise ValueError(f"length must be >= 1, got {length!r}")
 
     def _room(self, shape: torch.Size) -> int:
-        return shape[1] - _check_length(self.length, shape[1])
+        return shape[1] - check_length(self.length, shape[1])
 
     def params_spec(self, shape: torch.Size) -> dict[str, Param]:
         self._room(shape)
