@@ -342,3 +342,8 @@ def check_generator(generator: object, device: torch.device, name: str = "genera
             f"{name} lives on {generator.device} but the frames live on {device}; "
             "random kernels need a generator on the frames' device"
         )
+
+
+def index_on(index: Tensor, device: torch.device) -> Tensor:
+    """``index`` (a CPU tensor) on ``device``; no op when it is there already."""
+    return index if device.type == "cpu" else index.to(device)

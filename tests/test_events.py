@@ -494,7 +494,7 @@ class TestRealRecordings:
             events_to_frames(events, tonic_sensor_size=(320, 240, 1))
 
     def test_chunks_bound_what_is_converted_at_once(self, monkeypatch):
-        import event_transforms.events.ingest as module
+        import event_transforms.events._ingest as module
 
         seen = []
         original = module._column

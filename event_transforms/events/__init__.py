@@ -1,6 +1,6 @@
 """Event streams: the padded :class:`EventBatch`, binning into frames, streaming.
 
-- :mod:`event_transforms.events.ingest` (private): every in-memory input form to canonical
+- :mod:`event_transforms.events._ingest` (private): every in-memory input form to canonical
   columns ``x, y, t, p`` in microseconds, and the checks of the binning's settings;
 - :mod:`event_transforms.events.batch`: :class:`EventBatch`, :func:`collate_events`;
 - :mod:`event_transforms.events.binning`: :func:`events_to_frames` (streams, or an

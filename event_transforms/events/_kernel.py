@@ -19,8 +19,8 @@ from torch import Tensor
 from .._compile import compilable
 from .batch import EventBatch
 from .drops import EventsOutsideSensorWarning, warn_at_caller
-from .ingest import (
-    _INT64_MAX, _check_crop, _check_dtype, _check_polarity, _frame_us, _integer, _sensor,
+from ._ingest import (
+    _INT64_MAX, _check_crop, _check_dtype, _check_polarity, bin_width_us, check_integer, _sensor,
 )
 
 #: Pixel table entries: an output pixel ``row * W' + col``, or one of these.
@@ -74,13 +74,13 @@ class _Grid:
         return 2 * self.out_h * self.out_w
 
 
-def _grid(
+def build_grid(
     sensor_size: object, tonic_sensor_size: object, crop: object, pool: object, frame_ms: object, dtype: object
 ) -> _Grid:
     height, width = _sensor(sensor_size, tonic_sensor_size)
-    pool = _integer(pool, "pool")
+    pool = check_integer(pool, "pool")
     top, left, crop_h, crop_w = _check_crop(crop, height, width, pool)
-    return _Grid(height, width, top, left, crop_h, crop_w, pool, _frame_us(frame_ms), _check_dtype(dtype))
+    return _Grid(height, width, top, left, crop_h, crop_w, pool, bin_width_us(frame_ms), _check_dtype(dtype))
 
 
 class _Tally:
@@ -120,7 +120,7 @@ def _merge(bounds: list[Any], low: Any, high: Any) -> None:
     bounds[1] = high if bounds[1] is None else max(bounds[1], high)
 
 
-def _polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally | None = None) -> Tensor:
+def polarity_channel(p: Tensor, valid: Tensor | None, tally: _Tally | None = None) -> Tensor:
     """Channel per event: 1 for ON (p > 0), 0 for OFF (p in {0, -1}); refuses anything else."""
     _check_polarity(p, valid, None if tally is None else tally.polarities)
     return (p > 0).to(torch.int64)
@@ -174,7 +174,7 @@ def _relative(t: Tensor, starts: Tensor) -> Tensor:
     return t - starts
 
 
-def _bins_of(rel: Tensor, frame_us: float | int, n_frames: int) -> tuple[Tensor, Tensor]:
+def bins_of(rel: Tensor, frame_us: float | int, n_frames: int) -> tuple[Tensor, Tensor]:
     """``floor(rel / frame_us)`` and whether ``0 <= rel < n_frames * frame_us``.
 
     Integer times over a window with ``n_frames * frame_us < 2**23`` (8.4 s): float32 true
@@ -193,7 +193,7 @@ def _bins_of(rel: Tensor, frame_us: float | int, n_frames: int) -> tuple[Tensor,
 
 def _quotient(rel: Tensor, frame_us: float | int, n_frames: int) -> Tensor:
     """``rel / frame_us`` in float32 or float64 where that floors exactly (see
-    :func:`_bins_of`), else the int64 floor quotient."""
+    :func:`bins_of`), else the int64 floor quotient."""
     span = n_frames * frame_us
     if not rel.is_floating_point() and isinstance(frame_us, int) and span >= 2**52:
         return torch.div(rel, frame_us, rounding_mode="floor")
@@ -244,14 +244,14 @@ def _tally_outside(tally: _Tally, pixel: Tensor, col: Tensor, row: Tensor, valid
         _merge(tally.y_range, *(int(v) for v in torch.aminmax(row[seen])))
 
 
-def _event_index(
+def event_index(
     col: Tensor, row: Tensor, on: Tensor, rel: Tensor, n_frames: int, grid: _Grid, wide: bool, *, look: bool = False
 ) -> tuple[Tensor, Tensor, Tensor]:
     """Per event (any shape, integer coordinates): its index inside one stream's
     ``(T, 2, H', W')`` block (int32, int64 if ``wide``; meaningless where not counted), its
     pixel table entry (negative off the crop or sensor) and whether its time is in the window.
     """
-    bins, in_time = _bins_of(rel, grid.frame_us, n_frames)
+    bins, in_time = bins_of(rel, grid.frame_us, n_frames)
     pixel = _pixels(col, row, grid, look=look)
     index = bins.to(torch.int64) if wide else bins.to(torch.int32)
     index = index.mul_(2).add_(on).mul_(grid.out_h * grid.out_w).add_(pixel)
@@ -287,7 +287,7 @@ def _count_chunk(
         index.mul_(grid.height).add_(row.to(index_dtype)).mul_(grid.width).add_(col.to(index_dtype))
         counted = None
     else:
-        index, pixel, in_time = _event_index(
+        index, pixel, in_time = event_index(
             col, row, p > 0, rel, n_frames, grid, index_dtype == torch.int64, look=True)
         counted = in_time & (pixel >= 0)
         if valid is not None:
@@ -469,7 +469,7 @@ def _empty_window_error(stream: str, start: Any, t_start: object, frame_ms: obje
     )
 
 
-def _relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
+def relative_times(batch: EventBatch, starts: Tensor) -> Tensor:
     """``t - t_start`` of each event's stream: one scalar subtraction when every stream starts
     at the same time (a shared clock, ``t_start`` a number), else a gather of the starts."""
     first = starts.tolist()
@@ -491,7 +491,7 @@ def _batch_kernel(grid: _Grid, n_frames: int, total: int, accumulator: torch.dty
 
     Returns ``f(x, y, p, rel, sample, table) -> (counts, lost)``: ``(total,)`` counts in
     ``accumulator`` and the (2,) events off the sensor and on it outside the time window, by
-    the arithmetic of :func:`_event_index` (every count equal to the eager path's)."""
+    the arithmetic of :func:`event_index` (every count equal to the eager path's)."""
     key = (grid.height, grid.width, grid.out_h, grid.out_w, grid.frame_us, type(grid.frame_us), n_frames, total,
            accumulator)
     fn = _BATCH_KERNELS.get(key)
@@ -521,3 +521,28 @@ def _batch_kernel(grid: _Grid, n_frames: int, total: int, accumulator: torch.dty
         _BATCH_KERNELS.clear()
     _BATCH_KERNELS[key] = bin_batch
     return bin_batch
+
+
+def valid_mask(
+    batch: int, length: int, lengths: Any, mask: Any, device: torch.device
+) -> Tensor | None:
+    if lengths is not None and mask is not None:
+        raise ValueError("give either lengths or mask, not both")
+    if mask is not None:
+        mask = torch.as_tensor(mask, device=device)
+        if mask.dtype != torch.bool or tuple(mask.shape) != (batch, length):
+            raise ValueError(
+                f"mask must be a bool tensor of shape ({batch}, {length}), "
+                f"got shape {tuple(mask.shape)} and dtype {mask.dtype}"
+            )
+        return mask
+    if lengths is not None:
+        lengths = torch.as_tensor(lengths, device=device)
+        if lengths.dtype.is_floating_point or lengths.dtype == torch.bool:
+            raise TypeError(f"lengths must hold integers, got dtype {lengths.dtype}")
+        if tuple(lengths.shape) != (batch,):
+            raise ValueError(f"lengths must have shape ({batch},), got {tuple(lengths.shape)}")
+        if batch and bool(((lengths < 0) | (lengths > length)).any()):
+            raise ValueError(f"lengths must lie in [0, {length}], got {lengths.tolist()}")
+        return torch.arange(length, device=device) < lengths.unsqueeze(1)
+    return None

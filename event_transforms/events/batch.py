@@ -37,9 +37,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .._validation import read_host
+from .._validation import index_on, read_host
 from .drops import EventsOutsideSensorWarning, warn_at_caller
-from .ingest import _T_STARTS, _check_polarity, _columns, _explicit_starts, _floor_to_grid, _frame_us, _integer, _sensor
+from ._ingest import T_START_RULES, _check_polarity, canonical_columns, explicit_starts, _floor_to_grid, bin_width_us, check_integer, _sensor
 
 __all__ = ["EventBatch", "collate_events"]
 
@@ -128,11 +128,11 @@ class EventBatch:
         if frame_ms is None and (t_start is not None or n_frames is not None):
             raise ValueError("t_start and n_frames describe a frame grid: give frame_ms too")
         if frame_ms is not None:
-            _frame_us(frame_ms)
+            bin_width_us(frame_ms)
             if t_start is None or not isinstance(t_start, Tensor) or tuple(t_start.shape) != (len(self),):
                 raise ValueError(f"a grid needs t_start as a ({len(self)},) CPU tensor of starts, got {t_start!r}")
             t_start = t_start.cpu()
-            n_frames = None if n_frames is None else _integer(n_frames, "n_frames")
+            n_frames = None if n_frames is None else check_integer(n_frames, "n_frames")
         self.frame_ms = None if frame_ms is None else float(frame_ms)
         self.t_start = t_start
         self.n_frames = n_frames
@@ -209,7 +209,7 @@ class EventBatch:
             if time_unit is None and columns is None and _narrow_struct(stream):
                 parsed.append(stream)
                 continue
-            (x, y, t, p), batched = _columns(stream, time_unit=time_unit, columns=columns)
+            (x, y, t, p), batched = canonical_columns(stream, time_unit=time_unit, columns=columns)
             if batched:
                 raise ValueError(f"streams[{i}] is a batch of shape {tuple(x.shape)}; pass one stream per entry")
             parsed.append((x[0], y[0], t[0], p[0]))
@@ -267,10 +267,10 @@ class EventBatch:
             >>> gridded.t_start.tolist(), gridded.frame_shape
             ([0, 0], torch.Size([2, 2, 2, 2, 3]))
         """
-        frame_us = _frame_us(frame_ms)
+        frame_us = bin_width_us(frame_ms)
         starts = _resolve_starts(self, t_start, frame_us)
         if n_frames is not None:
-            n_frames = _integer(n_frames, "n_frames")
+            n_frames = check_integer(n_frames, "n_frames")
         return self._replace(frame_ms=float(frame_ms), t_start=starts, n_frames=n_frames)
 
     # ------------------------------------------------------------------ containers
@@ -542,11 +542,6 @@ def _fill_from_columns(out: tuple[Tensor, ...], columns: tuple[Tensor, ...], i: 
     p.copy_(columns[3] > 0)
 
 
-def _on(index: Tensor, device: torch.device) -> Tensor:
-    """``index`` (a CPU tensor) on ``device``; no op when it is there already."""
-    return index if device.type == "cpu" else index.to(device)
-
-
 #: On the CPU, gathers of whole streams copy runs of adjacent events as slices (a ``memcpy``
 #: each, about 5x faster there than an ``index_select`` of every event); on an accelerator
 #: they are one ``index_select`` per field, whatever the number of streams. Tests switch it
@@ -588,7 +583,7 @@ class _Spans:
                 return pieces[k][a:b]
             return torch.cat([pieces[k][a:b] for k, a, b in self.runs]) if self.runs else pieces[0][:0]
         column = pieces[0] if len(pieces) == 1 else torch.cat(list(pieces))
-        return column.index_select(0, _on(self.index, column.device))
+        return column.index_select(0, index_on(self.index, column.device))
 
 
 def merge_streams(parts: Sequence[tuple[Sequence[int], EventBatch]], batch: int, like: EventBatch) -> EventBatch:
@@ -700,9 +695,9 @@ def _segment_first(batch: EventBatch, column: Tensor, reduce: str) -> list[Any]:
 
 def _resolve_starts(batch: EventBatch, t_start: object, frame_us: float | int) -> Tensor:
     if isinstance(t_start, str):
-        if t_start not in _T_STARTS:
+        if t_start not in T_START_RULES:
             raise ValueError(f"t_start must be 'floor', 'first', a number or one per stream, got {t_start!r}")
         firsts = [0 if v is None else v for v in _segment_first(batch, batch.t, "amin")]
         starts = torch.tensor(firsts, dtype=batch.t.dtype)
         return _floor_to_grid(starts, frame_us) if t_start == "floor" else starts
-    return _explicit_starts(t_start, len(batch))
+    return explicit_starts(t_start, len(batch))

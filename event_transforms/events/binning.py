@@ -58,14 +58,15 @@ from torch import Tensor
 
 from .batch import EventBatch, _resolve_starts, _segment_first
 from .drops import EventsOutsideSensorWarning, EventsOutsideWindowWarning, counting, record_dropped, warn_at_caller
-from .ingest import (
-    _FIELDS, _T_STARTS, _explicit_starts, _floor_to_grid,
-    _frame_us, _integer, _source,
+from ._ingest import (
+    _FIELDS, T_START_RULES, explicit_starts, _floor_to_grid,
+    bin_width_us, check_integer, _source,
 )
 from .._compile import compiled_kernels_enabled
 from ._kernel import (
+    valid_mask,
     _OUTSIDE_SENSOR, _Tally, _accumulate, _count_blocks, _accumulator, _as_dtype, _batch_kernel, _bin_of, _check_bytes, _count_chunk,
-    _empty_window_error, _event_index, _grid, _pixel_table, _relative_times, _time_bins, _to_spare, _warn_outside, _zeroed,
+    _empty_window_error, event_index, build_grid, _pixel_table, relative_times, _time_bins, _to_spare, _warn_outside, _zeroed,
 )
 
 #: Events read per chunk by default: the extra memory of a call is a few times this many
@@ -229,26 +230,26 @@ def events_to_frames(
                           dtype=dtype)
     frame_ms = 10.0 if frame_ms is None else frame_ms
     source = _source(events, time_unit=time_unit, columns=columns, whole=True)
-    grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
-    chunk = max(1, _integer(chunk_size, "chunk_size") // max(source.batch, 1))
+    grid = build_grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
+    chunk = max(1, check_integer(chunk_size, "chunk_size") // max(source.batch, 1))
     if max_bytes is not None:
-        max_bytes = _integer(max_bytes, "max_bytes")
+        max_bytes = check_integer(max_bytes, "max_bytes")
     if n_frames is not None:
-        n_frames = _integer(n_frames, "n_frames")
+        n_frames = check_integer(n_frames, "n_frames")
         _check_bytes(source.batch, n_frames, grid, max_bytes, "n_frames asks for", source.batch * source.length)
     if not source.batched and (lengths is not None or mask is not None):
         raise ValueError("lengths and mask apply to a (B, N, 4) batch of events only")
-    valid_all = _valid_mask(source.batch, source.length, lengths, mask, source.device)
+    valid_all = valid_mask(source.batch, source.length, lengths, mask, source.device)
     batch, length = source.batch, source.length
 
     def valid_of(i: int, j: int) -> Tensor | None:
         return None if valid_all is None else valid_all[:, i:j]
 
     if isinstance(t_start, str):
-        if t_start not in _T_STARTS:
+        if t_start not in T_START_RULES:
             raise ValueError(f"t_start must be 'floor', 'first', a number or one per stream, got {t_start!r}")
     else:
-        starts = _explicit_starts(t_start, batch)
+        starts = explicit_starts(t_start, batch)
 
     # A stream that fits one chunk is read once, for both passes.
     whole = source.read(0, length, _FIELDS) if length <= chunk else None
@@ -324,31 +325,6 @@ def events_to_frames(
     return frames if source.batched else frames.squeeze(0)
 
 
-def _valid_mask(
-    batch: int, length: int, lengths: Any, mask: Any, device: torch.device
-) -> Tensor | None:
-    if lengths is not None and mask is not None:
-        raise ValueError("give either lengths or mask, not both")
-    if mask is not None:
-        mask = torch.as_tensor(mask, device=device)
-        if mask.dtype != torch.bool or tuple(mask.shape) != (batch, length):
-            raise ValueError(
-                f"mask must be a bool tensor of shape ({batch}, {length}), "
-                f"got shape {tuple(mask.shape)} and dtype {mask.dtype}"
-            )
-        return mask
-    if lengths is not None:
-        lengths = torch.as_tensor(lengths, device=device)
-        if lengths.dtype.is_floating_point or lengths.dtype == torch.bool:
-            raise TypeError(f"lengths must hold integers, got dtype {lengths.dtype}")
-        if tuple(lengths.shape) != (batch,):
-            raise ValueError(f"lengths must have shape ({batch},), got {tuple(lengths.shape)}")
-        if batch and bool(((lengths < 0) | (lengths > length)).any()):
-            raise ValueError(f"lengths must lie in [0, {length}], got {lengths.tolist()}")
-        return torch.arange(length, device=device) < lengths.unsqueeze(1)
-    return None
-
-
 def bin_events(
     batch: EventBatch,
     *,
@@ -400,7 +376,7 @@ def bin_events(
         [[1.0, 0.0], [0.0, 1.0]]
     """
     if batch.frame_ms is not None:
-        if frame_ms is not None and _frame_us(frame_ms) != _frame_us(batch.frame_ms):
+        if frame_ms is not None and bin_width_us(frame_ms) != bin_width_us(batch.frame_ms):
             raise ValueError(
                 f"frame_ms={frame_ms!r} differs from the batch's grid (frame_ms={batch.frame_ms}); "
                 "bin with the grid's width or rebuild the grid with EventBatch.with_grid"
@@ -412,7 +388,7 @@ def bin_events(
         if frame_ms is None:
             frame_ms = 10.0
         starts = None
-    grid = _grid(batch.sensor_size, None, crop, pool, frame_ms, dtype)
+    grid = build_grid(batch.sensor_size, None, crop, pool, frame_ms, dtype)
     if starts is None:
         starts = _resolve_starts(batch, t_start, grid.frame_us)
     if n_frames is None:
@@ -425,7 +401,7 @@ def bin_events(
         if n_frames > _MAX_INFERRED_FRAMES:
             raise ValueError(f"the events span {n_frames:,} bins of frame_ms={frame_ms!r}; pass n_frames")
     else:
-        n_frames = _integer(n_frames, "n_frames", low=0)
+        n_frames = check_integer(n_frames, "n_frames", low=0)
     b = len(batch)
     total = b * n_frames * grid.frame_size
     counts, lost = _bin_counts(batch, starts, n_frames, grid, total)
@@ -458,16 +434,16 @@ def _bin_counts(batch: EventBatch, starts: Tensor, n_frames: int, grid: Any, tot
         return torch.zeros(total, dtype=dtype, device=device), None
     if compiled_kernels_enabled():  # one compiled scatter for the batch, on any device
         kernel = _batch_kernel(grid, n_frames, total, _accumulator(dtype, n))
-        counts, lost = kernel(batch.x, batch.y, batch.p, _relative_times(batch, starts), batch.sample_index(),
+        counts, lost = kernel(batch.x, batch.y, batch.p, relative_times(batch, starts), batch.sample_index(),
                               _pixel_table(grid, device))
         return _as_dtype(counts, dtype), lost
-    rel = _relative_times(batch, starts)
+    rel = relative_times(batch, starts)
     if device.type == "cpu" and total:
         blocks = _count_blocks(batch.x, batch.y, batch.p, rel, batch.offsets.tolist(), n_frames, grid,
                                _accumulator(dtype, n), counting())
         if blocks is not None:
             return _as_dtype(blocks[0], dtype), blocks[1]
-    index, pixel, in_time = _event_index(batch.x, batch.y, batch.p, rel, n_frames, grid, total >= 2**31 - 1)
+    index, pixel, in_time = event_index(batch.x, batch.y, batch.p, rel, n_frames, grid, total >= 2**31 - 1)
     off_sensor = pixel == _OUTSIDE_SENSOR
     # off the sensor, and on it outside the window (= every event neither in time nor off it)
     lost = torch.stack([off_sensor.count_nonzero(), (in_time | off_sensor).count_nonzero().neg_().add_(n)])

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from .bags import EVENT_MESSAGES, read_bag_events, read_bag_stamps, read_bag_values
-from .ingest import _ALIASES
+from ._ingest import _ALIASES
 
 #: Events per chunk of :meth:`EventFile.chunks`.
 _CHUNK = 2**20

@@ -18,9 +18,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ._kernel import _accumulate, _as_dtype, _empty_window_error, _exact_count, _Grid, _grid, _pixels, _Tally, _tally_outside, _time_bins, _to_spare, _warn_outside
-from .ingest import _explicit_starts, _floor_to_grid
-from .ingest import _FIELDS, _T_STARTS, _check_polarity, _integer, _order_names, _Source, _source, _time_unit
+from ._kernel import _accumulate, _as_dtype, _empty_window_error, _exact_count, _Grid, build_grid, _pixels, _Tally, _tally_outside, _time_bins, _to_spare, _warn_outside
+from ._ingest import explicit_starts, _floor_to_grid
+from ._ingest import _FIELDS, T_START_RULES, _check_polarity, check_integer, column_order, _Source, _source, check_time_unit
 
 
 def iter_frames(
@@ -89,19 +89,19 @@ def iter_frames(
         >>> [frame.sum(dim=(1, 2)).tolist() for frame in iter_frames(chunks, sensor_size=(1, 1))]
         [[0.0, 2.0], [1.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 3.0]]
     """
-    grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
+    grid = build_grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
     if n_frames is not None:
-        n_frames = _integer(n_frames, "n_frames")
-    step = _integer(frames_per_step, "frames_per_step")
+        n_frames = check_integer(n_frames, "n_frames")
+    step = check_integer(frames_per_step, "frames_per_step")
     if isinstance(t_start, str):
-        if t_start not in _T_STARTS:
+        if t_start not in T_START_RULES:
             raise ValueError(f"t_start must be 'floor', 'first' or a number, got {t_start!r}")
         starts: Tensor | None = None
     else:
-        starts = _explicit_starts(t_start, 1)
-    time_unit = _time_unit(time_unit)  # checked now, not at the first chunk
+        starts = explicit_starts(t_start, 1)
+    time_unit = check_time_unit(time_unit)  # checked now, not at the first chunk
     if columns is not None:
-        _order_names(columns)
+        column_order(columns)
 
     def source_of(events: Any) -> _Source:
         return _source(events, time_unit=time_unit, columns=columns)

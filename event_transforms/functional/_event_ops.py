@@ -44,7 +44,7 @@ from .._validation import read_host
 from ._frame_ops import _by_runs_on, _runs
 from ._random import EventStream
 from ..events.batch import EventBatch
-from ..events.ingest import _frame_us
+from ..events._ingest import bin_width_us
 
 __all__: list[str] = []
 
@@ -137,7 +137,7 @@ def _require_grid(batch: EventBatch, owner: str, *, frames: bool = True) -> tupl
             f"{owner} on events needs the batch's frame grid ({need}): build the batch with "
             f"EventBatch.from_streams(..., frame_ms=..., n_frames=...) or call batch.with_grid(...)"
         )
-    return batch.t_start, _frame_us(batch.frame_ms), batch.n_frames  # type: ignore[return-value]  # n_frames may be None when frames=False
+    return batch.t_start, bin_width_us(batch.frame_ms), batch.n_frames  # type: ignore[return-value]  # n_frames may be None when frames=False
 
 
 def _round_to(values: Tensor, dtype: torch.dtype) -> Tensor:

@@ -12,8 +12,8 @@ from torch import Tensor
 
 from .._validation import as_batch, as_number, check_frames, check_positive
 from ..events.batch import EventBatch
-from ..events._kernel import _relative_times
-from ..events._kernel import _event_index, _grid
+from ..events._kernel import relative_times
+from ..events._kernel import event_index, build_grid
 from ._dispatch import kernel_for, register_kernel
 from ._event_ops import _compact, _require_grid
 
@@ -178,9 +178,9 @@ def denoise_events(batch: EventBatch, radius: int, temporal_radius: int) -> Even
         return batch
     b = len(batch)
     height, width = batch.sensor_size
-    grid = _grid(batch.sensor_size, None, None, 1, batch.frame_ms, torch.float32)
+    grid = build_grid(batch.sensor_size, None, None, 1, batch.frame_ms, torch.float32)
     block = n_frames * grid.frame_size
-    index, pixel, inside = _event_index(batch.x, batch.y, batch.p, _relative_times(batch, starts), n_frames, grid,
+    index, pixel, inside = event_index(batch.x, batch.y, batch.p, relative_times(batch, starts), n_frames, grid,
                                         b * block >= 2**31)
     inside &= pixel >= 0
     index = index.masked_fill(~inside, 0)

@@ -274,11 +274,11 @@ def drop_by_time_events(batch: EventBatch, start: Tensor, length: Tensor) -> Eve
         >>> drop_by_time_events(batch, torch.tensor([1, 0]), torch.tensor([1, 1])).t.tolist()
         [100]
     """
-    from ..events._kernel import _relative_times
-    from ..events._kernel import _bins_of
+    from ..events._kernel import relative_times
+    from ..events._kernel import bins_of
 
     starts, frame_us, n_frames = _require_grid(batch, "RandomEventDrop (time)")
-    bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
+    bins, inside = bins_of(relative_times(batch, starts), frame_us, n_frames)
     first, size = (_per_event(v.to(torch.int32), batch) for v in (start, length))
     hit = inside & (bins >= first) & (bins < first + size)
     return _compact(batch, ~hit)

@@ -20,9 +20,8 @@ from torch import Tensor
 from .._params import Param, check_args
 from .._validation import check_choice
 from ..events.batch import EventBatch
-from ..events.binning import _valid_mask
-from ..events._kernel import _polarity_channel
-from ..events.ingest import _columns, _pair, _positive_int
+from ..events._kernel import polarity_channel, valid_mask
+from ..events._ingest import canonical_columns, size_pair, positive_int
 
 __all__ = ["to_voxel_grid", "to_time_surface"]
 
@@ -31,13 +30,13 @@ VOXEL_POLARITIES = ("signed", "split")
 
 def _parse(events: Any, sensor_size: tuple[int, int], lengths: Any, mask: Any) -> tuple[Any, ...]:
     """Columns (B, N), batched flag, (H, W), validity (B, N) and in-sensor pixel indices."""
-    (x, y, t, p), batched = _columns(events)
+    (x, y, t, p), batched = canonical_columns(events)
     batch, length = x.shape
-    height, width = (_positive_int(s, "sensor_size") for s in _pair(sensor_size, "sensor_size"))
+    height, width = (positive_int(s, "sensor_size") for s in size_pair(sensor_size, "sensor_size"))
     if not batched and (lengths is not None or mask is not None):
         raise ValueError("lengths and mask apply to a (B, N, 4) batch of events only")
-    valid = _valid_mask(batch, length, lengths, mask, x.device)
-    channel = _polarity_channel(p, valid)
+    valid = valid_mask(batch, length, lengths, mask, x.device)
+    channel = polarity_channel(p, valid)
     col = torch.floor(x.to(torch.float64)).to(torch.int64) if x.is_floating_point() else x.to(torch.int64)
     row = torch.floor(y.to(torch.float64)).to(torch.int64) if y.is_floating_point() else y.to(torch.int64)
     keep = (col >= 0) & (col < width) & (row >= 0) & (row < height)
@@ -91,7 +90,7 @@ def to_voxel_grid(
         >>> grid[:, 0, 0].tolist()
         [[1.0, 0.0], [0.0, -1.0], [0.0, 1.0]]
     """
-    n_bins = _positive_int(n_bins, "n_bins")
+    n_bins = positive_int(n_bins, "n_bins")
     check_choice(polarity, "polarity", VOXEL_POLARITIES)
     if isinstance(events, EventBatch):  # padded once on its device; the batch's sensor size
         if lengths is not None or mask is not None:
@@ -182,7 +181,7 @@ def to_time_surface(
     for value, name in ((tau_ms, "tau_ms"), (frame_ms, "frame_ms")):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    n_frames = _positive_int(n_frames, "n_frames")
+    n_frames = positive_int(n_frames, "n_frames")
     batched, (b, height, width), t, channel, row, col, keep = _parse(events, sensor_size, lengths, mask)
     device = t.device
     frame_us = float(frame_ms) * 1000.0

@@ -26,7 +26,7 @@ from .._validation import (
     HOST_READ, TES_MODES, check_choice, check_counts, check_generator, count_stats, on_host, read_host,
 )
 from ..events.batch import EventBatch
-from ..events.ingest import _frame_us
+from ..events._ingest import bin_width_us
 from ._frame_ops import check_length
 from ._dispatch import batch_of, call_kernel, register_kernel, shape_of
 from ..events.drops import counting, record_dropped
@@ -665,11 +665,11 @@ def _groups(batch: EventBatch) -> tuple[Tensor, int]:
     """Per event its group ``(sample * T + bin) * 2 + p`` (int32; ``G`` outside the grid's
     window) and the number of groups G."""
     starts, frame_us, n_frames = _require_grid(batch, "frame shift / TES")
-    from ..events._kernel import _relative_times
-    from ..events._kernel import _bins_of
+    from ..events._kernel import relative_times
+    from ..events._kernel import bins_of
 
     sample = batch.sample_index()
-    bins, inside = _bins_of(_relative_times(batch, starts), frame_us, n_frames)
+    bins, inside = bins_of(relative_times(batch, starts), frame_us, n_frames)
     groups = len(batch) * n_frames * 2
     index = torch.int32 if groups < 2**31 - 1 else torch.int64
     group = sample.to(index).mul(n_frames).add_(bins).mul_(2).add_(batch.p)  # a new tensor: the cached index is kept
@@ -702,7 +702,7 @@ def _shift_events(
     gather (retried wider only if a band held too few events), one read of the kept counts.
     """
     group, groups = _groups(batch)
-    frame_us = _frame_us(batch.frame_ms)
+    frame_us = bin_width_us(batch.frame_ms)
     n_frames = _require_grid(batch, "frame shift / TES")[2]  # an int: _groups checked the grid
     device = batch.device
     inside = group < groups

@@ -40,8 +40,8 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape
-from ..events.batch import EventBatch, _on, merge_streams, replace_streams
+from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probability, check_shape, index_on
+from ..events.batch import EventBatch, merge_streams, replace_streams
 from ..functional._dispatch import NoKernelError
 from ..functional._random import draw_seeds
 from ._params import CHECK_RANGE, Param, Params, Spec, check_tree, slice_params
@@ -257,7 +257,7 @@ def _take(inputs: Tensor | EventBatch, index: np.ndarray) -> Any:
     rows = torch.from_numpy(np.ascontiguousarray(index, dtype=np.int64))
     if isinstance(inputs, EventBatch):
         return inputs.index_select(rows)
-    return inputs.index_select(0, _on(rows, inputs.device))
+    return inputs.index_select(0, index_on(rows, inputs.device))
 
 
 def _put_back(inputs: Tensor | EventBatch, kept: np.ndarray, result: Any) -> Any:
@@ -270,7 +270,7 @@ def _put_back(inputs: Tensor | EventBatch, kept: np.ndarray, result: Any) -> Any
     dtype = torch.promote_types(inputs.dtype, result.dtype)
     out = inputs.to(dtype, copy=True)
     if kept.size:
-        out.index_copy_(0, _on(torch.from_numpy(kept), inputs.device), result if result.dtype == dtype else result.to(dtype))
+        out.index_copy_(0, index_on(torch.from_numpy(kept), inputs.device), result if result.dtype == dtype else result.to(dtype))
     return out
 
 

@@ -12,9 +12,9 @@ from .._validation import FRAME_DTYPES
 from ..events.batch import EventBatch
 from ..events.binning import bin_events
 from ..events.binning import CHUNK_EVENTS, events_to_frames
-from ..events._kernel import _grid
-from ..events.ingest import _explicit_starts
-from ..events.ingest import _integer, _order_names, _T_STARTS, _time_unit
+from ..events._kernel import build_grid
+from ..events._ingest import explicit_starts
+from ..events._ingest import check_integer, column_order, T_START_RULES, check_time_unit
 from .base import EventTransform, Params
 
 __all__ = ["EventsToFrames"]
@@ -96,24 +96,24 @@ class EventsToFrames(EventTransform):
                 "EventsToFrames needs sensor_size=(H, W) or tonic_sensor_size=(W, H, P): real sensors "
                 "differ (DAVIS240 (180, 240), DVXplorer (240, 320)), and a wrong size drops events"
             )
-        grid = _grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
+        grid = build_grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
         self.sensor_size = (grid.height, grid.width)
         self.frame_ms = float(frame_ms)
-        self.n_frames = None if n_frames is None else _integer(n_frames, "n_frames")
+        self.n_frames = None if n_frames is None else check_integer(n_frames, "n_frames")
         if isinstance(t_start, str):
-            if t_start not in _T_STARTS:
+            if t_start not in T_START_RULES:
                 raise ValueError(f"t_start must be 'floor', 'first' or a number, got {t_start!r}")
         else:
-            t_start = _explicit_starts(t_start, 1).item()
+            t_start = explicit_starts(t_start, 1).item()
         self.t_start = t_start
         self.crop = None if crop is None else (grid.top, grid.left, grid.crop_h, grid.crop_w)
         self.pool = grid.pool
         if grid.dtype not in FRAME_DTYPES:
             raise TypeError(f"dtype must be one of the frame dtypes {FRAME_DTYPES}, got {dtype!r}")
         self.dtype = grid.dtype
-        self.chunk_size = _integer(chunk_size, "chunk_size")
-        self.time_unit = _time_unit(time_unit)
-        self.columns = None if columns is None else "".join(_order_names(columns))
+        self.chunk_size = check_integer(chunk_size, "chunk_size")
+        self.time_unit = check_time_unit(time_unit)
+        self.columns = None if columns is None else "".join(column_order(columns))
 
     @property
     def takes_events(self) -> bool:

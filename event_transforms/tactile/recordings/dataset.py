@@ -345,7 +345,7 @@ _SYNC_SOURCES = (1, 3)
 
 def _trigger_offset_ms(recording: RecordingEntry, source: EventFile, settings: RecordingSettings, log: Any) -> float:
     """The force clock's lag (ms) from the camera's trigger events and the force CSV's trigger column."""
-    from ...events.ingest import _TIME_UNITS
+    from ...events._ingest import TIME_UNITS
 
     assert recording.force is not None
     if source.triggers is None:
@@ -356,7 +356,7 @@ def _trigger_offset_ms(recording: RecordingEntry, source: EventFile, settings: R
         found = sorted(set(source.triggers["source"].tolist()))
         raise ValueError(f"sync='triggers': {recording.events.name} holds no external-input trigger (sources "
                          f"{list(_SYNC_SOURCES)}; found {found or 'none'})")
-    camera = kept["t"].astype(np.float64) * float(_TIME_UNITS[settings.time_unit or "us"])
+    camera = kept["t"].astype(np.float64) * float(TIME_UNITS[settings.time_unit or "us"])
     force = force_triggers(recording.force, time_unit=settings.force_time_unit)
     offset, spread = trigger_offset(camera, force, f"{recording.where()} (force file {recording.force.name})")
     if log:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from ...events.ingest import check_crop_window
+from ...events._ingest import check_crop_window
 
 #: The splits a recording can belong to.
 SPLITS = ("train", "holdout", "val", "test", "unlabeled")
@@ -80,9 +80,9 @@ class RecordingSettings:
 
     def __post_init__(self) -> None:
         from ..._validation import check_positive
-        from ...events.ingest import _time_unit
+        from ...events._ingest import check_time_unit
 
-        _time_unit(self.time_unit)  # ValueError naming time_unit and the value
+        check_time_unit(self.time_unit)  # ValueError naming time_unit and the value
         if self.force_time_unit is not None and self.force_time_unit not in ("ns", "us", "ms", "s"):
             raise ValueError(f"force_time_unit must be one of 'ns', 'us', 'ms', 's' or None, got {self.force_time_unit!r}")
         for name in ("columns", "force_column"):
@@ -137,7 +137,7 @@ class RecordingSettings:
 
 def _check_crop(crop: Any, sensor: tuple[int, int], pool: int, where: str) -> tuple[int, int, int, int]:
     """A crop read from a table or a setting (numbers or their text) as four ints, checked by the
-    binning's one crop check (:mod:`event_transforms.events.ingest`), errors prefixed with ``where``."""
+    binning's one crop check (:mod:`event_transforms.events._ingest`), errors prefixed with ``where``."""
     try:
         values = tuple(int(v) for v in crop)
         if len(values) != 4 or any(float(v) != int(float(v)) for v in crop):

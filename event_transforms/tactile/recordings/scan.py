@@ -52,7 +52,7 @@ def scan_events(source: EventFile, sensor: tuple[int, int], where: str, time_uni
         >>> found.events, found.t_min, found.t_max, int(found.totals.sum())
         (2, 10, 20, 2)
     """
-    from ...events.ingest import _SECONDS_SPAN, _millisecond_advice, _to_microseconds
+    from ...events._ingest import SECONDS_SPAN, millisecond_advice, to_microseconds
 
     height, width = sensor
     totals = np.zeros(height * width, dtype=np.int64)
@@ -97,19 +97,19 @@ def scan_events(source: EventFile, sensor: tuple[int, int], where: str, time_uni
     if t_min is None or t_max is None:
         raise ValueError(f"{where}: the event file holds no events")
     span = t_max - t_min
-    if time_unit is None and fractional and span < _SECONDS_SPAN:
+    if time_unit is None and fractional and span < SECONDS_SPAN:
         raise ValueError(
             f"{where}: timestamps look like seconds, not microseconds (fractional values spanning {span:g}); "
             "give their unit: time_unit='s', or 'ms', 'ns', or 'us' if they are microseconds"
         )
     if time_unit is None and not isinstance(t_min, float):
-        advice = _millisecond_advice(offset, t_min, t_max)
+        advice = millisecond_advice(offset, t_min, t_max)
         if advice is not None:
             raise ValueError(f"{where}: {advice}; give their unit: time_unit='ms', or time_unit='us' if they are "
                              "microseconds")
     if time_unit is not None:  # to microseconds exactly as the binning converts them
         dtype = torch.float64 if isinstance(t_min, float) else torch.int64
-        t_min, t_max = _to_microseconds(torch.tensor([t_min, t_max], dtype=dtype), time_unit).tolist()
+        t_min, t_max = to_microseconds(torch.tensor([t_min, t_max], dtype=dtype), time_unit).tolist()
     return EventScan(offset, t_min, t_max, totals.reshape(height, width))
 
 

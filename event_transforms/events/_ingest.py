@@ -34,34 +34,34 @@ _FIELDS = ("x", "y", "t", "p")
 _ALIASES = {"x": ("x",), "y": ("y",), "t": ("t", "timestamp"), "p": ("p", "on", "polarity")}
 
 
-_T_STARTS = ("floor", "first")
+T_START_RULES = ("floor", "first")
 
 
 #: Microseconds per unit of ``time_unit``.
-_TIME_UNITS: dict[str, float | int] = {"ns": 1e-3, "us": 1, "ms": 1_000, "s": 1_000_000}
+TIME_UNITS: dict[str, float | int] = {"ns": 1e-3, "us": 1, "ms": 1_000, "s": 1_000_000}
 
 
 #: Float timestamps with a fractional part spanning less than this (in the unit read, 1 s of
 #: microseconds) look like seconds: refused unless ``time_unit`` is given.
-_SECONDS_SPAN = 1e6
+SECONDS_SPAN = 1e6
 
 
 #: Values read to decide whether float timestamps have fractional parts.
 _FRACTION_PROBE = 1 << 16
 
 
-def _time_unit(time_unit: object) -> str | None:
+def check_time_unit(time_unit: object) -> str | None:
     if time_unit is None:
         return None
-    if not isinstance(time_unit, str) or time_unit not in _TIME_UNITS:
-        raise ValueError(f"time_unit must be one of {', '.join(map(repr, _TIME_UNITS))} or None, got {time_unit!r}")
+    if not isinstance(time_unit, str) or time_unit not in TIME_UNITS:
+        raise ValueError(f"time_unit must be one of {', '.join(map(repr, TIME_UNITS))} or None, got {time_unit!r}")
     return time_unit
 
 
 def _time_typed(array: np.ndarray, name: str, time_unit: str | None) -> tuple[np.ndarray, str]:
     """A ``timedelta64``/``datetime64`` column as int64 counts of its own unit (checked)."""
     unit, count = np.datetime_data(array.dtype)
-    if unit not in _TIME_UNITS or count != 1:
+    if unit not in TIME_UNITS or count != 1:
         raise ValueError(
             f"events[{name!r}] has dtype {array.dtype}; timestamps in ns, us, ms or s are accepted "
             f"(cast it, e.g. .astype('{array.dtype.kind == 'm' and 'timedelta64' or 'datetime64'}[us]'))"
@@ -140,7 +140,7 @@ def _check_float_times(t: Any, unit: str | None) -> None:
         dtype_name = str(array.dtype)
     if not (math.isfinite(low) and math.isfinite(high)):
         return  # _column names the NaN/Inf
-    scale = _TIME_UNITS[unit or "us"]
+    scale = TIME_UNITS[unit or "us"]
     magnitude = max(abs(low), abs(high))
     spacing_us = 2.0 ** math.floor(math.log2(magnitude)) * eps * scale if magnitude else 0.0
     if spacing_us > 1:
@@ -149,7 +149,7 @@ def _check_float_times(t: Any, unit: str | None) -> None:
             f"steps {spacing_us:g} us: the timestamps have already lost microseconds. Read them as int64 or "
             "float64 (or subtract the first timestamp before casting)"
         )
-    if unit is None and fractional and high - low < _SECONDS_SPAN:
+    if unit is None and fractional and high - low < SECONDS_SPAN:
         raise ValueError(
             f"events['t'] holds float timestamps with fractions spanning {high - low:.6g}, which looks like "
             "seconds (timestamps are read as microseconds, so every event would fall in one bin); pass "
@@ -169,7 +169,7 @@ _MS_EVENTS = 1000
 _MS_MIN_SPAN = 10
 
 
-def _millisecond_advice(count: int, first: float, last: float) -> str | None:
+def millisecond_advice(count: int, first: float, last: float) -> str | None:
     """Why integer timestamps look like milliseconds read as microseconds, or ``None``."""
     span = last - first
     if count < _MS_EVENTS or not _MS_MIN_SPAN <= span < _MS_SPAN or count < _MS_RATE * (span + 1):
@@ -189,18 +189,18 @@ def _check_integer_times(t: Any, unit: str | None) -> None:
             return
     elif np.asarray(t[:1]).dtype.kind not in "iu":
         return
-    advice = _millisecond_advice(len(t), float(t[0]), float(t[-1]))
+    advice = millisecond_advice(len(t), float(t[0]), float(t[-1]))
     if advice is not None:
         raise ValueError(f"events['t']: {advice}; pass time_unit='ms', or time_unit='us' if they are microseconds")
 
 
-def _to_microseconds(t: Tensor, unit: str) -> Tensor:
+def to_microseconds(t: Tensor, unit: str) -> Tensor:
     """An int64/float64 timestamp column in ``unit`` as microseconds (ns are floored to whole µs)."""
     if unit == "us":
         return t
     if unit == "ns":
         return t / 1000 if t.is_floating_point() else torch.div(t, 1000, rounding_mode="floor")
-    factor = int(_TIME_UNITS[unit])
+    factor = int(TIME_UNITS[unit])
     if t.is_floating_point():
         return t * factor
     if t.numel() and int(t.abs().max()) > _INT64_MAX // factor:
@@ -214,7 +214,7 @@ def _field(names: Iterable[str], column: str) -> str | None:
     return next((alias for alias in _ALIASES[column] if alias in names), None)
 
 
-def _order_names(columns: object) -> list[str]:
+def column_order(columns: object) -> list[str]:
     """``columns`` ("txyp", or a sequence of one-letter names) checked: x, y, t, p once each, '_' to skip."""
     names = list(columns) if isinstance(columns, (str, Sequence)) else None
     if (
@@ -237,7 +237,7 @@ def _order(columns: object, width: int) -> list[int]:
                 "pass columns= (e.g. columns='txyp', '_' for a column to skip) to name them"
             )
         return [0, 1, 2, 3]
-    names = _order_names(columns)
+    names = column_order(columns)
     if len(names) != width:
         raise ValueError(f"columns={columns!r} names {len(names)} columns, but the events have {width}")
     return [names.index(c) for c in _FIELDS]
@@ -278,7 +278,7 @@ def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequenc
     ``whole``: the events are a whole recording (not a chunk of a stream), so integer
     timestamps that look like milliseconds are refused.
     """
-    time_unit = _time_unit(time_unit)
+    time_unit = check_time_unit(time_unit)
     source, t_whole = _raw_source(events, columns)
     unit = time_unit
     if isinstance(t_whole, np.ndarray) and t_whole.dtype.kind in "mM":
@@ -294,7 +294,7 @@ def _source(events: Any, *, time_unit: str | None = None, columns: str | Sequenc
     def read(i: int, j: int, names: Sequence[str]) -> dict[str, Tensor]:
         out = raw(i, j, names)
         if "t" in out:
-            out["t"] = _to_microseconds(out["t"], unit)
+            out["t"] = to_microseconds(out["t"], unit)
         return out
 
     return _Source(source.batch, source.length, source.batched, read, source.device)
@@ -376,7 +376,7 @@ def _raw_source(events: Any, columns: str | Sequence[str] | None) -> tuple[_Sour
     return _Source(int(rows.shape[0]), int(rows.shape[1]), batched, read_rows, device), rows[..., order[2]]
 
 
-def _columns(
+def canonical_columns(
     events: Any, *, time_unit: str | None = None, columns: str | Sequence[str] | None = None
 ) -> tuple[list[Tensor], bool]:
     """All of x, y, t, p as (B, N) columns at once (t in microseconds), and whether the input was a batch.
@@ -389,19 +389,19 @@ def _columns(
     return [read[c] for c in _FIELDS], source.batched
 
 
-def _pair(value: object, name: str) -> tuple[Any, Any]:
+def size_pair(value: object, name: str) -> tuple[Any, Any]:
     """Two entries of a size ``(H, W)``."""
     if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
         raise ValueError(f"{name} must be a pair (H, W), got {value!r}")
     return value[0], value[1]
 
 
-def _positive_int(value: object, name: str) -> int:
+def positive_int(value: object, name: str) -> int:
     """An integer >= 1 (Python, numpy or 0-d tensor)."""
-    return _integer(value, name)
+    return check_integer(value, name)
 
 
-def _integer(value: object, name: str, *, low: int = 1) -> int:
+def check_integer(value: object, name: str, *, low: int = 1) -> int:
     """A Python, numpy or 0-d tensor integer >= ``low``."""
     if isinstance(value, Tensor) and value.dim() == 0 and not value.is_floating_point():
         value = value.item()
@@ -422,7 +422,7 @@ def _sensor(sensor_size: object, tonic_sensor_size: object) -> tuple[int, int]:
             tonic_sensor_size
         ) != 3:
             raise ValueError(f"tonic_sensor_size must be tonic's (W, H, P), got {tonic_sensor_size!r}")
-        width, height, polarities = (_integer(v, "tonic_sensor_size") for v in tonic_sensor_size)
+        width, height, polarities = (check_integer(v, "tonic_sensor_size") for v in tonic_sensor_size)
         if polarities != 2:
             raise ValueError(
                 f"tonic_sensor_size (W, H, P) must have P = 2 polarities, got {tonic_sensor_size!r}"
@@ -440,11 +440,11 @@ def _sensor(sensor_size: object, tonic_sensor_size: object) -> tuple[int, int]:
         )
     if len(sensor_size) != 2:
         raise ValueError(f"sensor_size must be a pair (H, W), got {sensor_size!r}")
-    height, width = (_integer(v, "sensor_size") for v in sensor_size)
+    height, width = (check_integer(v, "sensor_size") for v in sensor_size)
     return height, width
 
 
-def _frame_us(frame_ms: object) -> float | int:
+def bin_width_us(frame_ms: object) -> float | int:
     """Bin width in microseconds: an int when it is a whole number of microseconds."""
     if isinstance(frame_ms, Tensor) and frame_ms.dim() == 0:
         frame_ms = frame_ms.item()
@@ -524,7 +524,7 @@ def _check_polarity(p: Tensor, valid: Tensor | None, seen: set[int] | None = Non
         )
 
 
-def _explicit_starts(t_start: object, batch: int) -> Tensor:
+def explicit_starts(t_start: object, batch: int) -> Tensor:
     """A number or (B,) values as a (B,) CPU tensor: int64 if whole numbers, else float64."""
     if isinstance(t_start, Tensor) and t_start.dim() == 0:
         t_start = t_start.item()
