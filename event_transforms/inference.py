@@ -54,13 +54,12 @@ can measure the timing gap directly and pass its test as ``timing=``: a mapping 
 ``resolvable``, ``gap``), a ``statistic`` and a ``source`` naming what it read, and a
 ``verdict`` sentence for when it is not resolvable. A resolvable test replaces the onset test,
 which stays in ``evidence["timing"]["onset"]``; an unresolvable one is kept under
-``evidence["timing"]["alternative"]`` and the onset test decides. The tactile application's
-:func:`event_transforms.tactile.lags.infer_scene_with_lags` builds it from labelled recordings
-(lags of events against force).
+``evidence["timing"]["alternative"]`` and the onset test decides. An application with
+labelled recordings builds it from lags of the events behind their labels.
 
 **A start jitter enters the onset whole.** The onset is when a recording *starts* plus its
 lag, so two sessions whose recordings happen to start at different times on average differ in
-onset without any delay: on the tactile application's simulated sessions (60 ms start jitter)
+onset without any delay: on simulated sessions with a 60 ms start jitter
 that reads +4.5 ms on every scene without a timing gap, inside the standard error. A timing
 test that measures events against labels cancels the start.
 

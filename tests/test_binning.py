@@ -1,4 +1,4 @@
-"""The one binning kernel (issue 26) against a slow, obvious reference, bin by bin.
+"""The one binning kernel against a slow, obvious reference, bin by bin.
 
 Every binning entry point (``events_to_frames``, ``iter_frames``, ``bin_events``,
 ``EventsToFrames``) is compared with :func:`reference`, a Python loop over events in exact

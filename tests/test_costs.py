@@ -1,4 +1,4 @@
-"""Cost from a table, not a stopwatch (issue 33, item 6): equal-cost step counts follow from a cost
+"""Cost from a table, not a stopwatch: equal-cost step counts follow from a cost
 table measured once, interleaved, so they do not move with the machine's load."""
 
 from __future__ import annotations

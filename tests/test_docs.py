@@ -1,4 +1,4 @@
-"""The documentation site builds warning-free, and every public name documents itself (issue 25).
+"""The documentation site builds warning-free, and every public name documents itself.
 
 Two checks:
 

@@ -1,4 +1,4 @@
-"""The eager CPU fast paths of issue 36 (item 4, event path) pinned bit for bit.
+"""The eager CPU fast paths pinned bit for bit.
 
 Each fast path is held equal to a slow, obvious reference or to the formulation it replaced,
 on seeded inputs and the hard cases: the batch binning (memset-zeroed blocks, dropped counts

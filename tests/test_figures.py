@@ -1,5 +1,5 @@
 """Figures on the docs pages come from committed runs; help texts point where the text lives;
-the run's pictures are not clipped (issue 34, item 9).
+the run's pictures are not clipped.
 
 A *committed run* is a page the benchmark scripts write under ``benchmarks/`` (``*.md``):
 ``reproduce_quick.md`` (the README's results, ``python benchmarks/reproduce_quick.py``),

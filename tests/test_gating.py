@@ -1,5 +1,5 @@
-"""The one gating rule, pinned against its slow obvious reference on every gated module (issue 36
-item 1): a gated call equals the ungated module on each kept sample alone (with that sample's
+"""The one gating rule, pinned against its slow obvious reference on every gated module: a gated
+call equals the ungated module on each kept sample alone (with that sample's
 slice of the tree) and the input elsewhere, promoted to the output dtype, on frames and on an
 EventBatch, whether the module gathers and puts back or hands the gate to its kernel
 (``gates_in_kernel``): mixed gates, every sample gated off, every sample on, B = 0, one event."""

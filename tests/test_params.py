@@ -1,5 +1,5 @@
-"""Replay trees are checked once, at the entry, against each module's params_spec (issue 19,
-item 3): each bad tree of the issue is a regression test, with the module, key and value named."""
+"""Replay trees are checked once, at the entry, against each module's params_spec: each bad tree
+found so far is a regression test, with the module, key and value named."""
 
 from __future__ import annotations
 

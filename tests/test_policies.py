@@ -1,4 +1,4 @@
-"""The policy rows (issue 18): stretch, inferred, prior, everything build and run on a batch."""
+"""The policy rows: stretch, inferred, prior, everything build and run on a batch."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""One source of randomness (issue 25 item 3): the counter-based streams of ``functional/_random.py``.
+"""One source of randomness: the counter-based streams of ``functional/_random.py``.
 
 (a) The numbers are integer arithmetic only: the library's tensors equal a plain-Python
     integer implementation (``tests/random_reference.py``) bit for bit, and no event

@@ -1,4 +1,4 @@
-"""Counter-based whole-count draws (issue 25, item 3): the exact binomial of counts above the
+"""Counter-based whole-count draws: the exact binomial of counts above the
 expansion limit, dense Poisson noise per cell, and the Beta weights of CutMix/MixUp."""
 
 from __future__ import annotations

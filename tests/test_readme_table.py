@@ -1,4 +1,4 @@
-"""The results table of the docs is what the README's main command printed (issue 17, item 6).
+"""The results table of the docs is what the README's main command printed.
 
 ``event-transforms reproduce`` writes a summary table (``report.format_summary_table``) at the
 top of ``results.md``; ``benchmarks/reproduce_quick.md`` is that output, and the Results page of

@@ -1,4 +1,4 @@
-"""The recipe of ``docs/write_your_own.md`` is run exactly as a reader copies it (issue 34, item 6).
+"""The recipe of ``docs/write_your_own.md`` is run exactly as a reader copies it.
 
 The library, its tests, docs and configuration are copied to a scratch folder; each code block
 of the page that follows a ``<!-- recipe: ... -->`` line is applied where that line says

@@ -1,4 +1,4 @@
-"""Issue 33 item 3: each seed of a protocol run reads its own bootstrap resample of the data."""
+"""Each seed of a protocol run reads its own bootstrap resample of the data."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Recordings as the field records them (issue 35): HDF5 arrays, any clock and label column,
+"""Recordings as the field records them: HDF5 arrays, any clock and label column,
 the sensor size from the file, integer milliseconds, trigger sync, training-only folders, and
 each case a newcomer hit, through RecordingSet, the readers and the command line."""
 

@@ -1,4 +1,4 @@
-"""Train once (issue 33, item 2): a member whose training reads exactly what another scene's
+"""Train once: a member whose training reads exactly what another scene's
 member reads is trained once and scored for both, with the same numbers as training it again."""
 
 from __future__ import annotations

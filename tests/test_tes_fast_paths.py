@@ -1,4 +1,4 @@
-"""The faster exact-TES paths of issue 36 (item 3) against the slower forms they replace,
+"""The faster exact-TES paths against the slower forms they replace,
 bit for bit: the integer threshold of the binomial level, the inversion table cut at the
 largest count, the two finishes in one call, and numpy's nonzero on the CPU."""
 

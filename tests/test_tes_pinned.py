@@ -1,4 +1,4 @@
-"""Exact TES pinned bit for bit (issue 36 item 2): the outputs of exact temporal event shifting on
+"""Exact TES pinned bit for bit: the outputs of exact temporal event shifting on
 frames and on an EventBatch (then binned), for fixed seeds, are the ones the implementation gave
 before it was made faster (commit 59ec9f2), held here as SHA-256 digests of the output's dtype,
 shape and bytes. Cases: grasp-like sparse frames (the binomial level runs), dense Poisson counts,

@@ -1,4 +1,4 @@
-"""Two runs agree on verdicts (sign, significance), not digits (issue 24, item 5).
+"""Two runs agree on verdicts (sign, significance), not digits.
 
 ``report.summary_verdicts`` reads the verdict cells of a run's summary table and
 ``report.compare_verdicts`` sorts the cells two runs share by outcome. Two runs of the same

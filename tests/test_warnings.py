@@ -1,4 +1,4 @@
-"""Warnings a training loop can live with (issue 34, item 5).
+"""Warnings a training loop can live with.
 
 A drop that is a transform's documented meaning (rotated, jittered or shifted off the sensor or
 out of the window) is counted by ``count_dropped``, never warned; a drop the caller did not ask
