@@ -2,7 +2,8 @@
 
 Every script times its subject against a baseline measured in the same run
 (``torch.utils.benchmark``, median and interquartile range) and prints ratios, not bare
-times. Each script owns one section of ``benchmarks/RESULTS.md``, delimited by
+times. Each script owns one section of the ``RESULTS.md`` beside it (``benchmarks/library/`` or
+``benchmarks/tactile/``), delimited by
 ``<!-- NAME:start -->`` and ``<!-- NAME:end -->``; :func:`write_section` replaces only that
 section, so scripts run in any order without clobbering each other.
 """
@@ -24,6 +25,8 @@ from typing import Any
 import torch
 import torch.utils.benchmark as tbench
 
+from event_transforms._profiling import HOST_SYNC_OPS, OpCounts, count_ops, synthetic_frames
+
 __all__ = [
     "RESULTS",
     "Timing",
@@ -42,9 +45,28 @@ __all__ = [
     "loglog_slope",
     "apply_threads",
     "command",
+    "child_env",
+    "results_of",
+    "count_ops",
+    "OpCounts",
+    "HOST_SYNC_OPS",
 ]
 
-RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
+#: The benchmark folders; a script's results file is the ``RESULTS.md`` of its folder.
+FOLDERS = Path(__file__).resolve().parent
+RESULTS = FOLDERS / "library" / "RESULTS.md"
+
+
+def child_env(extra: dict[str, str] | None = None) -> dict[str, str]:
+    """The environment for a script run as a child process (``python path/to/script.py``): the
+    repository first on ``PYTHONPATH``, so ``benchmarks._common`` imports, plus ``extra``."""
+    path = os.pathsep.join(p for p in (str(FOLDERS.parent), os.environ.get("PYTHONPATH", "")) if p)
+    return {**os.environ, "PYTHONPATH": path, **(extra or {})}
+
+
+def results_of(script: str | os.PathLike) -> Path:
+    """The ``RESULTS.md`` beside a script (``benchmarks/library/`` or ``benchmarks/tactile/``)."""
+    return Path(script).resolve().with_name("RESULTS.md")
 
 
 @dataclass(frozen=True)
@@ -210,7 +232,7 @@ def write_section(name: str, body: str, path: str | os.PathLike | None = None) -
     path = Path(path) if path is not None else RESULTS
     start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
     block = f"{start}\n{body.strip()}\n{end}"
-    text = path.read_text() if path.exists() else "# Benchmark results\n\nWritten by the scripts in `benchmarks/`; each owns one section.\n"
+    text = path.read_text() if path.exists() else "# Benchmark results\n\nWritten by the scripts of this folder; each owns one section.\n"
     pattern = re.compile(re.escape(start) + r".*?" + re.escape(end), re.DOTALL)
     if pattern.search(text):
         text = pattern.sub(lambda _: block, text, count=1)
@@ -229,11 +251,18 @@ def publish(body: str, args: argparse.Namespace) -> None:
         write_section(args.section, body, args.results)
 
 
-def base_parser(description: str, section: str) -> argparse.ArgumentParser:
+def base_parser(description: str, section: str, script: str | os.PathLike | None = None) -> argparse.ArgumentParser:
+    """The options every script takes; ``--results`` defaults to the ``RESULTS.md`` beside
+    ``script`` (the caller's ``__file__``; found on the call stack when not given)."""
+    if script is None:
+        import inspect
+
+        script = inspect.stack()[1].filename
+    results = results_of(script)
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--section", default=section, help="section of the results file (default: %(default)s)")
     parser.add_argument("--quick", action="store_true", help="tiny sizes and short timings (smoke test)")
-    parser.add_argument("--results", default=str(RESULTS), help="Markdown file to update (default: %(default)s)")
+    parser.add_argument("--results", default=str(results), help="Markdown file to update (default: %(default)s)")
     parser.add_argument("--no-write", action="store_true", help="print only; do not update the results file")
     parser.add_argument("--threads", type=int, default=None, help="torch.set_num_threads (default: torch's)")
     return parser
@@ -242,25 +271,6 @@ def base_parser(description: str, section: str) -> argparse.ArgumentParser:
 def apply_threads(threads: int | None) -> None:
     if threads is not None:
         torch.set_num_threads(threads)
-
-
-def synthetic_frames(
-    shape: Sequence[int],
-    *,
-    density: float = 0.05,
-    mean_count: float = 1.5,
-    dtype: torch.dtype = torch.float32,
-    seed: int = 0,
-) -> torch.Tensor:
-    """Sparse event counts: a ``density`` share of pixels non-zero, counts ``1 + Poisson(mean_count - 1)``.
-
-    Stand-in for real frames (the paper's 70×75 pooled tactile frames have a few per cent
-    of active pixels per 10 ms, with counts of a few events).
-    """
-    g = torch.Generator().manual_seed(seed)
-    active = torch.rand(tuple(shape), generator=g) < density
-    counts = 1.0 + torch.poisson(torch.full(tuple(shape), max(mean_count - 1.0, 0.0)), generator=g)
-    return (active * counts).to(dtype)
 
 
 def fmt_ms(seconds: float) -> str:
@@ -292,82 +302,4 @@ def command(script: str, argv: Sequence[str] | None) -> str:
     """The command line that reproduces this run, for the results section."""
     env = " ".join(f"{k}={v}" for k, v in sorted(os.environ.items()) if k.startswith("MALLOC_"))
     args = " ".join(argv if argv is not None else sys.argv[1:])
-    return " ".join(p for p in (env, f"python benchmarks/{script}", args) if p)
-
-
-# --------------------------------------------------------------------------- op counts
-
-#: aten calls that make the host wait for the device (they read a value or a
-#: data-dependent size): ``.item()``/``bool()``/``int()`` (``_local_scalar_dense``),
-#: ``nonzero``, ``masked_select`` and ``unique``.
-HOST_SYNC_OPS = ("aten::_local_scalar_dense", "aten::nonzero", "aten::masked_select")
-
-
-@dataclass(frozen=True)
-class OpCounts:
-    """Host synchronisations and top-level aten calls of one call, from ``torch.profiler``."""
-
-    syncs: int
-    ops: int
-    sync_names: tuple[str, ...] = ()
-    op_names: tuple[str, ...] = ()
-
-    def __str__(self) -> str:
-        return f"{self.syncs} syncs, {self.ops} ops"
-
-
-def _is_sync(name: str) -> bool:
-    from event_transforms._validation import HOST_READ
-
-    return name in HOST_SYNC_OPS or name == HOST_READ or name.startswith(("aten::unique", "aten::_unique"))
-
-
-def count_ops(fn: Callable[[], Any], *, warmup: bool = True) -> OpCounts:
-    """Count the host syncs and top-level aten ops of ``fn()`` with ``torch.profiler`` (CPU).
-
-    *Ops* are the aten calls made directly from Python (events whose parent is not an aten
-    call), views and metadata calls (``view``, ``slice``, ``resolve_conj``) included: each
-    is at least one dispatch, and most are a kernel launch on an accelerator, so the count
-    is an upper bound of the launches. *Host syncs* are calls, at any depth, of
-    ``_local_scalar_dense`` (``.item()``, ``bool(tensor)``, ``int(tensor)``), ``nonzero``,
-    ``masked_select`` or ``unique*``, plus the library's own reads of device values
-    (``event_transforms._validation.read_host``, a profiler range: ``tolist`` dispatches
-    nothing countable on the CPU): on an accelerator each makes the host wait for the
-    device. Reads of parameters drawn on the CPU are not syncs and are not counted, nor
-    are the host-side checks of a user-given params tree (the profiler range
-    ``event_transforms::check_params``: CPU tensors, no device work). On
-    the CPU these counts are deterministic for a given input and parameters, so they serve
-    as a device-free proxy for launch overhead.
-
-    ``fn`` is called once first (``warmup``) so lazy imports and caches are not counted.
-    """
-    from torch.profiler import ProfilerActivity, profile
-
-    from event_transforms.transforms._params import CHECK_RANGE
-
-    if warmup:
-        fn()
-    with profile(activities=[ProfilerActivity.CPU]) as prof:
-        fn()
-    everything = list(prof.events())
-    events = [e for e in everything if e.name.startswith("aten::")]
-
-    def top_level(event: Any) -> bool:
-        parent = event.cpu_parent
-        while parent is not None:
-            if parent.name.startswith("aten::") or parent.name == CHECK_RANGE:
-                return False
-            parent = parent.cpu_parent
-        return True
-
-    def checking(event: Any) -> bool:  # host reads of a user-given CPU params tree
-        parent = event.cpu_parent
-        while parent is not None:
-            if parent.name == CHECK_RANGE:
-                return True
-            parent = parent.cpu_parent
-        return False
-
-    syncs = tuple(e.name for e in everything if _is_sync(e.name) and not checking(e))
-    ops = tuple(e.name for e in events if top_level(e))
-    return OpCounts(syncs=len(syncs), ops=len(ops), sync_names=syncs, op_names=ops)
+    return " ".join(p for p in (env, f"python -m benchmarks.{script.removesuffix('.py').replace('/', '.')}", args) if p)

@@ -12,7 +12,7 @@ The switch is process-wide (like ``torch.backends.cudnn.benchmark``), read at ea
 a ``DataLoader`` worker inherits it when forked, or sets it itself. Outputs equal eager
 ones: bit for bit where the kernel counts, gathers and hashes (binning, the counter-based
 uniforms), to a float tolerance where inductor may order float arithmetic differently
-(interpolating warps, Box-Muller normals); ``tests/test_compiled.py`` holds both.
+(interpolating warps, Box-Muller normals); ``tests/library/test_compiled_kernels.py`` holds both.
 """
 
 from __future__ import annotations

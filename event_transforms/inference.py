@@ -40,7 +40,7 @@ declared, each factor's verdict (``scene.evidence["verdicts"]``) says either "no
 (a difference as large as the smallest that matters, ``min_effect``, would have been seen)
 or "not resolvable from N unlabeled recordings: a difference below L would not be seen",
 with L = ``z_gap`` × the standard error. Measured on the package's simulator with 48
-training and 24 deployment recordings (``benchmarks/detection_rate.py``, RESULTS.md
+training and 24 deployment recordings (the detection-rate benchmark of ``benchmarks/``, its RESULTS.md
 "infer_scene detection rate"): under the benchmark's 60 ms start jitter the onset's
 standard error is 5–6 ms per side, so a timing gap under about 17 ms (under two 10 ms
 frames) is not resolvable — one-frame clock offsets and short lags go undetected —

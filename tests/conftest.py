@@ -1,18 +1,9 @@
-"""Fixtures shared by the test modules."""
+"""Fixtures shared by the test modules (the cache fixture of every test is in the root conftest.py)."""
 
 from __future__ import annotations
 
 import pytest
 import torch
-
-
-@pytest.fixture(autouse=True, scope="session")
-def _cache_root(tmp_path_factory):
-    """Data-set caches go to a temporary folder, never to ``~/.cache``."""
-    patch = pytest.MonkeyPatch()
-    patch.setenv("EVENT_TRANSFORMS_CACHE", str(tmp_path_factory.mktemp("cache")))
-    yield
-    patch.undo()
 
 
 @pytest.fixture(scope="module")

@@ -192,7 +192,7 @@ def test_site_builds_strict(tmp_path):
 
 
 # The transform table of docs/transforms.md (every transform listed, its frames / events cell true)
-# is checked by tests/test_public_names.py against the code and the batteries.
+# is checked by tests/library/test_public_names.py against the code and the batteries.
 
 
 

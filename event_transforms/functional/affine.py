@@ -7,7 +7,7 @@ the event centroid (:func:`center_of_mass`) by default. It folds the T·2 frames
 sequence into channels and calls ``affine_grid`` and ``grid_sample`` once with a (B, 2, 3)
 matrix built on the host (the same sampling as kornia's ``warp_affine``, without its
 float64 matrix helpers and at a quarter of its dispatched ops; see
-``benchmarks/kornia_warp.py``), so one sampling grid serves every frame of a sequence (the
+``benchmarks/library/kornia_warp.py``), so one sampling grid serves every frame of a sequence (the
 contact keeps its orientation), no (B·T) grids are built, and the device is never asked for
 a number.
 

@@ -173,7 +173,7 @@ def stretch(
     also lengthens the strip and multiplies its events by β². Measured on the simulator with
     a least-squares model fitted on simulated 15 mm contacts, 12 mm contacts made to look like
     15 mm score 92 N² after the paper's zoom, 6.5 after a zoom by β^½, and 0.42 after this
-    stretch by √(15/12), against 0.38 for simulated 15 mm contacts (``benchmarks/fidelity.py``).
+    stretch by √(15/12), against 0.38 for simulated 15 mm contacts (the fidelity benchmark of ``benchmarks/``).
 
     The forward map is ``dst = c + (I + (k - 1) n nᵀ)(src - c)``, n the unit normal of the
     axis. By default the axis is the sequence's contact axis (:func:`contact_axis`: the

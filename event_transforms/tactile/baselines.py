@@ -323,7 +323,7 @@ def physics_features(frames: Tensor, diameters: Tensor | Sequence[float] | None 
 
 class PhysicsLeastSquares(Baseline):
     """Least squares of force on the running signed event total, its square, the frame's
-    totals and per-frame intercepts (the physics model of ``benchmarks/size_confound.py``).
+    totals and per-frame intercepts (the physics model of ``benchmarks/tactile/size_confound.py``).
 
     The model (features from :func:`physics_features`) is
 

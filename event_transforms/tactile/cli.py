@@ -212,7 +212,7 @@ def build_parser() -> argparse.ArgumentParser:
     compare = sub.add_parser(
         "compare", help="compare the verdicts (sign, significance) of two runs' results.md, not their digits: the summary "
         "table's Δ vs none, Δ vs matched and budget check, and the scene tables' Δ at equal cost",
-        description="Read the summary table of two runs (results.md of reproduce, or benchmarks/reproduce_quick.md) "
+        description="Read the summary table of two runs (results.md of reproduce, or benchmarks/tactile/reproduce_quick.md) "
         "and print how many Δ verdicts (better / worse / unresolved, family-wise) agree and every cell that moved. "
         "Exit status 1 when a verdict is reversed (significant in both runs with opposite signs).",
     )

@@ -11,9 +11,12 @@ import math
 import os
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .cli_data import recording_settings
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .protocol.config import ProtocolConfig
 
 __all__ = [
     "QUICK", "FULL", "reproduce", "simulate", "show", "show_scene", "infer_scene", "train", "predict", "compare",
@@ -43,6 +46,21 @@ QUICK: dict[str, Any] = {
     # leaves in none's wall time (a second column and figure)
     "equal_time": True,
 }
+
+
+def quick_config() -> ProtocolConfig:
+    """The quick configuration, as ``event-transforms reproduce`` builds it without options
+    (the configuration :data:`~event_transforms.tactile.protocol.costs.QUICK_COST_TABLE` was measured for).
+
+    Example:
+        >>> quick_config().steps > 0
+        True
+    """
+    from .protocol.config import ProtocolConfig
+
+    return ProtocolConfig(steps=QUICK["steps"], batch_size=QUICK["batch_size"], lr=QUICK["lr"],
+                          eval_every=QUICK["eval_every"], hidden_channels=tuple(QUICK["hidden_channels"]),
+                          input_pool=QUICK["input_pool"])
 #: The full configuration (``--full``): the paper's 10 seeds and layer sizes.
 FULL: dict[str, Any] = {
     "scenes": None,  # every scene

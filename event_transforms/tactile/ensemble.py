@@ -22,7 +22,7 @@ This module is the model: the ensemble, its grouped ConvLSTM cells and
 
 Measured cost of one optimiser step, ensemble / loop of M separate models (CPU, one
 thread, 2-core machine shared with other jobs; ``hidden_channels=(8,)``, batch 8 per
-member, T = 36, 70x75 frames; ``python benchmarks/ensemble.py --threads 1``, ratios of
+member, T = 36, 70x75 frames; ``python benchmarks/tactile/ensemble.py --threads 1``, ratios of
 thread CPU time, wall-time ratios within 0.05 of them):
 
 =============  ======  ======  ======
@@ -40,7 +40,7 @@ about half of M separate steps. In thread CPU time, a single-model step at pool 
 pool-5 step (59, 31 and 206 / 15 ms; absolute times on this loaded machine vary 2-3x
 between runs, the ratios far less). On a GPU the ensemble should win at any
 pool (DESIGN.md measured 10 members in about the time of one with ``vmap``); run
-``benchmarks/ensemble.py --device cuda`` there.
+``benchmarks/tactile/ensemble.py --device cuda`` there.
 
 Since issue 17 the trainer pools each member's batch before stacking the members
 (:meth:`EnsembleForceRegressor.pool`; ``input_pool²`` times less to stack), and with

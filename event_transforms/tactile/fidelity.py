@@ -18,7 +18,7 @@ per-frame intercept (40 weights for 36 frames):
 :class:`~event_transforms.tactile.baselines.PhysicsLeastSquares`, the same model that is a
 row of every benchmark table.
 
-Measured on the simulator (``benchmarks/fidelity.py``): 12 mm grasps made to look like
+Measured on the simulator (``benchmarks/tactile/fidelity.py``): 12 mm grasps made to look like
 15 mm score 92 N² after the paper's zoom, 6.5 after a zoom by β^½, 0.4 after a stretch
 across the strip by (15/12)^½, against 0.4 for real 15 mm grasps.
 """

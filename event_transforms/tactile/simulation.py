@@ -15,7 +15,7 @@ them. One *grasp* is:
    orientation drawn per experiment, and a centre near the sensor centre.
 
    **Size models.** How the strip changes with the bolt diameter D is a modelling choice,
-   and the benchmark's size verdicts depend on it (``benchmarks/physics_sensitivity.py``).
+   and the benchmark's size verdicts depend on it (``benchmarks/tactile/physics_sensitivity.py``).
    By default only the half-width grows with D (as √D), so a stretch across the strip by
    √(D₂/D₁) is the generator's exact inverse. :data:`SIZE_MODELS` names documented
    variants: ``"hertz"`` (the default), ``"thin-layer"`` (e = ⅓: a thin membrane on a

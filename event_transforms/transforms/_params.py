@@ -34,7 +34,7 @@ __all__ = ["Param", "Params", "Spec", "check_tree", "slice_params", "CHECK_RANGE
 Params = dict[str, Any]
 
 #: Profiler range around the host-side reads of a user-given tree (CPU parameters: no
-#: device work; ``benchmarks._common.count_ops`` leaves them out of a call's launches).
+#: device work; ``event_transforms._profiling.count_ops`` leaves them out of a call's launches).
 CHECK_RANGE = "event_transforms::check_params"
 
 #: A module's description of its params dict: a :class:`Param` per own entry and a

@@ -14,7 +14,7 @@ timed in turns (interleaved, so a change of load hits both), the ratio the media
 ``equal_cost_steps(steps, ratio) = floor(steps / ratio)`` steps: no rounding to a grain, and
 the same count on every machine that reads the same table. The README's quick run reads the
 committed table (``cost_table_quick.json`` beside this module; ``python
-benchmarks/cost_table.py`` measures it again); a run whose configuration the table was not
+benchmarks/tactile/cost_table.py`` measures it again); a run whose configuration the table was not
 measured for measures its own at the start and writes it to ``OUT/cost_table.json``. Wall times
 stay in the tables as measured, named as such.
 
@@ -54,6 +54,7 @@ CURVE_RATIOS = (1.0, 1.5, 2.0)
 COST_TABLE_FORMAT = 1
 #: The committed cost table of the README's quick configuration.
 QUICK_COST_TABLE = Path(__file__).resolve().parent / "cost_table_quick.json"
+
 
 
 def cost_key(config: ProtocolConfig) -> dict[str, Any]:
@@ -141,7 +142,7 @@ def load_cost_table(source: str | Path | Mapping[str, Any]) -> dict[str, Any]:
         raise ValueError(f"cost table {source}: cannot be read as JSON ({error})") from None
     if table.get("format") != COST_TABLE_FORMAT or not isinstance(table.get("ratios"), dict):
         raise ValueError(f"cost table {source if not isinstance(source, Mapping) else '(given)'}: not a cost table of "
-                         f"format {COST_TABLE_FORMAT} (measure one with benchmarks/cost_table.py)")
+                         f"format {COST_TABLE_FORMAT} (measure one with benchmarks/tactile/cost_table.py)")
     for scene, per in table["ratios"].items():
         for method, ratio in per.items():
             equal_cost_steps(1, ratio)  # refuses a ratio below 1 or not finite, by name below
@@ -157,7 +158,7 @@ def ratio_of(table: Mapping[str, Any], scene: str, method: str) -> float:
     ratio = table["ratios"].get(scene, {}).get(method)
     if ratio is None:
         raise ValueError(f"the cost table has no ratio for {method!r} on scene {scene!r}: measure one for this run "
-                         "(reproduce without --cost-table measures its own) or with benchmarks/cost_table.py")
+                         "(reproduce without --cost-table measures its own) or with benchmarks/tactile/cost_table.py")
     return float(ratio)
 
 

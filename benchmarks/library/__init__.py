@@ -1,0 +1,1 @@
+"""Benchmarks of the augmentation library: transforms, events, binning, peers, readers."""

@@ -1,0 +1,1 @@
+"""Benchmarks of the tactile application: simulator, model, training, protocol runs."""

@@ -1,0 +1,1 @@
+"""Helpers the tests share: checkers, event data, rig files, slow references, op-count cases."""
