@@ -283,3 +283,16 @@ def test_benchmarks_are_in_their_folders():
                    if p.is_file() and p.name not in ("README.md", "__init__.py", "_common.py", "_sections.py", "conftest.py",
                                                       "test_common.py"))
     assert loose == [], f"benchmarks/ holds {loose}: put a script in library/ or tactile/ and list it there"
+
+
+def test_the_places_table_maps_every_functional_topic():
+    """Names predict places: docs/transforms.md's table gives, for every functional topic file, the
+    transforms file of its modules and its test file, and every file it names exists."""
+    text = (ROOT / "docs" / "transforms.md").read_text()
+    block = text.split("<!-- places:start -->", 1)[1].split("<!-- places:end -->", 1)[0]
+    rows = [[c.strip().strip("`") for c in line.strip().strip("|").split("|")] for line in block.strip().splitlines()[2:]]
+    topics = {p.name for p in (PACKAGE / "functional").glob("*.py") if not p.name.startswith("_")}
+    assert {row[0] for row in rows} == topics
+    for functional, transforms, tests in rows:
+        assert transforms.startswith("—") or (PACKAGE / "transforms" / transforms).is_file(), transforms
+        assert (ROOT / tests).is_file(), tests

@@ -1,6 +1,6 @@
 """Events dropped by design, counted; events dropped against the caller's declaration, warned.
 
-Two kinds of drop, two treatments (DESIGN §8):
+Two kinds of drop, two treatments:
 
 * **By design.** An augmentation whose meaning moves events off the sensor or out of the
   time window (rotation, translation, jitter, perspective and elastic warps, frame shift,

@@ -39,7 +39,6 @@ from .cleaning import *  # noqa: F401,F403
 from .cleaning import __all__ as _cleaning
 from .drop import *  # noqa: F401,F403
 from .drop import __all__ as _drop
-from .drop import drop_events as drop_events  # deprecated former name of drop_random, not in __all__
 from .representations import *  # noqa: F401,F403
 from .representations import __all__ as _representations
 

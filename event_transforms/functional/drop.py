@@ -6,7 +6,6 @@ Dropping follows EventDrop (Gu et al., 2021) for events. Each operation is a dis
 :func:`refractory_period`, :func:`decimation`) with a kernel per input type beside it
 (``<op>_frames``, ``<op>_events``). On frames these only remove counts: the dtype is kept
 (``drop_random(mode="expected")`` scales instead and returns floats).
-:func:`drop_events` is the former name of :func:`drop_random`: deprecated, it warns and calls it.
 Pixel masks are computed on the frames' device; :func:`random_pixel_mask` is a
 counter-based draw, so a sample's mask depends on its own seed only.
 """
@@ -14,9 +13,7 @@ counter-based draw, so a sample's mask depends on its own seed only.
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
-from typing import Any
 
 import torch
 from torch import Tensor
@@ -108,12 +105,6 @@ def drop_random(
     seeds = draw_seeds(b, generator) if mode == "binomial" else None
     return restore(call_kernel(drop_random, batch, fraction_t, mode, seeds))
 
-
-def drop_events(*args: Any, **kwargs: Any) -> Tensor | EventBatch:
-    """Deprecated: the former name of :func:`drop_random`; warns and calls it (removed in the next release)."""
-    warnings.warn("event_transforms.functional.drop_events is deprecated: call drop_random (same arguments)",
-                  DeprecationWarning, stacklevel=2)
-    return drop_random(*args, **kwargs)
 
 _DROP_HINT = 'drop events before interpolating transforms (bilinear rotate/resize), or use mode="expected"'
 

@@ -102,7 +102,7 @@ def stretch_frames(batch: Tensor, factor: Tensor, axis: str | Tensor, center: Ce
     The forward map in pixels (x, y) is ``dst = c + (I + (k - 1) n nᵀ)(src - c)`` with n the
     unit normal of the axis; the sampling matrix (its inverse, ``I + (1/k - 1) n nᵀ``) is
     built on the frames' device in float64 (the axis may come from the events, so it is
-    never read back to the host), then :func:`~event_transforms.functional.spatial._warp`
+    never read back to the host), then the warp shared with the affine transforms (``functional._warp``)
     samples all T·2 frames of a sequence at once, as for rotate and resize.
 
     Args:

@@ -17,7 +17,6 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
   ``fit_ensemble``, stopping rule, batch order), timing, scores;
 - :mod:`~event_transforms.tactile.methods`: method names and which methods a scene runs;
 - :mod:`~event_transforms.tactile.copies`: a scene's data, synthetic copies, the paired batch order;
-- :mod:`~event_transforms.tactile.experiment`: the benchmark run's old home, re-exporting the protocol package's names;
 - :mod:`~event_transforms.tactile.stats`: paired t-intervals, Wilcoxon signed-rank, Holm, summaries;
 - :mod:`~event_transforms.tactile.report`: the benchmark's tables and findings;
 - :mod:`~event_transforms.tactile.distributed`: local ranks, ``torchrun``, worker errors;

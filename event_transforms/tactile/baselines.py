@@ -1,4 +1,4 @@
-"""Force baselines the network must beat: trivial ones and a physics model (DESIGN.md §6).
+"""Force baselines the network must beat: trivial ones and a physics model.
 
 Each baseline is a small class with ``fit(frames, force) -> self`` and
 ``predict(frames) -> force`` on whole tensors, computed in float64 on the CPU:

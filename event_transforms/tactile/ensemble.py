@@ -39,7 +39,7 @@ about half of M separate steps. In thread CPU time, a single-model step at pool 
 0.52x one at pool 5, and a member-step in an ensemble of 15 at pool 10 cost 0.23x a single
 pool-5 step (59, 31 and 206 / 15 ms; absolute times on this loaded machine vary 2-3x
 between runs, the ratios far less). On a GPU the ensemble should win at any
-pool (DESIGN.md measured 10 members in about the time of one with ``vmap``); run
+pool (on one H100, 10 members took about the time of one with ``vmap``); run
 ``benchmarks/tactile/ensemble.py --device cuda`` there.
 
 Since issue 17 the trainer pools each member's batch before stacking the members

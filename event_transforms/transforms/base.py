@@ -32,7 +32,6 @@ container or data set is handed (a plain function, a torchvision transform) is w
 from __future__ import annotations
 
 import sys
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, cast, overload
 
@@ -50,27 +49,6 @@ __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAME
 
 #: The key under which a dict input holds the frames.
 FRAMES_KEY = "frames"
-
-def _adopt_deprecated_apply(cls: type) -> None:
-    """A subclass written for the hook's old name ``apply(inputs, params)``: its method becomes
-    ``apply_transform`` (with a DeprecationWarning naming the new name), and ``apply`` answers
-    both ``module.apply(fn)`` (torch's meaning) and the old call."""
-    old = cls.__dict__["apply"]
-    warnings.warn(
-        f"{cls.__name__} defines apply(inputs, params): the hook is now named apply_transform "
-        "(apply is torch.nn.Module.apply); rename the method. The old name is accepted until the next release.",
-        DeprecationWarning,
-        stacklevel=3,
-    )
-
-    def apply(self: Any, inputs: Any, *args: Any, **kwargs: Any) -> Any:
-        if not args and not kwargs and callable(inputs) and not isinstance(inputs, (Tensor, EventBatch)):
-            return torch.nn.Module.apply(self, inputs)
-        return old(self, inputs, *args, **kwargs)
-
-    cls.apply_transform = old  # type: ignore[attr-defined]
-    cls.apply = apply  # type: ignore[attr-defined]
-
 
 def _numpy_frames(frames: object) -> Any:
     """A numpy array of frames (tonic's ``ToFrame``, ``DiskCachedDataset``) as a tensor, converted
@@ -483,8 +461,10 @@ class EventTransform(nn.Module):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if "apply" in cls.__dict__ and "apply_transform" not in cls.__dict__:
-            _adopt_deprecated_apply(cls)
+        if "apply" in cls.__dict__:
+            raise TypeError(
+                f"{cls.__name__} defines apply: the hook is apply_transform(inputs, params) (apply is "
+                "torch.nn.Module.apply, which a transform keeps); rename the method")
         if cls.sample_params is not EventTransform.sample_params and cls.params_spec is EventTransform.params_spec:
             raise TypeError(
                 f"{cls.__name__} draws parameters (it overrides sample_params), so it must declare them: "
@@ -543,9 +523,8 @@ class EventTransform(nn.Module):
         (:func:`~event_transforms.functional._dispatch.call_kernel`).
 
         kornia names this hook ``apply_transform`` too; ``module.apply(fn)`` stays
-        :meth:`torch.nn.Module.apply`. A subclass that still defines ``apply(inputs, params)``
-        (the name up to 0.1) works for one release: it is adopted as ``apply_transform`` with a
-        :class:`DeprecationWarning` when the class is defined."""
+        :meth:`torch.nn.Module.apply`. A subclass that defines ``apply`` (the hook's name up to
+        0.1) is refused with a :class:`TypeError` when the class is defined."""
         raise NotImplementedError
 
     def output_shape(self, shape: torch.Size) -> torch.Size:

@@ -234,22 +234,22 @@ def test_no_library_transform_shadows_module_apply():
         assert cls.apply is nn.Module.apply, cls.__name__
 
 
-def test_a_subclass_with_the_old_hook_name_warns_and_still_works():
-    """A subclass that defines ``apply(inputs, params)`` (the hook's name up to 0.1) is adopted as
-    ``apply_transform`` with a DeprecationWarning naming the new name, and ``module.apply(fn)``
-    still reaches torch."""
-    with pytest.warns(DeprecationWarning, match=r"Double defines apply\(inputs, params\): .* apply_transform"):
+def test_a_subclass_with_the_old_hook_name_is_refused_by_name():
+    """A subclass that defines ``apply(inputs, params)`` (the hook's name up to 0.1) is refused
+    when the class is defined, naming the hook to use; ``module.apply(fn)`` is torch's."""
+    with pytest.raises(TypeError, match=r"Double defines apply: the hook is apply_transform\(inputs, params\)"):
 
         class Double(et.EventTransform):
             def apply(self, inputs, params):
                 return 2 * inputs
 
-    frames = torch.ones(2, 3, 2, 4, 4)
-    assert torch.equal(Double()(frames), 2 * frames)
-    assert torch.equal(Double().apply_transform(frames, {}), 2 * frames)
+    class Triple(et.EventTransform):
+        def apply_transform(self, inputs, params):
+            return 3 * inputs
+
     seen: list[str] = []
-    module = Double()
-    assert module.apply(lambda m: seen.append(type(m).__name__)) is module and seen == ["Double"]
+    module = Triple()
+    assert module.apply(lambda m: seen.append(type(m).__name__)) is module and seen == ["Triple"]
 
 
 def test_a_gated_coupled_transform_must_name_its_partners():

@@ -251,9 +251,7 @@ class TestOnEvents:
         assert torch.equal(frames_of(F.drop_pixel(batch, [[1, 2]])), F.drop_pixel(frames, [[1, 2]]))
         out = F.drop_random(batch, 0.5, generator=torch.Generator().manual_seed(0))
         assert out.num_events < batch.num_events
-        with pytest.warns(DeprecationWarning, match="drop_events is deprecated: call drop_random"):
-            old = F.drop_events(batch, 0.5, generator=torch.Generator().manual_seed(0))  # the former name
-        assert torch.equal(old.t, out.t) and "drop_events" not in F.__all__
+        assert not hasattr(F, "drop_events")  # the former name of drop_random, removed
         with pytest.raises(TypeError, match="refractory_period works on events only"):
             F.refractory_period(frames, 10.0)
 

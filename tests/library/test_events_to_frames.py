@@ -1,4 +1,4 @@
-"""Tests for ``event_transforms.functional.events.events_to_frames``."""
+"""Tests for ``event_transforms.functional.events_to_frames`` (``event_transforms.events.events_to_frames``)."""
 
 from __future__ import annotations
 

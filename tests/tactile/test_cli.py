@@ -10,8 +10,9 @@ import pytest
 import torch
 
 import event_transforms as et
-from event_transforms.tactile import cli, experiment, figures, protocol
+from event_transforms.tactile import cli, figures, protocol
 from event_transforms.tactile.protocol import run as protocol_run
+from event_transforms.tactile.protocol import timing
 from event_transforms.tactile.protocol import (
     PAPER_METHODS,
     QUICK_METHODS,
@@ -686,16 +687,16 @@ class TestEqualTime:
     its cost per step (from the cost table) leaves in none's time."""
 
     def test_steps_from_the_timings(self):
-        assert experiment.equal_time_steps(300, 10.0, 20.0) == 150
-        assert experiment.equal_time_steps(300, 10.0, 20.0, grain=40) == 120  # rounded down
-        assert experiment.equal_time_steps(300, 10.0, 10.0, grain=25) == 300
-        assert experiment.equal_time_steps(300, 10.0, 1e6, grain=25) == 25  # never below one grain
+        assert timing.equal_time_steps(300, 10.0, 20.0) == 150
+        assert timing.equal_time_steps(300, 10.0, 20.0, grain=40) == 120  # rounded down
+        assert timing.equal_time_steps(300, 10.0, 10.0, grain=25) == 300
+        assert timing.equal_time_steps(300, 10.0, 1e6, grain=25) == 25  # never below one grain
         with pytest.raises(ValueError, match="online_wall_s"):
-            experiment.equal_time_steps(300, 10.0, 9.0)
+            timing.equal_time_steps(300, 10.0, 9.0)
         with pytest.raises(ValueError, match="online_wall_s"):
-            experiment.equal_time_steps(300, 10.0, float("nan"))
+            timing.equal_time_steps(300, 10.0, float("nan"))
         with pytest.raises(ValueError, match="steps"):
-            experiment.equal_time_steps(0, 10.0, 20.0)
+            timing.equal_time_steps(0, 10.0, 20.0)
 
     def test_retrains_at_the_affordable_steps(self, monkeypatch, tmp_path):
         """The steps come from the cost table (issue 33, item 6): stretch costs twice a plain step,
@@ -749,9 +750,9 @@ class TestEqualTime:
         assert (tmp_path / "accuracy_at_equal_time.png").stat().st_size > 0
 
     def test_off_by_default_in_run_protocol_and_full(self, tmp_path):
-        plan = experiment.plan_run(["paper"], {"paper": ["none", "stretch"]}, [0, 1], TINY, equal_time=True)
+        plan = protocol.plan_run(["paper"], {"paper": ["none", "stretch"]}, [0, 1], TINY, equal_time=True)
         assert plan["equal_time_member_steps_max"] == 1 * 2 * TINY.steps
-        assert experiment.plan_run(["paper"], {"paper": ["none"]}, [0], TINY)["equal_time_member_steps_max"] == 0
+        assert protocol.plan_run(["paper"], {"paper": ["none"]}, [0], TINY)["equal_time_member_steps_max"] == 0
         assert cli.QUICK["equal_time"] and not cli.FULL["equal_time"]
 
 

@@ -378,12 +378,11 @@ class TestTriggerSync:
             RecordingSet(root, split="train", sync="triggers", force_offset_ms=1.0)
 
 
-def test_recording_entry_and_the_deprecated_alias():
+def test_recording_entry_and_no_alias():
     from event_transforms.tactile import recordings
 
-    with pytest.warns(DeprecationWarning, match="renamed RecordingEntry"):
-        alias = recordings.Recording
-    assert alias is recordings.RecordingEntry
+    assert not hasattr(recordings, "Recording")  # the former name of RecordingEntry, removed
+    alias = recordings.RecordingEntry
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         from event_transforms.tactile.recordings import RecordingEntry  # noqa: F401

@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from event_transforms.functional import events_to_frames
-from event_transforms.tactile import cli, experiment, recordings
+from event_transforms.tactile import cli, protocol, recordings
 from event_transforms.tactile.recordings import (
     RecordingSet,
     RecordingSettings,
@@ -492,7 +492,7 @@ def truncate(path: Path, size: int) -> None:
     path.write_bytes(head)
 
 
-TINY = experiment.ProtocolConfig(steps=3, batch_size=4, eval_every=2, hidden_channels=(2,), input_pool=4)
+TINY = protocol.ProtocolConfig(steps=3, batch_size=4, eval_every=2, hidden_channels=(2,), input_pool=4)
 
 
 @pytest.fixture(scope="module")
@@ -502,7 +502,7 @@ def data(folder, cache):
 
 class TestProtocolOnRecordings:
     def test_results_name_the_data_and_count_recordings(self, data, tmp_path):
-        results = experiment.run_protocol(["mine"], [0, 1], tmp_path, config=TINY, methods=["none", "fs1"],
+        results = protocol.run_protocol(["mine"], [0, 1], tmp_path, config=TINY, methods=["none", "fs1"],
                                           data={"mine": data}, group="method", budget_check=False)
         assert "simulated" not in results["data"] and data.dataset["content_hash"][:16] in results["data"]
         scene = results["scenes"]["mine"]
@@ -525,7 +525,7 @@ class TestProtocolOnRecordings:
         # deployment events come 20 ms later: a timing gap, a shift to later frames
         assert data.scene.gaps == ("timing",) and data.scene.inferred.lag_shifts[0] > 0
         assert deploy_forces  # (the test folder has labelled deployment recordings)
-        method = experiment.parse_method("inferred", scene=data.scene)
+        method = protocol.parse_method("inferred", scene=data.scene)
         assert type(method.build(data.noise_bank)).__name__ == "OneOf"
 
     def test_unlabeled_items_have_no_force(self, folder, cache):
@@ -548,11 +548,11 @@ def test_exported_scene_matches_the_built_in_scene(tmp_path, monkeypatch):
         assert len(a) == len(b)
         for i in range(len(a)):
             assert torch.equal(a[i][0], b[i][0]) and torch.equal(a[i][1], b[i][1])
-    config = experiment.ProtocolConfig(steps=4, batch_size=4, eval_every=2, hidden_channels=(2,), input_pool=14)
+    config = protocol.ProtocolConfig(steps=4, batch_size=4, eval_every=2, hidden_channels=(2,), input_pool=14)
     methods = ["none", "stretch", "fs-1"]
-    ours = experiment.run_protocol(["export"], [0, 1], tmp_path / "a", config=config, methods=methods,
+    ours = protocol.run_protocol(["export"], [0, 1], tmp_path / "a", config=config, methods=methods,
                                    data={"export": data}, group="method", budget_check=False)
-    theirs = experiment.run_protocol(["paper"], [0, 1], tmp_path / "b", config=config, methods=methods,
+    theirs = protocol.run_protocol(["paper"], [0, 1], tmp_path / "b", config=config, methods=methods,
                                      data={"paper": built_in}, group="method", budget_check=False)
     assert data.scene.gaps == ("size",) and data.scene.target_size == 15.0
     for method in methods:
@@ -569,7 +569,7 @@ def fake():
 
 class TestResume:
     def run(self, out, data, seeds=(0, 1), config=TINY, log=None):
-        return experiment.run_protocol(["control"], list(seeds), out, config=config, methods=["none", "fs2"],
+        return protocol.run_protocol(["control"], list(seeds), out, config=config, methods=["none", "fs2"],
                                        data={"control": data}, group="method", budget_check=False, log=log)
 
     def test_seeds_data_and_settings_changed_recompute(self, fake, tmp_path):
@@ -601,7 +601,7 @@ class TestResume:
             first["scenes"]["control"]["methods"]["none"]["test_mse"]
         # other settings (a model default included): recomputed
         lines = []
-        self.run(tmp_path, data, config=experiment.ProtocolConfig(**{**TINY.__dict__, "lr": 5e-3}), log=lines.append)
+        self.run(tmp_path, data, config=protocol.ProtocolConfig(**{**TINY.__dict__, "lr": 5e-3}), log=lines.append)
         assert not any("resumed" in line for line in lines)
 
     def test_model_defaults_and_version_are_in_the_key(self, monkeypatch):

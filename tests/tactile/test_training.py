@@ -222,12 +222,12 @@ class TestOneTrainer:
             train(scene_data, ["tes"], [0], **self.SETTINGS)
 
     def test_old_module_paths_still_import(self):
-        from event_transforms.tactile import ensemble, experiment, protocol, training
-        from event_transforms.tactile.protocol import run, timing, unit
+        from event_transforms.tactile import ensemble, protocol, training
+        from event_transforms.tactile.protocol import run, unit
 
         for name in ("fit_ensemble", "shuffled_batches", "clip_grad_norm_per_member_", "MemberRecord", "EnsembleResult"):
             assert getattr(ensemble, name) is getattr(training, name)
-        assert experiment.run_unit is unit.run_unit is protocol.run_unit
-        assert experiment.run_protocol is run.run_protocol and experiment.equal_time_steps is timing.equal_time_steps
+        assert unit.run_unit is protocol.run_unit
+        assert protocol.run_protocol is run.run_protocol
         with pytest.raises(AttributeError, match="no attribute 'train'"):
             ensemble.train  # noqa: B018 - the entry point lives in training only

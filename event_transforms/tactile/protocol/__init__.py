@@ -22,9 +22,6 @@ Their public names, and those of the modules the protocol uses, are re-exported 
 - :mod:`~event_transforms.tactile.stats`: Δ vs ``none``, intervals, Holm (:func:`summarize_scene`);
 - :mod:`~event_transforms.tactile.report`: tables and findings (:func:`format_report`);
 - :mod:`~event_transforms.tactile.distributed`: local ranks, ``torchrun``, worker errors.
-
-(Until this release the settings, planning, timing and the run were one module,
-``event_transforms.tactile.experiment``, which still re-exports them.)
 """
 
 from __future__ import annotations

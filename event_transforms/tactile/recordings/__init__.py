@@ -125,9 +125,8 @@ __all__ = [
     "scan_events",
 ]
 
-import warnings
 from pathlib import Path
-from typing import Any
+
 
 from ...events.io import read_events  # re-export: the readers live in event_transforms.events.io
 from .cache import content_hash
@@ -140,14 +139,3 @@ from .scan import EventScan, contact_crop, scan_events
 from .scene import RecordingScene, load_recording_data
 
 _ = Path  # the module docstring's example uses Path
-
-
-def __getattr__(name: str) -> Any:
-    if name == "Recording":  # deprecated: the one Recording is the simulator's
-        warnings.warn(
-            "event_transforms.tactile.recordings.Recording is renamed RecordingEntry (a row of recordings.csv; "
-            "Recording is the simulator's grasp recording); the old name goes in the next release",
-            DeprecationWarning, stacklevel=2,
-        )
-        return RecordingEntry
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
