@@ -327,6 +327,13 @@ class TestRunProtocol:
         from event_transforms.tactile.protocol.rules import RULES
 
         assert saved["rules"] == RULES.to_dict() and f"Decision rules version {RULES.version} " in report
+        # every cell of the summary table recomputed from the per-seed values alone (what a page publishes)
+        from event_transforms.tactile.protocol.recompute import recompute, seed_values
+        from event_transforms.tactile.report import format_summary_table
+
+        values = json.loads(json.dumps(seed_values(saved)))
+        assert format_summary_table(recompute(values)) == format_summary_table(saved)
+        assert format_summary_table(saved) in report
 
     def test_summary_table_repeats_the_scene_tables(self, clean):
         from tests.test_readme_table import markdown_tables, summary_table

@@ -9,7 +9,7 @@ import dataclasses
 import pytest
 
 from event_transforms.tactile import cli
-from event_transforms.tactile.protocol.rules import HISTORY, RULES, RULES_V1, RULES_VERSION, Rules, rules_for, version_of
+from event_transforms.tactile.protocol.rules import HISTORY, RULES, RULES_V1, RULES_VERSION, rules_for, version_of
 from event_transforms.tactile.report import SUMMARY_COLUMNS, format_report, format_rules, rules_version
 from event_transforms.tactile.stats import converged, deltas_vs_none, holdout_drop, paired_t, significant
 

@@ -78,6 +78,7 @@ __all__ = [
     "duplicates",
     "paired_delta",
     "deltas_vs_none",
+    "scene_deltas",
     "summarize_scene",
     "current_rules",
 ]
@@ -643,6 +644,62 @@ def deltas_vs_none(methods: dict[str, Any], key: str, *, exclude: Sequence[str] 
 POLICY_ROWS = ("inferred", "prior", "everything")
 
 
+def scene_deltas(methods: dict[str, Any], matched_methods: Sequence[str] = (), *,
+                 rules: Rules | None = None) -> dict[str, dict[str, Any]]:
+    """One scene's verdicts from its rows' per-seed values: per row the fields
+    :func:`summarize_scene` records, ``duplicate_of`` (a row bit-identical per seed to an earlier
+    one: no Δ of its own), ``delta_vs_none`` and ``delta_vs_none_paper_split`` (one family
+    without the duplicates, :func:`deltas_vs_none`), and for the policy rows ``matched_row`` and
+    ``delta_vs_matched`` (against ``matched`` where it ran, else the first of
+    ``matched_methods`` that ran; the policy rows a family of their own). A Δ whose side behind
+    had not converged (a row's ``converged``, default ``True``) is marked ``not_converged``.
+
+    The table's verdicts are recomputed from the per-seed values with this function alone
+    (:mod:`~event_transforms.tactile.protocol.recompute`). ``methods`` maps a name to
+    ``{"seeds", "test_mse", "test_mse_paper_split", "converged"}`` and is not modified.
+
+    Example:
+        >>> rows = {"none": {"seeds": [0, 1, 2], "test_mse": [2.0, 2.2, 2.1]},
+        ...         "fs1": {"seeds": [0, 1, 2], "test_mse": [1.0, 1.3, 1.1]},
+        ...         "inferred": {"seeds": [0, 1, 2], "test_mse": [1.0, 1.3, 1.1]}}
+        >>> out = scene_deltas(rows, ["fs1"])
+        >>> round(out["fs1"]["delta_vs_none"]["mean"], 2), out["inferred"]["duplicate_of"], out["inferred"]["matched_row"]
+        (-0.97, 'fs1', 'fs1')
+    """
+    rules = current_rules(rules)
+    out: dict[str, dict[str, Any]] = {name: {"delta_vs_none": None, "delta_vs_none_paper_split": None}
+                                      for name in methods}
+    dupes = duplicates(methods)
+    for name, original in dupes.items():
+        out[name]["duplicate_of"] = original
+    done = {name: bool(m.get("converged", True)) for name, m in methods.items()}
+    for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
+        if not all(key in m for m in methods.values()):
+            continue
+        for name, delta in deltas_vs_none(methods, key, exclude=tuple(dupes), rules=rules).items():
+            if behind_unconverged(delta["mean"], done.get("none", True), done[name]):  # more steps could close it
+                delta["not_converged"] = True
+                delta["significant"] = False
+            out[name][field_name] = delta
+    # the policy rows against the scene's matched row (the first matched method that ran)
+    # (``matched``, every gap's matched augmentation, where the scene has two gaps or more)
+    matched = next((m for m in ("matched", *matched_methods) if m in methods and m not in dupes), None)
+    policies = [m for m in POLICY_ROWS if m in methods and m not in dupes and m != matched]
+    matched_prior = (family_prior(methods[matched], {n: methods[n] for n in policies}, "test_mse", rules=rules)
+                     if matched is not None else None)
+    for name in policies:
+        out[name]["matched_row"] = matched
+        if matched is not None:
+            vs = paired_delta(methods[matched], methods[name], "test_mse", len(policies), matched_prior, rules=rules)
+            if vs is not None and behind_unconverged(vs["mean"], done[matched], done[name]):
+                vs["not_converged"] = True
+            out[name]["delta_vs_matched"] = vs
+    for name in dupes:
+        if name in POLICY_ROWS:
+            out[name]["matched_row"] = matched
+    return out
+
+
 def summarize_scene(
     scene: BenchmarkScene, per_method: dict[str, list[dict[str, Any]]], baselines: dict[str, dict[str, float]],
     split_sizes: dict[str, int], *, rules: Rules | None = None,
@@ -688,34 +745,10 @@ def summarize_scene(
                 phase: statistics.fmean(r["test_phase_mse"][phase] for r in runs) for phase in ("grasp", "hold", "release")
             },
         }
-    dupes = duplicates(methods)
-    for name, original in dupes.items():
-        methods[name]["duplicate_of"] = original
-    done = {name: converged(m["holdout_drop"], rules=rules) for name, m in methods.items()}
-    for name in methods:
-        methods[name]["converged"] = done[name]
-    for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
-        for name, delta in deltas_vs_none(methods, key, exclude=tuple(dupes), rules=rules).items():
-            if behind_unconverged(delta["mean"], done.get("none", True), done[name]):  # more steps could close it
-                delta["not_converged"] = True
-                delta["significant"] = False
-            methods[name][field_name] = delta
-    # the policy rows against the scene's matched row (the first matched method that ran)
-    # (``matched``, every gap's matched augmentation, where the scene has two gaps or more)
-    matched = next((m for m in ("matched", *scene.matched_methods) if m in methods and m not in dupes), None)
-    policies = [m for m in POLICY_ROWS if m in methods and m not in dupes and m != matched]
-    matched_prior = (family_prior(methods[matched], {n: methods[n] for n in policies}, "test_mse", rules=rules)
-                     if matched is not None else None)
-    for name in policies:
-        methods[name]["matched_row"] = matched
-        if matched is not None:
-            vs = paired_delta(methods[matched], methods[name], "test_mse", len(policies), matched_prior, rules=rules)
-            if vs is not None and behind_unconverged(vs["mean"], done[matched], done[name]):
-                vs["not_converged"] = True
-            methods[name]["delta_vs_matched"] = vs
-    for name in dupes:
-        if name in POLICY_ROWS:
-            methods[name]["matched_row"] = matched
+    for name, m in methods.items():
+        m["converged"] = converged(m["holdout_drop"], rules=rules)
+    for name, fields in scene_deltas(methods, scene.matched_methods, rules=rules).items():
+        methods[name].update(fields)
     return {
         "description": scene.description,
         "gaps": list(scene.gaps),

@@ -30,12 +30,12 @@ from ..report import format_report
 from ..runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
 from ..scenes import SCENES
 from ..stats import (
-    behind_unconverged, converged, deltas_vs_none, ensemble_drop, paired_t, replicated, seed_blocks, significant,
-    summarize_scene,
+    behind_unconverged, converged, deltas_vs_none, ensemble_drop, summarize_scene,
 )
 from .config import ProtocolConfig
 from .environment import environment, git_commit
 from .plan import Unit, choose_methods, plan_run, work_units
+from .recompute import judge_budget
 from .rules import RULES
 from .shared import SHARED_SEPARATOR, collect, plan_sharing
 from .costs import CURVE_RATIOS, cost_curve, cost_key, equal_cost_steps, load_cost_table, measure_costs, ratio_of
@@ -213,30 +213,11 @@ def headline(scene: str, chosen: Mapping[str, Sequence[str]], data: Mapping[str,
 
 
 def _budget_check(method: str, steps: int, delta: dict[str, Any], runs_2n: dict[str, list]) -> dict[str, Any]:
-    """The headline's Δ at ``steps`` and at twice the steps. A headline resolved at ``steps`` is
-    robust when the sign agrees at twice the steps and the change is smaller than the half-width
-    of its Bonferroni interval at ``steps`` (the interval the table shows). A headline that is not
-    resolved at ``steps`` is not judged (``robust`` is ``None``); if its models had not converged
-    there, the twice-as-long run answers instead (``resolved_2n``: both ensembles converged, its
-    paired 95 % interval, a pre-declared family of one, excludes 0 and the direction holds in each
-    block of seeds under rules version 1): more steps is what an unconverged verdict lacked.
-    Judged by :data:`~event_transforms.tactile.protocol.rules.RULES`."""
-    none = {r["seed"]: r["test_mse"] for r in runs_2n["none"]}
-    pairs = [(none[r["seed"]], r["test_mse"]) for r in runs_2n[method] if r["seed"] in none]
-    first, second = [a for a, _ in pairs], [b for _, b in pairs]
-    test = paired_t(first, second, level=RULES.unadjusted_level)
-    ci = delta.get("ci_family") or delta.get("ci95")
-    half = (ci[1] - ci[0]) / 2 if ci else math.nan
-    robust: bool | None = None
-    if significant(delta):
-        robust = bool(ci) and (delta["mean"] > 0) == (test.mean > 0) and abs(delta["mean"] - test.mean) < half
+    """The headline's Δ at ``steps`` and at twice the steps, judged by :func:`judge_budget` (with
+    both rows' per-seed test MSEs at twice the steps, recorded so the verdict can be recomputed)."""
     converged_2n = all(converged(ensemble_drop(runs_2n[m])) for m in ("none", method))
-    resolved_2n = bool(delta.get("not_converged") and converged_2n and test.ci is not None
-                       and (test.ci[1] < 0 or test.ci[0] > 0)
-                       and (RULES.replication == "none" or replicated(test.mean, seed_blocks(first, second))))
-    return {"method": method, "steps": steps, "steps_2n": RULES.budget_factor * steps, "delta": delta["mean"],
-            "delta_2n": test.mean, "ci95_2n": list(test.ci) if test.ci else None, "ci_family_halfwidth": half,
-            "robust": robust, "converged_2n": converged_2n, "resolved_2n": resolved_2n}
+    return judge_budget(method, steps, delta, _seed_values(runs_2n["none"]), _seed_values(runs_2n[method]),
+                        converged_2n)
 
 
 def _attach_equal_time(summary: dict[str, Any], steps_of: dict[str, int], runs: dict[str, list],
