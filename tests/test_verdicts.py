@@ -366,8 +366,16 @@ class TestTheResultsPageStatesWhatTheFilesGive:
         return here, there, outcome, resolved, kept
 
     def test_the_quick_run_and_the_default_kernels(self):
-        here, there, outcome, resolved, kept = self._counts(README_RUN, self.DEFAULT_RUN)
+        from event_transforms.tactile.report import rules_version
+
         page = " ".join(self.PAGE.read_text().split())
+        versions = {rules_version(path.read_text()) for path in (README_RUN, self.DEFAULT_RUN)}
+        if len(versions) > 1:  # judged by different rules: the page may not state their comparison as a finding
+            assert "verdicts both runs print" not in page, (
+                "the README run and the default-kernel run name different decision rules: rerun the second "
+                "(ATEN_CPU_CAPABILITY=default) or take the paragraph comparing them off docs/results.md")
+            return
+        here, there, outcome, resolved, kept = self._counts(README_RUN, self.DEFAULT_RUN)
         shared = len(here.keys() & there.keys())
         assert (f"Of the {shared} verdicts both runs print, {len(outcome['same'])} are the same, **none is "
                 f"reversed** and {len(outcome['significance'])} changed significance only") in page
