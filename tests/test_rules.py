@@ -30,6 +30,18 @@ class TestTheRules:
         same = ("alpha", "family_wise", "convergence_tolerance", "convergence_window", "budget_factor")
         assert all(getattr(RULES, k) == getattr(RULES_V1, k) for k in same)
 
+    @pytest.mark.parametrize("rules", list(HISTORY.values()), ids=list(HISTORY))
+    def test_the_words_say_the_numbers(self, rules):
+        assert f"1 − {rules.alpha:g}/m" in rules.interval
+        assert f"more than {rules.convergence_tolerance * 100:g} % in the last quarter" in rules.convergence
+        assert rules.convergence_window == 0.75 and "twice the steps" in rules.budget_check
+        assert ("moderated" in rules.interval) == (rules.variances == "moderated")
+
+    def test_the_old_constant_is_the_rules_tolerance(self):
+        from event_transforms.tactile.stats import STILL_FALLING
+
+        assert STILL_FALLING == RULES.convergence_tolerance
+
     @pytest.mark.parametrize("change,message", [
         ({"variances": "pooled"}, "variances must be 'raw' or 'moderated', got 'pooled'"),
         ({"replication": "thirds"}, "replication must be 'none' or 'halves', got 'thirds'"),

@@ -392,8 +392,8 @@ class Verdict:
 
     Attributes:
         mean: the Δ as printed (N²).
-        significant: its family-wise interval excludes 0 and the Δ's direction holds in both
-            blocks of seeds (the cell is bold).
+        significant: its family-wise interval excludes 0 and nothing withholds it (not converged;
+            under rules version 1 a block of seeds pointing the other way): the cell is bold.
         borderline: the interval excludes 0 but one block of seeds points the other way (the
             cell says "(borderline)"; not significant). Only results judged by rules version 1
             have such cells.
