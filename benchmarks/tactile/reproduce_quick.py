@@ -4,7 +4,10 @@ Runs the README's main command (``event-transforms reproduce``, the quick config
 into ``--out`` and publishes its output: ``results.md`` becomes
 ``benchmarks/tactile/reproduce_quick.md``, the figures ``benchmarks/tactile/reproduce_quick.png`` (equal
 steps, fixed copies), ``reproduce_quick_online.png`` (online augmentation) and
-``reproduce_quick_equal_time.png`` (equal wall time), and the summary table of the results
+``reproduce_quick_equal_time.png`` (equal wall time), the per-seed values its verdicts are
+computed from ``benchmarks/tactile/reproduce_quick_seeds.json`` (:func:`~event_transforms.tactile.protocol.recompute.seed_values`:
+``tests/tactile/test_verdicts.py`` recomputes every verdict of the page from them with the rules it names;
+simulated data only), and the summary table of the results
 page (``docs/results.md`` where it exists, else ``README.md``) is replaced by the printed one
 (``tests/tactile/test_results_table.py`` compares them cell by cell). Run it on a clean commit: the
 output names the commit it was produced by.
@@ -17,11 +20,13 @@ An interrupted run resumes from the finished units under ``--out``.
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
 from event_transforms.tactile import cli
+from event_transforms.tactile.protocol.recompute import seed_values
 from event_transforms.tactile.report import LEGACY_SUMMARY_COLUMNS, SUMMARY_COLUMNS
 
 __all__ = ["FIGURES", "replace_summary_table", "main"]
@@ -80,12 +85,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     bench = ROOT / "benchmarks" / "tactile"
     printed = (args.out / "results.md").read_text()
     (bench / "reproduce_quick.md").write_text(printed)
+    results = json.loads((args.out / "results.json").read_text())
+    (bench / "reproduce_quick_seeds.json").write_text(json.dumps(seed_values(results), indent=1) + "\n")
     for produced, published in FIGURES.items():
         if (args.out / produced).exists():
             shutil.copyfile(args.out / produced, bench / published)
     page = args.page or (ROOT / "docs" / "results.md" if (ROOT / "docs" / "results.md").exists() else ROOT / "README.md")
     page.write_text(replace_summary_table(page.read_text(), printed))
-    print(f"published benchmarks/tactile/reproduce_quick.md, the figures and the summary table of {page}")
+    print(f"published benchmarks/tactile/reproduce_quick.md, reproduce_quick_seeds.json, the figures and the summary table "
+          f"of {page}")
     return 0
 
 

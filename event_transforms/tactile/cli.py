@@ -214,10 +214,14 @@ def build_parser() -> argparse.ArgumentParser:
         "table's Δ vs none, Δ vs matched and budget check, and the scene tables' Δ at equal cost",
         description="Read the summary table of two runs (results.md of reproduce, or benchmarks/tactile/reproduce_quick.md) "
         "and print how many Δ verdicts (better / worse / unresolved, family-wise) agree and every cell that moved. "
-        "Exit status 1 when a verdict is reversed (significant in both runs with opposite signs).",
+        "Exit status 1 when a verdict is reversed (significant in both runs with opposite signs). Runs judged by "
+        "different versions of the decision rules (the 'Decision rules version' line) are compared with a warning, "
+        "or refused with --same-rules.",
     )
     compare.add_argument("a", type=Path, help="the first run's results.md")
     compare.add_argument("b", type=Path, help="the second run's results.md")
+    compare.add_argument("--same-rules", action="store_true",
+                         help="refuse (exit status 2) when the two runs name different decision-rule versions")
     show = sub.add_parser("show", help="write a before/after PNG grid of a named transform")
     show.add_argument("method", help="a method name as in reproduce, e.g. rot45, fs-1, tes-2:0.5")
     show.add_argument("--scene", default="paper", help="the scene whose training data to show (default paper)")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -206,6 +207,7 @@ def reproduce(args: argparse.Namespace) -> int:
     from .protocol.config import ProtocolConfig
     from .protocol.plan import choose_methods, plan_run
     from .protocol.run import run_protocol
+    from .protocol.rules import RULES
     from .report import format_report
     from .scenes import SCENES
 
@@ -313,10 +315,11 @@ def reproduce(args: argparse.Namespace) -> int:
             f"({counts['val']} validation, {counts['train']} training, {counts['holdout']} hold-out).")
     say(f"Results on {'your recordings' if given is not None else 'synthetic data'} ({label} configuration; test MSE in N² over all frames, mean ± sample sd "
         f"over {len(seeds)} paired seeds (the same initial weights and the same original items at the same "
-        "steps); Δ vs none with its paired t-interval adjusted for the scene's family (Bonferroni: level "
-        "1 − 0.05/m for m non-duplicate methods), ** where that interval excludes 0; a row bit-identical per seed "
+        f"steps); Δ vs none with its paired t-interval adjusted for the scene's family (Bonferroni: level "
+        f"1 − {RULES.alpha:g}/m for m non-duplicate methods; decision rules version {RULES.version}), ** where that "
+        "interval excludes 0; a row bit-identical per seed "
         "to an earlier one reads '= row X' and is not in the family; the exact Wilcoxon p is shown only where "
-        f"it can reach 0.05 (its floor with {len(seeds)} seeds is m × {2 / 2 ** len(seeds):.3g}); beside it the "
+        f"it can reach {RULES.alpha:g} (its floor with {len(seeds)} seeds is m × {2 / 2 ** len(seeds):.3g}); beside it the "
         "unpaired (Welch) interval and r, the correlation of none's and the method's per-seed MSEs; policy rows "
         "also Δ vs the scene's matched row; kept step: the median step whose weights the "
                 "stopping rule kept (in brackets the share of members that stopped before the step cap); time "
@@ -549,17 +552,27 @@ def _checkpoint(path: Path) -> Path:
 
 
 def compare(args: argparse.Namespace) -> int:
-    from .report import compare_verdicts, format_verdict_comparison, run_verdicts
+    from .report import compare_verdicts, format_verdict_comparison, rules_version, run_verdicts
 
-    verdicts = []
+    verdicts, versions = [], []
     for name in ("a", "b"):
         path = getattr(args, name)
         if not path.is_file():
             raise ValueError(f"{name}: no such file {str(path)!r}")
+        text = path.read_text()
         try:
-            verdicts.append(run_verdicts(path.read_text()))
+            verdicts.append(run_verdicts(text))
         except ValueError as error:
             raise ValueError(f"{name} ({path}): {error}") from None
+        versions.append(rules_version(text))
     first, second = verdicts
+    if versions[0] != versions[1]:  # different rules judge the same numbers differently: say so first
+        named = [f"version {v}" if v else "no version (written before the rules carried one)" for v in versions]
+        warning = (f"warning: the two runs were judged by different decision rules ({args.a}: {named[0]}; "
+                   f"{args.b}: {named[1]}): a verdict that moved may have moved with the rules, not the runs")
+        if getattr(args, "same_rules", False):
+            raise ValueError(warning.removeprefix("warning: ") + " (--same-rules refuses to compare them)")
+        print(warning, file=sys.stderr)
+        _print(warning + "\n")
     _print(format_verdict_comparison(first, second, names=(str(args.a), str(args.b))))
     return 1 if compare_verdicts(first, second)["reversed"] else 0

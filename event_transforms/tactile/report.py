@@ -13,11 +13,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from .stats import mean_sd, significant
+from .stats import current_rules, mean_sd, significant
 
 __all__ = ["format_summary_table", "format_scene_table", "format_budget_check", "format_physics_comparison",
            "format_findings", "format_environment",
-           "format_report", "Verdict", "summary_verdicts", "compare_verdicts", "format_verdict_comparison"]
+           "format_report", "format_rules", "rules_version", "Verdict", "summary_verdicts", "compare_verdicts",
+           "format_verdict_comparison"]
 
 #: The summary table's columns before the statistics standard was named (runs committed then):
 #: the same Bonferroni intervals called "family", and an unadjusted unpaired interval beside them.
@@ -56,7 +57,7 @@ def _p_text(delta: dict[str, Any]) -> str:
     if math.isnan(t_p):
         return "—"
     floor = delta.get("wilcoxon_floor", 0.0)
-    wilcoxon = (f"{delta.get('p_family', delta['p_holm']):.3f}" if floor <= 0.05
+    wilcoxon = (f"{delta.get('p_family', delta['p_holm']):.3f}" if floor <= current_rules().alpha
                 else f"n/a (floor {floor:.3g})")
     return f"{t_p:.3f} / {wilcoxon}"
 
@@ -306,17 +307,58 @@ def interval_coverage(resample: str) -> str:
                 "data: each seed trains on its own bootstrap resample of the training sequences and is scored on "
                 "its own resamples of the validation and test sequences (every method of a seed on the same "
                 "ones; the baselines fitted and scored on the same resamples, averaged over seeds; the hold-out "
-                "set and the paper's 6 + 6 split are not resampled).")
+                "set and the paper's 6 + 6 split are not resampled). They cover resamples of this one data set, "
+                "not another data set: on the simulator the spread of the 8-resample mean over independently "
+                "simulated data sets is 3.7× the nominal standard error (benchmarks/tactile/resampling_coverage.md).")
     return ("Intervals cover training randomness (initial weights, batch order, augmentation draws) with the "
             "data fixed: every seed trains and is tested on the same grasps.")
+
+
+#: How a report names the rules its verdicts were judged by (read back by :func:`rules_version`).
+_RULES_LINE = re.compile(r"^Decision rules version (?P<version>[\w.-]+) ", re.MULTILINE)
+
+
+def format_rules(results: dict[str, Any]) -> str:
+    """One paragraph: the version of the decision rules the verdicts were judged by, in words
+    (:mod:`~event_transforms.tactile.protocol.rules`; ``results["rules"]``).
+
+    Example:
+        >>> format_rules({})[:48]
+        'Decision rules: not recorded (results written be'
+    """
+    from .protocol.rules import HISTORY
+
+    recorded = results.get("rules")
+    if not isinstance(recorded, dict) or "version" not in recorded:
+        return ("Decision rules: not recorded (results written before the rules carried a version: version 1 "
+                "of event_transforms/tactile/protocol/rules.py or earlier).")
+    version = str(recorded["version"])
+    known = HISTORY.get(version)
+    if known is not None and known.to_dict() == recorded:
+        return known.line()
+    return (f"Decision rules version {version} (as recorded in results.json, not as this code states version "
+            f"{version}: read the rules there).")
+
+
+def rules_version(text: str) -> str | None:
+    """The decision rules' version a report (``results.md``) names, ``None`` where it names none.
+
+    Example:
+        >>> rules_version("Produced by commit `abc`.\\n\\nDecision rules version 2 (see rules.py): ...")
+        '2'
+    """
+    match = _RULES_LINE.search(text)
+    return match["version"] if match else None
 
 
 def format_report(results: dict[str, Any], *, timings: bool = True) -> str:
     """Every scene's table, budget check and findings, and the paper-split tables, as markdown.
 
-    The first line names the commit that produced the results (``results["commit"]``).
+    The first line names the commit that produced the results (``results["commit"]``), the
+    next paragraphs the machine and the decision rules' version (:func:`format_rules`).
     """
     parts = [f"Produced by commit `{results.get('commit', 'unknown')}`.\n", format_environment(results), "",
+             format_rules(results), "",
              "### Summary (the README's table)\n", format_summary_table(results), ""]
     for name, summary in results["scenes"].items():
         gaps = ", ".join(summary["gaps"]) or "none (control)"
@@ -352,10 +394,11 @@ class Verdict:
 
     Attributes:
         mean: the Δ as printed (N²).
-        significant: its family-wise interval excludes 0 and the Δ's direction holds in both
-            blocks of seeds (the cell is bold).
+        significant: its family-wise interval excludes 0 and nothing withholds it (not converged;
+            under rules version 1 a block of seeds pointing the other way): the cell is bold.
         borderline: the interval excludes 0 but one block of seeds points the other way (the
-            cell says "(borderline)"; not significant).
+            cell says "(borderline)"; not significant). Only results judged by rules version 1
+            have such cells.
         label: the word of a cell that is no interval (the budget check: ``"robust"`` /
             ``"not robust"`` / ``"unresolved"``, ``significant`` meaning robust).
     """

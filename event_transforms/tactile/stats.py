@@ -13,23 +13,24 @@ order), so methods are compared pairwise, seed by seed:
 - :func:`summarize_scene` — one scene's entry of a protocol's ``results.json``: per method
   the per-seed values and Δ vs ``none``; policy rows also Δ vs the scene's matched row.
 
-**What the intervals cover, and the significance rule.** Seeds vary the initial weights,
-the batch order and the augmentation draws, and with the protocol's bootstrap each seed
-also trains and is scored on its own resample of the data; so an interval covers training
-randomness and data-set variation. One family per scene: its methods' Δ vs ``none``, a row
-that is bit-identical per seed to an earlier row (a *duplicate*, shown as "= row X")
-excluded. The interval shown is the family-wise one, Bonferroni: the paired t-interval at
-level 1 − 0.05/m for a family of m, with the row's variance *moderated*
-(:func:`variance_prior`, Smyth's empirical Bayes): 8 seeds give a row's variance only 7
-degrees of freedom, so its width moved by up to 3× between two runs that differed only in
-the CPU's kernel set; the family's rows steady it in proportion to how well their
-variances agree. A Δ is significant (bold) exactly when that interval excludes 0 (m × the
-moderated t-test's p ≤ 0.05), the models converged (:func:`holdout_drop` of each
-ensemble's mean hold-out curve) and its direction holds in each half of the seeds
-(:func:`replicated`); an interval that excludes 0 without the last is "borderline". Holm's
-p-values are kept in ``results.json`` beside them. The exact Wilcoxon p of n pairs
-cannot go below 2 / 2**n, m times that after the family adjustment; where that floor is
-above 0.05 the test cannot reach significance and the table says so.
+**What the intervals cover, and the significance rule.** The rules are those of
+:data:`~event_transforms.tactile.protocol.rules.RULES` (a version recorded by every result;
+every function here that decides takes ``rules=`` to apply another version). Seeds vary the
+initial weights, the batch order and the augmentation draws, and with the protocol's bootstrap
+each seed also trains and is scored on its own resample of the data; so an interval covers
+training randomness and resamples of one data set. One family per scene: its methods' Δ vs
+``none``, a row that is bit-identical per seed to an earlier row (a *duplicate*, shown as
+"= row X") excluded. The interval shown is the family-wise one, Bonferroni: the paired
+t-interval at level 1 − α/m for a family of m (α = 0.05), with each row's own variance in rules
+version 2 (its family-wise error measured at or below α by ``benchmarks/tactile/familywise_error.py``);
+version 1 *moderated* it (:func:`variance_prior`, Smyth's empirical Bayes), which that Monte
+Carlo measured above α with one noisy row. A Δ is significant (bold) exactly when that interval
+excludes 0 (m × the t-test's p ≤ α) and the side behind converged (:func:`holdout_drop` of each
+ensemble's mean hold-out curve); version 1 also asked its direction to hold in each half of the
+seeds (:func:`replicated`, "borderline" otherwise), a rule that vetoed no verdict in that Monte
+Carlo. Holm's p-values are kept in ``results.json`` beside them. The exact Wilcoxon p of n
+pairs cannot go below 2 / 2**n, m times that after the family adjustment; where that floor is
+above α the test cannot reach significance and the table says so.
 
 With n pairs the exact signed-rank p-value cannot go below 2 / 2**n (0.0625 for 5 seeds,
 0.002 for 10), whatever the data: a method can only be called significant by that test
@@ -44,7 +45,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from .distributions import _trigamma_inverse, digamma, student_t_cdf, student_t_quantile, trigamma
+
 if TYPE_CHECKING:
+    from .protocol.rules import Rules
     from .scenes import BenchmarkScene
 
 __all__ = [
@@ -74,82 +78,10 @@ __all__ = [
     "duplicates",
     "paired_delta",
     "deltas_vs_none",
+    "scene_deltas",
     "summarize_scene",
+    "current_rules",
 ]
-
-
-def _betacf(a: float, b: float, x: float) -> float:
-    """Continued fraction of the incomplete beta function (modified Lentz's method)."""
-    tiny = 1e-300
-    c, d = 1.0, 1.0 - (a + b) * x / (a + 1.0)
-    d = 1.0 / (d if abs(d) > tiny else tiny)
-    result = d
-    for m in range(1, 10_000):
-        m2 = 2 * m
-        for numerator in (
-            m * (b - m) * x / ((a + m2 - 1.0) * (a + m2)),
-            -(a + m) * (a + b + m) * x / ((a + m2) * (a + m2 + 1.0)),
-        ):
-            d = 1.0 + numerator * d
-            d = 1.0 / (d if abs(d) > tiny else tiny)
-            c = 1.0 + numerator / c
-            c = c if abs(c) > tiny else tiny
-            result *= d * c
-        if abs(d * c - 1.0) < 1e-15:
-            break
-    return result
-
-
-def _incomplete_beta(a: float, b: float, x: float) -> float:
-    """The regularized incomplete beta function I_x(a, b)."""
-    if x <= 0.0:
-        return 0.0
-    if x >= 1.0:
-        return 1.0
-    log_front = math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b) + a * math.log(x) + b * math.log1p(-x)
-    if x < (a + 1.0) / (a + b + 2.0):
-        return math.exp(log_front) * _betacf(a, b, x) / a
-    return 1.0 - math.exp(log_front) * _betacf(b, a, 1.0 - x) / b
-
-
-def student_t_cdf(t: float, df: float) -> float:
-    """P(T <= t) for Student's t with ``df`` degrees of freedom.
-
-    Example:
-        >>> round(student_t_cdf(2.776445, 4), 6)
-        0.975
-    """
-    if df <= 0:
-        raise ValueError(f"df must be > 0, got {df!r}")
-    if math.isinf(t):
-        return 1.0 if t > 0 else 0.0
-    tail = 0.5 * _incomplete_beta(df / 2.0, 0.5, df / (df + t * t))
-    return 1.0 - tail if t > 0 else tail
-
-
-def student_t_quantile(p: float, df: float) -> float:
-    """The t with ``student_t_cdf(t, df) == p`` (bisection to machine precision).
-
-    Example:
-        >>> round(student_t_quantile(0.975, 9), 6)
-        2.262157
-    """
-    if not 0.0 < p < 1.0:
-        raise ValueError(f"p must lie in (0, 1), got {p!r}")
-    if p < 0.5:
-        return -student_t_quantile(1.0 - p, df)
-    low, high = 0.0, 1.0
-    while student_t_cdf(high, df) < p:
-        high *= 2.0
-    for _ in range(200):
-        mid = 0.5 * (low + high)
-        if student_t_cdf(mid, df) < p:
-            low = mid
-        else:
-            high = mid
-        if high - low <= 1e-12 * max(1.0, high):
-            break
-    return 0.5 * (low + high)
 
 
 @dataclass(frozen=True)
@@ -195,55 +127,6 @@ def paired_t(a: Sequence[float], b: Sequence[float], *, level: float = 0.95) -> 
         t = mean / (sd / math.sqrt(n))
         p = 2.0 * (1.0 - student_t_cdf(abs(t), n - 1))
     return PairedTest(n, mean, sd, (mean - half, mean + half), min(1.0, p), wilcoxon_signed_rank(diffs))
-
-
-def digamma(x: float) -> float:
-    """ψ(x), the derivative of ln Γ(x), for x > 0 (recurrence to x ≥ 10, then the asymptotic series).
-
-    Example:
-        >>> round(digamma(1.0), 10)  # −γ, the Euler–Mascheroni constant
-        -0.5772156649
-    """
-    if not x > 0:
-        raise ValueError(f"x must be > 0, got {x!r}")
-    result = 0.0
-    while x < 10.0:
-        result -= 1.0 / x
-        x += 1.0
-    inv2 = 1.0 / (x * x)
-    return result + math.log(x) - 0.5 / x - inv2 * (1 / 12 - inv2 * (1 / 120 - inv2 * (1 / 252 - inv2 * (1 / 240 - inv2 / 132))))
-
-
-def trigamma(x: float) -> float:
-    """ψ'(x), the derivative of :func:`digamma`, for x > 0.
-
-    Example:
-        >>> round(trigamma(1.0), 10)  # π² / 6
-        1.6449340668
-    """
-    if not x > 0:
-        raise ValueError(f"x must be > 0, got {x!r}")
-    result = 0.0
-    while x < 10.0:
-        result += 1.0 / (x * x)
-        x += 1.0
-    inv = 1.0 / x
-    inv2 = inv * inv
-    return result + inv + 0.5 * inv2 + inv * inv2 * (1 / 6 - inv2 * (1 / 30 - inv2 * (1 / 42 - inv2 / 30)))
-
-
-def _trigamma_inverse(value: float) -> float:
-    """The y > 0 with ``trigamma(y) == value`` (trigamma decreases from +∞ to 0: bisection in log y)."""
-    low, high = 1e-8, 1e8
-    for _ in range(200):
-        mid = math.sqrt(low * high)
-        if trigamma(mid) > value:
-            low = mid
-        else:
-            high = mid
-        if high / low < 1 + 1e-12:
-            break
-    return math.sqrt(low * high)
 
 
 def variance_prior(variances: Sequence[float], df: int) -> dict[str, float] | None:
@@ -387,15 +270,33 @@ def correlation(a: Sequence[float], b: Sequence[float]) -> float:
 # --------------------------------------------------------------------------- protocol summaries
 
 
-def significant(delta: dict[str, Any] | None, alpha: float = 0.05) -> bool:
-    """The family-wise interval (``ci_family``: the paired t-interval at level 1 − α/m)
-    excludes 0 (equivalently: m × the t-test's p ≤ α), from converged models, and the Δ
-    replicates in each block of seeds alone (not ``borderline``: :func:`replicated`). Results
-    without a family interval (older files) fall back to the unadjusted 95 % interval with the Holm-corrected p.
+def current_rules(rules: Rules | None = None) -> Rules:
+    """``rules``, or the protocol's current :data:`~event_transforms.tactile.protocol.rules.RULES`.
+
+    (Read when called: the protocol package imports this module.)
+
+    Example:
+        >>> current_rules().version
+        '2'
     """
+    if rules is not None:
+        return rules
+    from .protocol.rules import RULES
+
+    return RULES
+
+
+def significant(delta: dict[str, Any] | None, alpha: float | None = None) -> bool:
+    """The family-wise interval (``ci_family``: the paired t-interval at level 1 − α/m)
+    excludes 0 (equivalently: m × the t-test's p ≤ α) and the side behind had converged (no
+    ``not_converged``); a Δ judged by rules version 1 must also not be ``borderline``
+    (:func:`replicated`). Results without a family interval (older files) fall back to the
+    unadjusted 95 % interval with the Holm-corrected p at ``alpha`` (default: the rules' α).
+    """
+    alpha = current_rules().alpha if alpha is None else alpha
     if not delta or delta.get("not_converged"):  # the models had not converged: no resolved verdict
         return False
-    if delta.get("borderline"):  # excludes 0 over all seeds but not in each block alone
+    if delta.get("borderline"):  # rules version 1: excludes 0 over all seeds but not in each block alone
         return False
     ci = delta.get("ci_family")
     if ci is not None:
@@ -407,14 +308,16 @@ def significant(delta: dict[str, Any] | None, alpha: float = 0.05) -> bool:
     return bool((hi < 0 or lo > 0) and p is not None and not math.isnan(p) and p <= alpha)
 
 
-#: An ensemble whose mean hold-out MSE at the step cap is this much below its best before 3/4
-#: of the steps was still falling: the run stopped it, not the stopping rule.
+#: The convergence tolerance of rules version 2 (``RULES.convergence_tolerance``; the functions
+#: read the rules themselves, this name stays for readers of earlier releases).
 STILL_FALLING = 0.05
 
 
-def still_falling(history: dict[str, Any] | None, steps: int, *, tolerance: float = STILL_FALLING) -> bool:
+def still_falling(history: dict[str, Any] | None, steps: int, *, tolerance: float | None = None,
+                  rules: Rules | None = None) -> bool:
     """Whether a member's hold-out MSE was still falling at the step cap: its last check is more
-    than ``tolerance`` (relative) below its best check in the first three quarters of the run.
+    than ``tolerance`` (relative; default the rules' ``convergence_tolerance``) below its best
+    check in the first three quarters (the rules' ``convergence_window``) of the run.
     A member without a history (no hold-out set) is not judged (``False``). Shown per member;
     the verdicts use the ensemble's mean curve (:func:`holdout_drop`).
 
@@ -424,20 +327,23 @@ def still_falling(history: dict[str, Any] | None, steps: int, *, tolerance: floa
         >>> still_falling({"steps": [100, 200, 300, 400], "mse": [4.0, 3.0, 2.9, 2.85]}, 400)
         False
     """
+    rules = current_rules(rules)
+    tolerance = rules.convergence_tolerance if tolerance is None else tolerance
     if not history or not history.get("mse"):
         return False
     pairs = [(s_, m) for s_, m in zip(history["steps"], history["mse"]) if m is not None and math.isfinite(m)]
-    early = [m for s_, m in pairs if s_ <= 0.75 * steps]
+    early = [m for s_, m in pairs if s_ <= rules.convergence_window * steps]
     if not early or not pairs:
         return False
     return pairs[-1][1] < (1.0 - tolerance) * min(early)
 
 
-def holdout_drop(histories: Sequence[dict[str, Any] | None], steps: int) -> float | None:
+def holdout_drop(histories: Sequence[dict[str, Any] | None], steps: int, *, rules: Rules | None = None) -> float | None:
     """How far an ensemble's mean hold-out MSE fell in the last quarter of its run: 1 − (the
     mean over members at the last check) / (the lowest mean at a check in the first three
-    quarters). Above :data:`STILL_FALLING` the ensemble was still falling at the step cap: its
-    models had not converged, and no Δ of theirs is printed as resolved.
+    quarters, the rules' ``convergence_window``). Above the rules' ``convergence_tolerance`` the
+    ensemble was still falling at the step cap: its models had not converged, and no Δ of theirs
+    is printed as resolved.
 
     The mean curve is judged, not a count of members: with 8 members the share of members
     still falling moves by 1/8 when one member's curve crosses the tolerance, and a rule on
@@ -458,23 +364,26 @@ def holdout_drop(histories: Sequence[dict[str, Any] | None], steps: int) -> floa
     if any(list(h["steps"][:length]) != checks for h in curves):
         raise ValueError("histories must share their check steps")
     mean = [statistics.fmean(float(h["mse"][i]) for h in curves) for i in range(length)]
-    early = [m for s_, m in zip(checks, mean) if s_ <= 0.75 * steps and math.isfinite(m)]
+    window = current_rules(rules).convergence_window
+    early = [m for s_, m in zip(checks, mean) if s_ <= window * steps and math.isfinite(m)]
     if not early or not math.isfinite(mean[-1]) or min(early) <= 0:
         return None
     return 1.0 - mean[-1] / min(early)
 
 
-def converged(drop: float | None, *, tolerance: float = STILL_FALLING) -> bool:
-    """Whether an ensemble with this :func:`holdout_drop` had converged (``None``: not judged).
+def converged(drop: float | None, *, tolerance: float | None = None, rules: Rules | None = None) -> bool:
+    """Whether an ensemble with this :func:`holdout_drop` had converged (``None``: not judged):
+    the drop is at most ``tolerance`` (default the rules' ``convergence_tolerance``).
 
     Example:
         >>> converged(0.03), converged(0.12), converged(None)
         (True, False, True)
     """
+    tolerance = current_rules(rules).convergence_tolerance if tolerance is None else tolerance
     return drop is None or drop <= tolerance
 
 
-def ensemble_drop(runs: Sequence[dict[str, Any]]) -> float | None:
+def ensemble_drop(runs: Sequence[dict[str, Any]], *, rules: Rules | None = None) -> float | None:
     """:func:`holdout_drop` of one ensemble's member records (``holdout_history``, ``steps``);
     ``None`` for no records.
 
@@ -485,7 +394,7 @@ def ensemble_drop(runs: Sequence[dict[str, Any]]) -> float | None:
     """
     if not runs:
         return None
-    return holdout_drop([r.get("holdout_history") for r in runs], runs[0]["steps"])
+    return holdout_drop([r.get("holdout_history") for r in runs], runs[0]["steps"], rules=rules)
 
 
 def behind_unconverged(mean: float, reference_converged: bool, method_converged: bool) -> bool:
@@ -539,7 +448,8 @@ def duplicates(methods: dict[str, Any], key: str = "test_mse") -> dict[str, str]
 
 def seed_blocks(first: Sequence[float], second: Sequence[float]) -> list[dict[str, Any]]:
     """The paired Δ (``second − first``) in two blocks of seeds, the first half and the rest
-    (in the order given: by seed), each with its own unadjusted paired 95 % t-interval.
+    (in the order given: by seed), each with its own unadjusted paired 95 % t-interval (rules
+    version 1's block rule; version 2 has none).
 
     A block of fewer than 2 pairs has no interval (``ci95`` is ``None``).
 
@@ -563,12 +473,11 @@ def replicated(mean: float, blocks: Sequence[dict[str, Any]]) -> bool:
     """Whether a Δ of sign ``mean`` shows in every block of seeds on its own: each block's mean
     Δ lies on the side of ``mean`` (:func:`seed_blocks`).
 
-    This is the perturbation a run makes itself before it prints a verdict as resolved: the
-    direction a verdict claims must hold in each half of its seeds, so no verdict rests on one
-    half's seeds (or one outlying seed); otherwise the cell is "borderline". The blocks' own
-    intervals (4 seeds each, t with 3 degrees of freedom) are kept in ``results.json`` but not
-    required: that test is far noisier than the verdict it would check, and under another CPU
-    kernel set it turned 4 of 12 resolved verdicts borderline or back (``docs/results.md``).
+    Rules version 1's "perturbation the run makes itself": a verdict whose direction did not
+    hold in each half of its seeds read "borderline". It is no perturbation: the halves are the
+    same seeds, and once the family interval over all seeds excludes 0 the halves' means almost
+    never disagree (``benchmarks/tactile/familywise_error.md``: it vetoed no verdict). Version 2 drops it
+    (``rules.replication == "none"``); this function stays to recompute version-1 tables.
 
     Example:
         >>> replicated(-0.7, [{"mean": -0.6}, {"mean": -0.8}])
@@ -600,24 +509,38 @@ def _moderated(diffs: Sequence[float], level: float, prior: dict[str, float] | N
 
 
 def paired_delta(reference: dict[str, Any], method: dict[str, Any], key: str, family: int,
-                 prior: dict[str, float] | None = None) -> dict[str, Any] | None:
-    """Δ of ``key`` (method − reference) paired by seed, with the family-wise interval.
+                 prior: dict[str, float] | None = None, *, rules: Rules | None = None) -> dict[str, Any] | None:
+    """Δ of ``key`` (method − reference) paired by seed, with the family-wise interval at the
+    rules' level 1 − α/``family`` (``ci_family``) and the unadjusted one (``ci95``).
 
-    With ``prior`` (:func:`variance_prior` of the scene's family) the intervals and t p-values
-    are moderated t (the row's variance shrunk toward the family's, on d₀ + n − 1 degrees of
-    freedom); ``sd_raw`` keeps the row's own standard deviation.
+    With ``prior`` (:func:`variance_prior` of the scene's family; rules version 1) the intervals
+    and t p-values are moderated t (the row's variance shrunk toward the family's, on d₀ + n − 1
+    degrees of freedom); ``sd_raw`` keeps the row's own standard deviation. With the rules'
+    ``replication == "halves"`` (version 1) the Δ also records its two ``blocks`` of seeds and
+    whether it is ``borderline``; version 2 records neither.
+
+    Example:
+        >>> none = {"seeds": [0, 1, 2, 3], "x": [2.0, 2.2, 2.1, 2.3]}
+        >>> delta = paired_delta(none, {"seeds": [0, 1, 2, 3], "x": [1.0, 1.3, 1.1, 1.2]}, "x", 2)
+        >>> round(delta["mean"], 2), [round(v, 2) for v in delta["ci_family"]], "borderline" in delta
+        (-1.0, [-1.17, -0.83], False)
     """
+    rules = current_rules(rules)
     base = dict(zip(reference["seeds"], reference[key]))
     pairs = [(base[s], v) for s, v in zip(method["seeds"], method[key]) if s in base]
     if not pairs:
         return None
     first, second = [a for a, _ in pairs], [b for _, b in pairs]
     diffs = [float(b) - float(a) for a, b in pairs]
-    test = _moderated(diffs, 0.95, prior)
-    wide = _moderated(diffs, 1 - 0.05 / max(family, 1), prior) if test.ci is not None else test
-    welch = welch_interval(first, second)
-    blocks = seed_blocks(first, second)
+    test = _moderated(diffs, rules.unadjusted_level, prior)
+    wide = _moderated(diffs, rules.level(family), prior) if test.ci is not None else test
+    welch = welch_interval(first, second, level=rules.unadjusted_level)
     family_ci = list(wide.ci) if wide.ci is not None else None
+    replication: dict[str, Any] = {}
+    if rules.replication == "halves":  # rules version 1: the seeds in two blocks, the direction in each
+        blocks = seed_blocks(first, second)
+        replication = {"blocks": blocks, "borderline": bool(
+            family_ci is not None and (family_ci[1] < 0 or family_ci[0] > 0) and not replicated(test.mean, blocks))}
     return {
         "mean": test.mean,
         "ci95": list(test.ci) if test.ci is not None else None,
@@ -625,10 +548,7 @@ def paired_delta(reference: dict[str, Any], method: dict[str, Any], key: str, fa
         "sd": test.sd,
         "sd_raw": statistics.stdev(diffs) if len(diffs) > 1 else math.nan,
         "variance_prior": dict(prior) if prior is not None else None,
-        # the perturbation the run makes itself: the seeds in two blocks, the direction in each
-        "blocks": blocks,
-        "borderline": bool(family_ci is not None and (family_ci[1] < 0 or family_ci[0] > 0)
-                           and not replicated(test.mean, blocks)),
+        **replication,
         "family_size": family,
         "p_value": test.wilcoxon_p_value,
         "t_p_value": test.t_p_value,
@@ -642,18 +562,26 @@ def paired_delta(reference: dict[str, Any], method: dict[str, Any], key: str, fa
     }
 
 
-def family_prior(reference: dict[str, Any], methods: dict[str, Any], key: str) -> dict[str, float] | None:
+def family_prior(reference: dict[str, Any], methods: dict[str, Any], key: str, *,
+                 rules: Rules | None = None) -> dict[str, float] | None:
     """:func:`variance_prior` of the paired Δ (each method − ``reference``, by seed) of
-    ``methods``: the rows with the most common number of pairs, at least 2 pairs each
-    (``None`` without two such rows).
+    ``methods``: the rows with the most common number of pairs, at least 2 pairs each; ``None``
+    with fewer such rows than the rules' ``prior_min_rows``, or where the rules' variances are
+    ``"raw"`` (version 2: no prior; pass ``rules=RULES_V1`` for version 1's).
 
     Example:
         >>> none = {"seeds": [0, 1, 2, 3], "x": [2.0, 2.2, 2.1, 2.3]}
         >>> rows = {"a": {"seeds": [0, 1, 2, 3], "x": [1.0, 1.3, 1.1, 1.2]},
         ...         "b": {"seeds": [0, 1, 2, 3], "x": [2.5, 2.6, 2.2, 2.9]}}
-        >>> family_prior(none, rows, "x")["rows"], family_prior(none, {"a": rows["a"]}, "x")
+        >>> from event_transforms.tactile.protocol.rules import RULES_V1
+        >>> family_prior(none, rows, "x", rules=RULES_V1)["rows"], family_prior(none, {"a": rows["a"]}, "x", rules=RULES_V1)
         (2, None)
+        >>> family_prior(none, rows, "x") is None  # rules version 2: each row's own variance
+        True
     """
+    rules = current_rules(rules)
+    if rules.variances == "raw" or rules.prior_min_rows is None:
+        return None
     base = dict(zip(reference["seeds"], reference[key]))
     rows: list[list[float]] = []
     for method in methods.values():
@@ -663,7 +591,8 @@ def family_prior(reference: dict[str, Any], methods: dict[str, Any], key: str) -
     if not rows:
         return None
     n = statistics.mode(len(r) for r in rows)
-    return variance_prior([statistics.variance(r) for r in rows if len(r) == n], n - 1)
+    prior = variance_prior([statistics.variance(r) for r in rows if len(r) == n], n - 1)
+    return prior if prior is not None and prior["rows"] >= rules.prior_min_rows else None
 
 
 def mean_sd(values: Sequence[float]) -> tuple[float, float]:
@@ -672,24 +601,35 @@ def mean_sd(values: Sequence[float]) -> tuple[float, float]:
     return statistics.fmean(values), (statistics.stdev(values) if len(values) > 1 else math.nan)
 
 
-def deltas_vs_none(methods: dict[str, Any], key: str, *, exclude: Sequence[str] = ()) -> dict[str, dict[str, Any]]:
+def deltas_vs_none(methods: dict[str, Any], key: str, *, exclude: Sequence[str] = (),
+                   rules: Rules | None = None) -> dict[str, dict[str, Any]]:
     """Δ of ``key`` vs ``none`` for every other method not in ``exclude`` (one family),
-    paired seed by seed (:func:`paired_delta`): the moderated paired t-interval unadjusted
-    and family-wise, the t and exact Wilcoxon p-values, raw, Holm-corrected and Bonferroni
-    (``*_family``), the family's Wilcoxon floor; beside them the unpaired (Welch) interval
-    and the correlation of the per-seed values, which say what the pairing bought.
+    paired seed by seed (:func:`paired_delta`): the paired t-interval unadjusted and
+    family-wise (Bonferroni, the rules' level), the t and exact Wilcoxon p-values, raw,
+    Holm-corrected and Bonferroni (``*_family``), the family's Wilcoxon floor; beside them the
+    unpaired (Welch) interval and the correlation of the per-seed values, which say what the
+    pairing bought.
 
-    The variances are moderated with the family's own prior (:func:`family_prior`; every Δ
-    keeps it as ``variance_prior``). ``methods`` maps a name to ``{"seeds": [...], key: [...]}``.
+    Under rules version 2 each row keeps its own variance; under version 1 (``rules=RULES_V1``)
+    the variances are moderated with the family's own prior (:func:`family_prior`; every Δ keeps
+    it as ``variance_prior``). ``methods`` maps a name to ``{"seeds": [...], key: [...]}``.
+
+    Example:
+        >>> methods = {"none": {"seeds": [0, 1, 2], "x": [2.0, 2.2, 2.1]},
+        ...            "a": {"seeds": [0, 1, 2], "x": [1.0, 1.3, 1.1]}, "b": {"seeds": [0, 1, 2], "x": [2.1, 2.0, 2.4]}}
+        >>> out = deltas_vs_none(methods, "x")
+        >>> [round(v, 2) for v in out["a"]["ci_family"]], out["a"]["significant"], out["b"]["significant"]
+        ([-1.17, -0.76], True, False)
     """
+    rules = current_rules(rules)
     reference = methods.get("none")
     if reference is None:
         return {}
     family = [name for name in methods if name != "none" and name not in exclude]
-    prior = family_prior(reference, {name: methods[name] for name in family}, key)
+    prior = family_prior(reference, {name: methods[name] for name in family}, key, rules=rules)
     out = {}
     for name in family:
-        delta = paired_delta(reference, methods[name], key, len(family), prior)
+        delta = paired_delta(reference, methods[name], key, len(family), prior, rules=rules)
         if delta is not None:
             out[name] = delta
     holm_w = holm([d["p_value"] for d in out.values()])
@@ -704,9 +644,65 @@ def deltas_vs_none(methods: dict[str, Any], key: str, *, exclude: Sequence[str] 
 POLICY_ROWS = ("inferred", "prior", "everything")
 
 
+def scene_deltas(methods: dict[str, Any], matched_methods: Sequence[str] = (), *,
+                 rules: Rules | None = None) -> dict[str, dict[str, Any]]:
+    """One scene's verdicts from its rows' per-seed values: per row the fields
+    :func:`summarize_scene` records, ``duplicate_of`` (a row bit-identical per seed to an earlier
+    one: no Δ of its own), ``delta_vs_none`` and ``delta_vs_none_paper_split`` (one family
+    without the duplicates, :func:`deltas_vs_none`), and for the policy rows ``matched_row`` and
+    ``delta_vs_matched`` (against ``matched`` where it ran, else the first of
+    ``matched_methods`` that ran; the policy rows a family of their own). A Δ whose side behind
+    had not converged (a row's ``converged``, default ``True``) is marked ``not_converged``.
+
+    The table's verdicts are recomputed from the per-seed values with this function alone
+    (:mod:`~event_transforms.tactile.protocol.recompute`). ``methods`` maps a name to
+    ``{"seeds", "test_mse", "test_mse_paper_split", "converged"}`` and is not modified.
+
+    Example:
+        >>> rows = {"none": {"seeds": [0, 1, 2], "test_mse": [2.0, 2.2, 2.1]},
+        ...         "fs1": {"seeds": [0, 1, 2], "test_mse": [1.0, 1.3, 1.1]},
+        ...         "inferred": {"seeds": [0, 1, 2], "test_mse": [1.0, 1.3, 1.1]}}
+        >>> out = scene_deltas(rows, ["fs1"])
+        >>> round(out["fs1"]["delta_vs_none"]["mean"], 2), out["inferred"]["duplicate_of"], out["inferred"]["matched_row"]
+        (-0.97, 'fs1', 'fs1')
+    """
+    rules = current_rules(rules)
+    out: dict[str, dict[str, Any]] = {name: {"delta_vs_none": None, "delta_vs_none_paper_split": None}
+                                      for name in methods}
+    dupes = duplicates(methods)
+    for name, original in dupes.items():
+        out[name]["duplicate_of"] = original
+    done = {name: bool(m.get("converged", True)) for name, m in methods.items()}
+    for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
+        if not all(key in m for m in methods.values()):
+            continue
+        for name, delta in deltas_vs_none(methods, key, exclude=tuple(dupes), rules=rules).items():
+            if behind_unconverged(delta["mean"], done.get("none", True), done[name]):  # more steps could close it
+                delta["not_converged"] = True
+                delta["significant"] = False
+            out[name][field_name] = delta
+    # the policy rows against the scene's matched row (the first matched method that ran)
+    # (``matched``, every gap's matched augmentation, where the scene has two gaps or more)
+    matched = next((m for m in ("matched", *matched_methods) if m in methods and m not in dupes), None)
+    policies = [m for m in POLICY_ROWS if m in methods and m not in dupes and m != matched]
+    matched_prior = (family_prior(methods[matched], {n: methods[n] for n in policies}, "test_mse", rules=rules)
+                     if matched is not None else None)
+    for name in policies:
+        out[name]["matched_row"] = matched
+        if matched is not None:
+            vs = paired_delta(methods[matched], methods[name], "test_mse", len(policies), matched_prior, rules=rules)
+            if vs is not None and behind_unconverged(vs["mean"], done[matched], done[name]):
+                vs["not_converged"] = True
+            out[name]["delta_vs_matched"] = vs
+    for name in dupes:
+        if name in POLICY_ROWS:
+            out[name]["matched_row"] = matched
+    return out
+
+
 def summarize_scene(
     scene: BenchmarkScene, per_method: dict[str, list[dict[str, Any]]], baselines: dict[str, dict[str, float]],
-    split_sizes: dict[str, int],
+    split_sizes: dict[str, int], *, rules: Rules | None = None,
 ) -> dict[str, Any]:
     """One scene's entry of ``results.json``: gaps, baselines, and per method the per-seed
     values and Δ vs ``none`` on test MSE (``delta_vs_none``) and on the paper's 6 + 6 split
@@ -714,7 +710,9 @@ def summarize_scene(
     bit-identical per seed to an earlier one gets ``duplicate_of`` and no Δ of its own);
     policy rows (``inferred``, ``prior``, ``everything``) also ``delta_vs_matched``, against
     the ``matched`` row where it ran (every gap's matched augmentation), else the scene's first
-    matched method that ran (a family of their own)."""
+    matched method that ran (a family of their own). Judged by ``rules`` (default the protocol's
+    current :data:`~event_transforms.tactile.protocol.rules.RULES`)."""
+    rules = current_rules(rules)
     methods: dict[str, Any] = {}
     for name, runs in per_method.items():
         runs = sorted(runs, key=lambda r: r["seed"])
@@ -731,10 +729,10 @@ def summarize_scene(
             ),
             "holdout_mse": [r.get("holdout_mse") for r in runs],
             # members whose hold-out MSE was still falling at the step cap (shown; not the rule)
-            "still_falling": statistics.fmean(1.0 if still_falling(r.get("holdout_history"), r["steps"]) else 0.0
-                                              for r in runs),
+            "still_falling": statistics.fmean(
+                1.0 if still_falling(r.get("holdout_history"), r["steps"], rules=rules) else 0.0 for r in runs),
             # the ensemble's mean hold-out curve: its fall in the last quarter (the convergence rule)
-            "holdout_drop": ensemble_drop(runs),
+            "holdout_drop": ensemble_drop(runs, rules=rules),
             "steps": runs[0]["steps"],
             "copies": runs[0]["copies"],
             "train_items": runs[0]["train_items"],
@@ -747,34 +745,10 @@ def summarize_scene(
                 phase: statistics.fmean(r["test_phase_mse"][phase] for r in runs) for phase in ("grasp", "hold", "release")
             },
         }
-    dupes = duplicates(methods)
-    for name, original in dupes.items():
-        methods[name]["duplicate_of"] = original
-    done = {name: converged(m["holdout_drop"]) for name, m in methods.items()}
-    for name in methods:
-        methods[name]["converged"] = done[name]
-    for key, field_name in (("test_mse", "delta_vs_none"), ("test_mse_paper_split", "delta_vs_none_paper_split")):
-        for name, delta in deltas_vs_none(methods, key, exclude=tuple(dupes)).items():
-            if behind_unconverged(delta["mean"], done.get("none", True), done[name]):  # more steps could close it
-                delta["not_converged"] = True
-                delta["significant"] = False
-            methods[name][field_name] = delta
-    # the policy rows against the scene's matched row (the first matched method that ran)
-    # (``matched``, every gap's matched augmentation, where the scene has two gaps or more)
-    matched = next((m for m in ("matched", *scene.matched_methods) if m in methods and m not in dupes), None)
-    policies = [m for m in POLICY_ROWS if m in methods and m not in dupes and m != matched]
-    matched_prior = (family_prior(methods[matched], {n: methods[n] for n in policies}, "test_mse")
-                     if matched is not None else None)
-    for name in policies:
-        methods[name]["matched_row"] = matched
-        if matched is not None:
-            vs = paired_delta(methods[matched], methods[name], "test_mse", len(policies), matched_prior)
-            if vs is not None and behind_unconverged(vs["mean"], done[matched], done[name]):
-                vs["not_converged"] = True
-            methods[name]["delta_vs_matched"] = vs
-    for name in dupes:
-        if name in POLICY_ROWS:
-            methods[name]["matched_row"] = matched
+    for name, m in methods.items():
+        m["converged"] = converged(m["holdout_drop"], rules=rules)
+    for name, fields in scene_deltas(methods, scene.matched_methods, rules=rules).items():
+        methods[name].update(fields)
     return {
         "description": scene.description,
         "gaps": list(scene.gaps),

@@ -163,7 +163,7 @@ def test_cuda_matches_cpu_without_synchronising(name):
 
 from tests.support.op_cases import EVENT_CASES, FRAME_CASES, counts_of  # noqa: E402
 
-# name -> (most host syncs, most ops) per call, the same at B = 4 and B = 32 (benchmarks/op_counts.py;
+# name -> (most host syncs, most ops) per call, the same at B = 4 and B = 32 (tests/support/op_cases.py;
 # before issue 25's item 3: SpatialJitter 42 -> 154 ops, TimeJitter 27 -> 111, event drop 66 -> 178,
 # AddNoise 12 -> 96 syncs and 121 -> 849 ops, AddPoissonNoise 95 -> 627, TES exact 192 -> 304,
 # TES binomial 106 -> 218). The syncs are the kept-count read of a compaction, the bank's
@@ -225,7 +225,7 @@ def test_exact_tes_on_frames_does_not_grow_with_the_batch(name):
     assert small[0] <= syncs and small[1] <= ops, small
 
 
-#: name -> (most host syncs, most ops) of the frame cases of benchmarks/op_counts.py.
+#: name -> (most host syncs, most ops) of the frame cases of tests/support/op_cases.py.
 FRAME_BUDGETS = {
     "TES exact frames 5%-dense": (4, 490), "TES exact frames Poisson(0.3)": (4, 490),
     "TES exact frames counts to ~20": (7, 840), "AddPoissonNoise dense frames": (1, 140),

@@ -323,7 +323,18 @@ class TestRunProtocol:
         assert "### control" in report and "*cumulative-count-ridge* (baseline)" in report
         assert "6 + 6 split" in report and f"commit `{saved['commit']}`" in report
         assert "budget check of the headline: " in report and "unpaired 95 % CI (unadjusted)" in report
-        assert "best row: " in report and "converged" not in report
+        assert "best row: " in report and "(not converged)" not in report
+        # the rules the verdicts were judged by: recorded with their version, and named by the report
+        from event_transforms.tactile.protocol.rules import RULES
+
+        assert saved["rules"] == RULES.to_dict() and f"Decision rules version {RULES.version} " in report
+        # every cell of the summary table recomputed from the per-seed values alone (what a page publishes)
+        from event_transforms.tactile.protocol.recompute import recompute, seed_values
+        from event_transforms.tactile.report import format_summary_table
+
+        values = json.loads(json.dumps(seed_values(saved)))
+        assert format_summary_table(recompute(values)) == format_summary_table(saved)
+        assert format_summary_table(saved) in report
 
     def test_summary_table_repeats_the_scene_tables(self, clean):
         from tests.tactile.test_results_table import markdown_tables, summary_table

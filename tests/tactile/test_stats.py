@@ -254,21 +254,50 @@ class TestModeratedVariance:
         plain = paired_delta({"seeds": seeds, "x": none}, {"seeds": seeds, "x": method}, "x", 4)
         assert plain["sd"] == pytest.approx(math.sqrt(s2)) and plain["variance_prior"] is None
 
-    def test_a_family_is_moderated_with_its_own_prior(self):
+    METHODS = {"none": {"seeds": list(range(8)), "x": [2.0, 2.1, 1.9, 2.05, 2.0, 1.95, 2.1, 2.0]},
+               "a": {"seeds": list(range(8)), "x": [1.0, 1.3, 0.8, 1.2, 1.1, 0.7, 1.3, 0.9]},
+               "b": {"seeds": list(range(8)), "x": [2.2, 2.0, 2.4, 1.9, 2.3, 2.1, 1.8, 2.5]},
+               "c": {"seeds": list(range(8)), "x": [2.0, 2.1, 1.9, 2.05, 2.0, 1.95, 2.1, 2.01]}}
+
+    def test_rules_version_1_moderates_a_family_with_its_own_prior(self):
+        from event_transforms.tactile.protocol.rules import RULES_V1
         from event_transforms.tactile.stats import deltas_vs_none, family_prior
 
-        seeds = list(range(8))
-        methods = {"none": {"seeds": seeds, "x": [2.0, 2.1, 1.9, 2.05, 2.0, 1.95, 2.1, 2.0]},
-                   "a": {"seeds": seeds, "x": [1.0, 1.3, 0.8, 1.2, 1.1, 0.7, 1.3, 0.9]},
-                   "b": {"seeds": seeds, "x": [2.2, 2.0, 2.4, 1.9, 2.3, 2.1, 1.8, 2.5]},
-                   "c": {"seeds": seeds, "x": [2.0, 2.1, 1.9, 2.05, 2.0, 1.95, 2.1, 2.01]}}
-        out = deltas_vs_none(methods, "x")
-        prior = family_prior(methods["none"], {k: v for k, v in methods.items() if k != "none"}, "x")
+        methods = self.METHODS
+        out = deltas_vs_none(methods, "x", rules=RULES_V1)
+        prior = family_prior(methods["none"], {k: v for k, v in methods.items() if k != "none"}, "x", rules=RULES_V1)
         assert all(d["variance_prior"] == prior for d in out.values())
         # every row's spread moves toward the family's: none is taken at its own 7 degrees of freedom
         for name in "abc":
             low, high = sorted((out[name]["sd_raw"], math.sqrt(prior["s2"])))
             assert low < out[name]["sd"] < high, name
+            assert "borderline" in out[name] and len(out[name]["blocks"]) == 2  # version 1's block rule
+
+    def test_rules_version_2_keeps_each_rows_own_variance(self):
+        """Each row's own paired t at level 1 − 0.05/m, by hand; no prior, no blocks, no borderline."""
+        from event_transforms.tactile.stats import deltas_vs_none, paired_t
+
+        methods = self.METHODS
+        out = deltas_vs_none(methods, "x")
+        for name in "abc":
+            delta = out[name]
+            assert delta["variance_prior"] is None and delta["sd"] == pytest.approx(delta["sd_raw"])
+            assert "borderline" not in delta and "blocks" not in delta
+            test = paired_t(methods["none"]["x"], methods[name]["x"], level=1 - 0.05 / 3)
+            assert delta["ci_family"] == pytest.approx(list(test.ci))
+            assert delta["t_p_family"] == pytest.approx(min(1.0, 3 * test.t_p_value))
+            assert delta["significant"] == (test.ci[1] < 0 or test.ci[0] > 0)
+
+    def test_a_prior_from_fewer_rows_than_the_rules_allow_is_none(self):
+        import dataclasses
+
+        from event_transforms.tactile.protocol.rules import RULES_V1
+        from event_transforms.tactile.stats import family_prior
+
+        rows = {k: v for k, v in self.METHODS.items() if k != "none"}
+        four = dataclasses.replace(RULES_V1, prior_min_rows=4)
+        assert family_prior(self.METHODS["none"], rows, "x", rules=RULES_V1)["rows"] == 3
+        assert family_prior(self.METHODS["none"], rows, "x", rules=four) is None
 
 
 class TestConvergenceOfTheEnsemble:

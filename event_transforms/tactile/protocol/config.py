@@ -39,7 +39,8 @@ class ProtocolConfig:
         resample: ``"bootstrap"``: each seed trains on its own bootstrap resample of the
             training sequences and is scored on its own resamples of the validation and test
             sequences (:mod:`~event_transforms.tactile.resampling`), so an interval over seeds
-            covers the data too; ``"none"``: every seed reads the same data.
+            covers resamples of the data too (not new data sets); ``"none"``: every seed reads
+            the same data.
     """
 
     steps: int = 1500

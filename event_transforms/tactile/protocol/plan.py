@@ -18,6 +18,7 @@ from ..methods import methods_for, parse_method
 from ..scenes import BenchmarkScene, get_scene
 from .config import ProtocolConfig
 from .shared import Sharing
+from .rules import RULES
 
 __all__ = ["Unit", "resolve_scene", "work_units", "budget_scenes", "choose_methods", "plan_run"]
 
@@ -130,8 +131,8 @@ def plan_run(
         "budget_check_scenes": checked,
         "budget_units": len(checked) if group == "scene" else 2 * len(checked),
         "budget_members": budget_members,
-        "budget_member_steps": budget_members * 2 * config.steps,
-        "total_member_steps": members * config.steps + budget_members * 2 * config.steps,
+        "budget_member_steps": budget_members * RULES.budget_factor * config.steps,
+        "total_member_steps": members * config.steps + budget_members * RULES.budget_factor * config.steps,
         # equal wall time retrains every method but none for at most config.steps (known after timing)
         "equal_time_member_steps_max": (
             sum(len([m for m in methods[s] if m != "none"]) for s in scenes) * len(seeds) * config.steps

@@ -30,12 +30,13 @@ from ..report import format_report
 from ..runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
 from ..scenes import SCENES
 from ..stats import (
-    behind_unconverged, converged, deltas_vs_none, ensemble_drop, paired_t, replicated, seed_blocks, significant,
-    summarize_scene,
+    behind_unconverged, converged, deltas_vs_none, ensemble_drop, summarize_scene,
 )
 from .config import ProtocolConfig
 from .environment import environment, git_commit
 from .plan import Unit, choose_methods, plan_run, work_units
+from .recompute import judge_budget
+from .rules import RULES
 from .shared import SHARED_SEPARATOR, collect, plan_sharing
 from .costs import CURVE_RATIOS, cost_curve, cost_key, equal_cost_steps, load_cost_table, measure_costs, ratio_of
 from .timing import measure_timing
@@ -212,28 +213,11 @@ def headline(scene: str, chosen: Mapping[str, Sequence[str]], data: Mapping[str,
 
 
 def _budget_check(method: str, steps: int, delta: dict[str, Any], runs_2n: dict[str, list]) -> dict[str, Any]:
-    """The headline's Δ at ``steps`` and at twice the steps. A headline resolved at ``steps`` is
-    robust when the sign agrees at twice the steps and the change is smaller than the half-width
-    of its Bonferroni interval at ``steps`` (the interval the table shows). A headline that is not
-    resolved at ``steps`` is not judged (``robust`` is ``None``); if its models had not converged
-    there, the twice-as-long run answers instead (``resolved_2n``: both ensembles converged, its
-    paired 95 % interval, a pre-declared family of one, excludes 0 and the direction holds in each
-    block of seeds): more steps is what an unconverged verdict lacked."""
-    none = {r["seed"]: r["test_mse"] for r in runs_2n["none"]}
-    pairs = [(none[r["seed"]], r["test_mse"]) for r in runs_2n[method] if r["seed"] in none]
-    first, second = [a for a, _ in pairs], [b for _, b in pairs]
-    test = paired_t(first, second)
-    ci = delta.get("ci_family") or delta.get("ci95")
-    half = (ci[1] - ci[0]) / 2 if ci else math.nan
-    robust: bool | None = None
-    if significant(delta):
-        robust = bool(ci) and (delta["mean"] > 0) == (test.mean > 0) and abs(delta["mean"] - test.mean) < half
+    """The headline's Δ at ``steps`` and at twice the steps, judged by :func:`judge_budget` (with
+    both rows' per-seed test MSEs at twice the steps, recorded so the verdict can be recomputed)."""
     converged_2n = all(converged(ensemble_drop(runs_2n[m])) for m in ("none", method))
-    resolved_2n = bool(delta.get("not_converged") and converged_2n and test.ci is not None
-                       and (test.ci[1] < 0 or test.ci[0] > 0) and replicated(test.mean, seed_blocks(first, second)))
-    return {"method": method, "steps": steps, "steps_2n": 2 * steps, "delta": delta["mean"],
-            "delta_2n": test.mean, "ci95_2n": list(test.ci) if test.ci else None, "ci_family_halfwidth": half,
-            "robust": robust, "converged_2n": converged_2n, "resolved_2n": resolved_2n}
+    return judge_budget(method, steps, delta, _seed_values(runs_2n["none"]), _seed_values(runs_2n[method]),
+                        converged_2n)
 
 
 def _attach_equal_time(summary: dict[str, Any], steps_of: dict[str, int], runs: dict[str, list],
@@ -394,7 +378,7 @@ def run_protocol(
                 f"{len(d.test)} test sequences, ready in {d.seconds:.1f} s")
         log(f"plan: {plan['units']} units, {plan['members']} members × {config.steps} steps = "
             f"{plan['member_steps']:,} member-steps; budget check of {len(plan['budget_check_scenes'])} gapped "
-            f"scene(s) at {2 * config.steps} steps: {plan['budget_units']} more units, "
+            f"scene(s) at {RULES.budget_factor * config.steps} steps: {plan['budget_units']} more units, "
             f"{plan['budget_member_steps']:,} member-steps; total {plan['total_member_steps']:,}")
         log(f"train once: {plan['shared_members']} of the {plan['members']} members read exactly what a member of "
             f"another scene reads (the same training data, built policy and seed) and borrow its weights; "
@@ -406,7 +390,7 @@ def run_protocol(
     # The budget check: none and the scene's pre-declared headline (its matched method), at twice the steps.
     checked = plan["budget_check_scenes"]
     choices = {s: m for s in checked if (m := headline(s, chosen, data)) is not None}
-    double = ProtocolConfig(**{**asdict(config), "steps": 2 * config.steps})
+    double = ProtocolConfig(**{**asdict(config), "steps": RULES.budget_factor * config.steps})
     budget_methods: dict[str, tuple[str, ...]] = {s: ("none", m) for s, m in choices.items()}
     if checked and equal_time:  # the cost curve's last point: none at twice the steps on every scene (mostly borrowed)
         budget_methods.update({s: ("none",) for s in scenes if s not in choices})
@@ -516,6 +500,7 @@ def run_protocol(
         return {}
     results_json = {
         "commit": commit,
+        "rules": RULES.to_dict(),  # the decision rules the verdicts were judged by, with their version
         "config": {**asdict(config), "seeds": seeds, "scenes": scenes, "jobs": jobs, "device": device,
                    "threads_per_job": threads, "group": group, "full": full, "budget_check": budget_check,
                    "equal_time": equal_time},
