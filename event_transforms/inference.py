@@ -38,7 +38,7 @@ declares the noise gap.
 from chance; the standard error shrinks as 1/√N with N recordings per side. Where no gap is
 declared, each factor's verdict (``scene.evidence["verdicts"]``) says either "no gap"
 (a difference as large as the smallest that matters, ``min_effect``, would have been seen)
-or "not resolvable from N unlabeled recordings: a difference below L would not be seen",
+or "not resolvable from N unlabeled deployment windows: a difference below L would not be seen",
 with L = ``z_gap`` × the standard error. Measured on the package's simulator with 48
 training and 24 deployment recordings (``benchmarks/detection_rate.py``, RESULTS.md
 "infer_scene detection rate"): under the benchmark's 60 ms start jitter the onset's
@@ -318,7 +318,7 @@ def _compare(train: Tensor, deploy: Tensor, min_effect: float, z_gap: float) -> 
 
 
 def _verdicts(evidence: dict[str, Any], z_gap: float, n_deploy: int) -> dict[str, str]:
-    """Per frame-based factor: "gap", "no gap", or "not resolvable from N unlabeled recordings"."""
+    """Per frame-based factor: "gap", "no gap", or "not resolvable from N unlabeled deployment windows"."""
     out = {}
     for factor, (_, min_effect) in FACTOR_TESTS.items():
         test = evidence[factor]
@@ -331,9 +331,9 @@ def _verdicts(evidence: dict[str, Any], z_gap: float, n_deploy: int) -> dict[str
         elif test["gap"]:
             out[factor] = "gap"
         elif limit > min_effect and abs(test["difference"]) < limit:
-            source = (f"{test['deploy']['n']} labelled" if test.get("source") == "labelled recordings"
-                      else f"{n_deploy} unlabeled")
-            out[factor] = (f"not resolvable from {source} recordings: a difference below "
+            source = (f"{test['deploy']['n']} labelled recordings" if test.get("source") == "labelled recordings"
+                      else f"{n_deploy} unlabeled deployment windows")
+            out[factor] = (f"not resolvable from {source}: a difference below "
                            f"{limit:.3g}{_UNITS[factor]} would not be seen (measured {test['difference']:+.3g})")
         else:
             out[factor] = "no gap"
@@ -441,7 +441,7 @@ def infer_scene(
         holds, per factor, the training and deployment summaries (mean, std, standard
         error, n, min, max), their difference, its standard error, z, the verdict and the
         ``resolvable_limit`` (``z_gap`` standard errors); ``evidence["verdicts"]`` says per
-        factor "gap", "no gap" or "not resolvable from N unlabeled recordings: ..." (see
+        factor "gap", "no gap" or "not resolvable from N unlabeled deployment windows: ..." (see
         the module docstring's detection limits). With labelled recordings on both sides,
         ``evidence["timing"]`` is the lag test (``statistic`` ``"lag_ms"``, ``source``
         ``"labelled recordings"``; ``train``/``deploy`` hold the median lag, also under

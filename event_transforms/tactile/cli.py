@@ -133,7 +133,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--lr", type=_positive_float, help="peak learning rate (one-cycle)")
     rep.add_argument("--hidden-channels", type=_channels, help="ConvLSTM channels per layer, e.g. 8,16")
     rep.add_argument("--input-pool", type=_positive, help="the model's first average-pool factor")
-    rep.add_argument("--batch-size", type=_positive, help="sequences per training step")
+    rep.add_argument("--batch-size", type=_positive,
+                     help="sequences per training step (default 8, or a folder's training windows if fewer; more "
+                     "than the training items is refused before training)")
     rep.add_argument("--no-cumulative", action="store_true",
                      help="the model reads only the per-frame counts, not their running sums (ablation)")
     rep.add_argument("--copies", type=_positive, default=1,
@@ -192,7 +194,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--seed", type=int, default=0, help="seed of the weights, batches and augmentation")
     train.add_argument("--steps", type=_positive, default=QUICK["steps"], help="optimiser steps")
     train.add_argument("--lr", type=_positive_float, default=QUICK["lr"], help="peak learning rate")
-    train.add_argument("--batch-size", type=_positive, default=QUICK["batch_size"], help="windows per step")
+    train.add_argument("--batch-size", type=_positive, default=None,
+                       help=f"windows per step (default {QUICK['batch_size']}, or the training windows if fewer; "
+                       "more than the training windows is refused)")
     train.add_argument("--hidden-channels", type=_channels, default=QUICK["hidden_channels"],
                        help="ConvLSTM channels per layer")
     train.add_argument("--input-pool", type=_positive, default=QUICK["input_pool"], help="the model's first pool")

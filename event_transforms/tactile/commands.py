@@ -148,11 +148,34 @@ def writable(path: Path | None, flag: str) -> None:
         raise ValueError(f"{flag} {str(path)!r} is not a writable folder ({error.strerror or error})") from None
 
 
+def _default_batch(default: int, data: Any) -> int:
+    """The default batch size, or a folder's training windows where they are fewer (said in one line)."""
+    if len(data.train) >= default:
+        return default
+    _print(f"batch size {len(data.train)}: the folder's {len(data.train)} training windows are fewer than the default "
+           f"{default} (--batch-size sets it, at most the training windows)")
+    return max(1, len(data.train))
+
+
 def _data_methods(scene: Any) -> list[str]:
     """A folder of recordings runs none and the policies it can build (no oracle: the gaps are inferred)."""
-    from .methods import EXTRA_METHODS, _buildable
+    from .methods import EXTRA_METHODS, parse_method
 
-    return ["none", *[m for m in EXTRA_METHODS if _buildable(m, scene)]]
+    kept: list[str] = ["none"]
+    left_out: dict[str, list[str]] = {}
+    for name in EXTRA_METHODS:
+        try:
+            parse_method(name, scene=scene)
+        except ValueError as error:  # grouped by reason: "stretch, inferred (... has none)"
+            left_out.setdefault(str(error).replace(f"method {name!r} ", ""), []).append(name)
+        else:
+            kept.append(name)
+    if left_out:
+        _print(f"default rows: {', '.join(kept)}; left out, as the scene cannot build them: "
+               + "; ".join(f"{', '.join(names)} ({reason})" for reason, names in left_out.items())
+               + (". With no gap inferred there is nothing to compare: only none is trained (--methods names other "
+                  "rows, e.g. --methods none rot50 fs2)" if kept == ["none"] else ""))
+    return kept
 
 
 def _plan_time(plan: dict[str, Any], chosen: dict[str, Any], scenes: list[str], seeds: list[int], config: Any,
@@ -209,7 +232,8 @@ def reproduce(args: argparse.Namespace) -> int:
         given = {recorded.scene.name: recorded}
     config = ProtocolConfig(
         steps=args.steps or base["steps"],
-        batch_size=args.batch_size or base["batch_size"],
+        batch_size=args.batch_size or (base["batch_size"] if given is None else
+                                       _default_batch(base["batch_size"], next(iter(given.values())))),
         lr=args.lr or base["lr"],
         eval_every=base["eval_every"],
         hidden_channels=tuple(args.hidden_channels or base["hidden_channels"]),
@@ -227,6 +251,11 @@ def reproduce(args: argparse.Namespace) -> int:
         _print(f"inferred scene: gaps {list(given[scenes[0]].scene.gaps) or 'none'} "
                f"(from {given[scenes[0]].dataset['inferred_from']})")
     chosen = choose_methods(scenes, methods, full=args.full, data=given)
+    if given is not None:  # every limit of the data before any training (built-in scenes: in run_protocol)
+        from .protocol.limits import check_run_limits
+
+        for note in check_run_limits(given, chosen, config, cli=True):
+            _print(note)
     equal_time = base["equal_time"] if args.equal_time is None else args.equal_time
     plan = plan_run(scenes, chosen, seeds, config, group=args.group, budget_check=not args.no_budget_check,
                     data=given, equal_time=equal_time)
@@ -284,7 +313,7 @@ def reproduce(args: argparse.Namespace) -> int:
         scenes, seeds, args.out, config=config, methods=chosen, full=args.full,
         root=None if args.root is None else str(args.root), jobs=1 if distributed else jobs,
         device=device, threads=threads, group=args.group, log=_print, budget_check=not args.no_budget_check,
-        data=given, equal_time=equal_time, cost_table=cost_table,
+        data=given, equal_time=equal_time, cost_table=cost_table, cli=True,
     )
     if not results:  # a torchrun rank other than 0
         return 0
@@ -481,6 +510,17 @@ def train(args: argparse.Namespace) -> int:
     data = load_recordings(args, deployment=False)
     if args.policy == "inferred" and not data.dataset["windows"]["val"] + data.dataset["windows"]["unlabeled"]:
         raise ValueError("--policy inferred needs deployment recordings (role deploy) to infer the gaps from")
+    if args.batch_size is None:
+        args.batch_size = _default_batch(QUICK["batch_size"], data)
+    if args.batch_size > len(data.train):
+        raise ValueError(f"--batch-size {args.batch_size} is more than the {len(data.train)} training windows "
+                         f"({data.dataset['recordings']['train']} recordings): a step would repeat windows within "
+                         f"its batch; give --batch-size {len(data.train)} or fewer")
+    from .protocol.limits import holdout_note
+
+    note = holdout_note(data)
+    if note:
+        _print(note)
     start = time.perf_counter()
     model, summary = train_model(
         data, args.policy, steps=args.steps, batch_size=args.batch_size, lr=args.lr,
@@ -491,8 +531,10 @@ def train(args: argparse.Namespace) -> int:
     preprocessing = {**settings, "force_offset_n": summary["force_offset"], "force_scale_n": summary["force_scale"],
                      "policy": args.policy, "data": {k: data.dataset[k] for k in ("folder", "content_hash", "files")}}
     model.save(args.out, preprocessing=preprocessing)
+    kept = (f"kept step {summary['kept_step']}, hold-out MSE {summary['holdout_mse']:.3g} N²" if not note else
+            f"final weights kept: no hold-out ({data.dataset['recordings']['train']} training recordings)")
     _print(f"trained with policy {args.policy!r} for {args.steps} steps in {time.perf_counter() - start:.1f} s "
-           f"(kept step {summary['kept_step']}, hold-out MSE {summary['holdout_mse']:.3g} N²); " + (
+           f"({kept}); " + (
                f"validation MSE {summary['val_mse']:.3g} N², test MSE {summary['test_mse']:.3g} N² on "
                f"{data.dataset['recordings']['test']} test recordings" if len(data.test) else
                "not scored: the folder holds no labelled deployment recordings"))

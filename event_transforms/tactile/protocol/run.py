@@ -35,6 +35,7 @@ from ..stats import (
 )
 from .config import ProtocolConfig
 from .environment import environment, git_commit
+from .limits import check_run_limits
 from .plan import Unit, choose_methods, plan_run, work_units
 from .shared import SHARED_SEPARATOR, collect, plan_sharing
 from .costs import CURVE_RATIOS, cost_curve, cost_key, equal_cost_steps, load_cost_table, measure_costs, ratio_of
@@ -321,8 +322,14 @@ def run_protocol(
     measure_time: bool = True,
     equal_time: bool = False,
     cost_table: str | Path | Mapping[str, Any] | None = None,
+    cli: bool = False,
 ) -> dict[str, Any]:
     """Run every scene's methods for every seed; write ``results.json`` and ``results.md``.
+
+    Before any training, every limit of the data is checked
+    (:func:`~event_transforms.tactile.protocol.limits.check_run_limits`: window length, hold-out,
+    validation and test windows, batch size, noise banks); ``cli=True`` names the options as
+    the command line spells them (``--frames``) in those errors.
 
     Work is split into units — a scene's methods trained together as one ensemble
     (``group="scene"``) or one method at a time (``group="method"``) — spread over ranks:
@@ -382,6 +389,10 @@ def run_protocol(
     missing = [scene for scene in scenes if scene not in data]
     if missing:
         raise ValueError(f"data must hold every scene, missing {missing}")
+    notes = check_run_limits(data, chosen, config, cli=cli)
+    if log and not cli:  # the command line has printed them before its plan
+        for note in notes:
+            log(note)
     data_keys = {scene: data_key(data[scene]) for scene in scenes}
     sharing = plan_sharing(chosen, data)  # train once: members keyed by what their training reads
     units = work_units(scenes, chosen, group, given, sharing)
