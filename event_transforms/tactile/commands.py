@@ -148,6 +148,13 @@ def writable(path: Path | None, flag: str) -> None:
         raise ValueError(f"{flag} {str(path)!r} is not a writable folder ({error.strerror or error})") from None
 
 
+def _quiet_log(line: str) -> None:
+    """``reproduce --quiet``'s log: every line but the per-unit ones (``[rank r] unit k/N ...``) and
+    the legend of the progress lines."""
+    if not (line.startswith("[rank ") or line.startswith("progress lines:")):
+        _print(line)
+
+
 def _default_batch(default: int, data: Any) -> int:
     """The default batch size, or a folder's training windows where they are fewer (said in one line)."""
     if len(data.train) >= default:
@@ -263,19 +270,20 @@ def reproduce(args: argparse.Namespace) -> int:
         _print(f"plan: scenes {scenes}, {len(seeds)} seeds, {config.steps} steps per run")
         for scene, names in chosen.items():
             _print(f"  {scene}: {', '.join(names)}")
-        _print(f"{plan['units']} units, {plan['members']} members (method × seed), {plan['member_steps']:,} "
-               f"member-steps; budget check on {plan['budget_check_scenes']}: {plan['budget_units']} units, "
-               f"{plan['budget_member_steps']:,} member-steps at {2 * config.steps} steps; total "
-               f"{plan['total_member_steps']:,} member-steps (× the seconds per member-step a unit reports)")
         from .copies import load_scene_data
+        from .protocol.run import phase_units, plan_line
         from .protocol.shared import plan_sharing
 
         data = given or {s: load_scene_data(s, None if args.root is None else str(args.root)) for s in scenes}
-        sharing = plan_sharing(chosen, data)
-        _print(f"train once: {sharing.shared * len(seeds)} of the {plan['members']} members read exactly what a member "
-               f"of another scene reads (training data, built policy, seed) and borrow its weights: "
-               f"{plan['member_steps'] - sharing.shared * len(seeds) * config.steps:,} member-steps are trained "
-               "in the main phase (the budget check and equal time share the same way)")
+        phases = phase_units(scenes, chosen, args.group, data, plan["budget_check_scenes"], equal_time, given)
+        sharing = phases.sharing
+        plan.update(shared_members=sharing.shared * len(seeds), trained_units=len(phases.units),
+                    budget_trained_units=len(phases.budget_units))
+        plan["trained_members"] = plan["members"] - plan["shared_members"]
+        _print(plan_line(plan, config) + " (× the seconds per member-step a unit reports); budget check on "
+               f"{plan['budget_check_scenes']}")
+        _print(f"train once: {plan['member_steps'] - sharing.shared * len(seeds) * config.steps:,} member-steps are "
+               "trained in the main phase (the budget check and equal time share the same way)")
         if equal_time:
             none_only = {s: ("none",) for s in scenes}
             trained_none = len(scenes) - plan_sharing(none_only, data).shared
@@ -309,10 +317,12 @@ def reproduce(args: argparse.Namespace) -> int:
                 m in committed["ratios"].get(s, {}) for s in scenes for m in chosen[s]):
             cost_table = QUICK_COST_TABLE
     start = time.perf_counter()
+    quiet = getattr(args, "quiet", False)
     results = run_protocol(
         scenes, seeds, args.out, config=config, methods=chosen, full=args.full,
         root=None if args.root is None else str(args.root), jobs=1 if distributed else jobs,
-        device=device, threads=threads, group=args.group, log=_print, budget_check=not args.no_budget_check,
+        device=device, threads=threads, group=args.group, log=_quiet_log if quiet else _print,
+        progress=False if quiet else None, budget_check=not args.no_budget_check,
         data=given, equal_time=equal_time, cost_table=cost_table, cli=True,
     )
     if not results:  # a torchrun rank other than 0

@@ -127,24 +127,29 @@ def check_run_limits(data: Mapping[str, Any], methods: Mapping[str, Sequence[str
 
 
 def _check_banks(where: str, data: Any, methods: Sequence[str], frames: int, cli: bool) -> None:
-    """The noise banks the methods draw from hold at least a window's frames."""
+    """Every noise bank a method's transform draws windows from holds at least a window's frames
+    (the transform is built as the run builds it, and each module's ``bank`` read)."""
+    import torch
+
     from ..methods import parse_method
 
+    if data.scene is None:
+        return
     for method in methods:
         try:
-            parsed = parse_method(method, scene=data.scene) if data.scene is not None else None
+            parsed = parse_method(method, scene=data.scene)
+            transform = parsed.build(data.noise_bank if parsed.needs_noise_bank else None)
         except ValueError:
-            continue  # choose_methods names a method the scene cannot build
-        base = method.strip().lower().split("x")[0]
-        banks = []
-        if parsed is not None and parsed.needs_noise_bank and data.noise_bank is not None:
-            banks.append(("the deployment recordings' quiet frames", data.noise_bank))
-        prior = getattr(data.scene, "prior_bank", None)
-        if base in ("prior", "everything") and prior is not None:
-            banks.append(("the training recordings' quiet frames", prior))
-        for source, bank in banks:
-            if int(bank.shape[0]) < frames:
+            continue  # choose_methods and the run name what a scene cannot build
+        if not isinstance(transform, torch.nn.Module):
+            continue
+        for module in transform.modules():
+            bank = getattr(module, "bank", None)
+            if isinstance(bank, torch.Tensor) and bank.dim() == 4 and int(bank.shape[0]) < frames:
+                source = ("the training recordings' quiet frames" if method.strip().lower().startswith(
+                    ("prior", "everything")) else "the deployment recordings' quiet frames")
                 raise ValueError(
                     f"{where}: method {method!r} adds recorded noise from a bank of {int(bank.shape[0])} frames "
-                    f"({source}), fewer than a window's {frames} frames: give {option('frames', cli, bank.shape[0])} "
-                    f"or fewer, more recordings, or leave {method!r} out of {option('methods', cli)}")
+                    f"({source}, 4 per window), fewer than a window's {frames} frames: give "
+                    f"{option('frames', cli, int(bank.shape[0]))} or fewer, more recordings, or leave {method!r} out "
+                    f"of {option('methods', cli)}")
