@@ -250,6 +250,7 @@ def temporal_event_shift(
 
 
 @register_kernel(temporal_event_shift, Tensor)
+@torch.compiler.disable
 def temporal_event_shift_frames(
     batch: Tensor,
     shifts: Tensor,
@@ -261,6 +262,11 @@ def temporal_event_shift_frames(
     """Kernel of :func:`temporal_event_shift` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters
     and (B,) int64 per-sample ``seeds`` (any device; unused in mode ``"expected"``);
     ``hint`` ends the error raised for fractional counts.
+
+    Under :func:`torch.compile` the kernel runs eagerly (``torch.compiler.disable``): its draw
+    reads data-dependent sizes from the host, which would break the graph at every read (about a
+    hundred lines of graph-break warnings and half a minute of tracing); the graph breaks once
+    here, silently. ``fullgraph=True`` therefore cannot hold a TES.
 
     Host synchronisations: one ``nonzero`` (the active pixels), then one read that checks
     their values and brings back what the sampler needs (the largest count; in exact mode
