@@ -142,3 +142,14 @@ def test_tes_and_one_of_compile_without_fullgraph_to_the_eager_result(name, capf
     torch.testing.assert_close(compiled(frames), module(frames, params=params))
     if name == "RandomTemporalEventShift":
         assert "Graph break" not in capfd.readouterr().err  # the kernel runs eagerly: one silent break
+
+
+def test_the_docs_state_what_the_tests_above_hold():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    page = " ".join((root / "docs" / "transforms.md").read_text().split())
+    readme = " ".join((root / "README.md").read_text().split())
+    assert "A `generator=` argument cannot enter a full graph" in page
+    assert "TES (`TemporalEventShift`, `RandomTemporalEventShift`, in every mode) and `OneOf` never compile" in page
+    assert "`torch.compile(transform, fullgraph=True)` holds the geometric and frame-shift transforms" in readme
