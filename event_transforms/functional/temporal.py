@@ -263,10 +263,8 @@ def temporal_event_shift_frames(
     and (B,) int64 per-sample ``seeds`` (any device; unused in mode ``"expected"``);
     ``hint`` ends the error raised for fractional counts.
 
-    Under :func:`torch.compile` the kernel runs eagerly (``torch.compiler.disable``): its draw
-    reads data-dependent sizes from the host, which would break the graph at every read (about a
-    hundred lines of graph-break warnings and half a minute of tracing); the graph breaks once
-    here, silently. ``fullgraph=True`` therefore cannot hold a TES.
+    Under :func:`torch.compile` it runs eagerly (``torch.compiler.disable``: one silent graph
+    break, not one warned break per host read of its draw); ``fullgraph=True`` cannot hold it.
 
     Host synchronisations: one ``nonzero`` (the active pixels), then one read that checks
     their values and brings back what the sampler needs (the largest count; in exact mode
