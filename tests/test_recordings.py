@@ -715,6 +715,21 @@ class TestLimitsBeforeTraining:
         assert "--batch-size 1000 is more than its 8 training windows (4 recordings)" in err
         assert "give --batch-size 8 or fewer" in err
 
+    def test_the_default_sensor_is_named_when_events_lie_outside_it(self, tmp_path):
+        root = make_folder(tmp_path / "d", train=3, deploy=2, unlabeled=0)
+        events = np.load(root / "r0.npy")
+        events["x"][5] = 300  # a DVXplorer's column, past a DAVIS240
+        np.save(root / "r0.npy", events)
+        with pytest.raises(ValueError, match=r"outside the sensor .*No event file states its sensor size and none "
+                                             r"was given, so the default \(180, 240\) \(a DAVIS240\) was assumed"):
+            RecordingSet(root, split="train", cache=tmp_path / "cache", frames=12, pool=2)
+
+    def test_train_model_names_batch_size_in_python(self, data, trained_nothing):
+        from event_transforms.tactile.deployment import train_model
+
+        with pytest.raises(ValueError, match=r"batch_size=1000 is more than the 8 training windows.*give batch_size=8"):
+            train_model(data, batch_size=1000, steps=2)
+
     def test_too_few_quiet_frames_for_noise_are_refused(self, tmp_path, capsys, trained_nothing):
         root = make_folder(tmp_path / "d", train=6, deploy=2, unlabeled=0)
         assert self.reproduce(root, tmp_path, "--frames", "12", "--methods", "none", "noise") == 2
