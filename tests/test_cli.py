@@ -527,10 +527,10 @@ class TestCommandLine:
         printed = capsys.readouterr().out
         # control: 4 methods (no gap, so no policy rows), timing: 3 + inferred, prior, everything;
         # budget check on timing only: none + one method at 200 steps
-        assert "plan: 8 units to train (10 before train-once sharing), 80 members" in printed
-        assert "8,000 member-steps" in printed and "16 members borrow the weights" in printed
-        assert "budget check of 1 gapped scene(s) at 200 steps: 2 more units" in printed
-        assert "3,200 member-steps at most" in printed and "budget check on ['timing']" in printed
+        assert "plan: 8 units to train (10 before train-once sharing), 80 members × 100 steps" in printed
+        assert "of which 16 borrow the weights" in printed and "64 are trained: 6,400 member-steps" in printed
+        assert "budget check of 1 gapped scene(s) at 200 steps: 2 more units (2 before sharing), 3,200" in printed
+        assert "total 9,600 member-steps trained" in printed and "budget check on ['timing']" in printed
 
     def test_help_does_not_import_torch(self):
         code = (

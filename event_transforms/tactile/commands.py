@@ -188,7 +188,7 @@ def _data_methods(scene: Any) -> list[str]:
 def _plan_time(plan: dict[str, Any], chosen: dict[str, Any], scenes: list[str], seeds: list[int], config: Any,
                jobs: int, shared: int, curve: int) -> str:
     """The run's time from the committed cost table, where it covers the run: the member-steps
-    trained (shared members not counted; the budget check unshared, an upper bound) × the
+    trained (shared members not counted, in the main phase and the budget check) × the
     table's seconds per member-step, over ``jobs``."""
     from .protocol.costs import QUICK_COST_TABLE, cost_key, equal_cost_steps, load_cost_table
 
@@ -198,8 +198,8 @@ def _plan_time(plan: dict[str, Any], chosen: dict[str, Any], scenes: list[str], 
     ratios = table["ratios"]
     equal = sum(equal_cost_steps(config.steps, ratios.get(s, {}).get(m, 1.0)) for s in scenes for m in chosen[s]
                 if m != "none" and equal_cost_steps(config.steps, ratios.get(s, {}).get(m, 1.0)) < config.steps)
-    trained = (plan["member_steps"] - shared * len(seeds) * config.steps + plan["budget_member_steps"]
-               + equal * len(seeds) + curve)
+    main = plan.get("trained_member_steps", plan["member_steps"] - shared * len(seeds) * config.steps)
+    trained = main + plan.get("budget_trained_member_steps", plan["budget_member_steps"]) + equal * len(seeds) + curve
     seconds = trained * float(table["ensemble_s_per_member_step"]) / max(jobs, 1)
     return (f"time: about {seconds / 60:.0f} min of training for at most {trained:,} member-steps at "
             f"{table['ensemble_s_per_member_step'] * 1e3:.1f} ms per member-step over {jobs} job(s) (the cost table's "
@@ -271,19 +271,15 @@ def reproduce(args: argparse.Namespace) -> int:
         for scene, names in chosen.items():
             _print(f"  {scene}: {', '.join(names)}")
         from .copies import load_scene_data
-        from .protocol.run import phase_units, plan_line
+        from .protocol.run import count_phases, phase_units, plan_line
         from .protocol.shared import plan_sharing
 
         data = given or {s: load_scene_data(s, None if args.root is None else str(args.root)) for s in scenes}
         phases = phase_units(scenes, chosen, args.group, data, plan["budget_check_scenes"], equal_time, given)
         sharing = phases.sharing
-        plan.update(shared_members=sharing.shared * len(seeds), trained_units=len(phases.units),
-                    budget_trained_units=len(phases.budget_units))
-        plan["trained_members"] = plan["members"] - plan["shared_members"]
+        count_phases(plan, phases, seeds, config)
         _print(plan_line(plan, config) + " (× the seconds per member-step a unit reports); budget check on "
                f"{plan['budget_check_scenes']}")
-        _print(f"train once: {plan['member_steps'] - sharing.shared * len(seeds) * config.steps:,} member-steps are "
-               "trained in the main phase (the budget check and equal time share the same way)")
         if equal_time:
             none_only = {s: ("none",) for s in scenes}
             trained_none = len(scenes) - plan_sharing(none_only, data).shared

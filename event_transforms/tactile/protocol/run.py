@@ -257,16 +257,29 @@ def phase_units(scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], grou
     return Phases(sharing, units, choices, budget_methods, budget_units)
 
 
+def count_phases(plan: dict[str, Any], phases: Phases, seeds: Sequence[int], config: ProtocolConfig) -> None:
+    """Add to ``plan`` what the run trains after train-once sharing: ``shared_members``,
+    ``trained_members``, ``trained_units``, ``budget_trained_units`` and the member-steps of both
+    phases (``trained_member_steps``, ``budget_trained_member_steps``)."""
+    plan["shared_members"] = phases.sharing.shared * len(seeds)
+    plan["trained_members"] = plan["members"] - plan["shared_members"]
+    plan["trained_units"], plan["budget_trained_units"] = len(phases.units), len(phases.budget_units)
+    plan["trained_member_steps"] = sum(len(u.methods) for u in phases.units) * len(seeds) * config.steps
+    plan["budget_trained_member_steps"] = (sum(len(u.methods) for u in phases.budget_units) * len(seeds)
+                                           * 2 * config.steps)
+
+
 def plan_line(plan: Mapping[str, Any], config: ProtocolConfig) -> str:
     """The plan in one line, counting the units the run trains (after train-once sharing), as the
-    progress lines number them."""
+    progress lines number them (``plan`` completed by :func:`count_phases`)."""
     return (f"plan: {plan['trained_units']} units to train ({plan['units']} before train-once sharing), "
-            f"{plan['members']} members × {config.steps} steps = {plan['member_steps']:,} member-steps, of which "
-            f"{plan['shared_members']} members borrow the weights of a member of another scene that reads exactly "
-            f"what they read (the same training data, built policy and seed) and {plan['trained_members']} are "
-            f"trained; budget check of {len(plan['budget_check_scenes'])} gapped scene(s) at {2 * config.steps} "
-            f"steps: {plan['budget_trained_units']} more units ({plan['budget_units']} before sharing), "
-            f"{plan['budget_member_steps']:,} member-steps at most; total {plan['total_member_steps']:,} at most")
+            f"{plan['members']} members × {config.steps} steps, of which {plan['shared_members']} borrow the "
+            f"weights of a member of another scene that reads exactly what they read (the same training data, "
+            f"built policy and seed) and {plan['trained_members']} are trained: "
+            f"{plan['trained_member_steps']:,} member-steps; budget check of {len(plan['budget_check_scenes'])} "
+            f"gapped scene(s) at {2 * config.steps} steps: {plan['budget_trained_units']} more units "
+            f"({plan['budget_units']} before sharing), {plan['budget_trained_member_steps']:,} member-steps; total "
+            f"{plan['trained_member_steps'] + plan['budget_trained_member_steps']:,} member-steps trained")
 
 
 def headline(scene: str, chosen: Mapping[str, Sequence[str]], data: Mapping[str, SceneData]) -> str | None:
@@ -459,10 +472,8 @@ def run_protocol(
             log(note)
     data_keys = {scene: data_key(data[scene]) for scene in scenes}
     phases = phase_units(scenes, chosen, group, data, plan["budget_check_scenes"], equal_time, given)
-    sharing, units = phases.sharing, phases.units
-    plan["shared_members"] = sharing.shared * len(seeds)
-    plan["trained_members"] = plan["members"] - plan["shared_members"]
-    plan["trained_units"], plan["budget_trained_units"] = len(units), len(phases.budget_units)
+    units = phases.units
+    count_phases(plan, phases, seeds, config)
     if log:
         for scene, d in data.items():
             holdout = f"{len(d.holdout)} hold-out (training session), " if d.holdout is not None else ""
