@@ -38,7 +38,7 @@ declares the noise gap.
 from chance; the standard error shrinks as 1/√N with N recordings per side. Where no gap is
 declared, each factor's verdict (``scene.evidence["verdicts"]``) says either "no gap"
 (a difference as large as the smallest that matters, ``min_effect``, would have been seen)
-or "not resolvable from N unlabeled recordings: a difference below L would not be seen",
+or "not resolvable from N unlabeled deployment windows: a difference below L would not be seen",
 with L = ``z_gap`` × the standard error. Measured on the package's simulator with 48
 training and 24 deployment recordings (the detection-rate benchmark of ``benchmarks/``, its RESULTS.md
 "infer_scene detection rate"): under the benchmark's 60 ms start jitter the onset's
@@ -327,7 +327,7 @@ def _compare(train: Tensor, deploy: Tensor, min_effect: float, z_gap: float) -> 
 
 
 def _verdicts(evidence: dict[str, Any], z_gap: float, n_deploy: int) -> dict[str, str]:
-    """Per frame-based factor: "gap", "no gap", or "not resolvable from N unlabeled recordings"."""
+    """Per frame-based factor: "gap", "no gap", or "not resolvable from N unlabeled deployment windows"."""
     out = {}
     for factor, (_, min_effect) in FACTOR_TESTS.items():
         test = evidence[factor]
@@ -341,7 +341,7 @@ def _verdicts(evidence: dict[str, Any], z_gap: float, n_deploy: int) -> dict[str
             out[factor] = "gap"
         elif limit > min_effect and abs(test["difference"]) < limit:
             source = (f"{test['deploy']['n']} {test['source']}" if "source" in test
-                      else f"{n_deploy} unlabeled recordings")
+                      else f"{n_deploy} unlabeled deployment windows")
             out[factor] = (f"not resolvable from {source}: a difference below "
                            f"{limit:.3g}{_UNITS[factor]} would not be seen (measured {test['difference']:+.3g})")
         else:
@@ -405,7 +405,7 @@ def infer_scene(
         holds, per factor, the training and deployment summaries (mean, std, standard
         error, n, min, max), their difference, its standard error, z, the verdict and the
         ``resolvable_limit`` (``z_gap`` standard errors); ``evidence["verdicts"]`` says per
-        factor "gap", "no gap" or "not resolvable from N unlabeled recordings: ..." (see
+        factor "gap", "no gap" or "not resolvable from N unlabeled deployment windows: ..." (see
         the module docstring's detection limits). With a resolvable ``timing``,
         ``evidence["timing"]`` is that test and the onset test moves to
         ``evidence["timing"]["onset"]``.

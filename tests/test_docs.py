@@ -31,6 +31,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 MODULES = (
     "event_transforms", "event_transforms.functional", "event_transforms.events", "event_transforms.transforms",
+    "event_transforms.authoring",
 )
 
 #: (name, section) pairs where the section is meaningless; the reason is beside each.

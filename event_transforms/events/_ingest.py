@@ -149,12 +149,36 @@ def _check_float_times(t: Any, unit: str | None) -> None:
             f"steps {spacing_us:g} us: the timestamps have already lost microseconds. Read them as int64 or "
             "float64 (or subtract the first timestamp before casting)"
         )
+    count = int(t.numel()) if isinstance(t, Tensor) else int(np.asarray(t).size)
+    span_us = (high - low) * scale
+    if unit is not None and fractional and count >= _RATE_EVENTS and 0 < span_us * _MAX_RATE < count:
+        raise ValueError(
+            f"events['t'] under time_unit={unit!r}: {count:,} events span {high - low:.6g} {unit} "
+            f"({count / span_us * 1e6:.3g} events per second, past any sensor), so every event would fall in "
+            f"one bin; the timestamps look like {_larger_unit(unit)}: pass time_unit= the unit they are in"
+        )
     if unit is None and fractional and high - low < SECONDS_SPAN:
         raise ValueError(
             f"events['t'] holds float timestamps with fractions spanning {high - low:.6g}, which looks like "
             "seconds (timestamps are read as microseconds, so every event would fall in one bin); pass "
             "time_unit='s' (or 'ms', 'ns'), or time_unit='us' if they are microseconds"
         )
+
+
+#: Whole recordings of at least this many events ...
+_RATE_EVENTS = 1000
+#: ... at more than this many events per microsecond (1e9 events per second, past any event
+#: camera's bandwidth) hold timestamps in a larger unit than the one declared.
+_MAX_RATE = 1000
+
+#: Integer timestamps past this (1e17 µs since the epoch is the year 5138) are nanoseconds.
+_NANOSECOND_EPOCH = 10**17
+
+
+def _larger_unit(unit: str) -> str:
+    """The units larger than ``unit``, in words."""
+    larger = [u for u in TIME_UNITS if TIME_UNITS[u] > TIME_UNITS[unit]]
+    return " or ".join(f"{'seconds' if u == 's' else u}" for u in reversed(larger)) or "seconds"
 
 
 # Integer milliseconds read as microseconds (issue 35): checked from the first and last
@@ -181,13 +205,22 @@ def millisecond_advice(count: int, first: float, last: float) -> str | None:
 
 
 def _check_integer_times(t: Any, unit: str | None) -> None:
-    """Refuse a 1-D integer timestamp column on the CPU that looks like milliseconds (``unit`` None)."""
-    if unit is not None or getattr(t, "ndim", 0) != 1 or len(t) < _MS_EVENTS:
+    """Refuse a 1-D integer timestamp column on the CPU that looks like milliseconds, or like
+    nanoseconds since the epoch (``unit`` None; the first and last values and the count only)."""
+    if unit is not None or getattr(t, "ndim", 0) != 1 or not len(t):
         return
     if isinstance(t, Tensor):
         if t.is_floating_point() or t.device.type != "cpu" or t.dtype == torch.bool:
             return
     elif np.asarray(t[:1]).dtype.kind not in "iu":
+        return
+    first = int(t[0])
+    if first > _NANOSECOND_EPOCH:
+        raise ValueError(
+            f"events['t'] starts at {first:,}, which as microseconds since the epoch is the year "
+            f"{1970 + first / 3.15576e13:,.0f}: absolute timestamps this large are nanoseconds. Pass time_unit='ns'"
+        )
+    if len(t) < _MS_EVENTS:
         return
     advice = millisecond_advice(len(t), float(t[0]), float(t[-1]))
     if advice is not None:
@@ -410,8 +443,8 @@ def check_integer(value: object, name: str, *, low: int = 1) -> int:
     return int(value)
 
 
-def _sensor(sensor_size: object, tonic_sensor_size: object) -> tuple[int, int]:
-    """(H, W) from ``sensor_size`` (H, W) or ``tonic_sensor_size`` (W, H, P)."""
+def _sensor(sensor_size: object, tonic_sensor_size: object, owner: str = "events_to_frames") -> tuple[int, int]:
+    """(H, W) from ``sensor_size`` (H, W) or ``tonic_sensor_size`` (W, H, P); one of them is required."""
     if tonic_sensor_size is not None:
         if sensor_size is not None:
             raise ValueError(
@@ -429,7 +462,11 @@ def _sensor(sensor_size: object, tonic_sensor_size: object) -> tuple[int, int]:
             )
         return height, width
     if sensor_size is None:
-        return 180, 240  # the paper's DAVIS240
+        raise TypeError(
+            f"{owner} needs sensor_size=(H, W) or tonic_sensor_size=(W, H, P): real sensors differ "
+            "(DAVIS240 (180, 240), DVXplorer (240, 320)), and a wrong size drops events; "
+            "event_transforms.events.stated_sensor_size(path) reads it from a file that states it"
+        )
     if isinstance(sensor_size, (str, bytes)) or not isinstance(sensor_size, Sequence):
         raise ValueError(f"sensor_size must be a pair (H, W), got {sensor_size!r}")
     if len(sensor_size) == 3:

@@ -75,9 +75,10 @@ class _Grid:
 
 
 def build_grid(
-    sensor_size: object, tonic_sensor_size: object, crop: object, pool: object, frame_ms: object, dtype: object
+    sensor_size: object, tonic_sensor_size: object, crop: object, pool: object, frame_ms: object, dtype: object,
+    owner: str = "events_to_frames",
 ) -> _Grid:
-    height, width = _sensor(sensor_size, tonic_sensor_size)
+    height, width = _sensor(sensor_size, tonic_sensor_size, owner)
     pool = check_integer(pool, "pool")
     top, left, crop_h, crop_w = _check_crop(crop, height, width, pool)
     return _Grid(height, width, top, left, crop_h, crop_w, pool, bin_width_us(frame_ms), _check_dtype(dtype))
@@ -438,9 +439,18 @@ def _check_bytes(
             f"events_to_frames: {where} {n_frames:,} frames of {grid.frame_size:,} values"
             f"{f' for {batch} streams' if batch > 1 else ''}, {needed / 1e9:,.1f} GB ({needed:,} bytes)"
             f"{f' with the {counting} counting buffer' if counting != grid.dtype else ''} for the output, more than "
-            f"max_bytes={max_bytes:,}. Timestamps must be in microseconds; to bin a long "
-            "recording, stream it with iter_frames, pass n_frames for a window, or raise max_bytes"
+            f"max_bytes={max_bytes:,}. {frame_hint(grid.frame_us)}Timestamps must be in microseconds (or "
+            "say their unit with time_unit); to bin a long recording, stream it with iter_frames, pass n_frames "
+            "for a window, or raise max_bytes"
         )
+
+
+def frame_hint(frame_us: float | int) -> str:
+    """A sentence for errors about too many bins when ``frame_ms`` is under a millisecond, else ``""``."""
+    if frame_us >= 1000:
+        return ""
+    return (f"frame_ms is in milliseconds: frame_ms={frame_us / 1000:g} makes bins of {frame_us:g} µs "
+            f"(if {frame_us / 1000:g} s was meant, pass frame_ms={frame_us:g}). ")
 
 
 class _SensorSize(NamedTuple):

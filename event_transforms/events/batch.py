@@ -38,8 +38,8 @@ import torch
 from torch import Tensor
 
 from .._validation import index_on, read_host
-from .drops import EventsOutsideSensorWarning, warn_at_caller
-from ._ingest import T_START_RULES, _check_polarity, canonical_columns, explicit_starts, _floor_to_grid, bin_width_us, check_integer, _sensor
+from .drops import EventsOutsideSensorWarning, EventsOutsideWindowWarning, warn_at_caller
+from ._ingest import T_START_RULES, _check_polarity, canonical_columns, explicit_starts, _field, _floor_to_grid, bin_width_us, check_integer, _sensor
 
 __all__ = ["EventBatch", "collate_events"]
 
@@ -240,6 +240,8 @@ class EventBatch:
         batch = cls(x, y, t, p, offsets, (height, width))
         if frame_ms is not None:
             batch = batch.with_grid(frame_ms, t_start=t_start, n_frames=n_frames)
+            if validate and total and (n_frames is not None or not isinstance(t_start, str)):
+                _warn_outside_window(batch, t_start, n_frames)
         return batch
 
     def with_grid(
@@ -505,6 +507,27 @@ def _warn_outside_sensor(x: Tensor, y: Tensor, height: int, width: int) -> None:
     warn_at_caller(EventsOutsideSensorWarning(outside, x.numel(), (height, width), (x_low, x_high), (y_low, y_high)))
 
 
+def _warn_outside_window(batch: EventBatch, t_start: object, n_frames: int | None) -> None:
+    """The caller's streams hold events outside the grid they declared (``t_start``,
+    ``n_frames``), which the binning will drop: one warning at the caller's line, with counts."""
+    assert batch.t_start is not None and batch.frame_ms is not None
+    frame_us = bin_width_us(batch.frame_ms)
+    rel = batch.t - batch.t_start.to(device=batch.device, dtype=batch.t.dtype).index_select(0, batch.sample_index())
+    outside = rel < 0
+    if n_frames is not None:
+        outside |= rel >= n_frames * frame_us
+    per = torch.zeros(len(batch), dtype=torch.int64, device=batch.device).index_add_(
+        0, batch.sample_index(), outside.to(torch.int64)).tolist()
+    if not any(per):
+        return
+    window = (f"the grid of EventBatch.from_streams(t_start={t_start!r}, n_frames={n_frames}, "
+              f"frame_ms={batch.frame_ms!r})")
+    hint = ("the binning of this batch drops them; leave n_frames=None for a grid that holds every stream's last "
+            "event, or cut the streams to the window" if n_frames is not None else
+            "the binning of this batch drops them; t_start='floor' starts each stream's grid at its first event")
+    warn_at_caller(EventsOutsideWindowWarning(sum(per), batch.num_events, list(zip(per, batch.lengths)), window, hint))
+
+
 def _fill_from_struct(out: tuple[Tensor, ...], stream: np.ndarray, i: int, validate: bool) -> None:
     """Copy a :func:`_narrow_struct` stream's fields into the batch's column slices (one
     casting pass each), then check what the cast may have hidden (one pass each)."""
@@ -670,12 +693,40 @@ def collate_events(
     """
     options: dict[str, Any] = dict(sensor_size=sensor_size, tonic_sensor_size=tonic_sensor_size, frame_ms=frame_ms,
                    t_start=t_start, n_frames=n_frames, time_unit=time_unit, columns=columns, validate=validate)
+    if streams and isinstance(streams[0], Mapping) and _field(streams[0].keys(), "x") is None:
+        keys = sorted(map(str, streams[0]))
+        stream_key = next((k for k in keys if k in ("events", "stream")), keys[0] if keys else "events")
+        others = ", ".join(f"item[{k!r}]" for k in keys if k != stream_key) or "labels"
+        raise TypeError(
+            f"collate_events takes streams or (stream, label, ...) tuples; streams[0] is a dict with keys {keys}, "
+            f"not event columns x, y, t, p. Return (item[{stream_key!r}], {others}) from the data set's "
+            f"__getitem__, or wrap it: collate_fn=lambda items: collate_events([(i[{stream_key!r}], "
+            f"{others.replace('item[', 'i[')}) for i in items], sensor_size=...)"
+        )
     if streams and isinstance(streams[0], tuple):
         from torch.utils.data import default_collate
 
         first, *rest = zip(*streams)
+        for position, labels in enumerate(rest, start=1):
+            _check_label_shapes(labels, position)
         return (EventBatch.from_streams(list(first), **options), *(default_collate(list(r)) for r in rest))
     return EventBatch.from_streams(list(streams), **options)
+
+
+def _check_label_shapes(labels: Sequence[Any], position: int) -> None:
+    """Refuse labels (entry ``position`` of each item) of unequal shapes, naming the items."""
+    shapes = [tuple(np.shape(v)) if isinstance(v, (Tensor, np.ndarray, list)) else None for v in labels]
+    found = {s for s in shapes if s is not None}
+    if len(found) <= 1:
+        return
+    common = max(found, key=shapes.count)
+    odd = [f"item {i}: {s}" for i, s in enumerate(shapes) if s is not None and s != common][:5]
+    lengths = sorted({s[0] for s in found if s})
+    raise ValueError(
+        f"collate_events: entry {position} of the items (a label) has unequal shapes, so they cannot be "
+        f"stacked: most are {common}, but {'; '.join(odd)} (lengths {lengths}). Give every item of a batch "
+        "labels of one shape: windows of one n_frames (a force label per frame), or pad them in the data set"
+    )
 
 
 # --------------------------------------------------------------------------- grid & binning

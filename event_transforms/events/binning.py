@@ -66,7 +66,7 @@ from .._compile import compiled_kernels_enabled
 from ._kernel import (
     valid_mask,
     _OUTSIDE_SENSOR, _Tally, _accumulate, _count_blocks, _accumulator, _as_dtype, _batch_kernel, _bin_of, _check_bytes, _count_chunk,
-    _empty_window_error, event_index, build_grid, _pixel_table, relative_times, _time_bins, _to_spare, _warn_outside, _zeroed,
+    _empty_window_error, event_index, frame_hint, build_grid, _pixel_table, relative_times, _time_bins, _to_spare, _warn_outside, _zeroed,
 )
 
 #: Events read per chunk by default: the extra memory of a call is a few times this many
@@ -144,9 +144,10 @@ def events_to_frames(
             bool, {0, 1} or {-1, 1}; anything else raises. An
             :class:`~event_transforms.EventBatch` is binned by :func:`bin_events` (its own
             sensor and grid; ``sensor_size`` and the reading options must then be left out).
-        sensor_size: ``(H, W)`` of the sensor, height first; ``None`` means the paper's
-            DAVIS240, (180, 240). Events outside it are dropped with an
-            :class:`EventsOutsideSensorWarning`.
+        sensor_size: ``(H, W)`` of the sensor, height first; required unless
+            ``tonic_sensor_size`` is given (there is no default sensor). Events outside it
+            are dropped with an :class:`EventsOutsideSensorWarning` that gives their count
+            and the size they fit (naming the swap when x and y look exchanged).
         tonic_sensor_size: tonic's ``(W, H, P)`` instead of ``sensor_size``.
         t_start: start of the first bin: ``"floor"`` (the first event rounded down to a
             multiple of the bin width), ``"first"`` (the first event), or a time in
@@ -197,7 +198,7 @@ def events_to_frames(
             events none of which falls in the time window (naming ``t_start``,
             ``frame_ms`` and ``n_frames``), a ``sensor_size`` triple, a crop outside the
             sensor or not divisible by ``pool``, or a count too large for ``dtype``.
-        TypeError: events or options of the wrong type.
+        TypeError: events or options of the wrong type, or no sensor size.
 
     Warns:
         EventsOutsideSensorWarning: events lay outside ``sensor_size`` (with counts).
@@ -277,8 +278,8 @@ def events_to_frames(
         if n_frames > _MAX_INFERRED_FRAMES:
             raise ValueError(
                 f"the events span {n_frames:,} bins of frame_ms={frame_ms!r} (t = {min(v for v in ranges.t_min if v is not None)} "
-                f"to {max(v for v in ranges.t_max if v is not None)}); timestamps must be in microseconds. "
-                "Pass n_frames to bin a window of that length"
+                f"to {max(v for v in ranges.t_max if v is not None)}); {frame_hint(grid.frame_us)}timestamps must be "
+                "in microseconds (or say their unit with time_unit). Pass n_frames to bin a window of that length"
             )
         _check_bytes(batch, n_frames, grid, max_bytes, "the events span", batch * length)
 
@@ -319,10 +320,26 @@ def events_to_frames(
         warn_at_caller(EventsOutsideWindowWarning(
             sum(dropped), int(tally.events.sum()), list(zip(dropped, tally.events.tolist())),
             f"t_start={t_start!r}, n_frames={n_frames} of frame_ms={frame_ms!r}",
-            "with t_start='floor' the grid starts before the first event, so a window of n_frames may need one "
-            "more frame" if t_start == "floor" else ""))
+            _window_hint(t_start, n_frames, grid.frame_us, ranges)))
     frames = _as_dtype(counts[:total], grid.dtype).view(batch, n_frames, 2, grid.out_h, grid.out_w)
     return frames if source.batched else frames.squeeze(0)
+
+
+def _window_hint(t_start: object, n_frames: int, frame_us: float | int, ranges: _Tally) -> str:
+    """What may explain events outside an explicit window: a unit other than microseconds (the
+    window a tiny share of the events' span), or the floored grid's first bin."""
+    lows = [v for v in ranges.t_min if v is not None]
+    highs = [v for v in ranges.t_max if v is not None]
+    window = n_frames * frame_us
+    if lows and highs and max(highs) - min(lows) > 100 * window:
+        span = max(highs) - min(lows)
+        return (f"the window of {window / 1000:g} ms is {100 * window / span:.2g} % of the events' span "
+                f"({span / 1000:,.0f} ms read as microseconds): if the timestamps are in another unit, pass "
+                "time_unit (e.g. time_unit='ns')")
+    if t_start == "floor":
+        return ("with t_start='floor' the grid starts before the first event, so a window of n_frames may need one "
+                "more frame")
+    return ""
 
 
 def bin_events(

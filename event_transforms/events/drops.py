@@ -148,28 +148,57 @@ def _internal(filename: str) -> bool:
 
 def warn_at_caller(warning: Warning) -> None:
     """Issue ``warning`` at the first frame of the stack outside this package and torch (the
-    caller's own line, through ``nn.Module.__call__`` and containers), so that Python's default
-    filter shows it once per line of user code."""
+    caller's own line, through ``nn.Module.__call__`` and containers).
+
+    The message carries the numbers of this call, yet Python's ``"default"`` filter still shows
+    a warning of this class once per line of user code, however many batches pass: where the
+    filter registers the warning (``"default"``, ``"module"``, ``"once"``), the class's fixed
+    ``MESSAGE`` is registered for that line too and later warnings of the class there are
+    skipped. Under ``"always"`` every call warns; ``"error"`` raises as usual.
+    """
     frame = sys._getframe(1)
-    level = 2
     while frame.f_back is not None and _internal(frame.f_code.co_filename):
         frame = frame.f_back
-        level += 1
-    warnings.warn(warning, stacklevel=level)
+    category = type(warning)
+    fixed = getattr(category, "MESSAGE", None)
+    module_globals = frame.f_globals
+    registry = module_globals.setdefault("__warningregistry__", {})
+    lineno = frame.f_lineno
+    # the filters as they stand: a line's entry holds only while they are unchanged (a new
+    # catch_warnings list or a new filter shows the warning again, as Python's own registry does)
+    state = (id(warnings.filters), tuple(warnings.filters))
+    key = (fixed, category, lineno, "event_transforms")
+    if fixed is not None and registry.get(key) == state:
+        return
+    module = module_globals.get("__name__", "<string>")
+    warnings.warn_explicit(warning, category, frame.f_code.co_filename, lineno, module=module,
+                           registry=registry, module_globals=module_globals)
+    if fixed is not None and registry.get((str(warning), category, lineno)):
+        registry[key] = state
+
+
+def _count(dropped: int, total: int) -> str:
+    share = f" ({100 * dropped / total:.1f} %)" if total else ""
+    return f"{dropped:,} of {total:,} events{share}"
 
 
 class EventsOutsideSensorWarning(UserWarning):
     """Events of the caller's input lay outside the declared ``sensor_size`` and were dropped
-    (usually a wrong sensor size).
+    (usually a wrong sensor size, or x and y swapped).
 
-    The message is fixed, so Python's default filter shows it once per line of the caller's
-    code (its location); the numbers are attributes. Events that a transform moves off the
-    sensor are not warned about: :func:`~event_transforms.count_dropped` counts them.
+    The message gives the counts, the span of the coordinates and the size they fit; where
+    the events fit the sensor with height and width exchanged, it names the swap (a W-first
+    ``sensor_size``, or rows whose first two columns are y, x: ``columns="yxtp"``). Python's
+    default filter shows it once per line of the caller's code (see :func:`warn_at_caller`);
+    the numbers are attributes too. Events that a transform moves off the sensor are not
+    warned about: :func:`~event_transforms.count_dropped` counts them.
 
     Attributes:
         dropped: events dropped. total: events read. sensor_size: the declared (H, W).
         x_range, y_range: the span of the coordinates read, ``(low, high)``.
-        suggested_sensor_size: the (H, W) the events fit, or ``None`` for negative coordinates.
+        suggested_sensor_size: the (H, W) the events fit (the declared size exchanged when
+            ``swapped``), or ``None`` for negative coordinates.
+        swapped: the events fit the declared size with height and width exchanged.
 
     Example:
         >>> import warnings
@@ -181,29 +210,47 @@ class EventsOutsideSensorWarning(UserWarning):
         >>> w = caught[0].message
         >>> type(w).__name__, w.dropped, w.total, w.suggested_sensor_size, int(frames.sum())
         ('EventsOutsideSensorWarning', 1, 2, (10, 301), 1)
+        >>> str(w)
+        'events outside sensor_size were dropped: 1 of 2 events (50.0 %) lie outside sensor_size=(10, 10) (H, W); x spans 1 to 300, y 2 to 4, which fit sensor_size=(10, 301)'
     """
 
-    MESSAGE = (
-        "events outside sensor_size were dropped: the sensor size may be wrong (this warning's dropped, total, "
-        "x_range, y_range and suggested_sensor_size say how many and which size they fit)"
-    )
+    #: The fixed head of every message (registered once per line by the default filter).
+    MESSAGE = "events outside sensor_size were dropped"
 
     def __init__(self, dropped: int = 0, total: int = 0, sensor_size: tuple[int, int] = (0, 0),
                  x_range: tuple[Any, Any] = (None, None), y_range: tuple[Any, Any] = (None, None)) -> None:
-        super().__init__(self.MESSAGE)
         self.dropped, self.total, self.sensor_size = dropped, total, sensor_size
         self.x_range, self.y_range = x_range, y_range
         self.suggested_sensor_size: tuple[int, int] | None = None
-        if x_range[0] is not None and x_range[0] >= 0 and y_range[0] >= 0:
-            self.suggested_sensor_size = (max(y_range[1] + 1, sensor_size[0]), max(x_range[1] + 1, sensor_size[1]))
+        self.swapped = False
+        height, width = sensor_size
+        text = f"{self.MESSAGE}: {_count(dropped, total)} lie outside sensor_size={tuple(sensor_size)} (H, W)"
+        if x_range[0] is not None and y_range[0] is not None:
+            text += f"; x spans {x_range[0]} to {x_range[1]}, y {y_range[0]} to {y_range[1]}"
+            if x_range[0] >= 0 and y_range[0] >= 0:
+                self.swapped = height != width and x_range[1] < height and y_range[1] < width
+                if self.swapped:
+                    self.suggested_sensor_size = (width, height)
+                    landscape = width >= height  # sensors are wider than high: then the columns are swapped
+                    size = (f"sensor_size is (H, W), height first: a sensor {height} wide and {width} high is "
+                            f"sensor_size=({width}, {height})")
+                    columns = "if the rows are (y, x, t, p), pass columns='yxtp' (or name the columns)"
+                    first, second = (columns, size) if landscape else (size, columns)
+                    text += (f", which fit sensor_size={tuple(sensor_size)} with x and y exchanged: {first}; "
+                             f"or {second}")
+                else:
+                    self.suggested_sensor_size = (max(y_range[1] + 1, height), max(x_range[1] + 1, width))
+                    text += f", which fit sensor_size={self.suggested_sensor_size}"
+        super().__init__(text)
 
 
 class EventsOutsideWindowWarning(UserWarning):
     """Events of the caller's input lay outside the time window the caller asked for
     (``t_start``, ``n_frames``) and were dropped, as asked; the warning counts them.
 
-    The message is fixed (shown once per line of the caller's code); the numbers are
-    attributes. Events that a transform shifts out of the window are not warned about:
+    The message gives the counts and the window; Python's default filter shows it once per
+    line of the caller's code (see :func:`warn_at_caller`); the numbers are attributes too.
+    Events that a transform shifts out of the window are not warned about:
     :func:`~event_transforms.count_dropped` counts them.
 
     Attributes:
@@ -222,13 +269,14 @@ class EventsOutsideWindowWarning(UserWarning):
         ('EventsOutsideWindowWarning', 1, [(1, 2)], torch.Size([1, 2, 10, 10]))
     """
 
-    MESSAGE = (
-        "events outside the requested time window (t_start, n_frames) were dropped, as asked (this warning's "
-        "dropped, total, per_stream, window and hint say how many and why)"
-    )
+    #: The fixed head of every message (registered once per line by the default filter).
+    MESSAGE = "events outside the requested time window are dropped, as asked"
 
     def __init__(self, dropped: int = 0, total: int = 0, per_stream: list[tuple[int, int]] | None = None,
                  window: str = "", hint: str = "") -> None:
-        super().__init__(self.MESSAGE)
         self.dropped, self.total, self.per_stream, self.window = dropped, total, per_stream or [], window
         self.hint = hint
+        text = f"{self.MESSAGE}: {_count(dropped, total)} lie outside {window or 'the window'}"
+        if hint:
+            text += f"; {hint}"
+        super().__init__(text)

@@ -255,7 +255,7 @@ def _read_hdf5(path: Path) -> tuple[dict[str, Any] | None, Any, tuple[int, int] 
     try:
         import h5py
     except ImportError:
-        raise ValueError(f"{path}: reading HDF5 needs h5py (pip install h5py)") from None
+        raise ValueError(f"{path}: reading HDF5 needs h5py: pip install 'event-transforms[hdf5]'") from None
     try:
         handle = h5py.File(path, "r")  # kept open: its datasets are read chunk by chunk
     except OSError as error:
@@ -422,7 +422,7 @@ def _read_aedat4(path: Path) -> tuple[dict[str, Any], tuple[int, int] | None, np
     try:
         import aedat
     except ImportError:
-        raise ValueError(f"{path}: reading .aedat4 needs the aedat package (pip install aedat)") from None
+        raise ValueError(f"{path}: reading .aedat4 needs the aedat package: pip install 'event-transforms[aedat]'") from None
     try:
         decoder = aedat.Decoder(str(path))
         streams = decoder.id_to_stream()
@@ -494,7 +494,7 @@ def stated_sensor_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
 
             streams = aedat.Decoder(str(path)).id_to_stream()
         except ImportError:
-            raise ValueError(f"{path}: reading .aedat4 needs the aedat package (pip install aedat)") from None
+            raise ValueError(f"{path}: reading .aedat4 needs the aedat package: pip install 'event-transforms[aedat]'") from None
         except Exception as error:  # noqa: BLE001 - the decoder's own errors named once
             raise ValueError(f"{path}: not a readable AEDAT4 file ({type(error).__name__}: {error})") from None
         sizes = {(int(s["height"]), int(s["width"])) for s in streams.values() if s.get("type") == "events"
@@ -504,7 +504,7 @@ def stated_sensor_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
         try:
             import h5py
         except ImportError:
-            raise ValueError(f"{path}: reading HDF5 needs h5py (pip install h5py)") from None
+            raise ValueError(f"{path}: reading HDF5 needs h5py: pip install 'event-transforms[hdf5]'") from None
         try:
             with h5py.File(path, "r") as handle:
                 nodes = [handle]

@@ -50,7 +50,7 @@ def iter_frames(
 
     Args:
         chunks: an iterable of event chunks, sorted by time across and within chunks.
-        sensor_size: ``(H, W)``; ``None`` means (180, 240). Events outside it are dropped
+        sensor_size: ``(H, W)`` (or give ``tonic_sensor_size``; one is required). Events outside it are dropped
             with an :class:`EventsOutsideSensorWarning` (once, on the first chunk that has
             any).
         tonic_sensor_size: tonic's ``(W, H, P)`` instead of ``sensor_size``.
@@ -89,7 +89,8 @@ def iter_frames(
         >>> [frame.sum(dim=(1, 2)).tolist() for frame in iter_frames(chunks, sensor_size=(1, 1))]
         [[0.0, 2.0], [1.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 3.0]]
     """
-    grid = build_grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype)
+    _check_chunks(chunks)
+    grid = build_grid(sensor_size, tonic_sensor_size, crop, pool, frame_ms, dtype, "iter_frames")
     if n_frames is not None:
         n_frames = check_integer(n_frames, "n_frames")
     step = check_integer(frames_per_step, "frames_per_step")
@@ -107,6 +108,26 @@ def iter_frames(
         return _source(events, time_unit=time_unit, columns=columns)
 
     return _iter_frames(chunks, grid, t_start, starts, frame_ms, n_frames, step, source_of)
+
+
+def _check_chunks(chunks: object) -> None:
+    """Refuse one whole stream where an iterable of chunks belongs (iterating it would yield
+    single rows or records: numpy's ``void``), naming the fix."""
+    whole = None
+    if isinstance(chunks, np.ndarray) and chunks.dtype.names is not None:
+        whole = "a numpy structured array"
+    elif isinstance(chunks, Mapping):
+        whole = "a mapping of columns"
+    elif isinstance(chunks, (np.ndarray, Tensor)) and chunks.ndim == 2:
+        whole = f"an array of shape {tuple(chunks.shape)}"
+    elif type(chunks).__module__.split(".")[0] in ("pandas", "polars") and hasattr(chunks, "columns"):
+        whole = "a data frame"
+    if whole is not None:
+        raise TypeError(
+            f"iter_frames takes an iterable of event chunks, got {whole} (one whole stream): pass [events] "
+            "for one chunk, slices such as (events[i : i + n] for i in range(0, len(events), n)), or bin it "
+            "at once with events_to_frames(events, ...)"
+        )
 
 
 def _iter_frames(

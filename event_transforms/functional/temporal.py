@@ -251,6 +251,7 @@ def temporal_event_shift(
 
 
 @register_kernel(temporal_event_shift, Tensor)
+@torch.compiler.disable
 def temporal_event_shift_frames(
     batch: Tensor,
     shifts: Tensor,
@@ -262,6 +263,9 @@ def temporal_event_shift_frames(
     """Kernel of :func:`temporal_event_shift` on a (B, T, 2, H, W) batch with checked (B,) CPU parameters
     and (B,) int64 per-sample ``seeds`` (any device; unused in mode ``"expected"``);
     ``hint`` ends the error raised for fractional counts.
+
+    Under :func:`torch.compile` it runs eagerly (``torch.compiler.disable``: one silent graph
+    break, not one warned break per host read of its draw); ``fullgraph=True`` cannot hold it.
 
     Host synchronisations: one ``nonzero`` (the active pixels), then one read that checks
     their values and brings back what the sampler needs (the largest count; in exact mode

@@ -30,6 +30,14 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
   bodies in :mod:`~event_transforms.tactile.commands`, the run's figures in
   :mod:`~event_transforms.tactile.figures`).
 
+``__all__`` lists what a user calls: the command line (:func:`main`), the model
+(:class:`~event_transforms.tactile.models.ForceRegressor`), your recordings (:class:`RecordingSet`,
+:func:`load_recording_data`, :func:`export_scene`, :func:`convert_bag`), and each command's Python
+entry point (``reproduce``: :func:`run_protocol` with :class:`ProtocolConfig`; ``train`` /
+``predict``: :func:`train_model` / :func:`predict_stream`; ``simulate`` / ``show-scene``:
+:func:`load_scene_data` / :func:`get_scene`; ``compare``: :func:`run_verdicts`,
+:func:`compare_verdicts`). The protocol's internals are imported from their modules.
+
 Results obtained on the simulated scenes are results on synthetic data, never the paper's.
 """
 
@@ -44,30 +52,38 @@ _SUBMODULES = (
     "deployment", "runs",
 )
 
-#: Public names of the protocol, importable from here (loaded on first use).
-_PROTOCOL_NAMES = (
-    "PAPER_METHODS", "QUICK_METHODS", "PAPER_SCENE", "Method", "parse_method", "methods_for",
-    "ProtocolConfig", "SceneData", "load_scene_data", "MaterializedDataset", "OnlineCopies",
-    "DeviceAugment", "build_training_set", "paired_batches", "run_unit", "run_protocol", "plan_run",
-    "PROGRESS_LEGEND", "summarize_scene", "format_scene_table", "format_budget_check", "format_findings",
-    "format_report",
-)
+#: What a user calls, each the Python entry point of a command or what it reads and writes
+#: (``__all__``): name -> the module that defines it, loaded on first use. The protocol's
+#: internals (``paired_batches``, ``format_budget_check``, ...) are imported from their modules
+#: (:mod:`~event_transforms.tactile.protocol`, :mod:`~event_transforms.tactile.report`, ...).
+_NAMES = {
+    "main": "cli",  # the command line: main(["reproduce", "--plan"])
+    "ForceRegressor": "models",  # the reference model; train's checkpoint (ForceRegressor.load)
+    "RecordingSet": "recordings",  # a folder of your recordings as (frames, force, meta) items
+    "RecordingSettings": "recordings",
+    "load_recording_data": "recordings",  # a folder as the protocol's data (reproduce --data, infer-scene)
+    "export_scene": "recordings",  # simulate --export
+    "convert_bag": "recordings",  # convert
+    "ProtocolConfig": "protocol",
+    "run_protocol": "protocol",  # reproduce
+    "load_scene_data": "protocol",  # a built-in scene's data (simulate)
+    "get_scene": "scenes",  # show-scene
+    "train_model": "deployment",  # train
+    "predict_stream": "deployment",  # predict
+    "run_verdicts": "report",  # compare
+    "compare_verdicts": "report",
+}
 
-#: Public names of :mod:`~event_transforms.tactile.recordings`, importable from here.
-_RECORDING_NAMES = ("RecordingSet", "RecordingSettings", "load_recording_data", "export_scene")
-
-__all__ = [*_SUBMODULES, *_PROTOCOL_NAMES, *_RECORDING_NAMES]
+__all__ = list(_NAMES)
 
 
 def __getattr__(name: str) -> Any:
     if name in _SUBMODULES:
         return importlib.import_module(f"{__name__}.{name}")
-    if name in _RECORDING_NAMES:
-        return getattr(importlib.import_module(f"{__name__}.recordings"), name)
-    if name in _PROTOCOL_NAMES:
-        return getattr(importlib.import_module(f"{__name__}.protocol"), name)
+    if name in _NAMES:
+        return getattr(importlib.import_module(f"{__name__}.{_NAMES[name]}"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+    return sorted(set(globals()) | set(__all__) | set(_SUBMODULES))

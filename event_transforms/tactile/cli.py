@@ -116,8 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
         f"{FULL['seeds']} seeds, {FULL['steps']} steps, channels {FULL['hidden_channels']}, input pool "
         f"{FULL['input_pool']}, every method on every scene. Every run takes the same number of "
         "optimiser steps (one-cycle lr, gradient clipping) and keeps the weights with the lowest MSE on "
-        "hold-out sequences of the training session; every gapped scene's largest |Δ| is rerun at twice "
-        "the steps (the budget check). Interrupted runs resume from the finished units under OUT/runs.",
+        "hold-out sequences of the training session; on every gapped scene none and its pre-declared "
+        "headline (its first matched method) are rerun at twice the steps (the budget check). Interrupted runs resume from the finished units under OUT/runs.",
     )
     rep.add_argument("--full", action="store_true", help="10 seeds, all methods, the paper-size model")
     rep.add_argument("--scenes", nargs="+", default=None, metavar="SCENE",
@@ -133,7 +133,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--lr", type=_positive_float, help="peak learning rate (one-cycle)")
     rep.add_argument("--hidden-channels", type=_channels, help="ConvLSTM channels per layer, e.g. 8,16")
     rep.add_argument("--input-pool", type=_positive, help="the model's first average-pool factor")
-    rep.add_argument("--batch-size", type=_positive, help="sequences per training step")
+    rep.add_argument("--batch-size", type=_positive,
+                     help="sequences per training step (default 8, or a folder's training windows if fewer; more "
+                     "than the training items is refused before training)")
     rep.add_argument("--no-cumulative", action="store_true",
                      help="the model reads only the per-frame counts, not their running sums (ablation)")
     rep.add_argument("--copies", type=_positive, default=1,
@@ -154,8 +156,12 @@ def build_parser() -> argparse.ArgumentParser:
         "more threads than free cores make every step wait for descheduled threads)",
     )
     rep.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    rep.add_argument("--quiet", action="store_true",
+                     help="no progress bars or per-step and per-unit progress lines: the plan, one line per phase "
+                     "and the tables only")
     rep.add_argument("--no-budget-check", action="store_true",
-                     help="skip rerunning none and the largest-|Δ| method at twice the steps on gapped scenes")
+                     help="skip rerunning none and each gapped scene's pre-declared headline (its first matched "
+                     "method) at twice the steps")
     rep.add_argument(
         "--equal-time", action=argparse.BooleanOptionalAction, default=None,
         help="also train every method for the steps its online augmentation leaves in the wall time one "
@@ -192,7 +198,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--seed", type=int, default=0, help="seed of the weights, batches and augmentation")
     train.add_argument("--steps", type=_positive, default=QUICK["steps"], help="optimiser steps")
     train.add_argument("--lr", type=_positive_float, default=QUICK["lr"], help="peak learning rate")
-    train.add_argument("--batch-size", type=_positive, default=QUICK["batch_size"], help="windows per step")
+    train.add_argument("--batch-size", type=_positive, default=None,
+                       help=f"windows per step (default {QUICK['batch_size']}, or the training windows if fewer; "
+                       "more than the training windows is refused)")
     train.add_argument("--hidden-channels", type=_channels, default=QUICK["hidden_channels"],
                        help="ConvLSTM channels per layer")
     train.add_argument("--input-pool", type=_positive, default=QUICK["input_pool"], help="the model's first pool")

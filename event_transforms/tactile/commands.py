@@ -167,17 +167,47 @@ def writable(path: Path | None, flag: str) -> None:
         raise ValueError(f"{flag} {str(path)!r} is not a writable folder ({error.strerror or error})") from None
 
 
+def _quiet_log(line: str) -> None:
+    """``reproduce --quiet``'s log: every line but the per-unit ones (``[rank r] unit k/N ...``) and
+    the legend of the progress lines."""
+    if not (line.startswith("[rank ") or line.startswith("progress lines:")):
+        _print(line)
+
+
+def _default_batch(default: int, data: Any) -> int:
+    """The default batch size, or a folder's training windows where they are fewer (said in one line)."""
+    if len(data.train) >= default:
+        return default
+    _print(f"batch size {len(data.train)}: the folder's {len(data.train)} training windows are fewer than the default "
+           f"{default} (--batch-size sets it, at most the training windows)")
+    return max(1, len(data.train))
+
+
 def _data_methods(scene: Any) -> list[str]:
     """A folder of recordings runs none and the policies it can build (no oracle: the gaps are inferred)."""
-    from .methods import EXTRA_METHODS, _buildable
+    from .methods import EXTRA_METHODS, parse_method
 
-    return ["none", *[m for m in EXTRA_METHODS if _buildable(m, scene)]]
+    kept: list[str] = ["none"]
+    left_out: dict[str, list[str]] = {}
+    for name in EXTRA_METHODS:
+        try:
+            parse_method(name, scene=scene)
+        except ValueError as error:  # grouped by reason: "stretch, inferred (... has none)"
+            left_out.setdefault(str(error).replace(f"method {name!r} ", ""), []).append(name)
+        else:
+            kept.append(name)
+    if left_out:
+        _print(f"default rows: {', '.join(kept)}; left out, as the scene cannot build them: "
+               + "; ".join(f"{', '.join(names)} ({reason})" for reason, names in left_out.items())
+               + (". With no gap inferred there is nothing to compare: only none is trained (--methods names other "
+                  "rows, e.g. --methods none rot50 fs2)" if kept == ["none"] else ""))
+    return kept
 
 
 def _plan_time(plan: dict[str, Any], chosen: dict[str, Any], scenes: list[str], seeds: list[int], config: Any,
                jobs: int, shared: int, curve: int) -> str:
     """The run's time from the committed cost table, where it covers the run: the member-steps
-    trained (shared members not counted; the budget check unshared, an upper bound) × the
+    trained (shared members not counted, in the main phase and the budget check) × the
     table's seconds per member-step, over ``jobs``."""
     from .protocol.costs import QUICK_COST_TABLE, cost_key, equal_cost_steps, load_cost_table
 
@@ -187,8 +217,8 @@ def _plan_time(plan: dict[str, Any], chosen: dict[str, Any], scenes: list[str], 
     ratios = table["ratios"]
     equal = sum(equal_cost_steps(config.steps, ratios.get(s, {}).get(m, 1.0)) for s in scenes for m in chosen[s]
                 if m != "none" and equal_cost_steps(config.steps, ratios.get(s, {}).get(m, 1.0)) < config.steps)
-    trained = (plan["member_steps"] - shared * len(seeds) * config.steps + plan["budget_member_steps"]
-               + equal * len(seeds) + curve)
+    main = plan.get("trained_member_steps", plan["member_steps"] - shared * len(seeds) * config.steps)
+    trained = main + plan.get("budget_trained_member_steps", plan["budget_member_steps"]) + equal * len(seeds) + curve
     seconds = trained * float(table["ensemble_s_per_member_step"]) / max(jobs, 1)
     return (f"time: about {seconds / 60:.0f} min of training for at most {trained:,} member-steps at "
             f"{table['ensemble_s_per_member_step'] * 1e3:.1f} ms per member-step over {jobs} job(s) (the cost table's "
@@ -229,7 +259,8 @@ def reproduce(args: argparse.Namespace) -> int:
         given = {recorded.scene.name: recorded}
     config = ProtocolConfig(
         steps=args.steps or base["steps"],
-        batch_size=args.batch_size or base["batch_size"],
+        batch_size=args.batch_size or (base["batch_size"] if given is None else
+                                       _default_batch(base["batch_size"], next(iter(given.values())))),
         lr=args.lr or base["lr"],
         eval_every=base["eval_every"],
         hidden_channels=tuple(args.hidden_channels or base["hidden_channels"]),
@@ -247,6 +278,11 @@ def reproduce(args: argparse.Namespace) -> int:
         _print(f"inferred scene: gaps {list(given[scenes[0]].scene.gaps) or 'none'} "
                f"(from {given[scenes[0]].dataset['inferred_from']})")
     chosen = choose_methods(scenes, methods, full=args.full, data=given)
+    if given is not None:  # every limit of the data before any training (built-in scenes: in run_protocol)
+        from .protocol.limits import check_run_limits
+
+        for note in check_run_limits(given, chosen, config, cli=True):
+            _print(note)
     equal_time = base["equal_time"] if args.equal_time is None else args.equal_time
     plan = plan_run(scenes, chosen, seeds, config, group=args.group, budget_check=not args.no_budget_check,
                     data=given, equal_time=equal_time)
@@ -254,19 +290,16 @@ def reproduce(args: argparse.Namespace) -> int:
         _print(f"plan: scenes {scenes}, {len(seeds)} seeds, {config.steps} steps per run")
         for scene, names in chosen.items():
             _print(f"  {scene}: {', '.join(names)}")
-        _print(f"{plan['units']} units, {plan['members']} members (method × seed), {plan['member_steps']:,} "
-               f"member-steps; budget check on {plan['budget_check_scenes']}: {plan['budget_units']} units, "
-               f"{plan['budget_member_steps']:,} member-steps at {2 * config.steps} steps; total "
-               f"{plan['total_member_steps']:,} member-steps (× the seconds per member-step a unit reports)")
         from .copies import load_scene_data
+        from .protocol.run import count_phases, phase_units, plan_line
         from .protocol.shared import plan_sharing
 
         data = given or {s: load_scene_data(s, None if args.root is None else str(args.root)) for s in scenes}
-        sharing = plan_sharing(chosen, data)
-        _print(f"train once: {sharing.shared * len(seeds)} of the {plan['members']} members read exactly what a member "
-               f"of another scene reads (training data, built policy, seed) and borrow its weights: "
-               f"{plan['member_steps'] - sharing.shared * len(seeds) * config.steps:,} member-steps are trained "
-               "in the main phase (the budget check and equal time share the same way)")
+        phases = phase_units(scenes, chosen, args.group, data, plan["budget_check_scenes"], equal_time, given)
+        sharing = phases.sharing
+        count_phases(plan, phases, seeds, config)
+        _print(plan_line(plan, config) + " (× the seconds per member-step a unit reports); budget check on "
+               f"{plan['budget_check_scenes']}")
         if equal_time:
             none_only = {s: ("none",) for s in scenes}
             trained_none = len(scenes) - plan_sharing(none_only, data).shared
@@ -300,11 +333,13 @@ def reproduce(args: argparse.Namespace) -> int:
                 m in committed["ratios"].get(s, {}) for s in scenes for m in chosen[s]):
             cost_table = QUICK_COST_TABLE
     start = time.perf_counter()
+    quiet = getattr(args, "quiet", False)
     results = run_protocol(
         scenes, seeds, args.out, config=config, methods=chosen, full=args.full,
         root=None if args.root is None else str(args.root), jobs=1 if distributed else jobs,
-        device=device, threads=threads, group=args.group, log=_print, budget_check=not args.no_budget_check,
-        data=given, equal_time=equal_time, cost_table=cost_table,
+        device=device, threads=threads, group=args.group, log=_quiet_log if quiet else _print,
+        progress=False if quiet else None, budget_check=not args.no_budget_check,
+        data=given, equal_time=equal_time, cost_table=cost_table, cli=True,
     )
     if not results:  # a torchrun rank other than 0
         return 0
@@ -502,6 +537,17 @@ def train(args: argparse.Namespace) -> int:
     data = load_recordings(args, deployment=False)
     if args.policy == "inferred" and not data.dataset["windows"]["val"] + data.dataset["windows"]["unlabeled"]:
         raise ValueError("--policy inferred needs deployment recordings (role deploy) to infer the gaps from")
+    if args.batch_size is None:
+        args.batch_size = _default_batch(QUICK["batch_size"], data)
+    if args.batch_size > len(data.train):
+        raise ValueError(f"--batch-size {args.batch_size} is more than the {len(data.train)} training windows "
+                         f"({data.dataset['recordings']['train']} recordings): a step would repeat windows within "
+                         f"its batch; give --batch-size {len(data.train)} or fewer")
+    from .protocol.limits import holdout_note
+
+    note = holdout_note(data)
+    if note:
+        _print(note)
     start = time.perf_counter()
     model, summary = train_model(
         data, args.policy, steps=args.steps, batch_size=args.batch_size, lr=args.lr,
@@ -512,8 +558,10 @@ def train(args: argparse.Namespace) -> int:
     preprocessing = {**settings, "force_offset_n": summary["force_offset"], "force_scale_n": summary["force_scale"],
                      "policy": args.policy, "data": {k: data.dataset[k] for k in ("folder", "content_hash", "files")}}
     model.save(args.out, preprocessing=preprocessing)
+    kept = (f"kept step {summary['kept_step']}, hold-out MSE {summary['holdout_mse']:.3g} N²" if not note else
+            f"final weights kept: no hold-out ({data.dataset['recordings']['train']} training recordings)")
     _print(f"trained with policy {args.policy!r} for {args.steps} steps in {time.perf_counter() - start:.1f} s "
-           f"(kept step {summary['kept_step']}, hold-out MSE {summary['holdout_mse']:.3g} N²); " + (
+           f"({kept}); " + (
                f"validation MSE {summary['val_mse']:.3g} N², test MSE {summary['test_mse']:.3g} N² on "
                f"{data.dataset['recordings']['test']} test recordings" if len(data.test) else
                "not scored: the folder holds no labelled deployment recordings"))

@@ -58,10 +58,18 @@ def train_model(
         progress: a progress bar (``None``: when stderr is a terminal).
 
     Returns:
-        The model (eval mode) and a summary: the kept step, hold-out, validation and test MSE.
+        The model (eval mode) and a summary: the kept step, hold-out, validation and test MSE
+        (the hold-out MSE is NaN, and the final weights are kept, without a hold-out set:
+        :func:`~event_transforms.tactile.protocol.limits.holdout_note` says why).
+
+    Raises:
+        ValueError: ``batch_size`` larger than the training windows (before any training).
     """
     from .training import evaluate, mse, train
 
+    if batch_size > len(data.train):  # before any training, named as this interface spells it
+        raise ValueError(f"batch_size={batch_size} is more than the {len(data.train)} training windows: a step would "
+                         f"repeat windows within its batch; give batch_size={len(data.train)} or fewer")
     trained = train(data, [method], [seed], steps=steps, batch_size=batch_size, lr=lr, eval_every=eval_every,
                     hidden_channels=tuple(hidden_channels), input_pool=input_pool, device=device, progress=progress,
                     description=f"train {method}")

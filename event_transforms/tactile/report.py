@@ -194,7 +194,7 @@ def budget_word(check: dict[str, Any]) -> str:
     return "robust" if check["robust"] else "not robust"
 
 
-def format_budget_check(check: dict[str, Any] | None) -> str:
+def format_budget_check(check: dict[str, Any] | None, *, skipped: bool = False) -> str:
     """One line: the scene's pre-declared headline (its matched method) at the run's steps and at
     twice as many, judged with the Bonferroni interval's half-width.
 
@@ -204,6 +204,8 @@ def format_budget_check(check: dict[str, Any] | None) -> str:
         'budget check of the headline: fs2 Δ -4.21 at 400 steps, -3.01 at 800 (Bonferroni half-width 1.15): not robust (the verdict moves with the budget)'
     """
     if not check:
+        if skipped:
+            return "budget check: not run (--no-budget-check, or budget_check=False)"
         return "budget check: not run (no gap, or no matched method beside none)"
     verdict = {"robust": "robust (same sign, moved less than the Bonferroni half-width)",
                "not robust": "not robust (the verdict moves with the budget)",
@@ -235,6 +237,25 @@ def format_physics_comparison(summary: dict[str, Any]) -> str:
             f"{physics['test_mse']:.2f}: {verdict}")
 
 
+def withheld_reason(delta: dict[str, Any]) -> str:
+    """Why a Δ prints no resolved verdict, in a few words (for the findings' sentences).
+
+    Example:
+        >>> withheld_reason({"not_converged": True, "ci_family": [-3.8, -2.6]})
+        'not converged: the side behind was still improving at the step cap'
+        >>> withheld_reason({"ci_family": [-0.8, 0.4]})
+        'its Bonferroni interval includes 0'
+    """
+    if delta.get("not_converged"):
+        return "not converged: the side behind was still improving at the step cap"
+    if delta.get("borderline"):
+        return "borderline: the interval excludes 0 but one block of seeds points the other way"
+    ci = delta.get("ci_family") or delta.get("ci95")
+    if ci is not None and (ci[1] < 0 or ci[0] > 0):
+        return "its Holm-corrected p is above 0.05"
+    return "its Bonferroni interval includes 0"
+
+
 def format_findings(name: str, summary: dict[str, Any]) -> list[str]:
     """One sentence per method: what it buys (Δ test MSE and its family-wise interval),
     against the matched row for the policy rows, and what it costs."""
@@ -257,14 +278,18 @@ def format_findings(name: str, summary: dict[str, Any]) -> list[str]:
         if delta is None or not (delta.get("ci_family") or delta.get("ci95")):
             continue
         lo, hi = delta.get("ci_family") or delta["ci95"]
-        verdict = ("buys" if hi < 0 else "costs") if significant(delta) else "shows no resolved change:"
+        verdict = (("buys" if hi < 0 else "costs") if significant(delta) else
+                   f"shows no resolved change ({withheld_reason(delta)}):")
         text = (f"{name} / {method}: {verdict} {delta['mean']:+.2f} N² test MSE vs none (Bonferroni 95 % CI {lo:+.2f} "
                 f"to {hi:+.2f}, {delta.get('better_seeds', '?')}/{delta['n']} seeds better)")
         vs = s.get("delta_vs_matched")
         if vs and vs.get("ci_family"):
             mlo, mhi = vs["ci_family"]
-            word = ("better than" if mhi < 0 else "worse than") if significant(vs) else "not resolved from"
-            text += (f"; {word} the matched {s['matched_row']} by {vs['mean']:+.2f} N² (Bonferroni 95 % CI {mlo:+.2f} "
+            word = (("better than" if mhi < 0 else "worse than") if significant(vs) else
+                    f"not resolved ({withheld_reason(vs)}) from")
+            row = s["matched_row"]
+            matched = "the matched row" if row == "matched" else f"the matched row {row}"
+            text += (f"; {word} {matched} by {vs['mean']:+.2f} N² (Bonferroni 95 % CI {mlo:+.2f} "
                      f"to {mhi:+.2f}, {vs['better_seeds']}/{vs['n']} seeds better)")
         wall = s.get("single_wall_s")
         cost = f"{s['aug_s_once']:.2f} s of augmentation once"
@@ -376,7 +401,8 @@ def format_report(results: dict[str, Any], *, timings: bool = True) -> str:
         parts.append(format_physics_comparison(summary))
         parts.append("")
         if summary["gaps"]:
-            parts.append(format_budget_check(summary.get("budget_check")))
+            parts.append(format_budget_check(summary.get("budget_check"),
+                                             skipped=results.get("config", {}).get("budget_check") is False))
             parts.append("")
         parts.extend(f"- {line}" for line in format_findings(name, summary))
         parts.append("")

@@ -62,6 +62,7 @@ __all__ = [
     "collate",
     "mse",
     "phase_mse",
+    "PHASE_EDGE",
     "write_json_atomic",
 ]
 
@@ -658,7 +659,11 @@ def mse(pred: Tensor, target: Tensor) -> float:
     return float((pred.double() - target.double()).square().mean())
 
 
-def phase_mse(pred: Tensor, target: Tensor, *, edge: int = 5) -> dict[str, float]:
+#: Frames of the grasp and of the release phase that :func:`phase_mse` scores apart.
+PHASE_EDGE = 5
+
+
+def phase_mse(pred: Tensor, target: Tensor, *, edge: int = PHASE_EDGE) -> dict[str, float]:
     """MSE per grasp phase: ``grasp`` (first ``edge`` frames), ``hold``, ``release`` (last).
 
     Args:
@@ -674,7 +679,8 @@ def phase_mse(pred: Tensor, target: Tensor, *, edge: int = 5) -> dict[str, float
     """
     steps = pred.shape[-1]
     if steps <= 2 * edge:
-        raise ValueError(f"phase_mse needs more than 2 * edge = {2 * edge} frames, got {steps}")
+        raise ValueError(f"phase_mse needs more than 2 * edge = {2 * edge} frames, got {steps} (windows of at least "
+                         f"{2 * edge + 1} frames: frames= in Python, --frames on the command line)")
     err = (pred.double() - target.double()).square()
     return {
         "grasp": float(err[..., :edge].mean()),

@@ -1,8 +1,13 @@
-"""Transform modules (settings + per-sample parameter draws) and containers."""
+"""Transform modules (settings + per-sample parameter draws) and containers.
+
+``__all__`` lists the transforms; the names for writing one (:class:`EventTransform`, ``Param``,
+``Params``, ``as_transform``) are importable from here and listed in :mod:`event_transforms.authoring`.
+"""
 
 from __future__ import annotations
 
-from .base import EventTransform, Lambda, Param, Params, as_transform
+from .base import Lambda
+from .base import EventTransform as EventTransform, Param as Param, Params as Params, as_transform as as_transform
 from .affine import *  # noqa: F401,F403
 from .affine import __all__ as _affine
 from .stretch import *  # noqa: F401,F403
@@ -26,7 +31,9 @@ from .containers import __all__ as _containers
 from .events import *  # noqa: F401,F403
 from .events import __all__ as _events
 
+# The transforms only; the authoring names (EventTransform, Param, Params, as_transform) are
+# importable from here too, and listed in event_transforms.authoring.
 __all__ = [
-    "EventTransform", "Param", "Params", "Lambda", "as_transform",
+    "Lambda",
     *_affine, *_stretch, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_containers, *_events,
 ]

@@ -18,7 +18,7 @@ dtypes and shapes are checked, their ranges are not. The reads run inside the pr
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, Protocol, Union
 
 import torch
@@ -102,8 +102,32 @@ class _CheckedParams(dict):
         )
 
 
-def slice_params(params: Params, index: Tensor) -> Params:
-    """The parameters of the samples ``index`` (a CPU int64 tensor): every leaf indexed on dim 0."""
+def slice_params(params: Params, index: Tensor | Sequence[int]) -> Params:
+    """The parameters of the samples ``index`` of a params tree: every leaf indexed on dim 0.
+
+    Public as :func:`event_transforms.authoring.slice_params`: a sample's output is a function
+    of its own input and its own slice of the tree, so ``module(x[i:i+1], params=slice_params(tree,
+    [i]))`` equals ``module(x, params=tree)[i:i+1]`` (a logged sample replays alone).
+
+    Args:
+        params: a tree from ``module.make_params`` (nested dicts of ``(B, ...)`` CPU tensors).
+        index: the samples to keep: a sequence of ints or a CPU int64 tensor.
+
+    Shape:
+        - params: leaves ``(B, ...)``.
+        - output: leaves ``(len(index), ...)``.
+
+    Returns:
+        The same tree, each leaf indexed on its first dimension.
+
+    Example:
+        >>> import event_transforms as et
+        >>> tree = et.RandomRotation(30.0).make_params((4, 6, 2, 8, 8), generator=torch.Generator().manual_seed(0))
+        >>> tree["angle"].shape, slice_params(tree, [2])["angle"].shape
+        (torch.Size([4]), torch.Size([1]))
+    """
+    if not isinstance(index, Tensor):
+        index = torch.as_tensor(list(index), dtype=torch.int64)
     out = type(params)()
     if isinstance(params, _CheckedParams) and isinstance(out, _CheckedParams):
         out.owner = params.owner

@@ -5,6 +5,7 @@ tv_tensors.Video, tonic-style frames)."""
 from __future__ import annotations
 
 import pickle
+import warnings
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from torch import nn
 from torch.utils.data import DataLoader, Dataset
 
 import event_transforms as et
+from event_transforms import functional as F
 from event_transforms.transforms._params import check_tree
 from event_transforms.transforms.base import slice_params
 
@@ -543,3 +545,105 @@ class TestRawAndSilentCases:
     def test_augmented_dataset_base_checked_at_construction(self):
         with pytest.raises(TypeError, match="base must be a map-style data set .* got int 5"):
             et.AugmentedDataset(5, et.HorizontalFlip())
+
+
+def _dvxplorer(n: int = 4000, seed: int = 0, span_us: int = 590_000) -> dict[str, np.ndarray]:
+    """A 240×320 DVXplorer-like stream with absolute microsecond timestamps (as tonic reads them)."""
+    rng = np.random.default_rng(seed)
+    return {"x": rng.integers(0, 320, n), "y": rng.integers(0, 240, n),
+            "t": 1_600_000_000_000_000 + np.sort(rng.integers(0, span_us, n)), "p": rng.integers(0, 2, n)}
+
+
+def _with_t(events: dict[str, np.ndarray], t: np.ndarray) -> dict[str, np.ndarray]:
+    return {**events, "t": t}
+
+
+class TestUnitsAndWindows:
+    """The bad-input battery's unit and window cases (issue 44): a timestamp span, ``frame_ms``,
+    sensor size or window that only makes sense in another unit or order is refused, or warned
+    about with the numbers and the fix; never binned silently."""
+
+    def test_epoch_nanoseconds_without_a_unit_are_refused(self):
+        events = _dvxplorer()
+        ns = _with_t(events, events["t"] * 1000)
+        with pytest.raises(ValueError, match=r"as microseconds since the epoch is the year .*Pass time_unit='ns'"):
+            F.events_to_frames(ns, sensor_size=(240, 320), n_frames=36)
+        assert torch.equal(F.events_to_frames(ns, sensor_size=(240, 320), n_frames=59, time_unit="ns"),
+                           F.events_to_frames(events, sensor_size=(240, 320), n_frames=59))
+
+    def test_relative_nanoseconds_in_a_window_warn_with_the_unit(self):
+        events = _dvxplorer()
+        ns = _with_t(events, (events["t"] - events["t"][0]) * 1000)
+        with pytest.warns(et.events.EventsOutsideWindowWarning, match=r"0\.06\d? % of the events' span.*time_unit"):
+            F.events_to_frames(ns, sensor_size=(240, 320), n_frames=36)
+
+    def test_float_seconds_under_time_unit_us_are_refused(self):
+        events = _dvxplorer()
+        seconds = _with_t(events, (events["t"] - events["t"][0]) / 1e6)
+        with pytest.raises(ValueError, match=r"under time_unit='us': 4,000 events span 0\.5\d+ us .* look like seconds"):
+            F.events_to_frames(seconds, sensor_size=(240, 320), time_unit="us")
+        assert F.events_to_frames(seconds, sensor_size=(240, 320), time_unit="s").shape[0] == 59
+
+    def test_frame_ms_in_seconds_names_frame_ms(self):
+        with pytest.raises(ValueError, match=r"frame_ms is in milliseconds: frame_ms=0\.01 makes bins of 10 µs "
+                                             r"\(if 0\.01 s was meant, pass frame_ms=10\)"):
+            F.events_to_frames(_dvxplorer(), sensor_size=(240, 320), frame_ms=0.01)
+
+    def test_no_sensor_size_is_required_as_by_the_module(self):
+        with pytest.raises(TypeError, match=r"events_to_frames needs sensor_size=\(H, W\)"):
+            F.events_to_frames(_dvxplorer())
+        with pytest.raises(TypeError, match=r"EventsToFrames needs sensor_size=\(H, W\)"):
+            et.EventsToFrames()
+
+    def test_w_first_sensor_size_names_the_swap(self):
+        with pytest.warns(et.events.EventsOutsideSensorWarning) as record:
+            F.events_to_frames(_dvxplorer(), sensor_size=(320, 240))
+        w = record[0].message
+        assert w.swapped and w.suggested_sensor_size == (240, 320)
+        assert "sensor_size is (H, W), height first: a sensor 320 wide and 240 high is sensor_size=(240, 320)" in str(w)
+        assert f"{w.dropped:,} of 4,000 events" in str(w)
+
+    def test_rows_with_x_and_y_swapped_name_the_swap(self):
+        events = _dvxplorer()
+        rows = np.stack([events["y"], events["x"], events["t"], events["p"]], 1)
+        with pytest.warns(et.events.EventsOutsideSensorWarning) as record:
+            F.events_to_frames(rows, sensor_size=(240, 320))
+        w = record[0].message
+        assert w.swapped and "with x and y exchanged: if the rows are (y, x, t, p), pass columns='yxtp'" in str(w)
+        assert torch.equal(F.events_to_frames(rows, sensor_size=(240, 320), columns="yxtp"),
+                           F.events_to_frames(events, sensor_size=(240, 320)))
+
+    def test_a_stream_past_its_declared_window_warns_where_the_batch_is_built(self):
+        rng = np.random.default_rng(1)
+        n = 5000
+        stream = torch.from_numpy(np.stack([rng.integers(0, 320, n), rng.integers(0, 240, n),
+                                            np.sort(rng.integers(0, 920_000, n)), rng.integers(0, 2, n)], 1))
+        with pytest.warns(et.events.EventsOutsideWindowWarning) as record:
+            batch = et.EventBatch.from_streams([stream], sensor_size=(240, 320), frame_ms=10.0, n_frames=36, t_start=0)
+        w = record[0].message
+        outside = int((stream[:, 2] >= 360_000).sum())
+        assert (w.dropped, w.total, w.per_stream) == (outside, n, [(outside, n)]) and record[0].filename == __file__
+        assert f"{outside:,} of 5,000 events" in str(w) and "EventBatch.from_streams(t_start=0, n_frames=36" in str(w)
+        assert int(F.bin_events(batch).sum()) == n - outside
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # a window that holds the streams: no warning
+            et.EventBatch.from_streams([stream], sensor_size=(240, 320), frame_ms=10.0, n_frames=92, t_start=0)
+
+    def test_collate_unequal_force_lengths_names_the_items(self):
+        events = np.zeros(3, dtype=[("x", "<i2"), ("y", "<i2"), ("t", "<i8"), ("p", "<i1")])
+        items = [(events, torch.zeros(35)), (events, torch.zeros(36)), (events, torch.zeros(35))]
+        with pytest.raises(ValueError, match=r"most are \(35,\), but item 1: \(36,\) \(lengths \[35, 36\]\)"):
+            F.collate_events(items, sensor_size=(4, 4))
+
+    def test_collate_dict_items_says_what_to_pass(self):
+        events = np.zeros(3, dtype=[("x", "<i2"), ("y", "<i2"), ("t", "<i8"), ("p", "<i1")])
+        with pytest.raises(TypeError, match=r"dict with keys \['events', 'force'\].*Return \(item\['events'\], "
+                                            r"item\['force'\]\)"):
+            F.collate_events([{"events": events, "force": torch.zeros(3)}], sensor_size=(4, 4))
+
+    def test_iter_frames_of_a_whole_structured_array(self):
+        events = np.zeros(3, dtype=[("x", "<i2"), ("y", "<i2"), ("t", "<i8"), ("p", "<i1")])
+        with pytest.raises(TypeError, match=r"iter_frames takes an iterable of event chunks, got a numpy structured "
+                                            r"array \(one whole stream\): pass \[events\]"):
+            F.iter_frames(events, sensor_size=(4, 4))
+        assert len(list(F.iter_frames([events], sensor_size=(4, 4)))) == 1

@@ -11,6 +11,7 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import event_transforms as et
 from event_transforms.events.binning import events_to_frames
 from event_transforms.events.drops import EventsOutsideSensorWarning, EventsOutsideWindowWarning
 from event_transforms.events.streaming import iter_frames
@@ -84,7 +85,8 @@ class TestEventsToFrames:
         crop = (20, 45, 140, 150)
         with pytest.warns(EventsOutsideSensorWarning):
             got = events_to_frames(
-                structured(x, y, t, p), t_start=0, n_frames=36, crop=crop, pool=2, dtype=torch.int64
+                structured(x, y, t, p), sensor_size=(180, 240), t_start=0, n_frames=36, crop=crop, pool=2,
+                dtype=torch.int64,
             )
         expected = reference(
             x, y, t, p, t_start=0, frame_ms=10.0, n_frames=36, sensor_size=(180, 240),
@@ -166,7 +168,7 @@ class TestEventsToFrames:
             assert torch.equal(got[i], one)
 
     def test_batch_of_zero_streams(self):
-        got = events_to_frames(torch.zeros(0, 5, 4), n_frames=36, lengths=torch.zeros(0, dtype=torch.long))
+        got = events_to_frames(torch.zeros(0, 5, 4), sensor_size=(180, 240), n_frames=36, lengths=torch.zeros(0, dtype=torch.long))
         assert got.shape == (0, 36, 2, 180, 240)
 
     @pytest.mark.parametrize(
@@ -232,11 +234,11 @@ class TestEventsToFrames:
         with pytest.raises(ValueError, match="fields"):
             events_to_frames(np.zeros(2, dtype=[("x", int), ("y", int), ("t", int)]))
         with pytest.raises(ValueError, match="lengths"):
-            events_to_frames(torch.zeros(5, 4), lengths=[5])
+            events_to_frames(sensor_size=(180, 240), events=torch.zeros(5, 4), lengths=[5])
         with pytest.raises(ValueError, match="lengths"):
-            events_to_frames(torch.zeros(2, 5, 4), lengths=[5, 6])
+            events_to_frames(sensor_size=(180, 240), events=torch.zeros(2, 5, 4), lengths=[5, 6])
         with pytest.raises(ValueError, match="mask"):
-            events_to_frames(torch.zeros(2, 5, 4), mask=torch.ones(2, 4, dtype=torch.bool))
+            events_to_frames(sensor_size=(180, 240), events=torch.zeros(2, 5, 4), mask=torch.ones(2, 4, dtype=torch.bool))
 
 
 class TestEventsToFramesProperties:
@@ -350,7 +352,9 @@ class TestRealRecordings:
         base = 2**62 + 3  # float64 would round this to a multiple of 1024
         events = {"x": [0, 0, 0], "y": [0, 0, 0], "t": np.array([base, base + 9_999, base + 10_000], np.uint64),
                   "p": [1, 1, 1]}
-        got = events_to_frames(events, sensor_size=(1, 1), t_start="first", dtype=torch.int64)
+        with pytest.raises(ValueError, match="nanoseconds. Pass time_unit='ns'"):  # past the year 5138 as µs
+            events_to_frames(events, sensor_size=(1, 1), t_start="first", dtype=torch.int64)
+        got = events_to_frames(events, sensor_size=(1, 1), t_start="first", dtype=torch.int64, time_unit="us")
         assert got[:, 1, 0, 0].tolist() == [2, 1]
 
     def test_uint64_rows_numpy_and_torch(self):
@@ -462,12 +466,23 @@ class TestRealRecordings:
     def test_wrong_sensor_warns_with_counts_and_the_fitting_size(self):
         events = recording(np.random.default_rng(7), 1000)  # a 240×320 DVXplorer
         with pytest.warns(EventsOutsideSensorWarning) as record:
-            got = events_to_frames(events)  # default (180, 240), the paper's DAVIS240
+            got = events_to_frames(events, sensor_size=(180, 240))  # the paper's DAVIS240
         outside = int(((events["x"] >= 240) | (events["y"] >= 180)).sum())
         warning = record[0].message
         assert (warning.dropped, warning.total, warning.sensor_size) == (outside, 1000, (180, 240))
-        assert warning.suggested_sensor_size == (240, 320) and str(warning) == EventsOutsideSensorWarning.MESSAGE
+        assert warning.suggested_sensor_size == (240, 320) and not warning.swapped
+        assert f"{outside:,} of 1,000 events" in str(warning) and "fit sensor_size=(240, 320)" in str(warning)
         assert int(got.sum()) == 1000 - outside
+
+    def test_no_sensor_size_is_refused_as_by_the_module(self):
+        """No silent DAVIS240 (issue 44): the function asks for the size as EventsToFrames does."""
+        events = recording(np.random.default_rng(7), 100)
+        with pytest.raises(TypeError, match=r"events_to_frames needs sensor_size=\(H, W\) or tonic_sensor_size"):
+            events_to_frames(events)
+        with pytest.raises(TypeError, match=r"EventsToFrames needs sensor_size=\(H, W\)"):
+            et.EventsToFrames(n_frames=4)
+        with pytest.raises(TypeError, match="iter_frames needs sensor_size"):
+            list(et.functional.iter_frames([events]))
 
     def test_no_warning_for_the_crop_and_a_count_for_the_window_asked_for(self):
         """A crop drops events by design (no warning); a window the caller asked for drops

@@ -74,7 +74,7 @@ class TestEstimators:
         assert "timing" not in scene.gaps
         verdict = scene.evidence["verdicts"]["timing"]
         limit = scene.evidence["timing"]["resolvable_limit"]
-        assert limit > 3.0 and verdict.startswith("not resolvable from 4 unlabeled recordings"), verdict
+        assert limit > 3.0 and verdict.startswith("not resolvable from 4 unlabeled deployment windows"), verdict
 
     def test_policy_runs_on_a_batch(self):
         train = _strips(12, 3, seed=1)
@@ -157,7 +157,7 @@ class TestSimulatedScenes:
             assert set(scene.gaps) == expected, name
             if name in one_frame:
                 verdict = scene.evidence["verdicts"]["timing"]
-                assert verdict.startswith("not resolvable from 24 unlabeled recordings"), (name, verdict)
+                assert verdict.startswith("not resolvable from 24 unlabeled deployment windows"), (name, verdict)
                 assert scene.evidence["timing"]["resolvable_limit"] > 10.0
         assert inferred["control"][0].evidence["verdicts"]["orientation"] == "no gap"
 

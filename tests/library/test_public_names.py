@@ -18,7 +18,13 @@ from tests.support.checkers import H, W
 
 ROOT = Path(__file__).resolve().parents[2]
 #: Public names of ``transforms`` that are not transforms of frames or events.
-NOT_TRANSFORMS = {"EventTransform", "Param", "Params", "Lambda", "as_transform"}
+NOT_TRANSFORMS = {"Lambda"}
+#: What writing a transform needs: event_transforms.authoring, apart from the transforms (issue 44).
+AUTHORING = {"EventTransform", "Param", "Params", "as_transform", "check_args", "slice_params"}
+#: What a user of the application calls: event_transforms.tactile.__all__ (issue 44).
+TACTILE = {"main", "ForceRegressor", "RecordingSet", "RecordingSettings", "load_recording_data", "export_scene",
+           "convert_bag", "ProtocolConfig", "run_protocol", "load_scene_data", "get_scene", "train_model",
+           "predict_stream", "run_verdicts", "compare_verdicts"}
 CONTAINERS = {"Compose", "OneOf", "RandomApply"}
 #: Take events but change the sensor or the grid, which the event battery's checks assume kept:
 #: their event kernels are tested in TestOnEvents of their topic file (crops against frames).
@@ -90,3 +96,33 @@ def test_functional_all_holds_every_dispatcher_and_kernel():
             assert kernel.__name__ == dispatcher.__name__ + suffix, (dispatcher.__name__, kernel.__name__)
             assert kernel.__name__ in names and getattr(F, kernel.__name__) is kernel
     assert len(names) == len(F.__all__), "functional.__all__ holds a name twice"
+
+
+def test_authoring_names_have_their_own_namespace():
+    """The transforms are what ``et.__all__`` and ``transforms.__all__`` list; the names for writing
+    one are in ``event_transforms.authoring`` (documented), still importable where they were."""
+    from event_transforms import authoring
+
+    assert set(authoring.__all__) == AUTHORING
+    assert not AUTHORING & set(et.__all__) and not AUTHORING & set(T.__all__)
+    assert "authoring" in et.__all__
+    for name in AUTHORING:
+        assert getattr(et, name) is getattr(authoring, name)  # the old spelling still works
+    for name in ("EventTransform", "Param", "Params", "as_transform"):
+        assert getattr(T, name) is getattr(authoring, name)
+    assert authoring.slice_params.__doc__ and "Example" in authoring.slice_params.__doc__
+    assert "::: event_transforms.authoring" in (ROOT / "docs" / "api" / "index.md").read_text()
+    assert "from event_transforms.authoring import slice_params" in (ROOT / "docs" / "transforms.md").read_text()
+
+
+def test_tactile_all_lists_what_a_user_calls():
+    from event_transforms import tactile
+    from event_transforms.tactile import protocol, report
+
+    assert set(tactile.__all__) == TACTILE
+    for name in tactile.__all__:
+        assert getattr(tactile, name) is not None
+    assert tactile.ForceRegressor.__name__ == "ForceRegressor" and callable(tactile.main)
+    # the protocol's internals stay importable from their modules, not from the application's namespace
+    assert callable(protocol.paired_batches) and callable(report.format_budget_check)
+    assert not {"paired_batches", "format_budget_check", "run_unit", "plan_run"} & set(tactile.__all__)

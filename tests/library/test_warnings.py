@@ -69,17 +69,29 @@ def test_a_100_batch_loop_warns_at_most_once_per_cause():
     assert dropped_by_design > 0  # rotation, jitter and TES dropped events by design: counted, not warned
 
 
-def test_the_message_is_fixed_and_the_counts_are_attributes():
+def test_the_message_gives_the_numbers_and_the_counts_are_attributes():
     events = torch.tensor([[1, 1, 0, 1], [30, 1, 10, 0], [2, 2, 20, 1]])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         F.events_to_frames(events, sensor_size=(4, 4))
         F.events_to_frames(events[:2], sensor_size=(4, 4))
     first, second = (w.message for w in caught)
-    assert str(first) == str(second) == EventsOutsideSensorWarning.MESSAGE
+    assert str(first).startswith(EventsOutsideSensorWarning.MESSAGE) and str(second).startswith(
+        EventsOutsideSensorWarning.MESSAGE)
+    assert "1 of 3 events (33.3 %)" in str(first) and "fit sensor_size=(4, 31)" in str(first)
+    assert "1 of 2 events (50.0 %)" in str(second)
     assert (first.dropped, first.total, first.suggested_sensor_size) == (1, 3, (4, 31))
     assert (second.dropped, second.total) == (1, 2)
     assert all(w.filename == __file__ for w in caught)
+
+
+def test_numbered_messages_still_show_once_per_line_under_the_default_filter():
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.resetwarnings()
+        warnings.simplefilter("default")
+        for n in range(2, 6):  # a different count each call, one line
+            F.events_to_frames(torch.tensor([[30, 1, 0, 1]] * n + [[1, 1, 0, 1]]), sensor_size=(4, 4))
+    assert len(caught) == 1 and "2 of 3 events" in str(caught[0].message)
 
 
 def test_transforms_never_warn_for_what_they_drop_by_design():

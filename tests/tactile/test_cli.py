@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 import torch
@@ -537,8 +539,10 @@ class TestCommandLine:
         printed = capsys.readouterr().out
         # control: 4 methods (no gap, so no policy rows), timing: 3 + inferred, prior, everything;
         # budget check on timing only: none + one method at 200 steps
-        assert "10 units, 80 members" in printed and "8,000 member-steps" in printed
-        assert "budget check on ['timing']: 2 units, 3,200 member-steps at 200 steps" in printed
+        assert "plan: 8 units to train (10 before train-once sharing), 80 members × 100 steps" in printed
+        assert "of which 16 borrow the weights" in printed and "64 are trained: 6,400 member-steps" in printed
+        assert "budget check of 1 gapped scene(s) at 200 steps: 2 more units (2 before sharing), 3,200" in printed
+        assert "total 9,600 member-steps trained" in printed and "budget check on ['timing']" in printed
 
     def test_help_does_not_import_torch(self):
         code = (
@@ -809,3 +813,62 @@ class TestProgressOutput:
 
         log = ItemProgress("binned ", "binning recordings", "recordings")
         assert log.close() is None and capsys.readouterr().out == ""
+
+
+class TestPrintedReport:
+    """A printed report agrees with its numbers (issue 44, item 2): the plan's unit counts are the
+    progress lines' k/N, every withheld verdict says why, the budget check reads the same in
+    --help, docs and code, and --quiet leaves the tables unburied."""
+
+    args = ["reproduce", "--scenes", "control", "timing", "--methods", "none", "fs2", "fs-1", "--seeds", "0,1",
+            "--steps", "2", "--hidden-channels", "2", "--input-pool", "4", "--batch-size", "4", "--jobs", "1",
+            "--no-plots", "--no-equal-time"]
+
+    def test_plan_progress_and_report_agree(self, tmp_path, monkeypatch, capsys):
+        monkeypatch.setattr(protocol_run, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
+        assert cli.main([*self.args, "--out", str(tmp_path / "res")]) == 0
+        captured = capsys.readouterr()
+        printed = captured.out
+        plan = re.search(r"plan: (\d+) units to train .*?budget check of \d+ gapped scene\(s\) at \d+ steps: (\d+) "
+                         r"more units", printed)
+        assert plan, printed[:2000]
+        units, budget = int(plan[1]), int(plan[2])
+        numbered = re.findall(r"\[rank 0\] unit (\d+)/(\d+) .*: test MSE", printed)
+        checked = re.findall(r"\[rank 0\] budget check (\d+)/(\d+) .*: test MSE", printed)
+        assert {int(n) for _, n in numbered} == {units} and len(numbered) == units
+        assert {int(n) for _, n in checked} == {budget} and len(checked) == budget > 0
+        for line in printed.splitlines():
+            if "shows no resolved change" in line:
+                assert re.search(r"shows no resolved change \((not converged|borderline|its Bonferroni interval "
+                                 r"includes 0|its Holm)", line), line
+        assert "matched matched" not in printed and "budget check of the headline" in printed
+        # --quiet: the same run resumed prints the plan and the tables, no per-unit or per-step lines
+        assert cli.main([*self.args, "--out", str(tmp_path / "res"), "--quiet"]) == 0
+        quiet = capsys.readouterr()
+        assert "[rank" not in quiet.out and "[rank" not in quiet.err and "progress lines:" not in quiet.out
+        assert "plan: " in quiet.out and "| none |" in quiet.out and "budget check of the headline" in quiet.out
+
+    def test_withheld_verdicts_say_why_and_the_matched_row_reads_once(self):
+        from event_transforms.tactile.report import format_findings
+
+        delta = {"mean": -3.16, "ci_family": [-3.76, -2.56], "n": 8, "better_seeds": 8, "not_converged": True}
+        vs = {"mean": 1.2, "ci_family": [0.4, 2.0], "n": 8, "better_seeds": 1, "borderline": True}
+        summary = {"baselines": {}, "methods": {"fs2": {"delta_vs_none": delta, "delta_vs_matched": vs,
+                                                        "matched_row": "matched", "aug_s_once": 0.1}}}
+        (line,) = format_findings("timing", summary)
+        assert line.startswith("timing / fs2: shows no resolved change (not converged: the side behind was still "
+                               "improving at the step cap): -3.16 N²"), line
+        assert ("not resolved (borderline: the interval excludes 0 but one block of seeds points the other way) from "
+                "the matched row by") in line
+        assert "the matched row by +1.20" in line and "matched matched" not in line
+
+    def test_the_budget_check_reads_the_same_in_help_docs_and_code(self):
+        help_text = " ".join(cli.build_parser()._subparsers._group_actions[0].choices["reproduce"].format_help()
+                             .split())
+        assert "pre-declared headline (its first matched method)" in help_text and "largest" not in help_text
+        docs = (Path(__file__).resolve().parents[2] / "docs" / "benchmark.md").read_text()
+        assert "pre-declared headline" in " ".join(docs.split())
+        assert "pre-declared headline" in protocol_run.headline.__doc__
+        from event_transforms.tactile.report import format_budget_check
+
+        assert format_budget_check(None, skipped=True) == "budget check: not run (--no-budget-check, or budget_check=False)"

@@ -677,3 +677,107 @@ class TestModelFile:
                          "--out", str(tmp_path / "o")]) == 2
         err = capsys.readouterr().err
         assert "f1.csv" in err and "force_n" in err and "Traceback" not in err
+
+
+class TestLimitsBeforeTraining:
+    """Every limit of the recordings path is checked before any training, named as the interface
+    the caller used spells it (issue 44, item 1); counts say recordings and windows apart."""
+
+    common = ["--sensor-size", "30", "40", "--pool", "2"]
+
+    def reproduce(self, root, tmp_path, *extra):
+        return cli.main(["reproduce", "--data", str(root), *self.common, "--steps", "2", "--seeds", "0,1",
+                         "--out", str(tmp_path / "o"), "--root", str(tmp_path / "c"), "--no-plots", *extra])
+
+    @pytest.fixture
+    def trained_nothing(self, monkeypatch):
+        from event_transforms.tactile import training
+
+        def refuse(*args, **kwargs):
+            raise AssertionError("trained before the limits were checked")
+
+        monkeypatch.setattr(training, "fit_ensemble", refuse)
+
+    def test_frames_under_the_phase_scores_are_refused_by_option(self, folder, cache, tmp_path, capsys,
+                                                                 trained_nothing):
+        assert self.reproduce(folder, tmp_path, "--frames", "8") == 2
+        err = capsys.readouterr().err
+        assert "windows of 8 frames (--frames 8)" in err and "give --frames 11 or more" in err
+        data = recordings.load_recording_data(folder, RecordingSettings(**{**SMALL, "frames": 8}), cache=cache,
+                                              name="short")
+        with pytest.raises(ValueError, match=r"windows of 8 frames \(frames=8\).*give frames=11 or more"):
+            protocol.run_protocol(["short"], [0, 1], tmp_path / "py", config=TINY, methods=["none"],
+                                    data={"short": data}, budget_check=False)
+
+    def test_a_batch_larger_than_the_training_windows_is_refused(self, folder, tmp_path, capsys, trained_nothing):
+        assert self.reproduce(folder, tmp_path, "--frames", "12", "--batch-size", "1000") == 2
+        err = capsys.readouterr().err
+        assert "--batch-size 1000 is more than its 8 training windows (4 recordings)" in err
+        assert "give --batch-size 8 or fewer" in err
+
+    def test_the_default_sensor_is_named_when_events_lie_outside_it(self, tmp_path):
+        root = make_folder(tmp_path / "d", train=3, deploy=2, unlabeled=0)
+        events = np.load(root / "r0.npy")
+        events["x"][5] = 300  # a DVXplorer's column, past a DAVIS240
+        np.save(root / "r0.npy", events)
+        with pytest.raises(ValueError, match=r"outside the sensor .*No event file states its sensor size and none "
+                                             r"was given, so the default \(180, 240\) \(a DAVIS240\) was assumed"):
+            RecordingSet(root, split="train", cache=tmp_path / "cache", frames=12, pool=2)
+
+    def test_train_model_names_batch_size_in_python(self, data, trained_nothing):
+        from event_transforms.tactile.deployment import train_model
+
+        with pytest.raises(ValueError, match=r"batch_size=1000 is more than the 8 training windows.*give batch_size=8"):
+            train_model(data, batch_size=1000, steps=2)
+
+    def test_too_few_quiet_frames_for_noise_are_refused(self, tmp_path, capsys, trained_nothing):
+        root = make_folder(tmp_path / "d", train=6, deploy=2, unlabeled=0)
+        assert self.reproduce(root, tmp_path, "--frames", "12", "--methods", "none", "noise") == 2
+        err = capsys.readouterr().err
+        assert "method 'noise' adds recorded noise from a bank of 8 frames" in err
+        assert "fewer than a window's 12 frames" in err and "--methods" in err
+
+    def test_a_recording_in_two_roles_is_refused(self, tmp_path):
+        root = make_folder(tmp_path / "d", train=3, deploy=2, unlabeled=0)
+        lines = (root / "recordings.csv").read_text().splitlines()
+        lines.append(lines[1].replace(",train,", ",deploy,"))
+        (root / "recordings.csv").write_text("\n".join(lines) + "\n")
+        with pytest.raises(ValueError, match=r"rows 2 and 7 list the same events file .*r0.npy.* as 'train' and as "
+                                             r"'deploy'"):
+            read_table(root)
+
+    def test_no_hold_out_is_said_not_nan(self, tmp_path, capsys):
+        root = make_folder(tmp_path / "d", train=2, deploy=2, unlabeled=0)
+        assert cli.main(["train", "--data", str(root), *self.common, "--frames", "12", "--steps", "2",
+                         "--input-pool", "3", "--hidden-channels", "2", "--out", str(tmp_path / "m.pt")]) == 0
+        out = capsys.readouterr().out
+        assert "no hold-out: 2 training recording(s), of which the last third (2 // 3 = 0)" in out
+        assert "batch size 4: the folder's 4 training windows are fewer than the default 8" in out
+        assert "final weights kept: no hold-out (2 training recordings)" in out and "nan" not in out
+
+    def test_counts_say_recordings_and_windows_apart(self, tmp_path, capsys):
+        root = make_folder(tmp_path / "d", train=6, deploy=2, unlabeled=2)
+        assert cli.main(["infer-scene", "--data", str(root), *self.common, "--frames", "12"]) == 0
+        out = capsys.readouterr().out
+        assert ("8 training windows of 4 recordings and 6 deployment windows of 1 validation and 2 unlabeled "
+                "recordings") in out
+        assert "unlabeled recordings:" not in out and "from 6 unlabeled deployment windows" in out
+
+    def test_default_rows_say_why_a_row_was_left_out(self, folder, tmp_path, capsys):
+        assert self.reproduce(folder, tmp_path, "--frames", "12", "--plan") == 0
+        out = capsys.readouterr().out
+        assert ("left out, as the scene cannot build them: stretch, inferred, prior, everything (simulates a "
+                "scene's gaps; scene") in out and "only none is trained" in out
+
+    def test_every_reader_is_in_an_extra_the_message_names(self):
+        import tomllib
+
+        from event_transforms.events import io
+
+        extras = tomllib.loads((Path(__file__).resolve().parents[2] / "pyproject.toml").read_text())["project"][
+            "optional-dependencies"]
+        source = Path(io.__file__).read_text()
+        for extra, package in (("aedat", "aedat"), ("hdf5", "h5py"), ("prophesee", "evt3")):
+            assert any(d.startswith(package) for d in extras[extra]), extra
+            assert f"pip install 'event-transforms[{extra}]'" in source, extra
+        assert "pip install aedat)" not in source and "pip install h5py)" not in source

@@ -6,6 +6,8 @@ The protocol's own modules, one job each, in the order a run enters them:
 - :mod:`~event_transforms.tactile.protocol.config`: the settings (:class:`ProtocolConfig`);
 - :mod:`~event_transforms.tactile.protocol.plan`: work units, each scene's methods
   (:func:`~event_transforms.tactile.protocol.plan.choose_methods`) and the cost (:func:`plan_run`);
+- :mod:`~event_transforms.tactile.protocol.limits`: every limit of the data checked before any
+  training (:func:`~event_transforms.tactile.protocol.limits.check_run_limits`);
 - :mod:`~event_transforms.tactile.protocol.unit`: one unit trained and scored (:func:`run_unit`;
   the training is the one trainer, :func:`~event_transforms.tactile.training.train`);
 - :mod:`~event_transforms.tactile.protocol.run`: the resumable run with its budget check
@@ -39,6 +41,7 @@ from ..methods import PAPER_METHODS, PAPER_SCENE, QUICK_METHODS, Method, methods
 from ..report import format_budget_check, format_findings, format_report, format_scene_table
 from ..stats import summarize_scene
 from .config import ProtocolConfig
+from .limits import check_run_limits
 from .plan import plan_run
 from .run import PROGRESS_LEGEND, run_protocol
 from .unit import run_unit
@@ -46,6 +49,6 @@ from .unit import run_unit
 __all__ = [
     "PAPER_METHODS", "QUICK_METHODS", "PAPER_SCENE", "Method", "parse_method", "methods_for",
     "ProtocolConfig", "SceneData", "load_scene_data", "MaterializedDataset", "OnlineCopies", "DeviceAugment",
-    "build_training_set", "paired_batches", "run_unit", "run_protocol", "plan_run", "PROGRESS_LEGEND",
+    "build_training_set", "paired_batches", "run_unit", "run_protocol", "plan_run", "check_run_limits", "PROGRESS_LEGEND",
     "summarize_scene", "format_scene_table", "format_budget_check", "format_findings", "format_report",
 ]

@@ -16,7 +16,7 @@ import statistics
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -34,11 +34,14 @@ from ..stats import (
 )
 from .config import ProtocolConfig
 from .environment import environment, git_commit
+from .limits import check_run_limits
 from .plan import Unit, choose_methods, plan_run, work_units
 from .recompute import judge_budget
 from .rules import RULES
 from .shared import SHARED_SEPARATOR, collect, plan_sharing
-from .costs import CURVE_RATIOS, cost_curve, cost_key, equal_cost_steps, load_cost_table, measure_costs, ratio_of
+from .costs import (
+    CURVE_RATIOS, QUICK_COST_TABLE, cost_curve, cost_key, equal_cost_steps, load_cost_table, measure_costs, ratio_of,
+)
 from .timing import measure_timing
 from .unit import run_unit
 
@@ -84,15 +87,25 @@ def _baselines(data: SceneData, seeds: Sequence[int] = (), resample: str = "none
 
 
 class _Progress:
-    """Plain progress lines of one rank: unit k/N, this unit's ETA and the whole run's."""
+    """Plain progress lines of one rank: unit k/N, this unit's ETA and the whole run's.
 
-    def __init__(self, costs: list[float], later: float) -> None:
+    The run's ETA comes from the cost table's seconds per member-step (``prior_s``, where the
+    committed table covers the configuration) until this rank has finished a unit, then from
+    the units it finished: never from the first seconds of the first unit (data loading and
+    warm-up make those ETAs several times too long).
+    """
+
+    def __init__(self, costs: list[float], later: float, prior_s: float | None = None) -> None:
         self.left, self.later = sum(costs), later
         self.done, self.start = 0.0, time.perf_counter()
+        self.prior_s = prior_s
 
     def eta(self, done_now: float) -> float:
+        remaining = self.left - done_now + self.later
+        if self.done == 0 and self.prior_s is not None:
+            return self.prior_s * remaining
         elapsed = time.perf_counter() - self.start
-        return elapsed / done_now * (self.left - done_now + self.later) if done_now > 0 else math.nan
+        return elapsed / done_now * remaining if done_now > 0 else math.nan
 
     def callback(self, label: str, cost: float) -> Callable[[dict[str, Any]], None]:
         def report(info: dict[str, Any]) -> None:
@@ -110,11 +123,24 @@ class _Progress:
         return f"overall ETA {self.eta(self.done) / 60:.1f} min" if self.left - self.done + self.later > 0 else "rank done"
 
 
+def _prior_seconds(config: ProtocolConfig, device: str) -> float | None:
+    """Seconds per member-step from the committed cost table, where it covers ``config`` on the
+    CPU (the progress lines' ETA before a unit has finished); ``None`` otherwise."""
+    if device != "cpu" or not QUICK_COST_TABLE.exists():
+        return None
+    try:
+        table = load_cost_table(QUICK_COST_TABLE)
+    except ValueError:
+        return None
+    value = table.get("ensemble_s_per_member_step")
+    return float(value) if table.get("config") == cost_key(config) and value else None
+
+
 def _work(
     rank: int, world: int, units: list[Unit], seeds: list[int], config: ProtocolConfig, runs: Path,
     root: str | None, device: str, threads: int | None, log: Callable[[str], None] | None, progress: bool | None,
-    given: dict[str, SceneData] | None = None, phase: str = "unit", later_cost: float = 0.0,
-    keys: dict[str, dict[str, Any]] | None = None,
+    given: dict[str, SceneData] | None = None, prior_s: float | None = None, phase: str = "unit",
+    later_cost: float = 0.0, keys: dict[str, dict[str, Any]] | None = None,
 ) -> None:
     """Rank ``rank``'s share of the units (every ``world``-th), each saved as it finishes; a
     unit whose file holds its key (:mod:`~event_transforms.tactile.runs`) is read back instead
@@ -125,7 +151,7 @@ def _work(
     mine = [(index, unit) for index, unit in enumerate(units) if index % world == rank]
     cost = {index: len(unit.methods) * len(seeds) * (unit.steps or config.steps) for index, unit in mine}
     plain = progress is None and not sys.stderr.isatty()
-    tracker = _Progress(list(cost.values()), later_cost / world)
+    tracker = _Progress(list(cost.values()), later_cost / world, prior_s)
     for index, unit in mine:
         label = f"[rank {rank}] {phase} {index + 1}/{len(units)} {unit.scene}: {', '.join(unit.methods)}"
         path = runs / f"{unit.slug}.json"
@@ -203,6 +229,58 @@ def _seed_values(runs: list[dict[str, Any]]) -> dict[str, list]:
     """``{"seeds", "test_mse"}`` of one method's records, by seed."""
     runs = sorted(runs, key=lambda r: r["seed"])
     return {"seeds": [r["seed"] for r in runs], "test_mse": [r["test_mse"] for r in runs]}
+
+
+@dataclass
+class Phases:
+    """The units a run trains, phase by phase, after train-once sharing (what the plan counts,
+    the progress lines number ``k/N`` and the summary reports: the same lists)."""
+
+    sharing: Any
+    units: list[Unit]
+    choices: dict[str, str]
+    budget_methods: dict[str, tuple[str, ...]]
+    budget_units: list[Unit]
+
+
+def phase_units(scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], group: str, data: Mapping[str, SceneData],
+                checked: Sequence[str], equal_time: bool, given: dict[str, SceneData] | None = None) -> Phases:
+    """The main phase's and the budget check's units as the run will train them (shared members
+    trained once), from the run's data."""
+    sharing = plan_sharing(chosen, data)  # train once: members keyed by what their training reads
+    units = work_units(scenes, chosen, group, given, sharing)
+    choices = {s: m for s in checked if (m := headline(s, chosen, data)) is not None}
+    budget_methods: dict[str, tuple[str, ...]] = {s: ("none", m) for s, m in choices.items()}
+    if checked and equal_time:  # the cost curve's last point: none at twice the steps on every scene (mostly borrowed)
+        budget_methods.update({s: ("none",) for s in scenes if s not in choices})
+    budget_units = work_units(list(budget_methods), budget_methods, group, given,
+                              plan_sharing(budget_methods, data))
+    return Phases(sharing, units, choices, budget_methods, budget_units)
+
+
+def count_phases(plan: dict[str, Any], phases: Phases, seeds: Sequence[int], config: ProtocolConfig) -> None:
+    """Add to ``plan`` what the run trains after train-once sharing: ``shared_members``,
+    ``trained_members``, ``trained_units``, ``budget_trained_units`` and the member-steps of both
+    phases (``trained_member_steps``, ``budget_trained_member_steps``)."""
+    plan["shared_members"] = phases.sharing.shared * len(seeds)
+    plan["trained_members"] = plan["members"] - plan["shared_members"]
+    plan["trained_units"], plan["budget_trained_units"] = len(phases.units), len(phases.budget_units)
+    plan["trained_member_steps"] = sum(len(u.methods) for u in phases.units) * len(seeds) * config.steps
+    plan["budget_trained_member_steps"] = (sum(len(u.methods) for u in phases.budget_units) * len(seeds)
+                                           * 2 * config.steps)
+
+
+def plan_line(plan: Mapping[str, Any], config: ProtocolConfig) -> str:
+    """The plan in one line, counting the units the run trains (after train-once sharing), as the
+    progress lines number them (``plan`` completed by :func:`count_phases`)."""
+    return (f"plan: {plan['trained_units']} units to train ({plan['units']} before train-once sharing), "
+            f"{plan['members']} members × {config.steps} steps, of which {plan['shared_members']} borrow the "
+            f"weights of a member of another scene that reads exactly what they read (the same training data, "
+            f"built policy and seed) and {plan['trained_members']} are trained: "
+            f"{plan['trained_member_steps']:,} member-steps; budget check of {len(plan['budget_check_scenes'])} "
+            f"gapped scene(s) at {2 * config.steps} steps: {plan['budget_trained_units']} more units "
+            f"({plan['budget_units']} before sharing), {plan['budget_trained_member_steps']:,} member-steps; total "
+            f"{plan['trained_member_steps'] + plan['budget_trained_member_steps']:,} member-steps trained")
 
 
 def headline(scene: str, chosen: Mapping[str, Sequence[str]], data: Mapping[str, SceneData]) -> str | None:
@@ -305,8 +383,14 @@ def run_protocol(
     measure_time: bool = True,
     equal_time: bool = False,
     cost_table: str | Path | Mapping[str, Any] | None = None,
+    cli: bool = False,
 ) -> dict[str, Any]:
     """Run every scene's methods for every seed; write ``results.json`` and ``results.md``.
+
+    Before any training, every limit of the data is checked
+    (:func:`~event_transforms.tactile.protocol.limits.check_run_limits`: window length, hold-out,
+    validation and test windows, batch size, noise banks); ``cli=True`` names the options as
+    the command line spells them (``--frames``) in those errors.
 
     Work is split into units — a scene's methods trained together as one ensemble
     (``group="scene"``) or one method at a time (``group="method"``) — spread over ranks:
@@ -366,36 +450,27 @@ def run_protocol(
     missing = [scene for scene in scenes if scene not in data]
     if missing:
         raise ValueError(f"data must hold every scene, missing {missing}")
+    notes = check_run_limits(data, chosen, config, cli=cli)
+    if log and not cli:  # the command line has printed them before its plan
+        for note in notes:
+            log(note)
     data_keys = {scene: data_key(data[scene]) for scene in scenes}
-    sharing = plan_sharing(chosen, data)  # train once: members keyed by what their training reads
-    units = work_units(scenes, chosen, group, given, sharing)
-    plan["shared_members"] = sharing.shared * len(seeds)
-    plan["trained_members"] = plan["members"] - plan["shared_members"]
+    phases = phase_units(scenes, chosen, group, data, plan["budget_check_scenes"], equal_time, given)
+    units = phases.units
+    count_phases(plan, phases, seeds, config)
     if log:
         for scene, d in data.items():
             holdout = f"{len(d.holdout)} hold-out (training session), " if d.holdout is not None else ""
             log(f"data: scene {scene!r} ({d.scene.description}): {len(d.train)} train, {holdout}{len(d.val)} val, "
                 f"{len(d.test)} test sequences, ready in {d.seconds:.1f} s")
-        log(f"plan: {plan['units']} units, {plan['members']} members × {config.steps} steps = "
-            f"{plan['member_steps']:,} member-steps; budget check of {len(plan['budget_check_scenes'])} gapped "
-            f"scene(s) at {RULES.budget_factor * config.steps} steps: {plan['budget_units']} more units, "
-            f"{plan['budget_member_steps']:,} member-steps; total {plan['total_member_steps']:,}")
-        log(f"train once: {plan['shared_members']} of the {plan['members']} members read exactly what a member of "
-            f"another scene reads (the same training data, built policy and seed) and borrow its weights; "
-            f"{plan['trained_members']} are trained")
+        log(plan_line(plan, config))
         log(PROGRESS_LEGEND)
-    options = (root, device, threads, log, progress, given)
+    options = (root, device, threads, log, progress, given, _prior_seconds(config, device))
     results = _runwork_units(units, seeds, config, out, jobs, options, "unit", plan["budget_member_steps"], data_keys)
 
     # The budget check: none and the scene's pre-declared headline (its matched method), at twice the steps.
-    checked = plan["budget_check_scenes"]
-    choices = {s: m for s in checked if (m := headline(s, chosen, data)) is not None}
+    choices, budget_methods, budget_units = phases.choices, phases.budget_methods, phases.budget_units
     double = ProtocolConfig(**{**asdict(config), "steps": RULES.budget_factor * config.steps})
-    budget_methods: dict[str, tuple[str, ...]] = {s: ("none", m) for s, m in choices.items()}
-    if checked and equal_time:  # the cost curve's last point: none at twice the steps on every scene (mostly borrowed)
-        budget_methods.update({s: ("none",) for s in scenes if s not in choices})
-    budget_units = work_units(list(budget_methods), budget_methods, group, given,
-                              plan_sharing(budget_methods, data))
     budget_results = (_runwork_units(budget_units, seeds, double, out, jobs, options, "budget check", 0.0, data_keys)
                       if budget_units else {})
     # The cost curve: none at 1.5 × the steps (2 × is the budget check's), Δ of every method against it.

@@ -85,7 +85,9 @@ class RecordingSet(Dataset):
         self.recordings = [
             r for r in table if (split is None or r.split == split) and (role is None or r.role == role)
         ]
-        self.settings = self._resolve_sensor(table, self.settings)
+        #: where the sensor size came from: "given", "the files" or "the default" (said in the
+        #: error for events outside it)
+        self.settings, self.sensor_source = self._resolve_sensor(table, self.settings)
         self._log = _once(log)
         self._hashes = _hashes(self.root, table, self.cache)
         self.dataset_hash = _key({"table": content_hash(self.root / "recordings.csv"),
@@ -110,8 +112,9 @@ class RecordingSet(Dataset):
 
     # ------------------------------------------------------------------ building
     @staticmethod
-    def _resolve_sensor(table: list[RecordingEntry], settings: RecordingSettings) -> RecordingSettings:
-        """The settings with the sensor size: given, else the one the files state, else the default."""
+    def _resolve_sensor(table: list[RecordingEntry], settings: RecordingSettings) -> tuple[RecordingSettings, str]:
+        """The settings with the sensor size: given, else the one the files state, else the default;
+        and which of the three it is."""
         stated: dict[tuple[int, int], RecordingEntry] = {}
         for recording in table:
             try:
@@ -125,12 +128,13 @@ class RecordingSet(Dataset):
                 if size != settings.sensor_size:
                     raise ValueError(f"{recording.where()}: the file states a sensor of (H, W) = {size}, but "
                                      f"sensor_size={settings.sensor_size}; leave sensor_size out to use the file's")
-            return settings
+            return settings, "given"
         if len(stated) > 1:
             found = "; ".join(f"{size} ({r.where()})" for size, r in stated.items())
             raise ValueError(f"recordings.csv: the event files state different sensor sizes: {found}; one folder "
                              "holds one camera's recordings")
-        return dataclasses.replace(settings, sensor_size=next(iter(stated), DEFAULT_SENSOR_SIZE))
+        return (dataclasses.replace(settings, sensor_size=next(iter(stated), DEFAULT_SENSOR_SIZE)),
+                "the files" if stated else "the default")
 
     def _crop_of(self, recording: RecordingEntry) -> tuple[int, int, int, int]:
         if self.settings.crop is not None:
@@ -172,6 +176,9 @@ class RecordingSet(Dataset):
                 scan = scan_events(EventFile(recording.events, columns=settings.columns), self.sensor_size,
                                    recording.where(), settings.time_unit)
             except ValueError as error:
+                if self.sensor_source == "the default" and "outside the sensor" in str(error):
+                    error = ValueError(f"{error}. No event file states its sensor size and none was given, so the "
+                                       f"default {DEFAULT_SENSOR_SIZE} (a DAVIS240) was assumed")
                 raise _named(error, recording) from None
             data = {"format": _CACHE_FORMAT, "events": scan.events, "t_min": scan.t_min, "t_max": scan.t_max,
                     "totals": torch.from_numpy(scan.totals)}

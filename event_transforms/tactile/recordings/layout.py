@@ -258,7 +258,22 @@ def read_table(root: str | os.PathLike[str], *, deployment: bool = True) -> list
             raise ValueError(f"{where}: a training recording needs a force file")
         meta = {k: v for k, v in row.items() if k not in _KNOWN or k in ("object", "session")}
         recordings.append(RecordingEntry(number, events, force, role, split or "", diameter, crop, meta))
+    _refuse_repeated_files(recordings)
     return _assign_splits(recordings, table, deployment)
+
+
+def _refuse_repeated_files(recordings: list[RecordingEntry]) -> None:
+    """Refuse an event file listed in two rows (in two roles it would be trained on and scored,
+    in one role counted twice), naming both rows."""
+    seen: dict[Path, RecordingEntry] = {}
+    for r in recordings:
+        key = r.events.resolve()
+        first = seen.setdefault(key, r)
+        if first is not r:
+            roles = (f"as {first.role!r} and as {r.role!r}: a recording is either trained on or deployed, "
+                     "never both" if first.role != r.role else f"twice as {r.role!r}: it would count twice")
+            raise ValueError(f"recordings.csv rows {first.row} and {r.row} list the same events file "
+                             f"{str(r.events)!r} {roles}; list each recording once")
 
 
 def _assign_splits(recordings: list[RecordingEntry], table: Path, deployment: bool = True) -> list[RecordingEntry]:

@@ -103,8 +103,11 @@ def load_recording_data(
         "recordings": {s: len(d.recordings) for s, d in splits.items()},
         "windows": {s: len(d) for s, d in splits.items()},
         "left_out_frames": sum(d.left_out_frames for d in splits.values()),
-        "inferred_from": f"{len(train_frames)} training windows and {len(deploy_frames)} deployment windows "
-                         "(validation and unlabeled recordings; frames only)" + (
+        "inferred_from": f"{len(train_frames)} training windows of {len(splits['train'].recordings)} recordings and "
+                         f"{len(deploy_frames)} deployment windows of " + (
+                             f"{len(splits['val'].recordings)} validation and {len(splits['unlabeled'].recordings)} "
+                             "unlabeled recordings; frames only" if len(splits["val"]) + len(splits["unlabeled"])
+                             else "the training recordings (no deployment recording); frames only") + (
                              f"; lags from {len(labelled_train[0])} training and {len(labelled_deploy[0])} "  # type: ignore[index]
                              "validation recordings against their force labels" if labelled else ""),
     }
