@@ -1,4 +1,4 @@
-"""The family-wise error of the protocol's intervals (issue 42, item 2): the benchmark's
+"""The family-wise error of the protocol's intervals: the benchmark's
 vectorised procedures are the protocol's own (checked against ``stats.deltas_vs_none`` under
 each rules version), and under Δ = 0 the current rules hold the error at or below 0.05 within
 Monte Carlo error for homogeneous and heteroscedastic families of 2–8 rows sharing a reference."""

@@ -1,5 +1,5 @@
 """benchmarks/tactile/resampling_coverage.py: what the protocol's bootstrap intervals cover, against new
-data sets the simulator draws (issue 42, item 1: the under-coverage stated beside every table)."""
+data sets the simulator draws (the under-coverage stated beside every table)."""
 
 from __future__ import annotations
 
