@@ -25,8 +25,10 @@ from .containers import *  # noqa: F401,F403
 from .containers import __all__ as _containers
 from .events import *  # noqa: F401,F403
 from .events import __all__ as _events
+from .emulate import *  # noqa: F401,F403
+from .emulate import __all__ as _emulate
 
 __all__ = [
     "EventTransform", "Param", "Params", "Lambda", "as_transform",
-    *_affine, *_stretch, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_containers, *_events,
+    *_affine, *_stretch, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_containers, *_events, *_emulate,
 ]
