@@ -255,6 +255,7 @@ def emulate_events(
     noise_spread: float = 10.0,
     hot_pixel_spread: float = 2.0,
     noise_on_fraction: float = 0.5,
+    random_reference: bool | None = None,
     chunk_frames: int | None = None,
     generator: torch.Generator | None = None,
 ) -> EventBatch:
@@ -287,6 +288,10 @@ def emulate_events(
         noise_spread: per-pixel noise rates lie in ``[noise_hz / spread, noise_hz · spread]``.
         hot_pixel_spread: likewise for the hot pixels' rates.
         noise_on_fraction: probability that a noise event is ON.
+        random_reference: each pixel's reference starts a uniform random fraction of its ON
+            threshold below the first frame's level (v2e's random initial reference); ``None``:
+            where ``leak_hz > 0`` (so a constant scene leaks at a random phase), ``False``: never
+            (a reset camera's first leak event comes after ``1 / leak_hz``).
         chunk_frames: frames read at a time (``None``: about 4 M pixel values a chunk).
         generator: draws ``seed`` when it is ``None`` (torch's global RNG for ``None``).
 
@@ -336,6 +341,8 @@ def emulate_events(
         if as_number(value, name) < 1:
             raise ValueError(f"{name} must be >= 1, got {value!r}")
     on_fraction = as_number(noise_on_fraction, "noise_on_fraction", low=0.0, high=1.0)
+    if random_reference is not None and not isinstance(random_reference, bool):
+        raise TypeError(f"random_reference must be True, False or None, got {random_reference!r}")
     device = frames.device
     times = _frame_times(batch, steps, fps, frame_times_us, device)
     if seed is None:
@@ -361,14 +368,15 @@ def emulate_events(
     on, off, rates = _camera(camera_keys, pixels, args, float(noise_spread), float(hot_pixel_spread), device)
     parts = []
     if steps > 1:
-        parts += _signal(video, times, on, off, keys, args, knee, chunk, channel)
+        parts += _signal(video, times, on, off, keys, args, knee, chunk, channel, random_reference)
     duration = times[:, -1] - times[:, 0]
     parts.append(_noise_events(args["seed"], keys, rates, times[:, 0], duration, on_fraction))
     return _assemble(parts, batch, (height, width), device)
 
 
 def _signal(video: Tensor, times: Tensor, on: Tensor, off: Tensor, keys: Tensor, args: dict[str, Tensor],
-            knee: float, chunk: int, channel: str | int | None) -> list[tuple[Tensor, Tensor, Tensor, Tensor]]:
+            knee: float, chunk: int, channel: str | int | None, random_reference: bool | None
+            ) -> list[tuple[Tensor, Tensor, Tensor, Tensor]]:
     """The threshold crossings of every pixel, frame interval by frame interval (closed form)."""
     device = video.device
     batch, steps = video.shape[:2]
@@ -386,7 +394,8 @@ def _signal(video: Tensor, times: Tensor, on: Tensor, off: Tensor, keys: Tensor,
     leak = on * leak_hz * 1e-6  # reference decay, log units per µs
     refractory = args["refractory_us"].to(device=device, dtype=torch.float32).unsqueeze(1)
     index = torch.arange(pixels, dtype=torch.int32, device=device).unsqueeze(0)
-    d = torch.where(leak_hz > 0, sub_uniform32(keys.unsqueeze(1), index, _PHASE), 0.0).mul_(on)  # v2e's random reference
+    random = (leak_hz > 0) if random_reference is None else torch.full_like(leak_hz, float(random_reference)).bool()
+    d = torch.where(random, sub_uniform32(keys.unsqueeze(1), index, _PHASE), 0.0).mul_(on)  # v2e's random reference
     blind = torch.zeros_like(d)
     intervals = times.diff(dim=1).to(torch.float32)  # (B, T - 1)
     parts = []
@@ -436,7 +445,7 @@ def _refractory_step(d: Tensor, blind: Tensor, slope: Tensor, dt: Tensor, on: Te
     blind_travel = speed * refractory
     spacing = theta + blind_travel
     beyond = travel - to_first
-    n = torch.where(beyond >= 0, torch.floor(beyond / spacing) + 1.0, 0.0)
+    n = torch.div(beyond, spacing).floor_().add_(1.0).clamp_min_(0.0)  # beyond < 0: no crossing
     counts.copy_(n * sign)
     fired = n > 0
     remaining = beyond - (n - 1.0) * spacing - blind_travel  # travel left after the last blind time
