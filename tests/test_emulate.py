@@ -286,3 +286,13 @@ class TestModule:
         rgb = torch.rand(2, 5, 3, 4, 6)
         events = emulate(rgb, frame_times_us=torch.arange(5) * 20_000, generator=torch.Generator().manual_seed(0))
         assert len(events) == 2 and events.sensor_size == (4, 6)
+
+
+def test_the_emulation_benchmark_runs_quick(tmp_path):
+    """``benchmarks/emulate.py --quick`` (no recorded data) prints its table and writes its own section."""
+    from benchmarks import emulate as bench
+
+    path = tmp_path / "RESULTS.md"
+    bench.main(["--quick", "--results", str(path)])
+    text = path.read_text()
+    assert "<!-- emulate:start -->" in text and "real time / emulation" in text and "ideal" in text

@@ -187,3 +187,15 @@ def test_the_command_line_defaults_are_the_converters():
     assert default.channel == 1 and "default green" in help_text
     assert f"default {default.threshold:g}," in help_text and f"(default {default.mismatch:g})" in help_text
     assert default.refractory_us == 0 and "(default 0)" in help_text
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not DATA.is_dir(), reason=f"the recorded GelSight Wedge grasps are not at {DATA}")
+def test_the_recorded_vs_generators_benchmark_runs_quick(tmp_path):
+    """``benchmarks/recorded_vs_generators.py --quick`` on three recorded grasps and two built-in ones."""
+    from benchmarks import recorded_vs_generators as bench
+
+    path = tmp_path / "RESULTS.md"
+    bench.main(["--quick", "--no-optical", "--data", str(DATA), "--results", str(path)])
+    text = path.read_text()
+    assert "| recorded (GelSight Wedge) |          3 |" in text and "| built-in " in text
