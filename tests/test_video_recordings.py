@@ -84,7 +84,7 @@ class TestConvert:
         assert events["sensor_size"].tolist() == [32, 48] and events["t"].size > 0
         assert int(events["t"].min()) >= 4 * 1e6 / 30 - 34_000  # nothing before the disc appears
         labels = np.loadtxt(tmp_path / "rec" / "force" / "press.csv", delimiter=",", skiprows=1)
-        assert labels[:, 1] == pytest.approx(force) and labels[:, 0] == pytest.approx(times, abs=0.2)
+        assert labels[:, 1] == pytest.approx(force) and labels[:, 0] == pytest.approx(times, abs=0.2)  # as given
         settings = json.loads((tmp_path / "rec" / "emulator.json").read_text())
         assert settings["settings"]["threshold"] == 0.2 and "interpolat" in settings["settings"]["model"]
         assert row["force"] == "force/press.csv"

@@ -6,8 +6,8 @@ becomes a recording of the layout by emulating a DVS on it
 gel's quadrilateral is rectified to a rectangle (a homography, bilinear), the colour
 channels become one luminance by a stated rule, and the emulator's settings are written
 beside the recordings (``emulator.json``) so that every result can cite them. The frames'
-times are the video's presentation times; the force of frame k is written at frame k's
-time, so it is on the events' clock. Between two frames the emulator interpolates the log
+times are the video's presentation times from the first frame, the events' clock; a force CSV
+is on that clock, and a per-frame force (the pickled labels) is written at its frame's time. Between two frames the emulator interpolates the log
 intensity linearly: timing finer than a frame (33 ms at 30 frames/s) is an interpolation.
 
 Videos are decoded with PyAV (the ``video`` extra), ``chunk_frames`` frames at a time: the
@@ -344,35 +344,38 @@ def _append_rows(out: Path, rows: list[dict[str, str]]) -> None:
         writer.writerows([*existing, *rows])
 
 
-def _write_recording(out: Path, name: str, luminance: Tensor, times: np.ndarray, force: np.ndarray | None,
-                     settings: VideoEmulation, width: np.ndarray | None = None) -> dict[str, str]:
-    if force is not None and force.shape[0] != times.shape[0]:
-        raise ValueError(f"{name}: {force.shape[0]} force readings for {times.shape[0]} video frames")
+def _write_recording(out: Path, name: str, luminance: Tensor, times: np.ndarray,
+                     force: tuple[np.ndarray, np.ndarray] | None, settings: VideoEmulation,
+                     width: np.ndarray | None = None) -> dict[str, str]:
+    """Emulate and write one recording: events, force ``(t_us, force_n)`` samples on the events'
+    clock (negative readings clipped to 0 N, counted), and the width per frame if given."""
     events = _emulate(luminance, times, settings, _seed_of(name))
     (out / "events").mkdir(parents=True, exist_ok=True)
     np.savez(out / "events" / f"{name}.npz", x=events["x"], y=events["y"], t=events["t"], p=events["p"],
              sensor_size=np.asarray(settings.size if settings.corners_xy is not None else luminance.shape[1:]))
-    t_us = times - times[0]
     row = {"events": f"events/{name}.npz", "force": "", "role": "train", "force_clipped": "", "force_min_n": ""}
     if force is not None:
-        clipped = int((force < 0).sum())
+        t_us, values = force
+        clipped = int((values < 0).sum())
         (out / "force").mkdir(parents=True, exist_ok=True)
         with atomic_write(out / "force" / f"{name}.csv") as handle:
             handle.write("t_us,force_n\n")
-            handle.writelines(f"{t:.1f},{v!r}\n" for t, v in zip(t_us.tolist(), np.maximum(force, 0.0).tolist()))
-        row.update(force=f"force/{name}.csv", force_clipped=str(clipped), force_min_n=f"{force.min():.3f}")
+            handle.writelines(f"{t:.1f},{v!r}\n" for t, v in zip(t_us.tolist(), np.maximum(values, 0.0).tolist()))
+        row.update(force=f"force/{name}.csv", force_clipped=str(clipped), force_min_n=f"{values.min():.3f}")
     if width is not None:
         (out / "width").mkdir(parents=True, exist_ok=True)
         with atomic_write(out / "width" / f"{name}.csv") as handle:
             handle.write("t_us,width_m\n")
-            handle.writelines(f"{t:.1f},{v!r}\n" for t, v in zip(t_us.tolist(), width.tolist()))
+            handle.writelines(f"{t:.1f},{v!r}\n" for t, v in zip((times - times[0]).tolist(), width.tolist()))
         row["width"] = f"width/{name}.csv"
     row["_events"] = str(events.shape[0])
     return row
 
 
-def _force_csv(path: Path, times: np.ndarray) -> np.ndarray:
-    """A force CSV (``t_us``/``t_s`` and ``force_n``) resampled at the frames' times (linear)."""
+def _force_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """A force CSV's samples as ``(t_us, force_n)``: a time column ``t_us``, ``t_ms``, ``t_s`` or
+    ``t_ns`` on the video's clock (0 at the first frame) and ``force_n``, finite, times increasing.
+    Kept at their own rate: the layout's reader averages them over each bin."""
     with open(path, newline="") as handle:
         rows = list(csv.DictReader(handle))
     if not rows:
@@ -381,11 +384,16 @@ def _force_csv(path: Path, times: np.ndarray) -> np.ndarray:
     column = next((c for c in scale if c in rows[0]), None)
     if column is None or "force_n" not in rows[0]:
         raise ValueError(f"{path}: expected a time column (t_us, t_ms, t_s or t_ns) and force_n, got {list(rows[0])}")
-    t = np.array([float(r[column]) for r in rows]) * scale[column]
-    f = np.array([float(r["force_n"]) for r in rows])
+    try:
+        t = np.array([float(r[column]) for r in rows]) * scale[column]
+        f = np.array([float(r["force_n"]) for r in rows])
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None
+    if not (np.isfinite(t).all() and np.isfinite(f).all()):
+        raise ValueError(f"{path}: times and forces must be finite numbers")
     if t.size > 1 and not (np.diff(t) > 0).all():
         raise ValueError(f"{path}: the force times must increase")
-    return np.interp(times - times[0], t - t[0], f)
+    return t, f
 
 
 def _write_settings(out: Path, settings: VideoEmulation, source: str) -> None:
@@ -407,8 +415,9 @@ def convert_video(video: str | os.PathLike[str], out: str | os.PathLike[str], *,
     Args:
         video: the video file.
         out: the layout's folder (``recordings.csv``, ``events/``, ``force/``, ``emulator.json``).
-        force: a CSV with a time column (``t_us``, ``t_ms``, ``t_s`` or ``t_ns``, from the first
-            frame) and ``force_n``, resampled linearly at the frames' times; ``None``: unlabeled.
+        force: a CSV with a time column (``t_us``, ``t_ms``, ``t_s`` or ``t_ns``, on the video's
+            clock: 0 at the first frame) and ``force_n``, written at its own rate on the events'
+            clock (negative readings clipped to 0 N and counted); ``None``: unlabeled.
         settings: the emulator's settings (default :class:`VideoEmulation`).
         log: called with one line of what was read and written.
 
@@ -428,7 +437,7 @@ def convert_video(video: str | os.PathLike[str], out: str | os.PathLike[str], *,
     settings = settings or VideoEmulation()
     video, out = Path(video), Path(out)
     luminance, times = video_luminance(video, settings)
-    labels = None if force is None else _force_csv(Path(force), times)
+    labels = None if force is None else _force_csv(Path(force))
     _write_settings(out, settings, str(video))
     row = _write_recording(out, video.stem, luminance, times, labels, settings)
     count = row.pop("_events")
@@ -487,7 +496,9 @@ def convert_video_folder(root: str | os.PathLike[str], out: str | os.PathLike[st
         if widths is not None and widths.shape[0] != times.shape[0]:
             raise ValueError(f"{widths_path}: {widths.shape[0]} widths for {times.shape[0]} video frames")
         match = _TRIAL.match(name)
-        row = _write_recording(out, f"{day}_{name}", luminance, times, forces, settings, widths)
+        if forces.shape[0] != times.shape[0]:
+            raise ValueError(f"{video}: {forces.shape[0]} force readings for {times.shape[0]} video frames")
+        row = _write_recording(out, f"{day}_{name}", luminance, times, (times - times[0], forces), settings, widths)
         row.update(object=match.group("object") if match else name, session=day,
                    trial=(match.group("t") or match.group("n")) if match else "")
         clipped += int(row["force_clipped"])
