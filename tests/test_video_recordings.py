@@ -100,14 +100,15 @@ class TestConvert:
         (tmp_path / "press.csv").write_text("t_s,force_n\n0,0\n1,10\n")
         out = tmp_path / "rec"
         base = ["convert", str(tmp_path / "press.avi"), "--force", str(tmp_path / "press.csv"), "--out", str(out),
-                "--whole-frame", "--threshold", "0.3"]
+                "--whole-frame", "--threshold", "0.3", "--role", "deploy"]
         assert cli.main(base) == 0
+        assert ",deploy," in (out / "recordings.csv").read_text().splitlines()[1]
         printed = capsys.readouterr().out
         assert "frames ->" in printed and "clipped to 0 N" in printed
         assert json.loads((out / "emulator.json").read_text())["settings"]["threshold"] == 0.3
         assert cli.main(base) == 2
         assert "already a row" in capsys.readouterr().err
-        assert cli.main([*base[:-2], "--threshold", "0.5", "--out", str(tmp_path / "r2"), "--events", "/dvs"]) == 2
+        assert cli.main([*base[:-4], "--threshold", "0.5", "--out", str(tmp_path / "r2"), "--events", "/dvs"]) == 2
         assert "--events is for ROS bags" in capsys.readouterr().err
         assert force.size == 12
 

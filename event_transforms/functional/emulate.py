@@ -81,7 +81,7 @@ LOG_QUANTUM = 2.0**-20
 _LUMA = (0.299, 0.587, 0.114)
 _DTYPES = (torch.uint8, torch.float16, torch.bfloat16, torch.float32, torch.float64)
 #: Elements of the float32 work arrays per chunk (frames times pixels times batch).
-_CHUNK_ELEMENTS = 1 << 22
+_CHUNK_ELEMENTS = 1 << 20
 
 # purposes of the counter-based draws (per pixel: camera_seed; per recording: seed)
 _MISMATCH, _NOISE_RATE, _HOT, _HOT_RATE = 1, 4, 5, 6
@@ -292,7 +292,7 @@ def emulate_events(
             threshold below the first frame's level (v2e's random initial reference); ``None``:
             where ``leak_hz > 0`` (so a constant scene leaks at a random phase), ``False``: never
             (a reset camera's first leak event comes after ``1 / leak_hz``).
-        chunk_frames: frames read at a time (``None``: about 4 M pixel values a chunk).
+        chunk_frames: frames read at a time (``None``: about 1 M pixel values a chunk).
         generator: draws ``seed`` when it is ``None`` (torch's global RNG for ``None``).
 
     Returns:

@@ -285,8 +285,8 @@ def _run_convert_videos(args: argparse.Namespace, log: Any) -> int:
         if path.is_dir():
             if args.force is not None:
                 raise ValueError(f"convert {path}: a folder of grasps reads its <name>_forces.pkl; leave --force out")
-            convert_video_folder(path, args.out, settings=settings, log=log)
+            convert_video_folder(path, args.out, settings=settings, role=args.role, log=log)
         else:
-            convert_video(path, args.out, force=args.force, settings=settings, log=log)
+            convert_video(path, args.out, force=args.force, settings=settings, role=args.role, log=log)
             log(FORCE_RULE)
     return 0

@@ -346,14 +346,14 @@ def _append_rows(out: Path, rows: list[dict[str, str]]) -> None:
 
 def _write_recording(out: Path, name: str, luminance: Tensor, times: np.ndarray,
                      force: tuple[np.ndarray, np.ndarray] | None, settings: VideoEmulation,
-                     width: np.ndarray | None = None) -> dict[str, str]:
+                     width: np.ndarray | None = None, role: str = "train") -> dict[str, str]:
     """Emulate and write one recording: events, force ``(t_us, force_n)`` samples on the events'
     clock (negative readings clipped to 0 N, counted), and the width per frame if given."""
     events = _emulate(luminance, times, settings, _seed_of(name))
     (out / "events").mkdir(parents=True, exist_ok=True)
     np.savez(out / "events" / f"{name}.npz", x=events["x"], y=events["y"], t=events["t"], p=events["p"],
              sensor_size=np.asarray(settings.size if settings.corners_xy is not None else luminance.shape[1:]))
-    row = {"events": f"events/{name}.npz", "force": "", "role": "train", "force_clipped": "", "force_min_n": ""}
+    row = {"events": f"events/{name}.npz", "force": "", "role": role, "force_clipped": "", "force_min_n": ""}
     if force is not None:
         t_us, values = force
         clipped = int((values < 0).sum())
@@ -396,6 +396,11 @@ def _force_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return t, f
 
 
+def _check_role(role: str) -> None:
+    if role not in ("train", "deploy"):
+        raise ValueError(f"role must be 'train' or 'deploy', got {role!r}")
+
+
 def _write_settings(out: Path, settings: VideoEmulation, source: str) -> None:
     out.mkdir(parents=True, exist_ok=True)
     path = out / "emulator.json"
@@ -409,7 +414,7 @@ def _write_settings(out: Path, settings: VideoEmulation, source: str) -> None:
 
 
 def convert_video(video: str | os.PathLike[str], out: str | os.PathLike[str], *, force: str | os.PathLike[str] | None,
-                  settings: VideoEmulation | None = None, log: Any = None) -> dict[str, str]:
+                  settings: VideoEmulation | None = None, role: str = "train", log: Any = None) -> dict[str, str]:
     """Convert one video (and its force CSV, on the video's clock from its first frame) into a recording.
 
     Args:
@@ -419,6 +424,7 @@ def convert_video(video: str | os.PathLike[str], out: str | os.PathLike[str], *,
             clock: 0 at the first frame) and ``force_n``, written at its own rate on the events'
             clock (negative readings clipped to 0 N and counted); ``None``: unlabeled.
         settings: the emulator's settings (default :class:`VideoEmulation`).
+        role: the row's role, ``"train"`` or ``"deploy"``.
         log: called with one line of what was read and written.
 
     Returns:
@@ -435,11 +441,12 @@ def convert_video(video: str | os.PathLike[str], out: str | os.PathLike[str], *,
         ('events/press.npz', ['emulator.json', 'events', 'force', 'recordings.csv'])
     """
     settings = settings or VideoEmulation()
+    _check_role(role)
     video, out = Path(video), Path(out)
     luminance, times = video_luminance(video, settings)
     labels = None if force is None else _force_csv(Path(force))
     _write_settings(out, settings, str(video))
-    row = _write_recording(out, video.stem, luminance, times, labels, settings)
+    row = _write_recording(out, video.stem, luminance, times, labels, settings, role=role)
     count = row.pop("_events")
     _append_rows(out, [row])
     if log:
@@ -452,7 +459,8 @@ _TRIAL = re.compile(r"^(?P<object>.+?)(?:__t=(?P<t>\d+)|_(?P<n>\d+))$")
 
 
 def convert_video_folder(root: str | os.PathLike[str], out: str | os.PathLike[str], *,
-                         settings: VideoEmulation | None = None, log: Any = None) -> list[dict[str, str]]:
+                         settings: VideoEmulation | None = None, role: str = "train",
+                         log: Any = None) -> list[dict[str, str]]:
     """Convert a folder of ``<day>/<name>.avi`` with ``<name>_forces.pkl`` and ``<name>_widths.pkl``.
 
     One recording per video (named ``<day>_<name>``), with ``object``, ``session`` (the
@@ -465,6 +473,7 @@ def convert_video_folder(root: str | os.PathLike[str], out: str | os.PathLike[st
         root: the folder.
         out: the layout's folder.
         settings: the emulator's settings (default :class:`VideoEmulation`).
+        role: every row's role (the scenes of a folder assign their own splits).
         log: called with one line per grasp and a summary.
 
     Returns:
@@ -481,6 +490,7 @@ def convert_video_folder(root: str | os.PathLike[str], out: str | os.PathLike[st
         [('ball', 'day1', '0', '1')]
     """
     settings = settings or VideoEmulation()
+    _check_role(role)
     root, out = Path(root), Path(out)
     videos = sorted(root.glob("*/*.avi"))
     if not videos:
@@ -498,7 +508,8 @@ def convert_video_folder(root: str | os.PathLike[str], out: str | os.PathLike[st
         match = _TRIAL.match(name)
         if forces.shape[0] != times.shape[0]:
             raise ValueError(f"{video}: {forces.shape[0]} force readings for {times.shape[0]} video frames")
-        row = _write_recording(out, f"{day}_{name}", luminance, times, (times - times[0], forces), settings, widths)
+        row = _write_recording(out, f"{day}_{name}", luminance, times, (times - times[0], forces), settings, widths,
+                               role)
         row.update(object=match.group("object") if match else name, session=day,
                    trial=(match.group("t") or match.group("n")) if match else "")
         clipped += int(row["force_clipped"])
