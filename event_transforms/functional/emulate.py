@@ -473,9 +473,15 @@ def _assemble(parts: list[tuple[Tensor, Tensor, Tensor, Tensor]], batch: int, se
     p = torch.cat([part[3] for part in parts])
     if sample.numel() == 0:
         return _empty(batch, sensor_size, device)
-    order = torch.argsort(pixel, stable=True)
-    order = order[torch.argsort(t[order], stable=True)]
-    order = order[torch.argsort(sample[order], stable=True)]
+    pixels = sensor_size[0] * sensor_size[1]
+    low, high = (int(v) for v in read_host(torch.stack([t.min(), t.max()])))
+    if (high - low + 1) * pixels < 2**62:  # one sort by (time, pixel); ties keep their order
+        order = torch.argsort((t - low).mul_(pixels).add_(pixel), stable=True)
+    else:
+        order = torch.argsort(pixel, stable=True)
+        order = order[torch.argsort(t[order], stable=True)]
+    if batch > 1:
+        order = order[torch.argsort(sample[order], stable=True)]
     lengths = torch.bincount(sample, minlength=batch).cpu()
     offsets = torch.cat([torch.zeros(1, dtype=torch.int64), lengths.cumsum(0)])
     pixel = pixel[order]
