@@ -187,6 +187,7 @@ class TestPurity:
 class TestHardCases:
     def test_one_frame_and_empty_batch(self):
         assert F.emulate_events(torch.rand(1, 3, 4), fps=FPS, noise_hz=100.0, seed=0).lengths == [0]
+        assert F.emulate_events(torch.rand(2, 0, 3, 4), fps=FPS, noise_hz=100.0, seed=0).lengths == [0, 0]
         empty = F.emulate_events(torch.rand(0, 5, 3, 4), fps=FPS)
         assert len(empty) == 0 and empty.sensor_size == (3, 4)
         with pytest.raises(ValueError, match="H and W"):

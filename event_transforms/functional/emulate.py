@@ -361,7 +361,7 @@ def emulate_events(
     if device.type == "meta":
         raise ValueError(f"emulate_events reads the values of the frames, which frames on the meta device do not hold "
                          f"(frames of shape {tuple(frames.shape)}); the number of events depends on them")
-    if batch == 0:
+    if batch == 0 or steps == 0:
         return _empty(batch, (height, width), device)
     camera_keys = sample_keys(args["camera_seed"], device)
     keys = sample_keys(args["seed"], device)
