@@ -12,7 +12,8 @@ frame; each the median over the recordings (and its range). Only aggregates are 
 - **built-in**: ``BASE_SESSION`` grasps of the built-in simulator (10 ms frames, 180 × 240; its
   log intensity is ``log1p(-contrast · cover)``, so the largest change is ``-log(1 - contrast)``);
 - **optical**: ``OPTICAL_BASE_SESSION`` grasps of the optical generator (taxim, needs the
-  ``optical`` extra; its largest change is read from the rendered table at the grasp's peak depth).
+  ``optical`` extra; its largest change is read from the rendered table at the grasp's peak depth),
+  one row per ``--optical-channels`` rule (Rec. 601 luma is the scenes' camera).
 
     python benchmarks/recorded_vs_generators.py --data ../shared/data/gelsight-wedge [--grasps 12] [--no-write]
 """
@@ -75,14 +76,18 @@ def recorded(root: Path, limit: int | None) -> list[dict[str, float]]:
     return out
 
 
-def generated(generator: str, grasps: int) -> list[dict[str, float]]:
+def generated(generator: str, grasps: int, channel: str | int = "luma") -> list[dict[str, float]]:
+    from event_transforms.tactile.generators.optical import OpticalConfig, simulate_optical
     from event_transforms.tactile.scenes import BASE_SESSION, OPTICAL_BASE_SESSION
     from event_transforms.tactile.simulation import _strip_shape
 
     session = BASE_SESSION if generator == "builtin" else OPTICAL_BASE_SESSION
     drawn = session.grasps(grasps, seed=0)
+    optical = OpticalConfig(channel=channel)
+    simulated = (session.simulate(drawn) if generator == "builtin"
+                 else simulate_optical(drawn, session.config, optical, kind="cylinder"))
     out = []
-    for grasp, recording in zip(drawn, session.simulate(drawn)):
+    for grasp, recording in zip(drawn, simulated):
         frames = recording.frames()  # (T, 2, H, W)
         counts = frames.sum(dim=(1, 2, 3)).double().numpy()
         area = (frames.sum(dim=1) > 0).double().mean(dim=(1, 2)).numpy()
@@ -91,18 +96,18 @@ def generated(generator: str, grasps: int) -> list[dict[str, float]]:
             contrast = float(_strip_shape([grasp], session.config)[1][0])
             largest = -math.log1p(-contrast)
         else:
-            largest = _optical_largest(grasp, session)
+            largest = _optical_largest(grasp, session, optical)
         out.append(_measures(counts, area, force, session.config.frame_ms * 1e-3, largest))
     return out
 
 
-def _optical_largest(grasp, session) -> float:
+def _optical_largest(grasp, session, optical) -> float:
     """The optical render's largest change of lin-log luminance at the grasp's peak depth."""
     from event_transforms.tactile.generators.dvs import lin_log
-    from event_transforms.tactile.generators.optical import OpticalConfig, OpticalObject, press_depth, render_table
+    from event_transforms.tactile.generators.optical import OpticalObject, press_depth, render_table
     from event_transforms.tactile.simulation import force_profile
 
-    optical, config = OpticalConfig(), session.config
+    config = session.config
     obj = OpticalObject("cylinder", grasp.diameter_mm)
     fine_ms = np.arange(int(round(config.duration_ms / config.substep_ms)) + 1) * config.substep_ms
     depth = float(press_depth(force_profile([grasp], fine_ms, config), obj, optical).max())
@@ -130,13 +135,19 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--data", type=Path, required=True, help="the GelSight Wedge folder")
     parser.add_argument("--grasps", type=int, default=12, help="grasps per generator (default 12)")
     parser.add_argument("--no-optical", action="store_true", help="leave the optical generator out (no taxim)")
+    parser.add_argument("--optical-channels", nargs="+", default=["luma"], metavar="CHANNEL",
+                        help="the optical generator's RGB-to-luminance rules to compare: luma, mean, 0, 1, 2 "
+                        "(default: luma, the scenes' camera)")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     limit = 3 if args.quick else None
     grasps = 2 if args.quick else args.grasps
     sources = {"recorded (GelSight Wedge)": recorded(args.data, limit), "built-in": generated("builtin", grasps)}
     if not args.no_optical:
-        sources["optical"] = generated("optical", grasps)
+        names = {"luma": "luma", "mean": "mean RGB", "0": "red", "1": "green", "2": "blue"}
+        for channel in args.optical_channels:
+            value: str | int = int(channel) if channel in ("0", "1", "2") else channel
+            sources[f"optical ({names.get(channel, channel)})"] = generated("optical", grasps, value)
     rows = [[name, len(values), *_summary(values)] for name, values in sources.items()]
     lines = [
         "## The recorded grasps against both generators (no network)", "", *environment_lines(), "",

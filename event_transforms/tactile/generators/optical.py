@@ -118,6 +118,8 @@ class OpticalConfig:
             events that the matching darkening does not undo, and the physics least-squares
             model's test MSE on ``optical-control`` doubled (18.0 vs 10.0 N², 60 + 40 grasps).
         table_memory_mb: the most render-table memory held at once.
+        channel: how the rendered RGB becomes the DVS's luminance: ``"luma"`` (Rec. 601, a
+            monochrome sensor), ``"mean"``, or 0, 1, 2 (one colour channel: R, G, B).
     """
 
     calibration: str = "gelsight_mini"
@@ -134,8 +136,11 @@ class OpticalConfig:
     leak_hz: float = 0.1
     table_memory_mb: float = 256.0
     random_reference: bool = False
+    channel: str | int = "luma"
 
     def __post_init__(self) -> None:
+        if self.channel not in ("luma", "mean", 0, 1, 2) or isinstance(self.channel, bool):
+            raise ValueError(f"channel must be 'luma', 'mean' or 0, 1, 2, got {self.channel!r}")
         if isinstance(self.render_scale, bool) or not isinstance(self.render_scale, int) or self.render_scale < 1:
             raise ValueError(f"render_scale must be a positive integer, got {self.render_scale!r}")
         for name in ("foundation_n_per_mm3", "contact_length_mm", "end_radius_mm", "depth_step_mm",
@@ -331,9 +336,11 @@ def taxim_renderer(config: OpticalConfig | None = None) -> Renderer:
     return render
 
 
-def _luminance(rgb: np.ndarray, sensor_size: tuple[int, int]) -> np.ndarray:
-    """Rec. 601 luma of (N, h, w, 3) RGB, area-resampled to (N, H, W) float32."""
-    luma = rgb[..., 0] * 0.299 + rgb[..., 1] * 0.587 + rgb[..., 2] * 0.114
+def _luminance(rgb: np.ndarray, sensor_size: tuple[int, int], channel: str | int = "luma") -> np.ndarray:
+    """The ``channel`` luminance of (N, h, w, 3) RGB (Rec. 601 luma by default), area-resampled to (N, H, W) float32."""
+    weights = {"luma": (0.299, 0.587, 0.114), "mean": (1 / 3, 1 / 3, 1 / 3), 0: (1.0, 0.0, 0.0), 1: (0.0, 1.0, 0.0),
+               2: (0.0, 0.0, 1.0)}[channel]
+    luma = rgb[..., 0] * weights[0] + rgb[..., 1] * weights[1] + rgb[..., 2] * weights[2]
     tensor = torch.from_numpy(np.ascontiguousarray(luma, dtype=np.float32))[:, None]
     return torch.nn.functional.interpolate(tensor, size=sensor_size, mode="area")[:, 0].numpy()
 
@@ -450,7 +457,7 @@ def render_table(
         surface = height_map(obj, angle_deg, config)
         pressed = surface[None, :, :] - depths[:, None, None].astype(np.float32)
         rgb = (renderer or taxim_renderer(config))(pressed)
-        table = _luminance(rgb, sensor_size)
+        table = _luminance(rgb, sensor_size, config.channel)
         _write_table(path, key, table)
     table.setflags(write=False)
     _MEMORY.put(key, table, config.table_memory_mb)
