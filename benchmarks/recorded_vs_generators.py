@@ -13,7 +13,8 @@ frame; each the median over the recordings (and its range). Only aggregates are 
   log intensity is ``log1p(-contrast · cover)``, so the largest change is ``-log(1 - contrast)``);
 - **optical**: ``OPTICAL_BASE_SESSION`` grasps of the optical generator (taxim, needs the
   ``optical`` extra; its largest change is read from the rendered table at the grasp's peak depth),
-  one row per ``--optical-channels`` rule (Rec. 601 luma is the scenes' camera).
+  one row per ``--optical-channels`` rule: Rec. 601 luma (``OPTICAL_VERSION`` 1's camera, before)
+  and the red channel (version 2's, after: the closest to the recorded sensor on every figure).
 
     python benchmarks/recorded_vs_generators.py --data ../shared/data/gelsight-wedge [--grasps 12] [--no-write]
 """
@@ -135,9 +136,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--data", type=Path, required=True, help="the GelSight Wedge folder")
     parser.add_argument("--grasps", type=int, default=12, help="grasps per generator (default 12)")
     parser.add_argument("--no-optical", action="store_true", help="leave the optical generator out (no taxim)")
-    parser.add_argument("--optical-channels", nargs="+", default=["luma"], metavar="CHANNEL",
+    parser.add_argument("--optical-channels", nargs="+", default=["luma", "0"], metavar="CHANNEL",
                         help="the optical generator's RGB-to-luminance rules to compare: luma, mean, 0, 1, 2 "
-                        "(default: luma, the scenes' camera)")
+                        "(default: luma, version 1's camera, and 0, red, version 2's)")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     limit = 3 if args.quick else None

@@ -176,7 +176,8 @@ class TestContactAndMembrane:
         rgb[..., 0], rgb[..., 1], rgb[..., 2] = 0.2, 0.5, 0.9
         assert float(_luminance(rgb, (2, 2), 0)[0, 0, 0]) == pytest.approx(0.2)
         assert float(_luminance(rgb, (2, 2), 2)[0, 0, 0]) == pytest.approx(0.9)
-        assert float(_luminance(rgb, (2, 2))[0, 0, 0]) == pytest.approx(0.299 * 0.2 + 0.587 * 0.5 + 0.114 * 0.9)
+        assert float(_luminance(rgb, (2, 2), "luma")[0, 0, 0]) == pytest.approx(0.299 * 0.2 + 0.587 * 0.5 + 0.114 * 0.9)
+        assert OpticalConfig().channel == 0  # red: the recorded sensor's closest (benchmarks/recorded_vs_generators.py)
 
 
 class TestHeightMaps:

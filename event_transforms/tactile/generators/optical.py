@@ -26,7 +26,12 @@ built-in generator (same force, timing, delay, membrane time constant, angle, ce
 4. **Rendering** (:func:`render_table`): per object and angle node a table of the gel's
    luminance over depth (``depth_step_mm`` 0.04 mm to ``max_depth_mm`` 0.8 mm), rendered once
    without shadows at 240×320 (``render_scale`` 2 of the calibration's 480×640, 0.059 mm/px),
-   converted to luminance (Rec. 601: 0.299 R + 0.587 G + 0.114 B, a monochrome DVS) and
+   converted to luminance by ``OpticalConfig.channel``: the red channel by default (one
+   coloured light; since version 2, chosen against the recorded GelSight Wedge grasps by
+   ``benchmarks/recorded_vs_generators.py``: at peak force the red render changes the log
+   luminance by 0.72-2.18, median 1.39, the recorded sensor by 0.70-1.39, median 0.93, and
+   events per frame follow |dF/dt| with r +0.82 against +0.73 recorded, where Rec. 601 luma,
+   the version-1 camera, mixed the gel's directional shading away: 0.04-0.12 and +0.27) and
    area-resampled onto the sensor grid (180×240: the 14.2 × 18.9 mm field, 0.079 mm per
    pixel). Tables are cached on disk (content-keyed: taxim's version, the calibration files,
    the object, angle, depths and grids; written atomically; an unreadable file is named in a
@@ -42,9 +47,10 @@ built-in generator (same force, timing, delay, membrane time constant, angle, ce
    reset reference a pixel's first leak event comes after 1 / leak_hz = 10 s, so a 360 ms
    grasp has none unless ``random_reference``). Since ``OPTICAL_VERSION`` 2 (the library's
    counter-based draws, crossing times by interpolation, a continuous refractory period,
-   hot pixels drawn per pixel) a seed gives other events than version 1's numpy model. The rendered gel changes its log
-   luminance by at most about 0.15 at full press, so the optical scenes use a camera of
-   threshold 0.05 (:data:`~event_transforms.tactile.scenes.OPTICAL_BASE_SESSION`). taxim's own
+      hot pixels drawn per pixel, the red channel) a seed gives other events than version 1's
+   numpy model. The optical scenes keep the camera of threshold 0.05
+   (:data:`~event_transforms.tactile.scenes.OPTICAL_BASE_SESSION`), chosen when the luma render
+   changed the log luminance by at most about 0.15; it was not re-chosen for the red channel. taxim's own
    rendering artefacts (faint rings from its binned gradient lookup) are part of the image and
    fire events too.
 
@@ -118,8 +124,9 @@ class OpticalConfig:
             events that the matching darkening does not undo, and the physics least-squares
             model's test MSE on ``optical-control`` doubled (18.0 vs 10.0 N², 60 + 40 grasps).
         table_memory_mb: the most render-table memory held at once.
-        channel: how the rendered RGB becomes the DVS's luminance: ``"luma"`` (Rec. 601, a
-            monochrome sensor), ``"mean"``, or 0, 1, 2 (one colour channel: R, G, B).
+        channel: how the rendered RGB becomes the DVS's luminance: 0, 1, 2 (one colour
+            channel: R, G, B; 0, red, by default: see the module docstring), ``"luma"`` (Rec.
+            601, a monochrome sensor: version 1's camera) or ``"mean"``.
     """
 
     calibration: str = "gelsight_mini"
@@ -136,7 +143,7 @@ class OpticalConfig:
     leak_hz: float = 0.1
     table_memory_mb: float = 256.0
     random_reference: bool = False
-    channel: str | int = "luma"
+    channel: str | int = 0
 
     def __post_init__(self) -> None:
         if self.channel not in ("luma", "mean", 0, 1, 2) or isinstance(self.channel, bool):
@@ -336,8 +343,8 @@ def taxim_renderer(config: OpticalConfig | None = None) -> Renderer:
     return render
 
 
-def _luminance(rgb: np.ndarray, sensor_size: tuple[int, int], channel: str | int = "luma") -> np.ndarray:
-    """The ``channel`` luminance of (N, h, w, 3) RGB (Rec. 601 luma by default), area-resampled to (N, H, W) float32."""
+def _luminance(rgb: np.ndarray, sensor_size: tuple[int, int], channel: str | int = 0) -> np.ndarray:
+    """The ``channel`` luminance of (N, h, w, 3) RGB (red by default), area-resampled to (N, H, W) float32."""
     weights = {"luma": (0.299, 0.587, 0.114), "mean": (1 / 3, 1 / 3, 1 / 3), 0: (1.0, 0.0, 0.0), 1: (0.0, 1.0, 0.0),
                2: (0.0, 0.0, 1.0)}[channel]
     luma = rgb[..., 0] * weights[0] + rgb[..., 1] * weights[1] + rgb[..., 2] * weights[2]
