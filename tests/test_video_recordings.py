@@ -200,3 +200,15 @@ def test_the_recorded_vs_generators_benchmark_runs_quick(tmp_path):
     bench.main(["--quick", "--no-optical", "--data", str(DATA), "--results", str(path)])
     text = path.read_text()
     assert "| recorded (GelSight Wedge) |          3 |" in text and "| built-in " in text
+
+
+def test_a_video_joins_a_table_with_other_columns(tmp_path):
+    """Converting into a folder whose recordings.csv has its own columns keeps them (and its rows)."""
+    out = tmp_path / "rec"
+    out.mkdir()
+    (out / "recordings.csv").write_text("events,force,role,diameter_mm\nevents/a.npy,force/a.csv,deploy,12\n")
+    _press_video(tmp_path / "press.avi", frames=4)
+    convert_video(tmp_path / "press.avi", out, force=None, settings=SMALL)
+    lines = (out / "recordings.csv").read_text().splitlines()
+    assert lines[0].startswith("events,force,role,diameter_mm,object")
+    assert lines[1].startswith("events/a.npy,force/a.csv,deploy,12,") and lines[2].startswith("events/press.npz,,train,,")

@@ -331,15 +331,17 @@ def _append_rows(out: Path, rows: list[dict[str, str]]) -> None:
     table = out / "recordings.csv"
     header = ["events", "force", "role", "object", "session", "trial", "width", "force_clipped", "force_min_n"]
     existing: list[dict[str, str]] = []
-    if table.is_file():
+    if table.is_file():  # a table written before (by convert, by hand): its columns are kept
         with open(table, newline="") as handle:
-            existing = list(csv.DictReader(handle))
+            reader = csv.DictReader(handle)
+            existing = list(reader)
+            header = [*(reader.fieldnames or []), *(h for h in header if h not in (reader.fieldnames or []))]
         names = {row["events"] for row in existing}
         clash = [row["events"] for row in rows if row["events"] in names]
         if clash:
             raise ValueError(f"{table}: {clash[0]} is already a row; remove it to convert it again")
     with atomic_write(table, "w") as handle:
-        writer = csv.DictWriter(handle, fieldnames=header, lineterminator="\n", extrasaction="ignore")
+        writer = csv.DictWriter(handle, fieldnames=header, lineterminator="\n", extrasaction="ignore", restval="")
         writer.writeheader()
         writer.writerows([*existing, *rows])
 
