@@ -47,6 +47,7 @@ if TYPE_CHECKING:  # torch is imported where it is used: the command line's help
     from torch import Tensor
 
 from .._files import atomic_write, write_json_atomic
+from .labels import read_force
 
 #: The GelSight Wedge's gel in its 640 × 480 frame, (x, y) pixel corners top-left, top-right,
 #: bottom-right, bottom-left (the source repository's ``wedge_config/config.csv``).
@@ -374,30 +375,6 @@ def _write_recording(out: Path, name: str, luminance: Tensor, times: np.ndarray,
     return row
 
 
-def _force_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """A force CSV's samples as ``(t_us, force_n)``: a time column ``t_us``, ``t_ms``, ``t_s`` or
-    ``t_ns`` on the video's clock (0 at the first frame) and ``force_n``, finite, times increasing.
-    Kept at their own rate: the layout's reader averages them over each bin."""
-    with open(path, newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    if not rows:
-        raise ValueError(f"{path}: no force rows")
-    scale = {"t_us": 1.0, "t_ms": 1e3, "t_s": 1e6, "t_ns": 1e-3}
-    column = next((c for c in scale if c in rows[0]), None)
-    if column is None or "force_n" not in rows[0]:
-        raise ValueError(f"{path}: expected a time column (t_us, t_ms, t_s or t_ns) and force_n, got {list(rows[0])}")
-    try:
-        t = np.array([float(r[column]) for r in rows]) * scale[column]
-        f = np.array([float(r["force_n"]) for r in rows])
-    except ValueError as error:
-        raise ValueError(f"{path}: {error}") from None
-    if not (np.isfinite(t).all() and np.isfinite(f).all()):
-        raise ValueError(f"{path}: times and forces must be finite numbers")
-    if t.size > 1 and not (np.diff(t) > 0).all():
-        raise ValueError(f"{path}: the force times must increase")
-    return t, f
-
-
 def _check_role(role: str) -> None:
     if role not in ("train", "deploy"):
         raise ValueError(f"role must be 'train' or 'deploy', got {role!r}")
@@ -422,9 +399,10 @@ def convert_video(video: str | os.PathLike[str], out: str | os.PathLike[str], *,
     Args:
         video: the video file.
         out: the layout's folder (``recordings.csv``, ``events/``, ``force/``, ``emulator.json``).
-        force: a CSV with a time column (``t_us``, ``t_ms``, ``t_s`` or ``t_ns``, on the video's
-            clock: 0 at the first frame) and ``force_n``, written at its own rate on the events'
-            clock (negative readings clipped to 0 N and counted); ``None``: unlabeled.
+        force: a force CSV as the layout reads it (:func:`~event_transforms.tactile.recordings.read_force`:
+            ``t_us``, ``t_ns``, ``t_ms`` or ``t_s`` and ``force_n``), on the video's clock (0 at the
+            first frame), written at its own rate in microseconds (negative readings clipped to
+            0 N and counted); ``None``: unlabeled.
         settings: the emulator's settings (default :class:`VideoEmulation`).
         role: the row's role, ``"train"`` or ``"deploy"``.
         log: called with one line of what was read and written.
@@ -446,7 +424,7 @@ def convert_video(video: str | os.PathLike[str], out: str | os.PathLike[str], *,
     _check_role(role)
     video, out = Path(video), Path(out)
     luminance, times = video_luminance(video, settings)
-    labels = None if force is None else _force_csv(Path(force))
+    labels = None if force is None else read_force(force, log=log)  # the layout's own reader and checks
     _write_settings(out, settings, str(video))
     row = _write_recording(out, video.stem, luminance, times, labels, settings, role=role)
     count = row.pop("_events")
