@@ -174,3 +174,13 @@ class TestTesMemory:
                        check=True, capture_output=True, text=True, env=child_env())
         section = _section(path, "tes-memory")
         assert "| TES exact | 200,000 |" in section and "x batch" in section
+
+
+def test_the_emulation_benchmark_runs_quick(tmp_path):
+    """``benchmarks/library/emulate.py --quick`` (no recorded data) prints its table and writes its own section."""
+    from benchmarks.library import emulate as bench
+
+    path = tmp_path / "RESULTS.md"
+    bench.main(["--quick", "--results", str(path)])
+    text = path.read_text()
+    assert "<!-- emulate:start -->" in text and "real time / emulation" in text and "ideal" in text

@@ -4,6 +4,7 @@ configuration; nothing asserts on timing."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 import torch
@@ -172,3 +173,19 @@ class TestSizeModelNetwork:
         assert rows[("paper-membrane", "fs-1 − none")][6] == "not resolved"
         assert rows[("paper-membrane", "fs-1 − none")][5] == "0/3"
         assert rows[("paper-offset", "fs-1 − none")][4] == "**-1.00 [-1.30, -0.70]**"
+
+
+#: The recorded GelSight Wedge grasps beside the repository (not ours: never committed).
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "gelsight-wedge"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not DATA.is_dir(), reason=f"the recorded GelSight Wedge grasps are not at {DATA}")
+def test_the_recorded_vs_generators_benchmark_runs_quick(tmp_path):
+    """``benchmarks/tactile/recorded_vs_generators.py --quick`` on three recorded grasps and two built-in ones."""
+    from benchmarks.tactile import recorded_vs_generators as bench
+
+    path = tmp_path / "RESULTS.md"
+    bench.main(["--quick", "--no-optical", "--data", str(DATA), "--results", str(path)])
+    text = path.read_text()
+    assert "| recorded (GelSight Wedge) |          3 |" in text and "| built-in " in text

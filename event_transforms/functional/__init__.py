@@ -41,6 +41,8 @@ from .drop import *  # noqa: F401,F403
 from .drop import __all__ as _drop
 from .representations import *  # noqa: F401,F403
 from .representations import __all__ as _representations
+from .emulate import *  # noqa: F401,F403
+from .emulate import __all__ as _emulate
 
 from ..events.batch import *  # noqa: F401,F403
 from ..events.batch import __all__ as _event_batch
@@ -48,5 +50,5 @@ from ._dispatch import call_kernel, has_kernel, kernel_for, register_kernel
 
 __all__ = [
     *_affine, *_perspective, *_elastic, *_stretch, *_temporal, *_timestamps, *_noise, *_events, *_streaming, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop,
-    *_representations, *_event_batch, "register_kernel", "kernel_for", "call_kernel", "has_kernel",
+    *_representations, *_emulate, *_event_batch, "register_kernel", "kernel_for", "call_kernel", "has_kernel",
 ]

@@ -10,6 +10,7 @@ __all__ = ["add_ingestion_options", "add_recording_options", "recording_settings
            "run_convert"]
 
 import argparse
+import dataclasses
 import math
 import re
 from pathlib import Path
@@ -166,8 +167,28 @@ def recording_settings(args: argparse.Namespace) -> Any:
     )
 
 
+#: Suffixes read as videos by ``convert`` (anything else is a ROS bag).
+VIDEO_SUFFIXES = (".avi", ".mp4", ".mov", ".mkv", ".webm")
+
+
+def _is_video_input(path: Path) -> bool:
+    """A video file, or a folder of ``<day>/<name>.avi`` videos (a ROS 2 bag folder holds metadata.yaml)."""
+    if path.suffix.lower() in VIDEO_SUFFIXES:
+        return True
+    return path.is_dir() and not (path / "metadata.yaml").is_file() and any(path.glob("*/*.avi"))
+
+
+def _channel(value: str) -> str | int:
+    if value in ("mean", "luma"):
+        return value
+    if value in ("0", "1", "2", "red", "green", "blue"):
+        return {"red": 0, "green": 1, "blue": 2}.get(value, int(value) if value.isdigit() else 0)
+    raise argparse.ArgumentTypeError(f"expected mean, luma, red, green, blue or 0, 1, 2, got {value!r}")
+
+
 def add_convert_command(sub: Any) -> None:
-    """``convert BAG... --events TOPIC [--force TOPIC] --out DIR``: ROS bags into the layout.
+    """``convert BAG... --events TOPIC [--force TOPIC] --out DIR`` (ROS bags) and
+    ``convert VIDEO --force FILE.csv --out DIR`` / ``convert FOLDER --out DIR`` (videos, events emulated).
 
     Args:
         sub: the subparsers of the ``event-transforms`` parser.
@@ -178,16 +199,25 @@ def add_convert_command(sub: Any) -> None:
         >>> args = parser.parse_args(["convert", "a.bag", "--events", "/dvs/events", "--out", "rec"])
         >>> args.role, args.stamps
         ('train', 'header')
+        >>> parser.parse_args(["convert", "grasp.avi", "--force", "f.csv", "--out", "rec", "--channel", "red"]).channel
+        0
     """
     convert = sub.add_parser(
-        "convert", help="write ROS bags (ROS 1 or 2) in the recording-set layout",
-        description="Read the events (dvs_msgs/EventArray or prophesee_event_msgs/EventArray) and the force "
+        "convert", help="write ROS bags or frame-camera videos in the recording-set layout",
+        description="ROS bags: read the events (dvs_msgs/EventArray or prophesee_event_msgs/EventArray) and the force "
         "(geometry_msgs/WrenchStamped or any numeric field) of each bag and write them as one recording each of "
         "the layout in --out (events/<bag>.npz with the sensor size, force/<bag>.csv, a row of recordings.csv). "
-        "Needs the bag extra: pip install 'event-transforms[bag]'.")
-    convert.add_argument("bags", type=Path, nargs="+", metavar="BAG", help="ROS 1 .bag files or ROS 2 bag folders")
-    convert.add_argument("--events", required=True, metavar="TOPIC", help="the events' topic, e.g. /dvs/events")
-    convert.add_argument("--force", metavar="TOPIC", help="the force topic (default: none, unlabeled recordings)")
+        "Needs the bag extra: pip install 'event-transforms[bag]'. Videos (a tactile sensor's frame camera): the "
+        "events are emulated (event_transforms.functional.emulate_events) on the gel's rectified crop, the force "
+        "CSV (--force) is written on the frames' clock, and the emulator's settings go to emulator.json; a folder "
+        "of <day>/<name>.avi with <name>_forces.pkl and <name>_widths.pkl (the GelSight Wedge grasps' layout) "
+        "converts one recording per grasp. Needs the video extra: pip install 'event-transforms[video]'.")
+    convert.add_argument("bags", type=Path, nargs="+", metavar="INPUT",
+                         help="ROS 1 .bag files or ROS 2 bag folders; or a video; or a folder of <day>/<name>.avi")
+    convert.add_argument("--events", metavar="TOPIC", help="bags: the events' topic, e.g. /dvs/events (required)")
+    convert.add_argument("--force", metavar="TOPIC|FILE",
+                         help="bags: the force topic; a video: a CSV with t_us (or t_s, t_ms, t_ns) and force_n "
+                         "(default: none, unlabeled recordings)")
     convert.add_argument("--force-field", metavar="FIELD",
                          help="magnitude (a wrench's default), fx, fy, fz, or a dotted numeric field (data, "
                          "wrench.torque.z)")
@@ -199,6 +229,17 @@ def add_convert_command(sub: Any) -> None:
     convert.add_argument("--role", choices=("train", "deploy"), default="train", help="the rows' role (default train)")
     convert.add_argument("--diameter-mm", type=_positive_float, help="the object's size, for a diameter_mm column")
     convert.add_argument("--out", type=Path, required=True, metavar="DIR", help="the layout's folder")
+    video = convert.add_argument_group("videos (events emulated; the settings are written to emulator.json)")
+    video.add_argument("--channel", type=_channel, default=None,
+                       help="RGB to one luminance: mean, luma (BT.601), red, green or blue (default green, chosen on "
+                       "training grasps: docs/recordings.md)")
+    video.add_argument("--threshold", type=_positive_float, default=None,
+                       help="contrast threshold, log units (default 0.03, chosen likewise)")
+    video.add_argument("--mismatch", type=float, default=None,
+                       help="relative spread of the per-pixel thresholds (default 0.03)")
+    video.add_argument("--refractory-us", type=float, default=None, help="refractory period, microseconds (default 0)")
+    video.add_argument("--whole-frame", action="store_true",
+                       help="emulate the whole frame instead of the GelSight Wedge gel's rectified quadrilateral")
 
 
 def run_convert(args: argparse.Namespace, log: Any) -> int:
@@ -211,10 +252,41 @@ def run_convert(args: argparse.Namespace, log: Any) -> int:
     Example:
         See :func:`add_convert_command`.
     """
+    videos = [_is_video_input(path) for path in args.bags]
+    if any(videos):
+        if not all(videos):
+            raise ValueError("convert takes either ROS bags or videos in one call, not both")
+        return _run_convert_videos(args, log)
+    if args.events is None:
+        raise ValueError("convert: a ROS bag needs --events TOPIC (the events' topic, e.g. /dvs/events)")
     from .recordings.convert import convert_bag
 
     for bag in args.bags:
         convert_bag(bag, args.out, events=args.events, force=args.force, force_field=args.force_field,
                     stamps=args.stamps, role=args.role, diameter_mm=args.diameter_mm,
                     triggers=None if args.triggers is None else tuple(args.triggers), log=log)
+    return 0
+
+
+def _run_convert_videos(args: argparse.Namespace, log: Any) -> int:
+    """``convert`` on videos or a folder of them (see :func:`add_convert_command`)."""
+    from .recordings.video import FORCE_RULE, VideoEmulation, convert_video, convert_video_folder
+
+    for flag, value in (("--events", args.events), ("--triggers", args.triggers), ("--force-field", args.force_field)):
+        if value is not None:
+            raise ValueError(f"convert: {flag} is for ROS bags; a video's events are emulated")
+    given = {"channel": args.channel, "threshold": args.threshold, "mismatch": args.mismatch,
+             "refractory_us": args.refractory_us}
+    settings = dataclasses.replace(VideoEmulation(), **{k: v for k, v in given.items() if v is not None})
+    if args.whole_frame:
+        settings = dataclasses.replace(settings, corners_xy=None)
+    log(f"emulator: {settings.as_dict()}")
+    for path in args.bags:
+        if path.is_dir():
+            if args.force is not None:
+                raise ValueError(f"convert {path}: a folder of grasps reads its <name>_forces.pkl; leave --force out")
+            convert_video_folder(path, args.out, settings=settings, role=args.role, log=log)
+        else:
+            convert_video(path, args.out, force=args.force, settings=settings, role=args.role, log=log)
+            log(FORCE_RULE)
     return 0

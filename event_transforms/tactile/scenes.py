@@ -445,8 +445,9 @@ def _scenes() -> dict[str, BenchmarkScene]:
 SCENES: dict[str, BenchmarkScene] = _scenes()
 
 #: The optical generator's base session: :data:`BASE_SESSION`'s draws, rendered by taxim, on a
-#: camera of contrast threshold 0.05 (the rendered gel changes its log luminance by at most
-#: about 0.15 at full press, so the built-in's 0.2 would see almost nothing of it).
+#: camera of contrast threshold 0.05 (chosen when its Rec. 601 luma render changed the log
+#: luminance by at most about 0.15 at full press, so the built-in's 0.2 would have seen almost
+#: nothing of it; the red-channel render of ``OPTICAL_VERSION`` 2 changes it by up to about 2).
 OPTICAL_BASE_SESSION = BASE_SESSION.replace(generator="optical", threshold=0.05)
 
 

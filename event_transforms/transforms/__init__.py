@@ -30,10 +30,12 @@ from .containers import *  # noqa: F401,F403
 from .containers import __all__ as _containers
 from .events import *  # noqa: F401,F403
 from .events import __all__ as _events
+from .emulate import *  # noqa: F401,F403
+from .emulate import __all__ as _emulate
 
 # The transforms only; the authoring names (EventTransform, Param, Params, as_transform) are
 # importable from here too, and listed in event_transforms.authoring.
 __all__ = [
     "Lambda",
-    *_affine, *_stretch, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_containers, *_events,
+    *_affine, *_stretch, *_temporal, *_noise, *_geometry, *_polarity, *_mixing, *_cleaning, *_drop, *_containers, *_events, *_emulate,
 ]

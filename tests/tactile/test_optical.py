@@ -166,6 +166,18 @@ class TestContactAndMembrane:
             OpticalConfig(render_scale=0)
         with pytest.raises(ValueError, match="kind"):
             OpticalObject("sphere", 10.0)
+        with pytest.raises(ValueError, match="channel"):
+            OpticalConfig(channel="blue")
+
+    def test_the_luminance_rule_picks_the_channel(self):
+        from event_transforms.tactile.generators.optical import _luminance
+
+        rgb = np.zeros((1, 4, 4, 3))
+        rgb[..., 0], rgb[..., 1], rgb[..., 2] = 0.2, 0.5, 0.9
+        assert float(_luminance(rgb, (2, 2), 0)[0, 0, 0]) == pytest.approx(0.2)
+        assert float(_luminance(rgb, (2, 2), 2)[0, 0, 0]) == pytest.approx(0.9)
+        assert float(_luminance(rgb, (2, 2), "luma")[0, 0, 0]) == pytest.approx(0.299 * 0.2 + 0.587 * 0.5 + 0.114 * 0.9)
+        assert OpticalConfig().channel == 0  # red: the recorded sensor's closest (benchmarks/tactile/recorded_vs_generators.py)
 
 
 class TestHeightMaps:

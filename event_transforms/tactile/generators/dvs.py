@@ -1,4 +1,10 @@
-"""One DVS pixel model, shared by both tactile generators: log intensity over time -> events.
+"""The built-in simulator's DVS pixel model (numpy): log intensity over time -> events.
+
+The same model is the library's :func:`event_transforms.functional.emulate_events` (batched, on
+the device, counter-based draws, crossing times interpolated inside each step), which the
+optical generator uses since ``OPTICAL_VERSION`` 2. The built-in simulator still calls this
+module, so its seeds give the events they always gave (its pinned results stand); moving it to
+the library op changes every built-in result and is left for a regeneration of the main job.
 
 Each pixel of a dynamic vision sensor remembers the log intensity at its last event (its
 *reference*) and emits an ON (OFF) event whenever the log intensity has risen (fallen) by its
