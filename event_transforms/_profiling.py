@@ -78,7 +78,7 @@ def count_ops(fn: Callable[[], Any], *, warmup: bool = True) -> OpCounts:
     """
     from torch.profiler import ProfilerActivity, profile
 
-    from event_transforms.transforms._params import CHECK_RANGE
+    from event_transforms.transforms._tree import CHECK_RANGE
 
     if warmup:
         fn()

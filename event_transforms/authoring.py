@@ -37,7 +37,7 @@ Example:
 from __future__ import annotations
 
 from ._params import check_args
-from .transforms._params import slice_params
+from .transforms._tree import slice_params
 from .transforms.base import EventTransform, Param, Params, as_transform
 
 __all__ = ["EventTransform", "Param", "Params", "as_transform", "check_args", "slice_params"]

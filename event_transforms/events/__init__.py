@@ -6,7 +6,7 @@
 - :mod:`event_transforms.events.binning`: :func:`events_to_frames` (streams, or an
   :class:`EventBatch`, to ``(T, 2, H, W)`` or ``(B, T, 2, H, W)`` frames) and
   :func:`bin_events`, one binning kernel;
-- :mod:`event_transforms.events.drops`: :func:`count_dropped` (events dropped by design,
+- :mod:`event_transforms.events.dropped`: :func:`count_dropped` (events dropped by design,
   counted) and the two warnings for events of the caller's input outside what it declared;
 - :mod:`event_transforms.events.streaming`: :func:`iter_frames`, frames from a stream read
   in chunks.
@@ -26,7 +26,7 @@ from typing import Any
 
 from .batch import EventBatch, collate_events
 from .binning import CHUNK_EVENTS, MAX_BYTES, bin_events, events_to_frames
-from .drops import DroppedEvents, EventsOutsideSensorWarning, EventsOutsideWindowWarning, count_dropped
+from .dropped import DroppedEvents, EventsOutsideSensorWarning, EventsOutsideWindowWarning, count_dropped
 from .streaming import iter_frames
 
 from torch.utils import _pytree

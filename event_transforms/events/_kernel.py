@@ -18,7 +18,7 @@ from torch import Tensor
 
 from .._compile import compilable
 from .batch import EventBatch
-from .drops import EventsOutsideSensorWarning, warn_at_caller
+from .dropped import EventsOutsideSensorWarning, warn_at_caller
 from ._ingest import (
     _INT64_MAX, _check_crop, _check_dtype, _check_polarity, bin_width_us, check_integer, _sensor,
 )

@@ -38,7 +38,7 @@ import torch
 from torch import Tensor
 
 from .._validation import index_on, read_host
-from .drops import EventsOutsideSensorWarning, EventsOutsideWindowWarning, warn_at_caller
+from .dropped import EventsOutsideSensorWarning, EventsOutsideWindowWarning, warn_at_caller
 from ._ingest import T_START_RULES, _check_polarity, canonical_columns, explicit_starts, _field, _floor_to_grid, bin_width_us, check_integer, _sensor
 
 __all__ = ["EventBatch", "collate_events"]

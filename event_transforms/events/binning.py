@@ -57,7 +57,7 @@ import torch
 from torch import Tensor
 
 from .batch import EventBatch, _resolve_starts, _segment_first
-from .drops import EventsOutsideSensorWarning, EventsOutsideWindowWarning, counting, record_dropped, warn_at_caller
+from .dropped import EventsOutsideSensorWarning, EventsOutsideWindowWarning, counting, record_dropped, warn_at_caller
 from ._ingest import (
     _FIELDS, T_START_RULES, explicit_starts, _floor_to_grid,
     bin_width_us, check_integer, _source,

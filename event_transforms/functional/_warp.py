@@ -21,7 +21,7 @@ from torch import Tensor
 from .._compile import compilable
 from .._validation import as_batch, check_choice, check_frames, describe
 from ..events.batch import EventBatch
-from ..events.drops import counting, record_dropped
+from ..events.dropped import counting, record_dropped
 from ._event_ops import _compact, _round_to
 from ._frame_ops import _output_dtype, _work_dtype
 

@@ -29,7 +29,7 @@ from ..events.batch import EventBatch
 from ..events._ingest import bin_width_us
 from ._frame_ops import check_length
 from ._dispatch import batch_of, call_kernel, register_kernel, shape_of
-from ..events.drops import counting, record_dropped
+from ..events.dropped import counting, record_dropped
 from ._event_ops import TES_KEYS, _kept, _mirrored, _keys, _per_event, _require_grid
 from ._random import draw_seeds
 from ._hypergeometric import (

@@ -43,7 +43,7 @@ from .._validation import FRAME_DTYPES, as_batch, check_frames, check_probabilit
 from ..events.batch import EventBatch, merge_streams, replace_streams
 from ..functional._dispatch import NoKernelError
 from ..functional._random import draw_seeds
-from ._params import CHECK_RANGE, Param, Params, Spec, check_tree, slice_params
+from ._tree import CHECK_RANGE, Param, Params, Spec, check_tree, slice_params
 
 __all__ = ["EventTransform", "Params", "Param", "Lambda", "as_transform", "FRAMES_KEY"]
 

@@ -11,7 +11,7 @@ from torch import Tensor
 from .._validation import check_pair, check_seed
 from ..events.batch import EventBatch
 from ..functional.emulate import EMULATE_EVENTS_SPEC, emulate_events
-from ._params import check_tree
+from ._tree import check_tree
 from .base import EventTransform, Param, Params, seeds, uniform
 
 __all__ = ["EmulateEvents"]

@@ -15,7 +15,7 @@ from torch.utils.data import DataLoader, Dataset
 
 import event_transforms as et
 from event_transforms import functional as F
-from event_transforms.transforms._params import check_tree
+from event_transforms.transforms._tree import check_tree
 from event_transforms.transforms.base import slice_params
 
 from tests.support.topics import collect

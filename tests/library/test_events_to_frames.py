@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import event_transforms as et
 from event_transforms.events.binning import events_to_frames
-from event_transforms.events.drops import EventsOutsideSensorWarning, EventsOutsideWindowWarning
+from event_transforms.events.dropped import EventsOutsideSensorWarning, EventsOutsideWindowWarning
 from event_transforms.events.streaming import iter_frames
 
 TONIC_DTYPE = [("x", int), ("y", int), ("t", int), ("p", int)]

@@ -13,7 +13,7 @@ import torch
 
 from event_transforms.events import batch as batch_module
 from event_transforms.events.batch import EventBatch
-from event_transforms.events.drops import EventsOutsideSensorWarning
+from event_transforms.events.dropped import EventsOutsideSensorWarning
 from event_transforms.transforms.base import slice_params
 
 from tests.support.topics import collect

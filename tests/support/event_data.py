@@ -61,7 +61,7 @@ def check_hard_cases(make, *, coupled: bool = False) -> None:
     from event_transforms._profiling import count_ops
     from event_transforms.transforms.base import slice_params
 
-    from event_transforms.events.drops import EventsOutsideSensorWarning
+    from event_transforms.events.dropped import EventsOutsideSensorWarning
 
     def run(batch, **kwargs):
         with warnings.catch_warnings():
