@@ -30,6 +30,7 @@ from .stopwatch import Stopwatch, TimedTransform
 __all__ = [
     "SceneData",
     "load_scene_data",
+    "data_seed_offset",
     "MaterializedDataset",
     "OnlineCopies",
     "DeviceAugment",
@@ -59,23 +60,50 @@ class SceneData:
     dataset: dict[str, Any] | None = None
 
 
+#: The sequence seeds of protocol seed ``s``'s own data set start at ``(s + 1)`` times this:
+#: above every split of the base data set (sequence seeds below 50,000) and of every other
+#: protocol seed, so no two data sets share a grasp.
+DATA_SEED_STRIDE = 100_000
+
+
+def data_seed_offset(seed: int | None) -> int:
+    """The sequence-seed offset (:class:`~event_transforms.tactile.datasets.TactileGrasps`'s
+    ``seed``) of protocol seed ``seed``'s fresh data set; ``None``: the base data set (0).
+
+    Example:
+        >>> data_seed_offset(None), data_seed_offset(0), data_seed_offset(7)
+        (0, 100000, 800000)
+    """
+    if seed is None:
+        return 0
+    from .._validation import check_seed
+
+    return (check_seed(seed, "seed") + 1) * DATA_SEED_STRIDE
+
+
 def load_scene_data(
-    scene: str | BenchmarkScene, root: str | None = None, *, paper_split: bool = False, noise_frames: int = 360
+    scene: str | BenchmarkScene, root: str | None = None, *, paper_split: bool = False, noise_frames: int = 360,
+    data_seed: int | None = None,
 ) -> SceneData:
     """The simulated grasps of ``scene`` (generated into the cache on first use).
 
     The noise bank is ``noise_frames`` frames of a simulated static scene seen by the
-    deployment camera.
+    deployment camera. ``data_seed``: protocol seed ``s`` draws its own data set, new grasps
+    (training, hold-out, validation and test) and a new noise bank from the same sessions
+    (sequence seeds offset by :func:`data_seed_offset`); ``None``: the base data set. Scenes
+    whose training sessions agree still share their training data within a seed.
     """
     from . import datasets
 
     scene = get_scene(scene)
+    offset = data_seed_offset(data_seed)
     start = time.perf_counter()
     splits = {
-        split: datasets.TactileGrasps(split, root=root, scene=scene, paper_split=paper_split)
+        split: datasets.TactileGrasps(split, root=root, scene=scene, paper_split=paper_split, seed=offset)
         for split in ("train", "holdout", "val", "test")
     }
-    bank = datasets.noise_bank(noise_frames, seed=0, config=scene.deploy.config)
+    # a fresh bank sits at +60,000 in the seed's block, where no split's grasp seeds are
+    bank = datasets.noise_bank(noise_frames, seed=offset + 60_000 if offset else 0, config=scene.deploy.config)
     return SceneData(scene, splits["train"], splits["val"], splits["test"], bank, time.perf_counter() - start,
                      holdout=splits["holdout"])
 

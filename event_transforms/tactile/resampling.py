@@ -36,8 +36,11 @@ from .._validation import check_seed
 __all__ = ["RESAMPLING", "SPLIT_CODES", "bootstrap_indices", "check_resample", "item_groups", "resample_batches",
            "split_resample"]
 
-#: The resampling rules a protocol run knows.
-RESAMPLING = ("bootstrap", "none")
+#: The data rules a protocol run knows: ``"fresh"`` (each seed draws its own simulated data
+#: set: :func:`~event_transforms.tactile.copies.load_scene_data` with ``data_seed``), ``"bootstrap"``
+#: (each seed reads its own resample of one data set: a folder of recordings, where no new data can
+#: be drawn) and ``"none"`` (every seed reads the same data).
+RESAMPLING = ("fresh", "bootstrap", "none")
 #: A distinct stream per split, so a seed's training and test resamples are independent.
 SPLIT_CODES = {"train": 1, "val": 2, "test": 3}
 
@@ -49,8 +52,8 @@ def check_resample(resample: object) -> str:
         ValueError: anything else, named.
 
     Example:
-        >>> check_resample("bootstrap")
-        'bootstrap'
+        >>> check_resample("fresh")
+        'fresh'
     """
     if resample not in RESAMPLING:
         raise ValueError(f"resample must be one of {RESAMPLING}, got {resample!r}")

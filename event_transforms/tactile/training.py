@@ -154,7 +154,8 @@ def train(
         paired: the paired batch order across methods.
         resample: ``"bootstrap"``: member (method, seed) reads seed's bootstrap resample of
             ``data.train`` (:func:`~event_transforms.tactile.resampling.bootstrap_indices`; the
-            same for every method of the seed; needs ``paired``); ``"none"``: every item.
+            same for every method of the seed; needs ``paired``); ``"none"`` or ``"fresh"`` (``data``
+            is already the seed's own data set): every item.
         scene: the scene the method names are read for; default ``data.scene``.
         device: where to train.
         progress: a progress bar (``None``: when stderr is a terminal).
@@ -187,7 +188,7 @@ def train(
     if isinstance(seeds, (str, bytes)) or not seeds:
         raise ValueError(f"seeds must be a non-empty sequence of ints, got {seeds!r}")
     seeds = [check_seed(seed, "seeds") for seed in seeds]
-    if check_resample(resample) != "none" and not paired:
+    if check_resample(resample) == "bootstrap" and not paired:
         raise ValueError(f"resample={resample!r} reads each seed's resample through the paired batches: "
                          "it needs paired=True")
     scene = data.scene if scene is None else scene

@@ -38,7 +38,7 @@ import torch
 from ..copies import SceneData
 from ..methods import parse_method
 
-__all__ = ["Sharing", "plan_sharing", "member_key", "training_key", "collect", "SHARED_SEPARATOR"]
+__all__ = ["Sharing", "plan_sharing", "member_key", "training_key", "content_key", "collect", "SHARED_SEPARATOR"]
 
 #: Borrowed results live in the owner unit's file under ``"<scene>::<method>"``.
 SHARED_SEPARATOR = "::"
@@ -53,8 +53,13 @@ def _update_tensor(digest: Any, value: torch.Tensor) -> None:
 def training_key(data: SceneData) -> str:
     """A content hash of what every member of ``data``'s scene trains on: the training and
     hold-out items (frames, forces and metadata), not the validation or test sets."""
+    return content_key(data.train, data.holdout)
+
+
+def content_key(*splits: Any) -> str:
+    """A content hash of the items (frames, forces and metadata) of ``splits`` (``None``: no split)."""
     digest = hashlib.sha256()
-    for split in (data.train, data.holdout):
+    for split in splits:
         if split is None:
             digest.update(b"no split")
             continue
