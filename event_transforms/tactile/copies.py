@@ -32,6 +32,7 @@ __all__ = [
     "load_scene_data",
     "data_seed_offset",
     "MaterializedDataset",
+    "WithLabels",
     "OnlineCopies",
     "DeviceAugment",
     "build_training_set",
@@ -106,6 +107,44 @@ def load_scene_data(
     bank = datasets.noise_bank(noise_frames, seed=offset + 60_000 if offset else 0, config=scene.deploy.config)
     return SceneData(scene, splits["train"], splits["val"], splits["test"], bank, time.perf_counter() - start,
                      holdout=splits["holdout"])
+
+
+class WithLabels(Dataset):
+    """The training items followed by the deployment's labelled validation items: the training
+    set of ``with-labels`` (the comparator of ``inferred``, which reads those labels). ``meta``
+    forwards each item's metadata, so a folder's items are still resampled by recording.
+
+    Example:
+        >>> both = WithLabels([(1, 2, {"a": 0})], [(3, 4, {"a": 1}), (5, 6, {"a": 2})])
+        >>> len(both), both[2], both.meta(1)
+        (3, (5, 6, {'a': 2}), {'a': 1})
+    """
+
+    def __init__(self, train: SizedDataset, labelled: SizedDataset) -> None:
+        self.parts = (train, labelled)
+
+    def __len__(self) -> int:
+        return len(self.parts[0]) + len(self.parts[1])
+
+    def _locate(self, index: int) -> tuple[SizedDataset, int]:
+        index = int(index)
+        if not 0 <= index < len(self):
+            raise IndexError(f"index must be in [0, {len(self)}), got {index}")
+        first = len(self.parts[0])
+        return (self.parts[0], index) if index < first else (self.parts[1], index - first)
+
+    def __getitem__(self, index: int) -> tuple[Any, ...]:
+        part, at = self._locate(index)
+        return part[at]
+
+    def meta(self, index: int) -> dict[str, Any]:
+        """The item's metadata: its split's ``meta``, else the item's own dict."""
+        part, at = self._locate(index)
+        meta = getattr(part, "meta", None)
+        if callable(meta):
+            return dict(meta(at))
+        item = part[at]
+        return dict(item[2]) if len(item) > 2 and isinstance(item[2], dict) else {}
 
 
 class MaterializedDataset(Dataset):

@@ -298,6 +298,16 @@ def format_findings(name: str, summary: dict[str, Any]) -> list[str]:
         if s.get("online_aug_s_per_epoch") is not None:
             cost += f", {s['online_aug_s_per_epoch']:.3f} s per epoch augmenting online"
         lines.append(text + f"; costs {cost}.")
+    labels, inferred = summary["methods"].get("with-labels"), summary["methods"].get("inferred")
+    if labels and inferred and labels.get("test_mse") and inferred.get("test_mse"):
+        gap = statistics.fmean(inferred["test_mse"]) - statistics.fmean(labels["test_mse"])
+        lines.append(
+            f"{name}: inferred (a policy inferred from the labelled deployment validation recordings) vs with-labels "
+            f"(the same recordings added to training, the same budget, stopped on the training session's hold-out "
+            f"like every row): {statistics.fmean(inferred['test_mse']):.2f} vs "
+            f"{statistics.fmean(labels['test_mse']):.2f} N² test MSE, so inferring "
+            + ("beats" if gap < 0 else "does not beat") + f" using the labels by the mean ({gap:+.2f} N²; each row's "
+            "resolved verdict is its Δ vs none above).")
     return lines
 
 

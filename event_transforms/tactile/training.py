@@ -178,7 +178,7 @@ def train(
         >>> tuple(pred.shape), tuple(measured.shape)
         ((4, 3, 12), (3, 12))
     """
-    from .copies import DeviceAugment, OnlineCopies, build_training_set, paired_batches
+    from .copies import DeviceAugment, OnlineCopies, WithLabels, build_training_set, paired_batches
     from .resampling import check_resample, resample_batches, split_resample
     from .methods import parse_method
     from .models import ForceRegressor
@@ -195,7 +195,8 @@ def train(
     parsed = [parse_method(m, copies=copies, scene=scene) for m in methods]
     offset, scale = force_stats(data.train)
     augment: list[DeviceAugment | None]
-    models, train_sets, member_seeds, aug_once, augment, batches = [], [], [], [], [], []
+    train_sets: list[Any] = []
+    models, member_seeds, aug_once, augment, batches = [], [], [], [], []
     watch = Stopwatch()
     for method in parsed:
         for seed in seeds:
@@ -204,7 +205,10 @@ def train(
                                          cumulative=cumulative))
             before = watch.seconds
             transform = method.build(data.noise_bank)
-            if fixed or transform is None:
+            if method.reads_deployment_labels:  # with-labels: the labelled deployment items added, no copies
+                train_sets.append(WithLabels(data.train, data.val))
+                augment.append(None)
+            elif fixed or transform is None:
                 train_sets.append(build_training_set(method, data, seed=seed, fixed=True, stopwatch=watch))
                 augment.append(None)
             else:  # on the fly: copies are transformed batch by batch on the training device
@@ -213,10 +217,11 @@ def train(
             aug_once.append(watch.seconds - before)
             member_seeds.append(int(seed))
             member_copies = method.copies if transform is not None else 0
-            if paired:
-                order = paired_batches(len(data.train), member_copies, batch_size, steps, seed=seed)
+            if paired:  # with-labels: its own paired order over its larger set (the seed's, every other draw alike)
+                items = train_sets[-1] if method.reads_deployment_labels else data.train
+                order = paired_batches(len(items), member_copies, batch_size, steps, seed=seed)
                 if resample == "bootstrap":
-                    order = resample_batches(order, len(data.train), split_resample(data.train, seed, "train"))
+                    order = resample_batches(order, len(items), split_resample(items, seed, "train"))
                 batches.append(order)
     scale = max(scale, 1e-6)
     ensemble = EnsembleForceRegressor.from_models(models).to(device)

@@ -186,7 +186,7 @@ class TestMaterializedDataset:
 
 class TestScenesAndMethods:
     def test_scene_methods(self):
-        policies = ("inferred", "prior", "everything")
+        policies = ("inferred", "with-labels", "prior", "everything")
         assert methods_for("paper") == PAPER_METHODS + ("stretch", *policies)
         assert methods_for("timing") == ("none", "fs2", "tes2:0.5", *policies)
         assert methods_for("control") == QUICK_METHODS["control"]
@@ -541,11 +541,12 @@ class TestCommandLine:
         printed = capsys.readouterr().out
         # control: 4 methods (no gap, so no policy rows), timing: 3 + inferred, prior, everything;
         # budget check on timing only: none + one method at 200 steps; fresh data per seed: a unit per seed
-        assert "plan: 64 units to train (80 before train-once sharing), 80 members × 100 steps" in printed
-        assert "of which 16 borrow the weights" in printed and "64 are trained: 6,400 member-steps" in printed
+        # (timing's 7: with-labels beside inferred)
+        assert "plan: 72 units to train (88 before train-once sharing), 88 members × 100 steps" in printed
+        assert "of which 16 borrow the weights" in printed and "72 are trained: 7,200 member-steps" in printed
         assert "budget check of 1 gapped scene(s) at 200 steps: 16 more units (16 before sharing), 3,200" in printed
         assert "data: fresh per seed: each of the 8 seeds draws its own" in printed
-        assert "total 9,600 member-steps trained" in printed and "budget check on ['timing']" in printed
+        assert "total 10,400 member-steps trained" in printed and "budget check on ['timing']" in printed
 
     def test_help_does_not_import_torch(self):
         code = (

@@ -1,0 +1,75 @@
+"""The comparator with labels: the labelled deployment recordings ``inferred`` reads, added to training."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+import torch
+
+from event_transforms.tactile.copies import SceneData, WithLabels
+from event_transforms.tactile.methods import methods_for, parse_method, reads_labels
+from event_transforms.tactile.protocol import ProtocolConfig, run_unit
+from event_transforms.tactile.protocol.shared import plan_sharing
+from event_transforms.tactile.scenes import get_scene
+from event_transforms.tactile.training import train
+from tests.tactile.test_cli import fake_data
+
+TINY = ProtocolConfig(steps=4, batch_size=4, eval_every=2, hidden_channels=(2,), input_pool=4, resample="none")
+
+
+def test_the_row_sits_beside_inferred_wherever_inferred_reads_labels():
+    method = parse_method("with-labels", scene="timing")
+    assert method.copies == 0 and method.reads_deployment_labels and method.build() is None
+    for scene in ("paper", "paper-offset", "paper-membrane", "timing", "orientation"):
+        names = methods_for(scene)
+        assert names[names.index("inferred") + 1] == "with-labels"
+    assert "with-labels" not in methods_for("control")  # no gap: no inferred, no comparator
+    with pytest.raises(ValueError, match="scene 'control' has none"):
+        parse_method("with-labels", scene="control")
+    with pytest.raises(ValueError, match="takes no x<copies>"):
+        parse_method("with-labelsx2", scene="timing")
+
+    @dataclasses.dataclass
+    class Folder:  # a folder of recordings: a row only where the inference read labelled recordings
+        dataset: dict
+
+    assert reads_labels(get_scene("timing")) and not reads_labels(Folder({"kind": "recordings"}))
+    assert reads_labels(Folder({"inferred_reads_labels": True}))
+
+
+def test_it_trains_on_the_validation_items_too_and_stops_on_the_training_hold_out():
+    data = fake_data("timing")
+    trained = train(data, ["none", "with-labels"], [0], progress=False, **TINY.training_settings())
+    assert trained.train_items == [len(data.train), len(data.train) + len(data.val)]
+    both = WithLabels(data.train, data.val)
+    assert torch.equal(both[len(data.train)][0], data.val[0][0]) and both.meta(0) == data.train[0][2]
+    unit = run_unit("timing", ["none", "with-labels"], [0, 1], TINY, data, progress=False)
+    for record in unit["with-labels"]:  # the same budget and stopping rule as every row
+        assert record["steps"] == TINY.steps and record["stopping"] == "best hold-out MSE"
+        assert record["trained_on_val"] and record["train_items"] == len(data.train) + len(data.val)
+    assert not any(r["trained_on_val"] for r in unit["none"])
+    assert [r["test_mse"] for r in unit["with-labels"]] != [r["test_mse"] for r in unit["none"]]
+
+
+def test_scenes_share_it_only_when_their_deployment_labels_agree():
+    a = fake_data("timing")
+    same = SceneData(get_scene("paper-offset"), a.train, a.val, a.test, a.noise_bank, holdout=a.holdout)
+    other = SceneData(get_scene("orientation"), a.train, fake_data("paper").test, a.test, a.noise_bank,
+                      holdout=a.holdout)
+    chosen = {"timing": ("none", "with-labels"), "paper-offset": ("none", "with-labels"),
+              "orientation": ("none", "with-labels")}
+    sharing = plan_sharing(chosen, {"timing": a, "paper-offset": same, "orientation": other})
+    assert sharing.owner[("paper-offset", "with-labels")] == ("timing", "with-labels")
+    assert sharing.owner[("orientation", "with-labels")] == ("orientation", "with-labels")  # other labels
+    assert sharing.owner[("orientation", "none")] == ("timing", "none")
+
+
+def test_the_findings_say_whether_inferring_beats_the_labels():
+    from event_transforms.tactile.report import format_findings
+
+    rows = {"inferred": {"test_mse": [2.0, 2.2], "delta_vs_none": None},
+            "with-labels": {"test_mse": [1.0, 1.2], "delta_vs_none": None}}
+    lines = format_findings("timing", {"baselines": {}, "methods": rows})
+    assert any("2.10 vs 1.10 N² test MSE, so inferring does not beat using the labels" in line for line in lines)
+    assert any("stopped on the training session's hold-out" in line for line in lines)
