@@ -633,7 +633,9 @@ def run_protocol(
                 for method, s_ in summary["methods"].items():
                     if method == "none" or s_.get("duplicate_of"):
                         continue
-                    s_["cost_ratio"] = ratio_of(costs, scene, method)
+                    # a row without synthetic copies (with-labels) steps like none: ratio 1 by construction
+                    plain = parse_method(method, scene=data[scene].scene).build(data[scene].noise_bank) is None
+                    s_["cost_ratio"] = 1.0 if plain else ratio_of(costs, scene, method)
                     steps_of.setdefault(scene, {})[method] = equal_cost_steps(config.steps, s_["cost_ratio"])
         if distributed.current_group() is not None:
             steps_of = distributed.broadcast_from_rank0(steps_of)
