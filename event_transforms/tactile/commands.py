@@ -199,8 +199,9 @@ def _data_methods(scene: Any) -> list[str]:
     if left_out:
         _print(f"default rows: {', '.join(kept)}; left out, as the scene cannot build them: "
                + "; ".join(f"{', '.join(names)} ({reason})" for reason, names in left_out.items())
-               + (". With no gap inferred there is nothing to compare: only none is trained (--methods names other "
-                  "rows, e.g. --methods none rot50 fs2)" if kept == ["none"] else ""))
+               + (". With no gap inferred there is nothing to compare: only none (and none-local, the network without "
+                  "global inputs) is trained (--methods names other rows, e.g. --methods none rot50 fs2)"
+                  if set(kept) <= {"none", "none-local"} else ""))
     return kept
 
 

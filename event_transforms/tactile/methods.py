@@ -14,6 +14,10 @@
 ``independent``    the scene's policy, one effect per copy (``OneOf``); on ``paper`` and
                    ``optical-paper``, the paper's resize or FS-1
 ``hybrid``         the same effects stacked on every copy (``Compose``)
+``none-local``     no synthetic copies, and the reference model without ``global_inputs`` (its
+                   head reads the ConvLSTM's features only, not the inputs' spatial means: the
+                   network on its own); every scene has it beside ``none``, whose model (with
+                   global inputs) every other row and every verdict uses
 ``with-labels``    no synthetic copies: the labelled deployment recordings ``inferred`` reads
                    (the deployment's validation grasps and their forces) added to training,
                    the same step budget; the comparator a user with labels would try first;
@@ -28,6 +32,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 from torch import nn
@@ -70,6 +75,8 @@ class Method:
             ``None`` for no synthetic copies.
         copies: synthetic copies per training item (0 = none).
         needs_noise_bank: the transform needs a static-scene noise bank.
+        model: settings of the member's ``ForceRegressor`` that differ from the run's (``none-local``:
+            ``(("global_inputs", False),)``); members of one ensemble share them.
         reads_deployment_labels: the method trains on the deployment's labelled validation
             items too (``with-labels``); they then score nothing of its training (the stopping
             rule reads the training session's hold-out, as for every method).
@@ -80,6 +87,7 @@ class Method:
     copies: int = 1
     needs_noise_bank: bool = False
     reads_deployment_labels: bool = False
+    model: tuple[tuple[str, Any], ...] = ()
 
     @classmethod
     def from_transform(cls, name: str, transform: nn.Module, copies: int = 1) -> Method:
@@ -112,7 +120,7 @@ class Method:
 
 _NUMBER = r"[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?"
 _PATTERN = re.compile(
-    rf"^(?P<base>none|with-labels|resize-hertz|resize|noise|independent|hybrid|matched|stretch|inferred|prior|everything"
+    rf"^(?P<base>none-local|none|with-labels|resize-hertz|resize|noise|independent|hybrid|matched|stretch|inferred|prior|everything"
     rf"|rot(?P<deg>{_NUMBER})"
     rf"|fs(?P<fs>[+-]?\d+)|tes(?P<tes>[+-]?\d+):(?P<frac>{_NUMBER}))(?:x(?P<copies>\d+))?$"
 )
@@ -151,7 +159,8 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
     if match is None:
         raise ValueError(
             f"unknown method {name!r}; expected none, rot<deg>, resize, resize-hertz, stretch, noise, fs<j>, "
-            "tes<j>:<fraction>, independent, hybrid, matched, inferred, prior, everything or with-labels, optionally "
+            "tes<j>:<fraction>, independent, hybrid, matched, inferred, prior, everything, with-labels or none-local, "
+            "optionally "
             "followed by x<copies>"
         )
     base = match["base"]
@@ -161,6 +170,10 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
         raise ValueError(f"copies must be a non-negative int, got {copies!r}")
     if base == "none":
         return Method(name, None, 0)
+    if base == "none-local":
+        if match["copies"] is not None:
+            raise ValueError(f"method {name!r}: none-local makes no synthetic copies, so it takes no x<copies>")
+        return Method(name, None, 0, model=(("global_inputs", False),))
     if base == "with-labels":
         if match["copies"] is not None:
             raise ValueError(f"method {name!r}: with-labels makes no synthetic copies, so it takes no x<copies>")
@@ -266,7 +279,8 @@ QUICK_METHODS.update({"optical-paper": QUICK_METHODS["paper"], "optical-control"
 #: Rows every scene runs after its own methods, in quick and full mode, where the scene can
 #: build them (``parse_method`` accepts them): adding a policy row is one name here.
 #: ``with-labels`` sits beside ``inferred``: the comparator of the policy that reads those labels.
-EXTRA_METHODS: tuple[str, ...] = ("stretch", "inferred", "with-labels", "prior", "everything")
+#: ``none-local`` (the network without global inputs) closes every scene's list.
+EXTRA_METHODS: tuple[str, ...] = ("stretch", "inferred", "with-labels", "prior", "everything", "none-local")
 
 
 def reads_labels(scene: BenchmarkScene) -> bool:
@@ -289,9 +303,9 @@ def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str
 
     Example:
         >>> methods_for("timing")
-        ('none', 'fs2', 'tes2:0.5', 'inferred', 'with-labels', 'prior', 'everything')
-        >>> methods_for("paper-offset")
-        ('none', 'fs-1', 'tes-2:0.5', 'matched', 'stretch', 'inferred', 'with-labels', 'prior', 'everything')
+        ('none', 'fs2', 'tes2:0.5', 'inferred', 'with-labels', 'prior', 'everything', 'none-local')
+        >>> methods_for("paper-offset")[-5:]
+        ('inferred', 'with-labels', 'prior', 'everything', 'none-local')
     """
     scene = get_scene(scene)
     if not full:

@@ -298,6 +298,16 @@ def format_findings(name: str, summary: dict[str, Any]) -> list[str]:
         if s.get("online_aug_s_per_epoch") is not None:
             cost += f", {s['online_aug_s_per_epoch']:.3f} s per epoch augmenting online"
         lines.append(text + f"; costs {cost}.")
+    local = summary["methods"].get("none-local")
+    if none and local and local.get("test_mse"):
+        physics = summary["baselines"].get("physics least-squares", {}).get("test_mse")
+        lines.append(
+            f"{name}: the network on its own (none-local: the reference model without global inputs, its head reading "
+            f"the ConvLSTM's features only) scores {statistics.fmean(local['test_mse']):.2f} N² against "
+            f"{statistics.fmean(none['test_mse']):.2f} for none (with them"
+            + (f"; physics least-squares {physics:.2f}" if physics is not None else "") + "). The verdicts use the "
+            "model with global inputs (none and every augmentation row): it is the configuration the protocol fixed "
+            "before these runs; none-local's Δ vs none above (a row of the family) is what removing them does.")
     labels, inferred = summary["methods"].get("with-labels"), summary["methods"].get("inferred")
     if labels and inferred and labels.get("test_mse") and inferred.get("test_mse"):
         gap = statistics.fmean(inferred["test_mse"]) - statistics.fmean(labels["test_mse"])

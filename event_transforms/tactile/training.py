@@ -193,6 +193,9 @@ def train(
                          "it needs paired=True")
     scene = data.scene if scene is None else scene
     parsed = [parse_method(m, copies=copies, scene=scene) for m in methods]
+    if len({p.model for p in parsed}) > 1:
+        raise ValueError(f"methods {list(methods)} build models of different settings "
+                         f"({sorted({p.model for p in parsed})}): train them in separate ensembles")
     offset, scale = force_stats(data.train)
     augment: list[DeviceAugment | None]
     train_sets: list[Any] = []
@@ -202,7 +205,7 @@ def train(
         for seed in seeds:
             torch.manual_seed(seed)
             models.append(ForceRegressor(hidden_channels=tuple(hidden_channels), input_pool=input_pool,
-                                         cumulative=cumulative))
+                                         cumulative=cumulative, **dict(method.model)))
             before = watch.seconds
             transform = method.build(data.noise_bank)
             if method.reads_deployment_labels:  # with-labels: the labelled deployment items added, no copies

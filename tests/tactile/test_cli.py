@@ -186,10 +186,10 @@ class TestMaterializedDataset:
 
 class TestScenesAndMethods:
     def test_scene_methods(self):
-        policies = ("inferred", "with-labels", "prior", "everything")
+        policies = ("inferred", "with-labels", "prior", "everything", "none-local")
         assert methods_for("paper") == PAPER_METHODS + ("stretch", *policies)
         assert methods_for("timing") == ("none", "fs2", "tes2:0.5", *policies)
-        assert methods_for("control") == QUICK_METHODS["control"]
+        assert methods_for("control") == QUICK_METHODS["control"] + ("none-local",)
         # two gaps: the matched row (every gap's matched augmentation) beside the single ones
         assert methods_for("paper-offset") == ("none", "fs-1", "tes-2:0.5", "matched", "stretch", *policies)
         assert methods_for("paper-membrane") == ("none", "fs1", "tes1:0.5", "matched", "stretch", *policies)
@@ -541,12 +541,12 @@ class TestCommandLine:
         printed = capsys.readouterr().out
         # control: 4 methods (no gap, so no policy rows), timing: 3 + inferred, prior, everything;
         # budget check on timing only: none + one method at 200 steps; fresh data per seed: a unit per seed
-        # (timing's 7: with-labels beside inferred)
-        assert "plan: 72 units to train (88 before train-once sharing), 88 members × 100 steps" in printed
-        assert "of which 16 borrow the weights" in printed and "72 are trained: 7,200 member-steps" in printed
+        # (with-labels beside inferred on timing, none-local on both: timing's borrows control's)
+        assert "plan: 80 units to train (104 before train-once sharing), 104 members × 100 steps" in printed
+        assert "of which 24 borrow the weights" in printed and "80 are trained: 8,000 member-steps" in printed
         assert "budget check of 1 gapped scene(s) at 200 steps: 16 more units (16 before sharing), 3,200" in printed
         assert "data: fresh per seed: each of the 8 seeds draws its own" in printed
-        assert "total 10,400 member-steps trained" in printed and "budget check on ['timing']" in printed
+        assert "total 11,200 member-steps trained" in printed and "budget check on ['timing']" in printed
 
     def test_help_does_not_import_torch(self):
         code = (

@@ -91,3 +91,35 @@ def test_at_equal_cost_it_steps_like_none_without_a_ratio_in_the_cost_table(monk
     row = results["scenes"]["timing"]["methods"]["with-labels"]
     assert row["cost_ratio"] == 1.0 and row["equal_time"]["steps"] == TINY.steps
     assert results["scenes"]["timing"]["methods"]["fs2"]["equal_time"]["steps"] == TINY.steps // 2
+
+
+def test_every_scene_has_the_network_without_global_inputs_in_an_ensemble_of_its_own():
+    from event_transforms.tactile.protocol.plan import work_units
+
+    method = parse_method("none-local", scene="control")
+    assert method.copies == 0 and method.build() is None and dict(method.model) == {"global_inputs": False}
+    for scene in ("control", "paper", "timing", "orientation"):
+        assert methods_for(scene)[-1] == "none-local"
+    data = fake_data("timing")
+    trained = train(data, ["none-local"], [0], progress=False, **TINY.training_settings())
+    assert trained.model.global_inputs is False
+    with pytest.raises(ValueError, match="separate ensembles"):
+        train(data, ["none", "none-local"], [0], progress=False, **TINY.training_settings())
+    units = work_units(["timing"], {"timing": ("none", "fs2", "none-local")}, "scene")
+    assert sorted(u.methods for u in units) == [("none", "fs2"), ("none-local",)]
+    unit = run_unit("timing", ["none-local"], [0], TINY, data, progress=False)
+    alone = run_unit("timing", ["none"], [0], TINY, data, progress=False)
+    assert unit["none-local"][0]["test_mse"] != alone["none"][0]["test_mse"]
+    sharing = plan_sharing({"timing": ("none", "none-local")}, {"timing": data})
+    assert sharing.owner[("timing", "none-local")] == ("timing", "none-local")  # not the none member
+
+
+def test_the_findings_say_which_model_the_verdicts_use():
+    from event_transforms.tactile.report import format_findings
+
+    rows = {"none": {"test_mse": [1.0, 1.2], "delta_vs_none": None},
+            "none-local": {"test_mse": [3.0, 3.2], "delta_vs_none": None}}
+    lines = format_findings("control", {"baselines": {"physics least-squares": {"test_mse": 0.5}}, "methods": rows})
+    line = next(line for line in lines if "none-local" in line)
+    assert "3.10 N² against 1.10 for none" in line and "physics least-squares 0.50" in line
+    assert "The verdicts use the model with global inputs" in line

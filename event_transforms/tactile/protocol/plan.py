@@ -64,13 +64,17 @@ def work_units(
     """Work units; the costly ones (many copies) first, so ranks finish together. With
     ``sharing``, only the members a scene owns are trained, each unit scored also for its
     borrowers; a scene that owns none has no unit."""
-    units = []
+    units: list[Unit] = []
     for scene in scenes:
         names = tuple(methods.get(scene, ())) if sharing is None else sharing.owned.get(scene, ())
         if not names:
             continue
-        if group == "scene":
-            units.append(Unit(scene, names, sharing.also(scene, names) if sharing else ()))
+        if group == "scene":  # one ensemble per model setting (none-local's model is another)
+            models: dict[Any, list[str]] = {}
+            for name in names:
+                models.setdefault(parse_method(name, scene=resolve_scene(scene, data)).model, []).append(name)
+            units.extend(Unit(scene, tuple(ms), sharing.also(scene, tuple(ms)) if sharing else ())
+                         for ms in models.values())
         else:
             units.extend(Unit(scene, (m,), sharing.also(scene, (m,)) if sharing else ()) for m in names)
     return sorted(units, key=lambda u: -max(parse_method(m, scene=resolve_scene(u.scene, data)).copies for m in u.methods))

@@ -87,6 +87,8 @@ def member_key(data: SceneData, method_name: str, training: str | None = None) -
     digest.update(f"copies={method.copies if transform is not None else 0}".encode())
     if transform is not None and method.needs_noise_bank and data.noise_bank is not None:
         _update_tensor(digest, data.noise_bank)
+    if method.model:  # another model (none-local: no global inputs)
+        digest.update(repr(method.model).encode())
     if method.reads_deployment_labels:  # with-labels trains on the deployment's validation items too
         digest.update(content_key(data.val).encode())
     return digest.hexdigest()[:24]
