@@ -219,7 +219,8 @@ def format_budget_check(check: dict[str, Any] | None, *, skipped: bool = False) 
 
 def format_physics_comparison(summary: dict[str, Any]) -> str:
     """One line: whether the scene's best row (lowest mean test MSE) beats the physics
-    least-squares model, with both MSEs.
+    least-squares model, with both MSEs. ``with-labels`` trained on deployment data the physics
+    model never saw: it is not a candidate.
 
     Example:
         >>> format_physics_comparison({"baselines": {"physics least-squares": {"test_mse": 1.22}},
@@ -227,7 +228,8 @@ def format_physics_comparison(summary: dict[str, Any]) -> str:
         'best row: stretch 1.05 N² against the physics least-squares model 1.22: beats it by 0.17 N²'
     """
     physics = summary["baselines"].get("physics least-squares")
-    rows = {m: statistics.fmean(s["test_mse"]) for m, s in summary["methods"].items() if s.get("test_mse")}
+    rows = {m: statistics.fmean(s["test_mse"]) for m, s in summary["methods"].items()
+            if s.get("test_mse") and m != "with-labels"}
     if physics is None or not rows:
         return "best row: no physics least-squares baseline or no method to compare"
     best = min(rows, key=lambda m: rows[m])

@@ -123,3 +123,11 @@ def test_the_findings_say_which_model_the_verdicts_use():
     line = next(line for line in lines if "none-local" in line)
     assert "3.10 N² against 1.10 for none" in line and "physics least-squares 0.50" in line
     assert "The verdicts use the model with global inputs" in line
+
+
+def test_the_best_row_against_the_physics_model_is_never_the_one_that_read_deployment_labels():
+    from event_transforms.tactile.report import format_physics_comparison
+
+    line = format_physics_comparison({"baselines": {"physics least-squares": {"test_mse": 1.0}},
+                                      "methods": {"none": {"test_mse": [2.0]}, "with-labels": {"test_mse": [0.5]}}})
+    assert line.startswith("best row: none 2.00")
