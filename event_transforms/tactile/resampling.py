@@ -2,7 +2,9 @@
 
 With the data fixed, the seeds of a run differ only in training randomness (initial weights,
 batch order, augmentation draws), so an interval over seeds says nothing about another set of
-grasps. With ``ProtocolConfig.resample = "bootstrap"`` (the default) seed ``s`` also draws
+grasps. On the simulated scenes a protocol run draws fresh data per seed instead
+(``ProtocolConfig.resample = "fresh"``, the default: new grasps, so the intervals cover new data
+sets); where no new data can be drawn (a folder of recordings), ``resample = "bootstrap"``: seed ``s`` draws
 its own data: a bootstrap resample (``n`` items drawn with replacement) of the training
 sequences it trains on and, separately, of the validation and test sequences it is scored on
 (:func:`bootstrap_indices`, a function of the seed, the split and its size only). Every
