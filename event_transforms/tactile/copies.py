@@ -48,7 +48,9 @@ class SceneData:
     stopping rule's data (never deployment data). Without one, the final weights are kept.
     ``dataset`` describes a folder of recordings (folder, files, content hash, settings, counts;
     :func:`~event_transforms.tactile.recordings.load_recording_data`); ``None`` for the built-in
-    scenes.
+    scenes. ``labelled``: the labelled deployment recordings ``inferred`` reads (``with-labels``
+    adds them to training); ``None``: ``val``. With fresh data per seed they are the base data
+    set's validation grasps, as ``inferred`` is inferred once from the base data set.
     """
 
     scene: BenchmarkScene
@@ -59,6 +61,7 @@ class SceneData:
     seconds: float = 0.0
     holdout: SizedDataset | None = None
     dataset: dict[str, Any] | None = None
+    labelled: SizedDataset | None = None
 
 
 #: The sequence seeds of protocol seed ``s``'s own data set start at ``(s + 1)`` times this:
@@ -105,8 +108,11 @@ def load_scene_data(
     }
     # a fresh bank sits at +60,000 in the seed's block, where no split's grasp seeds are
     bank = datasets.noise_bank(noise_frames, seed=offset + 60_000 if offset else 0, config=scene.deploy.config)
+    # what inferred reads (the base data set's validation grasps, whatever the seed): with-labels' extra items
+    labelled = (splits["val"] if not offset and not paper_split
+                else datasets.TactileGrasps("val", root=root, scene=scene))
     return SceneData(scene, splits["train"], splits["val"], splits["test"], bank, time.perf_counter() - start,
-                     holdout=splits["holdout"])
+                     holdout=splits["holdout"], labelled=labelled)
 
 
 class WithLabels(Dataset):

@@ -209,7 +209,7 @@ def train(
             before = watch.seconds
             transform = method.build(data.noise_bank)
             if method.reads_deployment_labels:  # with-labels: the labelled deployment items added, no copies
-                train_sets.append(WithLabels(data.train, data.val))
+                train_sets.append(WithLabels(data.train, data.val if data.labelled is None else data.labelled))
                 augment.append(None)
             elif fixed or transform is None:
                 train_sets.append(build_training_set(method, data, seed=seed, fixed=True, stopwatch=watch))

@@ -43,6 +43,8 @@ def test_the_default_is_fresh_data_and_seeds_draw_disjoint_grasps(root):
     assert content_key(first.test) == content_key(again.test) and training_key(first) == training_key(again)
     assert content_key(first.test) != content_key(other.test) and training_key(first) != training_key(other)
     assert torch.equal(first.noise_bank, again.noise_bank) and not torch.equal(first.noise_bank, other.noise_bank)
+    # with-labels adds what inferred reads, the base data set's validation grasps, whatever the seed
+    assert content_key(first.labelled) == content_key(other.labelled) == content_key(base.val)
 
 
 @pytest.mark.slow

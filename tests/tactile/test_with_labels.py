@@ -131,3 +131,10 @@ def test_the_best_row_against_the_physics_model_is_never_the_one_that_read_deplo
     line = format_physics_comparison({"baselines": {"physics least-squares": {"test_mse": 1.0}},
                                       "methods": {"none": {"test_mse": [2.0]}, "with-labels": {"test_mse": [0.5]}}})
     assert line.startswith("best row: none 2.00")
+
+
+def test_it_adds_the_recordings_inferred_reads_where_the_data_name_them():
+    data = fake_data("timing")
+    named = dataclasses.replace(data, labelled=fake_data("paper").test)
+    trained = train(named, ["with-labels"], [0], progress=False, **TINY.training_settings())
+    assert trained.train_items == [len(data.train) + len(named.labelled)]

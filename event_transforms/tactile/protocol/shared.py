@@ -90,7 +90,7 @@ def member_key(data: SceneData, method_name: str, training: str | None = None) -
     if method.model:  # another model (none-local: no global inputs)
         digest.update(repr(method.model).encode())
     if method.reads_deployment_labels:  # with-labels trains on the deployment's validation items too
-        digest.update(content_key(data.val).encode())
+        digest.update(content_key(data.val if data.labelled is None else data.labelled).encode())
     return digest.hexdigest()[:24]
 
 
