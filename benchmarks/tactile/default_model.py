@@ -96,7 +96,7 @@ def model_config(model: str, steps: int = int(QUICK["steps"]), eval_every: int =
         raise ValueError(f"model must be one of {sorted(MODELS)}, got {model!r}")
     channels, pool = MODELS[model]
     return ProtocolConfig(steps=steps, eval_every=min(eval_every, steps), batch_size=batch_size, lr=float(QUICK["lr"]),
-                          hidden_channels=channels, input_pool=pool)
+                          hidden_channels=channels, input_pool=pool, resample="bootstrap")  # as its page was made
 
 
 def run_model(config: ProtocolConfig, methods: Mapping[str, Sequence[str]], seeds: Sequence[int], out: Path, *,

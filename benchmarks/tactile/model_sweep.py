@@ -153,7 +153,7 @@ def time_configs(data: SceneData, configs: Sequence[tuple[tuple[int, ...], int, 
     for _ in range(repeats):
         for channels, pool in models:
             config = ProtocolConfig(steps=steps, eval_every=steps, batch_size=batch_size, lr=float(QUICK["lr"]),
-                                    hidden_channels=channels, input_pool=pool)
+                                    hidden_channels=channels, input_pool=pool, resample="bootstrap")
             tick = time.perf_counter()
             train(data, ["none"], seeds, **config.training_settings(), progress=False)
             times[(channels, pool)].append((time.perf_counter() - tick) / (len(seeds) * steps))
@@ -289,7 +289,8 @@ def run_sweep(data: Mapping[str, SceneData], configs: Sequence[tuple[tuple[int, 
         if label in state["configs"]:
             continue
         config = ProtocolConfig(steps=steps, eval_every=min(eval_every, steps), batch_size=batch_size,
-                                lr=float(QUICK["lr"]), hidden_channels=tuple(channels), input_pool=pool)
+                                lr=float(QUICK["lr"]), hidden_channels=tuple(channels), input_pool=pool,
+                                resample="bootstrap")  # this page's resamples of one data set
         row: dict[str, Any] = {"hidden_channels": list(channels), "input_pool": pool, "steps": steps}
         for scene in sets:
             row[scene] = sweep_config(config, data[scene], seeds)

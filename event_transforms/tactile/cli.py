@@ -144,8 +144,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--online", action="store_true",
         help="redraw the augmentation at every access instead of making fixed copies once",
     )
-    rep.add_argument("--group", choices=("scene", "method"), default="method",
-                     help="one ensemble per scene and method (default; balances jobs) or per scene")
+    rep.add_argument("--group", choices=("scene", "method"),
+                     help="one ensemble per scene and method (balances jobs) or per scene; default: per scene "
+                          "with fresh data per seed (each unit is one seed's: a scene's methods keep the "
+                          "ensemble large), per method on a folder of recordings")
     rep.add_argument("--jobs", type=_positive, help="worker processes (torch.distributed, gloo)")
     rep.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto",
                      help="where to train (auto: cuda when available)")

@@ -199,8 +199,9 @@ def _data_methods(scene: Any) -> list[str]:
     if left_out:
         _print(f"default rows: {', '.join(kept)}; left out, as the scene cannot build them: "
                + "; ".join(f"{', '.join(names)} ({reason})" for reason, names in left_out.items())
-               + (". With no gap inferred there is nothing to compare: only none is trained (--methods names other "
-                  "rows, e.g. --methods none rot50 fs2)" if kept == ["none"] else ""))
+               + (". With no gap inferred there is nothing to compare: only none (and none-local, the network without "
+                  "global inputs) is trained (--methods names other rows, e.g. --methods none rot50 fs2)"
+                  if set(kept) <= {"none", "none-local"} else ""))
     return kept
 
 
@@ -278,6 +279,8 @@ def reproduce(args: argparse.Namespace) -> int:
         _print(f"inferred scene: gaps {list(given[scenes[0]].scene.gaps) or 'none'} "
                f"(from {given[scenes[0]].dataset['inferred_from']})")
     chosen = choose_methods(scenes, methods, full=args.full, data=given)
+    if args.group is None:  # fresh data per seed: a unit is one seed's, so a scene's methods share it
+        args.group = "scene" if given is None and config.resample == "fresh" else "method"
     if given is not None:  # every limit of the data before any training (built-in scenes: in run_protocol)
         from .protocol.limits import check_run_limits
 
@@ -295,7 +298,10 @@ def reproduce(args: argparse.Namespace) -> int:
         from .protocol.shared import plan_sharing
 
         data = given or {s: load_scene_data(s, None if args.root is None else str(args.root)) for s in scenes}
-        phases = phase_units(scenes, chosen, args.group, data, plan["budget_check_scenes"], equal_time, given)
+        fresh = given is None and config.resample == "fresh"
+        # fresh data per seed: each seed's units, shared as the base data set's (the same sessions)
+        phases = phase_units(scenes, chosen, args.group, {s: data for s in seeds} if fresh else data,
+                             plan["budget_check_scenes"], equal_time, given, seeds)
         sharing = phases.sharing
         count_phases(plan, phases, seeds, config)
         _print(plan_line(plan, config) + " (× the seconds per member-step a unit reports); budget check on "
@@ -310,6 +316,17 @@ def reproduce(args: argparse.Namespace) -> int:
                    f"training set(s), {curve:,} member-steps (none at {2 * config.steps} is the budget check's); "
                    f"total at most {plan['total_member_steps'] + plan['equal_time_member_steps_max'] + curve:,}")
             _print(_plan_time(plan, chosen, scenes, seeds, config, jobs, sharing.shared, curve))
+        if fresh:
+            files = {getattr(split, "path", None): len(split) for d in data.values()
+                     for split in (d.train, d.holdout, d.val, d.test) if split is not None}
+            grasps = sum(n for path, n in files.items() if path is not None)
+            _print(f"data: fresh per seed: each of the {len(seeds)} seeds draws its own {grasps} grasps "
+                   f"({len(files)} distinct splits of the scenes' sessions), about {grasps * 0.011:.0f} s per seed "
+                   "on one thread to simulate (0.011 s per grasp), once: they are cached under "
+                   "$EVENT_TRANSFORMS_CACHE")
+        elif given is not None:
+            _print("data: a folder of recordings: no new data can be drawn, so each seed reads its own bootstrap "
+                   "resample by recording (the intervals cover resamples of these recordings, not new ones)")
         return 0
     rank = int(os.environ.get("RANK", "0")) if distributed else 0
     say = _print if rank == 0 else (lambda *a: None)

@@ -30,7 +30,9 @@ from .stopwatch import Stopwatch, TimedTransform
 __all__ = [
     "SceneData",
     "load_scene_data",
+    "data_seed_offset",
     "MaterializedDataset",
+    "WithLabels",
     "OnlineCopies",
     "DeviceAugment",
     "build_training_set",
@@ -46,7 +48,9 @@ class SceneData:
     stopping rule's data (never deployment data). Without one, the final weights are kept.
     ``dataset`` describes a folder of recordings (folder, files, content hash, settings, counts;
     :func:`~event_transforms.tactile.recordings.load_recording_data`); ``None`` for the built-in
-    scenes.
+    scenes. ``labelled``: the labelled deployment recordings ``inferred`` reads (``with-labels``
+    adds them to training); ``None``: ``val``. With fresh data per seed they are the base data
+    set's validation grasps, as ``inferred`` is inferred once from the base data set.
     """
 
     scene: BenchmarkScene
@@ -57,27 +61,96 @@ class SceneData:
     seconds: float = 0.0
     holdout: SizedDataset | None = None
     dataset: dict[str, Any] | None = None
+    labelled: SizedDataset | None = None
+
+
+#: The sequence seeds of protocol seed ``s``'s own data set start at ``(s + 1)`` times this:
+#: above every split of the base data set (sequence seeds below 50,000) and of every other
+#: protocol seed, so no two data sets share a grasp.
+DATA_SEED_STRIDE = 100_000
+
+
+def data_seed_offset(seed: int | None) -> int:
+    """The sequence-seed offset (:class:`~event_transforms.tactile.datasets.TactileGrasps`'s
+    ``seed``) of protocol seed ``seed``'s fresh data set; ``None``: the base data set (0).
+
+    Example:
+        >>> data_seed_offset(None), data_seed_offset(0), data_seed_offset(7)
+        (0, 100000, 800000)
+    """
+    if seed is None:
+        return 0
+    from .._validation import check_seed
+
+    return (check_seed(seed, "seed") + 1) * DATA_SEED_STRIDE
 
 
 def load_scene_data(
-    scene: str | BenchmarkScene, root: str | None = None, *, paper_split: bool = False, noise_frames: int = 360
+    scene: str | BenchmarkScene, root: str | None = None, *, paper_split: bool = False, noise_frames: int = 360,
+    data_seed: int | None = None,
 ) -> SceneData:
     """The simulated grasps of ``scene`` (generated into the cache on first use).
 
     The noise bank is ``noise_frames`` frames of a simulated static scene seen by the
-    deployment camera.
+    deployment camera. ``data_seed``: protocol seed ``s`` draws its own data set, new grasps
+    (training, hold-out, validation and test) and a new noise bank from the same sessions
+    (sequence seeds offset by :func:`data_seed_offset`); ``None``: the base data set. Scenes
+    whose training sessions agree still share their training data within a seed.
     """
     from . import datasets
 
     scene = get_scene(scene)
+    offset = data_seed_offset(data_seed)
     start = time.perf_counter()
     splits = {
-        split: datasets.TactileGrasps(split, root=root, scene=scene, paper_split=paper_split)
+        split: datasets.TactileGrasps(split, root=root, scene=scene, paper_split=paper_split, seed=offset)
         for split in ("train", "holdout", "val", "test")
     }
-    bank = datasets.noise_bank(noise_frames, seed=0, config=scene.deploy.config)
+    # a fresh bank sits at +60,000 in the seed's block, where no split's grasp seeds are
+    bank = datasets.noise_bank(noise_frames, seed=offset + 60_000 if offset else 0, config=scene.deploy.config)
+    # what inferred reads (the base data set's validation grasps, whatever the seed): with-labels' extra items
+    labelled = (splits["val"] if not offset and not paper_split
+                else datasets.TactileGrasps("val", root=root, scene=scene))
     return SceneData(scene, splits["train"], splits["val"], splits["test"], bank, time.perf_counter() - start,
-                     holdout=splits["holdout"])
+                     holdout=splits["holdout"], labelled=labelled)
+
+
+class WithLabels(Dataset):
+    """The training items followed by the deployment's labelled validation items: the training
+    set of ``with-labels`` (the comparator of ``inferred``, which reads those labels). ``meta``
+    forwards each item's metadata, so a folder's items are still resampled by recording.
+
+    Example:
+        >>> both = WithLabels([(1, 2, {"a": 0})], [(3, 4, {"a": 1}), (5, 6, {"a": 2})])
+        >>> len(both), both[2], both.meta(1)
+        (3, (5, 6, {'a': 2}), {'a': 1})
+    """
+
+    def __init__(self, train: SizedDataset, labelled: SizedDataset) -> None:
+        self.parts = (train, labelled)
+
+    def __len__(self) -> int:
+        return len(self.parts[0]) + len(self.parts[1])
+
+    def _locate(self, index: int) -> tuple[SizedDataset, int]:
+        index = int(index)
+        if not 0 <= index < len(self):
+            raise IndexError(f"index must be in [0, {len(self)}), got {index}")
+        first = len(self.parts[0])
+        return (self.parts[0], index) if index < first else (self.parts[1], index - first)
+
+    def __getitem__(self, index: int) -> tuple[Any, ...]:
+        part, at = self._locate(index)
+        return part[at]
+
+    def meta(self, index: int) -> dict[str, Any]:
+        """The item's metadata: its split's ``meta``, else the item's own dict."""
+        part, at = self._locate(index)
+        meta = getattr(part, "meta", None)
+        if callable(meta):
+            return dict(meta(at))
+        item = part[at]
+        return dict(item[2]) if len(item) > 2 and isinstance(item[2], dict) else {}
 
 
 class MaterializedDataset(Dataset):

@@ -14,6 +14,15 @@
 ``independent``    the scene's policy, one effect per copy (``OneOf``); on ``paper`` and
                    ``optical-paper``, the paper's resize or FS-1
 ``hybrid``         the same effects stacked on every copy (``Compose``)
+``none-local``     no synthetic copies, and the reference model without ``global_inputs`` (its
+                   head reads the ConvLSTM's features only, not the inputs' spatial means: the
+                   network on its own); every scene has it beside ``none``, whose model (with
+                   global inputs) every other row and every verdict uses
+``with-labels``    no synthetic copies: the labelled deployment recordings ``inferred`` reads
+                   (the deployment's validation grasps and their forces) added to training,
+                   the same step budget; the comparator a user with labels would try first;
+                   wherever ``inferred`` reads labels (every gapped simulated scene, a folder
+                   whose inference measured lags from labelled recordings)
 ``<name>x<k>``     ``k`` synthetic copies per item, e.g. ``tes-2:0.5x10``
 =================  ===============================================================
 """
@@ -23,6 +32,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 from torch import nn
@@ -65,12 +75,19 @@ class Method:
             ``None`` for no synthetic copies.
         copies: synthetic copies per training item (0 = none).
         needs_noise_bank: the transform needs a static-scene noise bank.
+        model: settings of the member's ``ForceRegressor`` that differ from the run's (``none-local``:
+            ``(("global_inputs", False),)``); members of one ensemble share them.
+        reads_deployment_labels: the method trains on the deployment's labelled validation
+            items too (``with-labels``); they then score nothing of its training (the stopping
+            rule reads the training session's hold-out, as for every method).
     """
 
     name: str
     make: Callable[[torch.Tensor | None], nn.Module] | None
     copies: int = 1
     needs_noise_bank: bool = False
+    reads_deployment_labels: bool = False
+    model: tuple[tuple[str, Any], ...] = ()
 
     @classmethod
     def from_transform(cls, name: str, transform: nn.Module, copies: int = 1) -> Method:
@@ -103,7 +120,7 @@ class Method:
 
 _NUMBER = r"[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?"
 _PATTERN = re.compile(
-    rf"^(?P<base>none|resize-hertz|resize|noise|independent|hybrid|matched|stretch|inferred|prior|everything"
+    rf"^(?P<base>none-local|none|with-labels|resize-hertz|resize|noise|independent|hybrid|matched|stretch|inferred|prior|everything"
     rf"|rot(?P<deg>{_NUMBER})"
     rf"|fs(?P<fs>[+-]?\d+)|tes(?P<tes>[+-]?\d+):(?P<frac>{_NUMBER}))(?:x(?P<copies>\d+))?$"
 )
@@ -142,8 +159,9 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
     if match is None:
         raise ValueError(
             f"unknown method {name!r}; expected none, rot<deg>, resize, resize-hertz, stretch, noise, fs<j>, "
-            "tes<j>:<fraction>, independent, hybrid, matched, inferred, prior or everything, optionally followed by "
-            "x<copies>"
+            "tes<j>:<fraction>, independent, hybrid, matched, inferred, prior, everything, with-labels or none-local, "
+            "optionally "
+            "followed by x<copies>"
         )
     base = match["base"]
     if match["copies"] is not None:
@@ -152,6 +170,20 @@ def parse_method(name: str, *, copies: int = 1, scene: str | BenchmarkScene = "p
         raise ValueError(f"copies must be a non-negative int, got {copies!r}")
     if base == "none":
         return Method(name, None, 0)
+    if base == "none-local":
+        if match["copies"] is not None:
+            raise ValueError(f"method {name!r}: none-local makes no synthetic copies, so it takes no x<copies>")
+        return Method(name, None, 0, model=(("global_inputs", False),))
+    if base == "with-labels":
+        if match["copies"] is not None:
+            raise ValueError(f"method {name!r}: with-labels makes no synthetic copies, so it takes no x<copies>")
+        if not scene.gaps:
+            raise ValueError(f"method {name!r} is the comparator of inferred, which a scene without gaps lacks; "
+                             f"scene {scene.name!r} has none")
+        if not reads_labels(scene):
+            raise ValueError(f"method {name!r} needs labelled deployment recordings that inferred reads; scene "
+                             f"{scene.name!r}'s inference read none")
+        return Method(name, None, 0, reads_deployment_labels=True)
     if base in POLICY_METHODS:  # scene-level policies (tactile/policies.py)
         if not scene.gaps:
             raise ValueError(f"method {name!r} simulates a scene's gaps; scene {scene.name!r} has none")
@@ -246,7 +278,19 @@ QUICK_METHODS.update({"optical-paper": QUICK_METHODS["paper"], "optical-control"
 
 #: Rows every scene runs after its own methods, in quick and full mode, where the scene can
 #: build them (``parse_method`` accepts them): adding a policy row is one name here.
-EXTRA_METHODS: tuple[str, ...] = POLICY_METHODS
+#: ``with-labels`` sits beside ``inferred``: the comparator of the policy that reads those labels.
+#: ``none-local`` (the network without global inputs) closes every scene's list.
+EXTRA_METHODS: tuple[str, ...] = ("stretch", "inferred", "with-labels", "prior", "everything", "none-local")
+
+
+def reads_labels(scene: BenchmarkScene) -> bool:
+    """Whether ``inferred`` reads labelled deployment recordings on ``scene``: always on the
+    simulated scenes (the validation grasps' forces, for the lags); on a folder of recordings,
+    where its inference measured lags from labelled recordings (``dataset["inferred_reads_labels"]``)."""
+    dataset = getattr(scene, "dataset", None)
+    if isinstance(dataset, dict):
+        return bool(dataset.get("inferred_reads_labels", False))
+    return True
 
 
 def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str, ...]:
@@ -259,9 +303,9 @@ def methods_for(scene: str | BenchmarkScene, *, full: bool = False) -> tuple[str
 
     Example:
         >>> methods_for("timing")
-        ('none', 'fs2', 'tes2:0.5', 'inferred', 'prior', 'everything')
-        >>> methods_for("paper-offset")
-        ('none', 'fs-1', 'tes-2:0.5', 'matched', 'stretch', 'inferred', 'prior', 'everything')
+        ('none', 'fs2', 'tes2:0.5', 'inferred', 'with-labels', 'prior', 'everything', 'none-local')
+        >>> methods_for("paper-offset")[-5:]
+        ('inferred', 'with-labels', 'prior', 'everything', 'none-local')
     """
     scene = get_scene(scene)
     if not full:

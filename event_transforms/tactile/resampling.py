@@ -2,7 +2,9 @@
 
 With the data fixed, the seeds of a run differ only in training randomness (initial weights,
 batch order, augmentation draws), so an interval over seeds says nothing about another set of
-grasps. With ``ProtocolConfig.resample = "bootstrap"`` (the default) seed ``s`` also draws
+grasps. On the simulated scenes a protocol run draws fresh data per seed instead
+(``ProtocolConfig.resample = "fresh"``, the default: new grasps, so the intervals cover new data
+sets); where no new data can be drawn (a folder of recordings), ``resample = "bootstrap"``: seed ``s`` draws
 its own data: a bootstrap resample (``n`` items drawn with replacement) of the training
 sequences it trains on and, separately, of the validation and test sequences it is scored on
 (:func:`bootstrap_indices`, a function of the seed, the split and its size only). Every
@@ -36,8 +38,11 @@ from .._validation import check_seed
 __all__ = ["RESAMPLING", "SPLIT_CODES", "bootstrap_indices", "check_resample", "item_groups", "resample_batches",
            "split_resample"]
 
-#: The resampling rules a protocol run knows.
-RESAMPLING = ("bootstrap", "none")
+#: The data rules a protocol run knows: ``"fresh"`` (each seed draws its own simulated data
+#: set: :func:`~event_transforms.tactile.copies.load_scene_data` with ``data_seed``), ``"bootstrap"``
+#: (each seed reads its own resample of one data set: a folder of recordings, where no new data can
+#: be drawn) and ``"none"`` (every seed reads the same data).
+RESAMPLING = ("fresh", "bootstrap", "none")
 #: A distinct stream per split, so a seed's training and test resamples are independent.
 SPLIT_CODES = {"train": 1, "val": 2, "test": 3}
 
@@ -49,8 +54,8 @@ def check_resample(resample: object) -> str:
         ValueError: anything else, named.
 
     Example:
-        >>> check_resample("bootstrap")
-        'bootstrap'
+        >>> check_resample("fresh")
+        'fresh'
     """
     if resample not in RESAMPLING:
         raise ValueError(f"resample must be one of {RESAMPLING}, got {resample!r}")

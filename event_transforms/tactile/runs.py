@@ -82,6 +82,7 @@ def data_key(data: Any) -> str:
             "cache_format": datasets._CACHE_FORMAT, "splits": datasets.SPLIT_SIZES, "seeds": datasets._SPLIT_SEED,
             "crop": train.crop_size, "pool": train.pool, "noise": None if data.noise_bank is None
             else list(data.noise_bank.shape),
+            **({"data_seed_offset": train.seed} if train.seed else {}),  # a protocol seed's fresh data set
         }, 24)
     import torch
 

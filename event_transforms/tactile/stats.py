@@ -16,9 +16,10 @@ order), so methods are compared pairwise, seed by seed:
 **What the intervals cover, and the significance rule.** The rules are those of
 :data:`~event_transforms.tactile.protocol.rules.RULES` (a version recorded by every result;
 every function here that decides takes ``rules=`` to apply another version). Seeds vary the
-initial weights, the batch order and the augmentation draws, and with the protocol's bootstrap
-each seed also trains and is scored on its own resample of the data; so an interval covers
-training randomness and resamples of one data set. One family per scene: its methods' Δ vs
+initial weights, the batch order and the augmentation draws; on the simulated scenes each seed
+also trains and is scored on its own data set (fresh per seed), so an interval covers training
+randomness and new data sets from the simulator; on a folder of recordings (no new data) each
+seed reads its own bootstrap resample, and an interval covers resamples of that one data set. One family per scene: its methods' Δ vs
 ``none``, a row that is bit-identical per seed to an earlier row (a *duplicate*, shown as
 "= row X") excluded. The interval shown is the family-wise one, Bonferroni: the paired
 t-interval at level 1 − α/m for a family of m (α = 0.05), with each row's own variance in rules

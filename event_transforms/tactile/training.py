@@ -154,7 +154,8 @@ def train(
         paired: the paired batch order across methods.
         resample: ``"bootstrap"``: member (method, seed) reads seed's bootstrap resample of
             ``data.train`` (:func:`~event_transforms.tactile.resampling.bootstrap_indices`; the
-            same for every method of the seed; needs ``paired``); ``"none"``: every item.
+            same for every method of the seed; needs ``paired``); ``"none"`` or ``"fresh"`` (``data``
+            is already the seed's own data set): every item.
         scene: the scene the method names are read for; default ``data.scene``.
         device: where to train.
         progress: a progress bar (``None``: when stderr is a terminal).
@@ -177,7 +178,7 @@ def train(
         >>> tuple(pred.shape), tuple(measured.shape)
         ((4, 3, 12), (3, 12))
     """
-    from .copies import DeviceAugment, OnlineCopies, build_training_set, paired_batches
+    from .copies import DeviceAugment, OnlineCopies, WithLabels, build_training_set, paired_batches
     from .resampling import check_resample, resample_batches, split_resample
     from .methods import parse_method
     from .models import ForceRegressor
@@ -187,23 +188,30 @@ def train(
     if isinstance(seeds, (str, bytes)) or not seeds:
         raise ValueError(f"seeds must be a non-empty sequence of ints, got {seeds!r}")
     seeds = [check_seed(seed, "seeds") for seed in seeds]
-    if check_resample(resample) != "none" and not paired:
+    if check_resample(resample) == "bootstrap" and not paired:
         raise ValueError(f"resample={resample!r} reads each seed's resample through the paired batches: "
                          "it needs paired=True")
     scene = data.scene if scene is None else scene
     parsed = [parse_method(m, copies=copies, scene=scene) for m in methods]
+    if len({p.model for p in parsed}) > 1:
+        raise ValueError(f"methods {list(methods)} build models of different settings "
+                         f"({sorted({p.model for p in parsed})}): train them in separate ensembles")
     offset, scale = force_stats(data.train)
     augment: list[DeviceAugment | None]
-    models, train_sets, member_seeds, aug_once, augment, batches = [], [], [], [], [], []
+    train_sets: list[Any] = []
+    models, member_seeds, aug_once, augment, batches = [], [], [], [], []
     watch = Stopwatch()
     for method in parsed:
         for seed in seeds:
             torch.manual_seed(seed)
             models.append(ForceRegressor(hidden_channels=tuple(hidden_channels), input_pool=input_pool,
-                                         cumulative=cumulative))
+                                         cumulative=cumulative, **dict(method.model)))
             before = watch.seconds
             transform = method.build(data.noise_bank)
-            if fixed or transform is None:
+            if method.reads_deployment_labels:  # with-labels: the labelled deployment items added, no copies
+                train_sets.append(WithLabels(data.train, data.val if data.labelled is None else data.labelled))
+                augment.append(None)
+            elif fixed or transform is None:
                 train_sets.append(build_training_set(method, data, seed=seed, fixed=True, stopwatch=watch))
                 augment.append(None)
             else:  # on the fly: copies are transformed batch by batch on the training device
@@ -212,10 +220,11 @@ def train(
             aug_once.append(watch.seconds - before)
             member_seeds.append(int(seed))
             member_copies = method.copies if transform is not None else 0
-            if paired:
-                order = paired_batches(len(data.train), member_copies, batch_size, steps, seed=seed)
+            if paired:  # with-labels: its own paired order over its larger set (the seed's, every other draw alike)
+                items = train_sets[-1] if method.reads_deployment_labels else data.train
+                order = paired_batches(len(items), member_copies, batch_size, steps, seed=seed)
                 if resample == "bootstrap":
-                    order = resample_batches(order, len(data.train), split_resample(data.train, seed, "train"))
+                    order = resample_batches(order, len(items), split_resample(items, seed, "train"))
                 batches.append(order)
     scale = max(scale, 1e-6)
     ensemble = EnsembleForceRegressor.from_models(models).to(device)

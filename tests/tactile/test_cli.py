@@ -184,10 +184,10 @@ class TestMaterializedDataset:
 
 class TestScenesAndMethods:
     def test_scene_methods(self):
-        policies = ("inferred", "prior", "everything")
+        policies = ("inferred", "with-labels", "prior", "everything", "none-local")
         assert methods_for("paper") == PAPER_METHODS + ("stretch", *policies)
         assert methods_for("timing") == ("none", "fs2", "tes2:0.5", *policies)
-        assert methods_for("control") == QUICK_METHODS["control"]
+        assert methods_for("control") == QUICK_METHODS["control"] + ("none-local",)
         # two gaps: the matched row (every gap's matched augmentation) beside the single ones
         assert methods_for("paper-offset") == ("none", "fs-1", "tes-2:0.5", "matched", "stretch", *policies)
         assert methods_for("paper-membrane") == ("none", "fs1", "tes1:0.5", "matched", "stretch", *policies)
@@ -360,7 +360,9 @@ class TestRunProtocol:
         largest = "fs2"
         assert get_scene("timing").matched_methods[0] == largest
         assert check["method"] == largest and check["delta"] == deltas[largest]["delta_vs_none"]["mean"]
-        double = ProtocolConfig(**{**TINY.__dict__, "steps": 2 * TINY.steps})
+        # given data cannot draw fresh data per seed: the run reads each seed's bootstrap resample
+        assert results["config"]["resample"] == "bootstrap"
+        double = ProtocolConfig(**{**TINY.__dict__, "steps": 2 * TINY.steps, "resample": "bootstrap"})
         folder = out / "runs" / folder_name(double, self.seeds)
         runs = {m: json.loads((folder / f"timing_{m}.json").read_text())["result"][m] for m in ("none", largest)}
         assert all(r["steps"] == 2 * TINY.steps for rs in runs.values() for r in rs)
@@ -533,14 +535,16 @@ class TestCommandLine:
     def test_plan_prints_the_cost_without_training(self, tmp_path, capsys, monkeypatch):
         monkeypatch.setattr(protocol_run, "run_unit", lambda *a, **k: pytest.fail("--plan trained"))
         assert cli.main(["reproduce", "--plan", "--scenes", "control", "timing", "--seeds", "0-7",
-                         "--steps", "100", "--out", str(tmp_path)]) == 0
+                         "--steps", "100", "--group", "method", "--out", str(tmp_path)]) == 0
         printed = capsys.readouterr().out
         # control: 4 methods (no gap, so no policy rows), timing: 3 + inferred, prior, everything;
-        # budget check on timing only: none + one method at 200 steps
-        assert "plan: 8 units to train (10 before train-once sharing), 80 members × 100 steps" in printed
-        assert "of which 16 borrow the weights" in printed and "64 are trained: 6,400 member-steps" in printed
-        assert "budget check of 1 gapped scene(s) at 200 steps: 2 more units (2 before sharing), 3,200" in printed
-        assert "total 9,600 member-steps trained" in printed and "budget check on ['timing']" in printed
+        # budget check on timing only: none + one method at 200 steps; fresh data per seed: a unit per seed
+        # (with-labels beside inferred on timing, none-local on both: timing's borrows control's)
+        assert "plan: 80 units to train (104 before train-once sharing), 104 members × 100 steps" in printed
+        assert "of which 24 borrow the weights" in printed and "80 are trained: 8,000 member-steps" in printed
+        assert "budget check of 1 gapped scene(s) at 200 steps: 16 more units (16 before sharing), 3,200" in printed
+        assert "data: fresh per seed: each of the 8 seeds draws its own" in printed
+        assert "total 11,200 member-steps trained" in printed and "budget check on ['timing']" in printed
 
     def test_help_does_not_import_torch(self):
         code = (
@@ -716,7 +720,8 @@ class TestEqualTime:
         fs-1 nothing; the measured wall times do not enter."""
         from event_transforms.tactile.protocol.costs import COST_TABLE_FORMAT, cost_key
 
-        config = ProtocolConfig(**{**TINY.__dict__, "steps": 8, "eval_every": 4})
+        # given data: each seed's bootstrap resample (no fresh data can be drawn from them)
+        config = ProtocolConfig(**{**TINY.__dict__, "steps": 8, "eval_every": 4, "resample": "bootstrap"})
         data = {"paper": fake_data("paper")}
         timing = {"single_model_wall_s": {"median": 10.0, "min": 9.0, "max": 11.0, "repeats": 3},
                   "single_model_scene": "paper",

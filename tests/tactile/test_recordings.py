@@ -767,7 +767,7 @@ class TestLimitsBeforeTraining:
         assert self.reproduce(folder, tmp_path, "--frames", "12", "--plan") == 0
         out = capsys.readouterr().out
         assert ("left out, as the scene cannot build them: stretch, inferred, prior, everything (simulates a "
-                "scene's gaps; scene") in out and "only none is trained" in out
+                "scene's gaps; scene") in out and "only none (and none-local" in out
 
     def test_every_reader_is_in_an_extra_the_message_names(self):
         import tomllib

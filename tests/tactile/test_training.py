@@ -147,9 +147,9 @@ class TestOneTrainer:
         config = ProtocolConfig()
         fields = config.training_settings()
         assert set(fields) <= set(defaults)
-        # one exception: a protocol run resamples the data per seed (its intervals cover the data),
-        # a model trained alone reads every item
-        assert config.resample == "bootstrap" and defaults["resample"] == "none"
+        # one exception: a protocol run draws fresh data per seed (its intervals cover new data),
+        # a model trained alone reads every item of the data it is given
+        assert config.resample == "fresh" and defaults["resample"] == "none"
         assert {n: tuple(v) if isinstance(v, tuple) else v for n, v in fields.items() if n != "resample"} == {
             n: defaults[n] for n in fields if n != "resample"}
         # every setting of ProtocolConfig that training reads is passed on (paper_split is the evaluation's)
@@ -173,8 +173,7 @@ class TestOneTrainer:
         from event_transforms.tactile.resampling import bootstrap_indices
         from event_transforms.tactile.training import evaluate, phase_mse, train
 
-        config = ProtocolConfig(**self.SETTINGS)
-        assert config.resample == "bootstrap"
+        config = ProtocolConfig(**self.SETTINGS, resample="bootstrap")
         unit = run_unit("paper", ["none", "fs2"], [3, 4], config, scene_data, progress=False)
         trained = train(scene_data, ["none", "fs2"], [3, 4], progress=False, **config.training_settings())
         fixed = train(scene_data, ["none", "fs2"], [3, 4], progress=False,
@@ -189,7 +188,7 @@ class TestOneTrainer:
             # the paper's split reads the first sequences as they are
             assert record["test_mse_paper_split"] == phase_mse(pred[index, :6], target[:6])["all"]
         with pytest.raises(ValueError, match="needs paired=True"):
-            ProtocolConfig(**{**self.SETTINGS, "paired": False})
+            ProtocolConfig(**{**self.SETTINGS, "paired": False, "resample": "bootstrap"})
         with pytest.raises(ValueError, match="resample must be one of"):
             ProtocolConfig(**self.SETTINGS, resample="jackknife")
 

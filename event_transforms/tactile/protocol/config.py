@@ -36,7 +36,12 @@ class ProtocolConfig:
         paired: for a seed, every method reads the same original items at the same steps
             (:func:`~event_transforms.tactile.copies.paired_batches`); ``False`` shuffles each
             method's own set (the pairing of earlier releases: initial weights only).
-        resample: ``"bootstrap"``: each seed trains on its own bootstrap resample of the
+        resample: ``"fresh"`` (the default): each seed draws its own simulated data set (new
+            training, hold-out, validation and test grasps from the same sessions:
+            :func:`~event_transforms.tactile.copies.load_scene_data` with ``data_seed``), so an
+            interval over seeds covers new data sets from the simulator; a run on given data (a
+            folder of recordings, where no new data can be drawn) reads ``"bootstrap"`` instead
+            and says so. ``"bootstrap"``: each seed trains on its own bootstrap resample of the
             training sequences and is scored on its own resamples of the validation and test
             sequences (:mod:`~event_transforms.tactile.resampling`), so an interval over seeds
             covers resamples of the data too (not new data sets); ``"none"``: every seed reads
@@ -55,7 +60,7 @@ class ProtocolConfig:
     copies: int = 1
     paper_split: bool = False
     paired: bool = True
-    resample: str = "bootstrap"
+    resample: str = "fresh"
 
     def __post_init__(self) -> None:
         for name in ("steps", "batch_size", "eval_every", "input_pool", "copies"):
@@ -67,7 +72,7 @@ class ProtocolConfig:
             raise ValueError(f"hidden_channels must be positive ints, got {self.hidden_channels!r}")
         self.hidden_channels = channels
         check_resample(self.resample)
-        if self.resample != "none" and not self.paired:
+        if self.resample == "bootstrap" and not self.paired:
             raise ValueError(f"resample={self.resample!r} needs paired=True (each seed's resample is read through "
                              "the paired batches)")
 

@@ -27,18 +27,27 @@ __all__ = ["Unit", "resolve_scene", "work_units", "budget_scenes", "choose_metho
 class Unit:
     """A unit of work: ``methods`` of ``scene``, trained together as one ensemble, and scored too
     for the ``also`` members other scenes borrow (``(method, scene, its method)``; see
-    :mod:`~event_transforms.tactile.protocol.shared`), for ``steps`` steps where it names its own."""
+    :mod:`~event_transforms.tactile.protocol.shared`), for ``steps`` steps where it names its own.
+    With fresh data per seed a unit holds one ``seed`` (its members read that seed's own data
+    set); ``None``: every seed of the run."""
 
     scene: str
     methods: tuple[str, ...]
     also: tuple[tuple[str, str, str], ...] = ()
     #: the unit's own step count (the equal-cost phase: one per cost ratio); ``None``: the phase's
     steps: int | None = None
+    #: the one seed whose own data set the unit trains on (fresh data per seed); ``None``: all seeds
+    seed: int | None = None
 
     @property
     def slug(self) -> str:
         at = "" if self.steps is None else f"@{self.steps}"
-        return re.sub(r"[^a-z0-9.+@-]+", "_", f"{self.scene}__{'+'.join(self.methods)}{at}".lower())
+        own = "" if self.seed is None else f"__seed{self.seed}"
+        return re.sub(r"[^a-z0-9.+@-]+", "_", f"{self.scene}__{'+'.join(self.methods)}{at}{own}".lower())
+
+    def members(self, seeds: Sequence[int]) -> int:
+        """How many members the unit trains in a run of ``seeds``."""
+        return len(self.methods) * (1 if self.seed is not None else len(seeds))
 
 
 def resolve_scene(scene: str, data: dict[str, SceneData] | None) -> BenchmarkScene:
@@ -55,13 +64,17 @@ def work_units(
     """Work units; the costly ones (many copies) first, so ranks finish together. With
     ``sharing``, only the members a scene owns are trained, each unit scored also for its
     borrowers; a scene that owns none has no unit."""
-    units = []
+    units: list[Unit] = []
     for scene in scenes:
         names = tuple(methods.get(scene, ())) if sharing is None else sharing.owned.get(scene, ())
         if not names:
             continue
-        if group == "scene":
-            units.append(Unit(scene, names, sharing.also(scene, names) if sharing else ()))
+        if group == "scene":  # one ensemble per model setting (none-local's model is another)
+            models: dict[Any, list[str]] = {}
+            for name in names:
+                models.setdefault(parse_method(name, scene=resolve_scene(scene, data)).model, []).append(name)
+            units.extend(Unit(scene, tuple(ms), sharing.also(scene, tuple(ms)) if sharing else ())
+                         for ms in models.values())
         else:
             units.extend(Unit(scene, (m,), sharing.also(scene, (m,)) if sharing else ()) for m in names)
     return sorted(units, key=lambda u: -max(parse_method(m, scene=resolve_scene(u.scene, data)).copies for m in u.methods))
@@ -116,20 +129,23 @@ def plan_run(
 
     Example:
         >>> plan = plan_run(["control", "timing"], {"control": ["none", "fs2"], "timing": ["none", "fs2"]},
-        ...                 range(8), ProtocolConfig(steps=100))
+        ...                 range(8), ProtocolConfig(steps=100, resample="bootstrap"))
         >>> plan["units"], plan["members"], plan["member_steps"], plan["budget_member_steps"]
         (4, 32, 3200, 3200)
+        >>> plan_run(["control"], {"control": ["none", "fs2"]}, range(8), ProtocolConfig(steps=100))["units"]
+        16
     """
     units = work_units(scenes, methods, group, data)
     members = sum(len(u.methods) for u in units) * len(seeds)
     checked = budget_scenes(scenes, methods, data) if budget_check else []
     budget_members = 2 * len(checked) * len(seeds)
+    per_seed = len(seeds) if config.resample == "fresh" and data is None else 1  # fresh data: a unit per seed
     return {
-        "units": len(units),
+        "units": len(units) * per_seed,
         "members": members,
         "member_steps": members * config.steps,
         "budget_check_scenes": checked,
-        "budget_units": len(checked) if group == "scene" else 2 * len(checked),
+        "budget_units": (len(checked) if group == "scene" else 2 * len(checked)) * per_seed,
         "budget_members": budget_members,
         "budget_member_steps": budget_members * RULES.budget_factor * config.steps,
         "total_member_steps": members * config.steps + budget_members * RULES.budget_factor * config.steps,

@@ -16,7 +16,7 @@ import statistics
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,7 @@ import torch
 
 from .. import distributed
 from .._files import write_json_atomic
-from ..copies import SceneData, load_scene_data
+from ..copies import SceneData, data_seed_offset, load_scene_data
 from ..resampling import split_resample
 from ..report import format_report
 from ..runs import data_key, folder_key, folder_name, read_unit, unit_key, write_unit
@@ -35,10 +35,11 @@ from ..stats import (
 from .config import ProtocolConfig
 from .environment import environment, git_commit
 from .limits import check_run_limits
-from .plan import Unit, choose_methods, plan_run, work_units
+from ..methods import parse_method
+from .plan import Unit, choose_methods, plan_run, resolve_scene, work_units
 from .recompute import judge_budget
 from .rules import RULES
-from .shared import SHARED_SEPARATOR, collect, plan_sharing
+from .shared import SHARED_SEPARATOR, collect, content_key, plan_sharing, training_key
 from .costs import (
     CURVE_RATIOS, QUICK_COST_TABLE, cost_curve, cost_key, equal_cost_steps, load_cost_table, measure_costs, ratio_of,
 )
@@ -57,11 +58,26 @@ PROGRESS_LEGEND = (
 )
 
 
-def _baselines(data: SceneData, seeds: Sequence[int] = (), resample: str = "none") -> dict[str, dict[str, Any]]:
+def _baselines(data: SceneData, seeds: Sequence[int] = (), resample: str = "none",
+               seed_data: Mapping[int, SceneData] | None = None) -> dict[str, dict[str, Any]]:
     """The baselines' scores; with ``resample="bootstrap"`` fitted and scored on each seed's
-    resamples (as the networks are), the mean over seeds with the per-seed values beside it."""
+    resamples (as the networks are), with ``resample="fresh"`` on each seed's own data set
+    (``seed_data``), the mean over seeds with the per-seed values beside it."""
     from ..baselines import evaluate_baselines, stack_items
 
+    if resample == "fresh" and seeds:
+        if seed_data is None:
+            raise ValueError("_baselines: resample='fresh' needs each seed's data set (seed_data)")
+        fresh: dict[str, dict[str, list[float]]] = {}
+        for seed in seeds:
+            scores = _baselines(seed_data[seed])
+            for name, values in scores.items():
+                entry = fresh.setdefault(name, {})
+                for key, value in values.items():
+                    entry.setdefault(key, []).append(float(value))
+        return {name: {**{key: statistics.fmean(v) for key, v in values.items()},
+                       "test_mse_per_seed": values["test_mse"], "resample": resample}
+                for name, values in fresh.items()}
     train, val, test = (stack_items(d) for d in (data.train, data.val, data.test))
     if resample == "none" or not seeds:
         scores = evaluate_baselines(train, val, test)
@@ -147,9 +163,9 @@ def _work(
     (the one resume loop)."""
     if threads:
         torch.set_num_threads(threads)
-    cache: dict[str, SceneData] = dict(given or {})
+    cache: dict[tuple[str, int | None], SceneData] = {(scene, None): d for scene, d in (given or {}).items()}
     mine = [(index, unit) for index, unit in enumerate(units) if index % world == rank]
-    cost = {index: len(unit.methods) * len(seeds) * (unit.steps or config.steps) for index, unit in mine}
+    cost = {index: unit.members(seeds) * (unit.steps or config.steps) for index, unit in mine}
     plain = progress is None and not sys.stderr.isatty()
     tracker = _Progress(list(cost.values()), later_cost / world, prior_s)
     for index, unit in mine:
@@ -164,14 +180,16 @@ def _work(
         if reason and log:
             log(f"{label} — {reason}: recomputing")
         for scene in {unit.scene, *(other for _, other, _ in unit.also)}:
-            if scene not in cache:
-                cache[scene] = load_scene_data(scene, root, paper_split=False)
+            if (scene, unit.seed) not in cache:  # fresh data per seed: the unit's seed's own data set
+                cache[(scene, unit.seed)] = load_scene_data(scene, root, paper_split=False, data_seed=unit.seed)
         tick = time.perf_counter()
         own = config if unit.steps is None else ProtocolConfig(**{**asdict(config), "steps": unit.steps})
-        result = run_unit(unit.scene, unit.methods, seeds, own, cache[unit.scene], device=device,
+        scored = {scene: d for (scene, seed), d in cache.items() if seed == unit.seed}
+        result = run_unit(unit.scene, unit.methods, seeds if unit.seed is None else [unit.seed], own,
+                          scored[unit.scene], device=device,
                           progress=False if plain else progress, description=label,
                           on_validation=tracker.callback(label, cost[index]) if plain else None,
-                          also=unit.also, also_data=cache)
+                          also=unit.also, also_data=scored)
         write_unit(path, (keys or {}).get(unit.slug, {}), result)
         eta = tracker.finished(cost[index])
         if log:
@@ -186,15 +204,15 @@ def _work(
 
 def _runwork_units(
     units: list[Unit], seeds: list[int], config: ProtocolConfig, out: Path, jobs: int, options: tuple,
-    phase: str, later_cost: float, data_keys: dict[str, str],
+    phase: str, later_cost: float, data_keys: Mapping[tuple[str, int | None], str],
 ) -> dict[str, Any] | None:
     """Run ``units`` on the ranks (torchrun's, ``jobs`` spawned ones, or this process); every
     unit's result on rank 0, ``None`` on the other ranks of a torchrun group. Units are kept
     under ``out/runs/<hash of settings, seeds, model defaults, version>/``."""
     folder = folder_key(config, seeds)
     runs = out / "runs" / folder_name(config, seeds)
-    keys = {u.slug: {**unit_key(folder, u.scene, u.methods, data_keys[u.scene]),
-                     **({"also": [[m, s_, n, data_keys[s_]] for m, s_, n in u.also]} if u.also else {}),
+    keys = {u.slug: {**unit_key(folder, u.scene, u.methods, data_keys[(u.scene, u.seed)]),
+                     **({"also": [[m, s_, n, data_keys[(s_, u.seed)]] for m, s_, n in u.also]} if u.also else {}),
                      **({"steps": u.steps} if u.steps is not None else {})}
             for u in units}
     arguments = (units, seeds, config, runs, *options, phase, later_cost, keys)
@@ -234,40 +252,79 @@ def _seed_values(runs: list[dict[str, Any]]) -> dict[str, list]:
 @dataclass
 class Phases:
     """The units a run trains, phase by phase, after train-once sharing (what the plan counts,
-    the progress lines number ``k/N`` and the summary reports: the same lists)."""
+    the progress lines number ``k/N`` and the summary reports: the same lists). ``sharing`` is
+    the first data set's; ``shared_members`` counts the borrowing members of every seed."""
 
     sharing: Any
     units: list[Unit]
     choices: dict[str, str]
     budget_methods: dict[str, tuple[str, ...]]
     budget_units: list[Unit]
+    shared_members: int = 0
 
 
-def phase_units(scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], group: str, data: Mapping[str, SceneData],
-                checked: Sequence[str], equal_time: bool, given: dict[str, SceneData] | None = None) -> Phases:
+def per_seed_data(data: Mapping[Any, Any]) -> dict[int | None, Mapping[str, SceneData]]:
+    """``data`` as ``{seed: {scene: SceneData}}``: given so (fresh data per seed), or one data set
+    for every seed (``{None: data}``).
+
+    Example:
+        >>> per_seed_data({})
+        {None: {}}
+    """
+    if data and all(isinstance(v, SceneData) for v in data.values()):
+        return {None: data}
+    return dict(data) if data else {None: {}}
+
+
+def seed_units(methods: Mapping[str, Sequence[str]], group: str, given: dict[str, SceneData] | None,
+               data: Mapping[Any, Any]) -> tuple[list[Unit], int, Any]:
+    """The units of one phase (``methods`` per scene), members shared within a data set trained
+    once: for fresh data per seed, a unit per seed (scenes that share training sessions still
+    share a unit within the seed), the costly first. Also returns how many (scene, method,
+    seed) members borrow, and the first data set's sharing."""
+    units: list[Unit] = []
+    shared, first = 0, None
+    known: dict[int, Any] = {}  # one data set given for several seeds (the plan's): keyed once
+    for seed, scenes_data in per_seed_data(data).items():
+        if id(scenes_data) not in known:  # train once: members keyed by what their training reads
+            known[id(scenes_data)] = plan_sharing(methods, scenes_data)
+        sharing = known[id(scenes_data)]
+        first = first or sharing
+        shared += sharing.shared
+        units += [replace(u, seed=seed) for u in work_units(list(methods), methods, group, given, sharing)]
+    order = {id(u): i for i, u in enumerate(units)}
+    costly = lambda u: -max(parse_method(m, scene=resolve_scene(u.scene, given)).copies for m in u.methods)  # noqa: E731
+    return sorted(units, key=lambda u: (costly(u), order[id(u)])), shared, first
+
+
+def phase_units(scenes: Sequence[str], chosen: Mapping[str, Sequence[str]], group: str, data: Mapping[Any, Any],
+                checked: Sequence[str], equal_time: bool, given: dict[str, SceneData] | None = None,
+                seeds: Sequence[int] = ()) -> Phases:
     """The main phase's and the budget check's units as the run will train them (shared members
-    trained once), from the run's data."""
-    sharing = plan_sharing(chosen, data)  # train once: members keyed by what their training reads
-    units = work_units(scenes, chosen, group, given, sharing)
-    choices = {s: m for s in checked if (m := headline(s, chosen, data)) is not None}
+    trained once), from the run's data: ``{scene: SceneData}`` (one data set for every seed) or
+    ``{seed: {scene: SceneData}}`` (fresh data per seed). ``seeds``: the run's, to count the
+    borrowing members of one shared data set."""
+    units, shared, sharing = seed_units(chosen, group, given, data)
+    first = next(iter(per_seed_data(data).values()))
+    choices = {s: m for s in checked if (m := headline(s, chosen, first)) is not None}
     budget_methods: dict[str, tuple[str, ...]] = {s: ("none", m) for s, m in choices.items()}
     if checked and equal_time:  # the cost curve's last point: none at twice the steps on every scene (mostly borrowed)
         budget_methods.update({s: ("none",) for s in scenes if s not in choices})
-    budget_units = work_units(list(budget_methods), budget_methods, group, given,
-                              plan_sharing(budget_methods, data))
-    return Phases(sharing, units, choices, budget_methods, budget_units)
+    budget_units = seed_units(budget_methods, group, given, data)[0]
+    fresh = None not in per_seed_data(data)
+    return Phases(sharing, units, choices, budget_methods, budget_units,
+                  shared if fresh else shared * len(seeds))
 
 
 def count_phases(plan: dict[str, Any], phases: Phases, seeds: Sequence[int], config: ProtocolConfig) -> None:
     """Add to ``plan`` what the run trains after train-once sharing: ``shared_members``,
     ``trained_members``, ``trained_units``, ``budget_trained_units`` and the member-steps of both
     phases (``trained_member_steps``, ``budget_trained_member_steps``)."""
-    plan["shared_members"] = phases.sharing.shared * len(seeds)
+    plan["shared_members"] = phases.shared_members
     plan["trained_members"] = plan["members"] - plan["shared_members"]
     plan["trained_units"], plan["budget_trained_units"] = len(phases.units), len(phases.budget_units)
-    plan["trained_member_steps"] = sum(len(u.methods) for u in phases.units) * len(seeds) * config.steps
-    plan["budget_trained_member_steps"] = (sum(len(u.methods) for u in phases.budget_units) * len(seeds)
-                                           * 2 * config.steps)
+    plan["trained_member_steps"] = sum(u.members(seeds) for u in phases.units) * config.steps
+    plan["budget_trained_member_steps"] = sum(u.members(seeds) for u in phases.budget_units) * 2 * config.steps
 
 
 def plan_line(plan: Mapping[str, Any], config: ProtocolConfig) -> str:
@@ -347,6 +404,20 @@ def _cost_table(given: str | Path | Mapping[str, Any] | None, scenes: Sequence[s
             f"{table.get('environment', {}).get('cpu_model', 'an unnamed CPU')} at commit "
             f"{str(table.get('commit', '?'))[:7]})")
     return table
+
+
+def _data_identity(scene: str, by_seed: Mapping[int | None, Mapping[str, SceneData]], seeds: Sequence[int],
+                   resample: str) -> dict[str, Any]:
+    """Which data each seed read on ``scene``: with fresh data, per seed its sequence-seed offset
+    and content hashes of its training (+ hold-out) and its validation + test items; else the one
+    data set's hashes and the rule each seed read it by."""
+    if resample == "fresh":
+        return {"rule": "fresh", "seeds": {str(seed): {
+            "sequence_seed_offset": data_seed_offset(seed),
+            "training_hash": training_key(by_seed[seed][scene]),
+            "evaluation_hash": content_key(by_seed[seed][scene].val, by_seed[seed][scene].test)} for seed in seeds}}
+    d = by_seed[None][scene]
+    return {"rule": resample, "training_hash": training_key(d), "evaluation_hash": content_key(d.val, d.test)}
 
 
 def _describe_data(data: dict[str, SceneData], scenes: Sequence[str]) -> str:
@@ -432,6 +503,12 @@ def run_protocol(
         The ``results.json`` dict (on rank 0; other ranks of a torchrun group get ``{}``).
     """
     config = config or ProtocolConfig()
+    if data is not None and config.resample == "fresh":  # a folder cannot draw new data: resample it
+        config = replace(config, resample="bootstrap")
+        if log:
+            log("data per seed: the data are given (no new data can be drawn from them), so each seed reads its own "
+                "bootstrap resample by recording instead of fresh data (resample='bootstrap')")
+    fresh = config.resample == "fresh"
     scenes = list(scenes or SCENES)
     chosen = choose_methods(scenes, methods, full=full, data=data)
     if group not in ("scene", "method"):
@@ -445,8 +522,14 @@ def run_protocol(
     start = time.perf_counter()
     commit = git_commit()  # the code that trains: read before the run, not after (the checkout may move)
 
-    # Data first, in this process: the cache is written once, workers only read it.
-    data = dict(given) if given is not None else {scene: load_scene_data(scene, root) for scene in scenes}
+    # Data first, in this process: the cache is written once, workers only read it. With fresh data
+    # per seed, every seed draws its own data set (new grasps from the same sessions).
+    by_seed: dict[int | None, dict[str, SceneData]]
+    if fresh:
+        by_seed = {seed: {scene: load_scene_data(scene, root, data_seed=seed) for scene in scenes} for seed in seeds}
+    else:
+        by_seed = {None: dict(given) if given is not None else {scene: load_scene_data(scene, root) for scene in scenes}}
+    data = next(iter(by_seed.values()))  # the first data set: limits, timing, costs, sizes
     missing = [scene for scene in scenes if scene not in data]
     if missing:
         raise ValueError(f"data must hold every scene, missing {missing}")
@@ -454,15 +537,17 @@ def run_protocol(
     if log and not cli:  # the command line has printed them before its plan
         for note in notes:
             log(note)
-    data_keys = {scene: data_key(data[scene]) for scene in scenes}
-    phases = phase_units(scenes, chosen, group, data, plan["budget_check_scenes"], equal_time, given)
+    data_keys = {(scene, seed): data_key(d[scene]) for seed, d in by_seed.items() for scene in scenes}
+    phases = phase_units(scenes, chosen, group, by_seed, plan["budget_check_scenes"], equal_time, given, seeds)
     units = phases.units
     count_phases(plan, phases, seeds, config)
     if log:
         for scene, d in data.items():
             holdout = f"{len(d.holdout)} hold-out (training session), " if d.holdout is not None else ""
+            ready = sum(by_seed[s][scene].seconds for s in by_seed)
             log(f"data: scene {scene!r} ({d.scene.description}): {len(d.train)} train, {holdout}{len(d.val)} val, "
-                f"{len(d.test)} test sequences, ready in {d.seconds:.1f} s")
+                f"{len(d.test)} test sequences" + (f" per seed, each seed its own ({len(by_seed)} data sets)"
+                                                   if fresh else "") + f", ready in {ready:.1f} s")
         log(plan_line(plan, config))
         log(PROGRESS_LEGEND)
     options = (root, device, threads, log, progress, given, _prior_seconds(config, device))
@@ -479,7 +564,7 @@ def run_protocol(
         for ratio in (r for r in CURVE_RATIOS if 1.0 < r < 2.0):
             curve_methods = {s: ("none",) for s in scenes}
             longer = ProtocolConfig(**{**asdict(config), "steps": round(ratio * config.steps)})
-            curve_units = work_units(scenes, curve_methods, group, given, plan_sharing(curve_methods, data))
+            curve_units = seed_units(curve_methods, group, given, by_seed)[0]
             curve_results[ratio] = (curve_units, _runwork_units(
                 curve_units, seeds, longer, out, jobs, options, f"cost curve (none at {longer.steps} steps)", 0.0,
                 data_keys))
@@ -494,8 +579,10 @@ def run_protocol(
         if d.holdout is not None:
             sizes["holdout"] = len(d.holdout)
         summary = summarize_scene(d.scene, _per_method(units, results, scene, chosen[scene]),
-                                  _baselines(d, seeds, config.resample), sizes)
-        summary["generation_s"] = d.seconds
+                                  _baselines(d, seeds, config.resample,
+                                             {s: by_seed[s][scene] for s in seeds} if fresh else None), sizes)
+        summary["generation_s"] = sum(by_seed[s][scene].seconds for s in by_seed)
+        summary["data_per_seed"] = _data_identity(scene, by_seed, seeds, config.resample)
         dataset = getattr(d, "dataset", None)
         if isinstance(dataset, dict):  # a folder of recordings: how many recordings the intervals rest on
             summary["recordings"] = dataset["recordings"]
@@ -546,7 +633,9 @@ def run_protocol(
                 for method, s_ in summary["methods"].items():
                     if method == "none" or s_.get("duplicate_of"):
                         continue
-                    s_["cost_ratio"] = ratio_of(costs, scene, method)
+                    # a row without synthetic copies (with-labels) steps like none: ratio 1 by construction
+                    plain = parse_method(method, scene=data[scene].scene).build(data[scene].noise_bank) is None
+                    s_["cost_ratio"] = 1.0 if plain else ratio_of(costs, scene, method)
                     steps_of.setdefault(scene, {})[method] = equal_cost_steps(config.steps, s_["cost_ratio"])
         if distributed.current_group() is not None:
             steps_of = distributed.broadcast_from_rank0(steps_of)
@@ -559,8 +648,7 @@ def run_protocol(
                             reverse=True):
             subset = {s_: tuple(m for m, n in per.items() if n == steps) for s_, per in steps_of.items()}
             subset = {s_: ms for s_, ms in subset.items() if ms}
-            mine = [Unit(u.scene, u.methods, u.also, steps)
-                    for u in work_units(list(subset), subset, group, given, plan_sharing(subset, data))]
+            mine = [replace(u, steps=steps) for u in seed_units(subset, group, given, by_seed)[0]]
             equal_units += mine
             subsets.append((mine, subset))
         done = (_runwork_units(equal_units, seeds, config, out, jobs, options, "equal cost", 0.0, data_keys)
@@ -586,6 +674,7 @@ def run_protocol(
         "cost_table": {k: costs[k] for k in ("source", "config", "environment", "commit", "train_s_per_step")
                        if k in costs},
         "data": _describe_data(data, scenes),
+        "data_per_seed": config.resample,  # fresh: each seed its own data set; bootstrap: resamples of one
         "scenes": scene_results,
     }
     write_json_atomic(out / "results.json", results_json)

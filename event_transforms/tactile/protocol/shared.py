@@ -38,7 +38,7 @@ import torch
 from ..copies import SceneData
 from ..methods import parse_method
 
-__all__ = ["Sharing", "plan_sharing", "member_key", "training_key", "collect", "SHARED_SEPARATOR"]
+__all__ = ["Sharing", "plan_sharing", "member_key", "training_key", "content_key", "collect", "SHARED_SEPARATOR"]
 
 #: Borrowed results live in the owner unit's file under ``"<scene>::<method>"``.
 SHARED_SEPARATOR = "::"
@@ -53,8 +53,13 @@ def _update_tensor(digest: Any, value: torch.Tensor) -> None:
 def training_key(data: SceneData) -> str:
     """A content hash of what every member of ``data``'s scene trains on: the training and
     hold-out items (frames, forces and metadata), not the validation or test sets."""
+    return content_key(data.train, data.holdout)
+
+
+def content_key(*splits: Any) -> str:
+    """A content hash of the items (frames, forces and metadata) of ``splits`` (``None``: no split)."""
     digest = hashlib.sha256()
-    for split in (data.train, data.holdout):
+    for split in splits:
         if split is None:
             digest.update(b"no split")
             continue
@@ -82,6 +87,10 @@ def member_key(data: SceneData, method_name: str, training: str | None = None) -
     digest.update(f"copies={method.copies if transform is not None else 0}".encode())
     if transform is not None and method.needs_noise_bank and data.noise_bank is not None:
         _update_tensor(digest, data.noise_bank)
+    if method.model:  # another model (none-local: no global inputs)
+        digest.update(repr(method.model).encode())
+    if method.reads_deployment_labels:  # with-labels trains on the deployment's validation items too
+        digest.update(content_key(data.val if data.labelled is None else data.labelled).encode())
     return digest.hexdigest()[:24]
 
 

@@ -107,6 +107,8 @@ def _record(trained: Any, index: int, record: Any, result: Any, holdout: bool, p
         "test_mse": test_phases["all"],
         "test_phase_mse": test_phases,
         "val_mse": phase_mse(val_scored, val_measured)["all"],
+        # with-labels trained on the validation items: its val_mse is in-sample (its test MSE is not)
+        "trained_on_val": method.reads_deployment_labels,
         # the paper's 6 + 6 split: the first 6 sequences of val and test
         "val_mse_paper_split": phase_mse(val_pred[index, :6], val_target[:6])["all"],
         "test_mse_paper_split": phase_mse(test_pred[index, :6], test_target[:6])["all"],

@@ -103,6 +103,8 @@ def load_recording_data(
         "recordings": {s: len(d.recordings) for s, d in splits.items()},
         "windows": {s: len(d) for s, d in splits.items()},
         "left_out_frames": sum(d.left_out_frames for d in splits.values()),
+        # with-labels (the comparator of inferred) is a row where the inference read these labels
+        "inferred_reads_labels": labelled,
         "inferred_from": f"{len(train_frames)} training windows of {len(splits['train'].recordings)} recordings and "
                          f"{len(deploy_frames)} deployment windows of " + (
                              f"{len(splits['val'].recordings)} validation and {len(splits['unlabeled'].recordings)} "
