@@ -47,6 +47,8 @@ from benchmarks._common import environment_lines, write_section
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS_PAGE = ROOT / "docs" / "results.md"
+#: The committed run page: the section and each scene's whole protocol output (aggregate tables).
+RUN_PAGE = ROOT / "benchmarks" / "tactile" / "recorded_grasps.md"
 SECTION = "recorded-grasps"
 
 #: The recording settings of every scene (see the module docstring).
@@ -308,6 +310,17 @@ def page(args: argparse.Namespace, scenes: dict[str, dict[str, Any]], bins: list
     return "\n\n".join(out)
 
 
+def write_pages(body: str, scenes: dict[str, dict[str, Any]]) -> None:
+    """The section into ``docs/results.md`` and, with each scene's protocol output, :data:`RUN_PAGE`."""
+    write_section(SECTION, body, RESULTS_PAGE)
+    runs = "\n\n".join(f"## `{name}`: the protocol's output (`results.md`)\n\n{s['results'].strip()}"
+                         for name, s in scenes.items())
+    RUN_PAGE.write_text("# Recorded grasps (`benchmarks/tactile/recorded_grasps.py`)\n\n"
+                        "The section of `docs/results.md` it writes, then each scene's whole output. Aggregate "
+                        "errors and verdicts only: the recorded data are not in this repository.\n\n"
+                        + body.replace("## Recorded grasps", "## Section: Recorded grasps", 1) + "\n\n" + runs + "\n")
+
+
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     from event_transforms.tactile.protocol.rules import RULES
     from event_transforms.tactile.recordings.wedge_scenes import WEDGE_SCENES
@@ -344,7 +357,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     body = page(args, scenes, bins, convert_s)
     print(body)
     if not args.no_write:
-        write_section(SECTION, body, RESULTS_PAGE)
+        write_pages(body, scenes)
     return {"scenes": {n: s["seconds"] for n, s in scenes.items()}, "convert_s": convert_s}
 
 
