@@ -292,6 +292,16 @@ def comparison(recorded: dict[str, dict[tuple[str, str, str], Any]]) -> tuple[st
     return "\n".join(lines), counts
 
 
+def _rules_of(page_text: str) -> str:
+    """The decision rules' version a generator's page states, in words (for the comparison's header)."""
+    import re
+
+    found = re.search(r"[Dd]ecision rules version (\d+)", page_text)
+    made = re.search(r"Produced by commit `([0-9a-f]{7})", page_text)
+    return ((f"decision rules version {found[1]}" if found else "no rules version stated (made before rules were "
+             "versioned, i.e. version 1's rules)") + (f", commit `{made[1]}`" if made else ""))
+
+
 def _commit() -> str:
     try:
         return subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True,
@@ -322,6 +332,7 @@ def page(args: argparse.Namespace, scenes: dict[str, dict[str, Any]], bins: list
 
     commit = _commit()
     recorded = {name: _verdicts(s["results"]) for name, s in scenes.items()}
+    builtin_rules = _rules_of((ROOT / "benchmarks" / "tactile" / "reproduce_quick.md").read_text())
     table, counts = comparison(recorded)
     out = [
         "## Recorded grasps: the protocol on a real GelSight Wedge",
@@ -367,7 +378,8 @@ def page(args: argparse.Namespace, scenes: dict[str, dict[str, Any]], bins: list
                                + ["| " + " | ".join(r) + " |" for r in rows]))
     out.append("### Recorded verdicts beside the generators'\n\n"
                "Δ vs none of each augmentation on the recorded scene, beside the built-in generator's verdict for the "
-               "same role (`benchmarks/tactile/reproduce_quick.md`, read when this section was generated) and the "
+               f"same role (`benchmarks/tactile/reproduce_quick.md`, read when this section was generated: {builtin_rules}) "
+               "and the "
                "optical generator's (`benchmarks/tactile/optical.md`: **stale**, judged by decision rules version 1 "
                "and an older protocol). The roles: `control` is the generators' `control` (no gap); the two hardness "
                "interpolations take the role of `paper` (train on the extremes, deploy the middle: there of size, here "
