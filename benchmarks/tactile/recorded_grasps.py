@@ -298,8 +298,8 @@ def _rules_of(page_text: str) -> str:
 
     found = re.search(r"[Dd]ecision rules version (\d+)", page_text)
     made = re.search(r"Produced by commit `([0-9a-f]{7})", page_text)
-    return ((f"decision rules version {found[1]}" if found else "no rules version stated (made before rules were "
-             "versioned, i.e. version 1's rules)") + (f", commit `{made[1]}`" if made else ""))
+    return ((f"decision rules version {found[1]}" if found else "no rules version stated (made before the rules "
+             "had versions)") + (f", commit `{made[1]}`" if made else ""))
 
 
 def _commit() -> str:
