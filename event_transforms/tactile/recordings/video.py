@@ -447,7 +447,9 @@ def convert_video_folder(root: str | os.PathLike[str], out: str | os.PathLike[st
     day) and ``trial`` columns (from ``<object>__t=<k>`` or ``<object>_<k>``) and the
     gripper width written beside as ``width/<recording>.csv`` (metadata). The labels are
     read by :func:`read_array_pickle`. Negative force readings follow :data:`FORCE_RULE`;
-    the count and the grasps with readings below -1 N are printed.
+    the count and the grasps with readings below -1 N are printed. The natural splits of the
+    grasps the folder holds are written as scenes, ``out/scenes/<name>/recordings.csv``
+    (:func:`~event_transforms.tactile.recordings.wedge_scenes.write_wedge_scenes`).
 
     Args:
         root: the folder.
@@ -503,4 +505,8 @@ def convert_video_folder(root: str | os.PathLike[str], out: str | os.PathLike[st
     if log:
         log(f"{len(rows)} grasps -> {out / 'recordings.csv'}; {FORCE_RULE}: {clipped} readings in all; "
             f"readings below -1 N in {len(glitches)} grasps: {', '.join(glitches) if glitches else 'none'}")
+    from .wedge_scenes import write_wedge_scenes
+
+    if write_wedge_scenes(out, log=log) and log:
+        log(f"each scene runs with: event-transforms reproduce --data {out / 'scenes' / '<scene>'} (see docs/recordings.md)")
     return rows
