@@ -56,8 +56,7 @@ def test_quick_model_mse_figures_are_the_committed_quick_run():
     # the kernel-set comparison (their own committed pages under benchmarks/tactile/)
     others = [ROOT / "benchmarks" / "tactile" / name for name in ("optical.md", "recorded_grasps.md", "reproduce_quick_v1.md")]
     others += sorted((ROOT / "benchmarks" / "tactile").glob("reproduce_kernel_*.md"))
-    quick = "
-".join(_plain(path.read_text()) for path in [QUICK_RUN, *others] if path.is_file())
+    quick = "\n".join(_plain(path.read_text()) for path in [QUICK_RUN, *others] if path.is_file())
     for page in QUICK_PAGES:
         assert unbacked_mean_sd((ROOT / page).read_text(), quick) == [], \
             f"{page} quotes figures benchmarks/tactile/reproduce_quick.md (or the optical and kernel-set runs) lacks"
