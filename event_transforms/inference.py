@@ -81,7 +81,6 @@ from __future__ import annotations
 __all__ = ["infer_scene", "sequence_statistics", "difference_test", "FACTOR_TESTS", "MIN_WINDOWS", "SmallSampleWarning"]
 
 import math
-import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -89,6 +88,7 @@ import torch
 from torch import Tensor
 
 from ._validation import check_frames, describe
+from .events.dropped import warn_at_caller
 from .functional._warp import axis_radians
 from .scenes import Scene
 
@@ -434,10 +434,9 @@ def infer_scene(
         raise ValueError(f"z_gap must be a positive number, got {z_gap!r}")
     fewest = min(train_frames.shape[0], deploy_frames.shape[0])
     if fewest < MIN_WINDOWS:
-        warnings.warn(SmallSampleWarning(
+        warn_at_caller(SmallSampleWarning(  # at the user's line, through any wrapper of the package
             f"infer_scene compares {train_frames.shape[0]} training and {deploy_frames.shape[0]} deployment "
-            f"windows; below {MIN_WINDOWS} a side the standard errors, and so the verdicts, are unreliable"),
-            stacklevel=2)
+            f"windows; below {MIN_WINDOWS} a side the standard errors, and so the verdicts, are unreliable"))
     a = sequence_statistics(train_frames, frame_ms=frame_ms)
     b = sequence_statistics(deploy_frames, frame_ms=frame_ms)
     evidence: dict[str, Any] = {}

@@ -49,7 +49,6 @@ from __future__ import annotations
 __all__ = ["MEMBRANE_GRID", "recording_lags", "session_lag", "as_labelled", "lag_test", "infer_scene_with_lags"]
 
 import math
-import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -418,12 +417,7 @@ def infer_scene_with_lags(
         grid = _grid_of(train)
         timing = lag_test(labelled_train, labelled_deploy, grid=grid, frame_ms=frame_ms, max_lag_ms=max_lag_ms,
                           z_gap=z_gap)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        scene = infer_scene(train, deploy, frame_ms=frame_ms, z_gap=z_gap, timing=timing, **kwargs)
-    for warning in caught:  # pointed at the caller's line, not this one
-        warnings.warn(warning.message, stacklevel=2)
-    return scene
+    return infer_scene(train, deploy, frame_ms=frame_ms, z_gap=z_gap, timing=timing, **kwargs)
 
 
 def _grid_of(frames: Tensor | Sequence[Tensor]) -> tuple[int, ...] | None:

@@ -247,3 +247,18 @@ def test_reproduce_data_on_an_exported_scene_infers_the_matched_shift(tmp_path, 
     assert repr(inferred.policy("independent")) == repr(parse_method("matched", scene="paper-offset").build())
     with pytest.raises(ValueError, match="made of recordings, whose gaps are only inferred"):
         parse_method("matched", scene=data.scene)
+
+
+def test_the_small_sample_warning_points_at_the_callers_line_through_the_wrapper():
+    """``infer_scene_with_lags`` warns as ``infer_scene`` does, at the user's line (the package's
+    one mechanism, ``warn_at_caller``), not at the wrapper's."""
+    import warnings
+
+    from event_transforms.inference import SmallSampleWarning
+
+    frames = torch.poisson(torch.full((4, 12, 2, 8, 8), 0.1), generator=torch.Generator().manual_seed(0))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        infer_scene_with_lags(frames, frames.clone())
+    small = [w for w in caught if issubclass(w.category, SmallSampleWarning)]
+    assert len(small) == 1 and small[0].filename == __file__
