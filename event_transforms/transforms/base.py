@@ -228,6 +228,25 @@ def _apply_by_group_events(batch: EventBatch, group: Tensor, functions: Sequence
     return merge_streams(parts, size, batch)
 
 
+def _events_by_group(video: Tensor, group: Tensor, functions: Sequence[Callable[[Tensor, Tensor], EventBatch]]) -> EventBatch:
+    """``functions[g]`` (video in, events out) on the videos whose ``group`` is ``g``, the streams put
+    back in the batch's order; the (CPU) groups are read on the host, a group that holds the whole
+    batch is not gathered, and an empty batch gives the first function's empty result."""
+    size = video.shape[0]
+    labels = np.asarray(group.tolist(), dtype=np.int64).reshape(size)
+    parts: list[tuple[list[int], EventBatch]] = []
+    for g, function in enumerate(functions):
+        members = np.flatnonzero(labels == g)
+        if members.size == size:
+            return function(video, torch.from_numpy(members))
+        if members.size:
+            index = torch.from_numpy(members)
+            parts.append((members.tolist(), function(video.index_select(0, index_on(index, video.device)), index)))
+    if not parts:
+        return functions[0](video, torch.zeros(0, dtype=torch.int64))
+    return merge_streams(parts, size, parts[0][1])
+
+
 def _take(inputs: Tensor | EventBatch, index: np.ndarray) -> Any:
     """Samples ``index`` (host indices) of frames or an EventBatch; the whole batch is not copied."""
     if index.size == len(inputs) and (index == np.arange(index.size)).all():
@@ -363,6 +382,18 @@ class EventTransform(nn.Module):
                 f"{generator!r}"
             )
         first, rest = inputs[0], inputs[1:]
+        if self.takes_video:  # a video in, events out (EmulateEvents, or a container that starts with it)
+            if not isinstance(first, Tensor):
+                raise TypeError(f"{type(self).__name__} takes a video as a torch.Tensor, got {type(first).__name__}")
+            shape = self.video_shape(first.shape)
+            video = first if first.dim() == len(shape) else first.unsqueeze(0)
+            if params is None:
+                params = self.make_params(shape, generator=generator, metadata=metadata)
+            else:
+                with torch.profiler.record_function(CHECK_RANGE):
+                    params = self._check_params(params, shape)
+            events = self._run(video, params)
+            return (events, *rest) if rest else events
         if isinstance(first, EventBatch) and not self.takes_events:
             if params is None:
                 params = self.make_params(first.frame_shape, generator=generator, metadata=metadata)
@@ -495,7 +526,7 @@ class EventTransform(nn.Module):
         Returns a dict of ``(B, ...)`` CPU tensors (nested for containers). Give it back as
         ``module(frames, params=...)`` to replay the call exactly.
         """
-        shape = check_shape(shape)
+        shape = self.video_shape(shape) if self.takes_video else check_shape(shape)
         if generator is not None and not isinstance(generator, torch.Generator):
             raise TypeError(
                 f"{type(self).__name__}.make_params: generator must be a torch.Generator or None, got "
@@ -552,6 +583,22 @@ class EventTransform(nn.Module):
     def events_to_frames(self, events: Any) -> Tensor:
         """Override with :attr:`takes_events`: turn a call's first input into frames."""
         raise TypeError(f"{type(self).__name__} takes frames, not events")
+
+    @property
+    def takes_video(self) -> bool:
+        """Whether a call's first input is a video (luminance or RGB frames) and its output events.
+
+        True for :class:`~event_transforms.EmulateEvents` and for a container that starts with
+        one (a ``Compose`` whose first member, a ``OneOf`` whose every member takes a video):
+        ``forward`` draws the parameters for :meth:`video_shape` and the output is an
+        :class:`~event_transforms.EventBatch`.
+        """
+        return False
+
+    def video_shape(self, shape: Sequence[int]) -> torch.Size:
+        """Override with :attr:`takes_video`: the batched video shape of a call on ``shape``
+        (a single video gains the batch axis), checked."""
+        raise TypeError(f"{type(self).__name__} takes event frames, not a video")
 
     @overload
     def _run(self, frames: Tensor, params: Params) -> Tensor: ...

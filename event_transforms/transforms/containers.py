@@ -29,7 +29,7 @@ from torch import Tensor, nn
 
 from .._validation import as_number, check_probability
 from ..events.batch import EventBatch
-from .base import EventTransform, Param, Params, _draw_device, apply_by_group, as_transform, slice_params
+from .base import EventTransform, Param, Params, _draw_device, _events_by_group, apply_by_group, as_transform, slice_params
 
 __all__ = ["Compose", "OneOf", "RandomApply"]
 
@@ -45,7 +45,7 @@ def _refuse_coupled(member: EventTransform, where: str, container: str) -> None:
         )
 
 
-def _members(transforms: object, name: str, *, events_first: bool = False) -> Any:
+def _members(transforms: object, name: str, *, events_first: bool = False, videos: bool = False) -> Any:
     """The members as an ``nn.ModuleList`` of :class:`EventTransform` (typed ``Any``: a
     ``ModuleList`` yields ``nn.Module`` to type checkers)."""
     if isinstance(transforms, (nn.Module, str, bytes)) or not isinstance(transforms, Sequence):
@@ -54,6 +54,11 @@ def _members(transforms: object, name: str, *, events_first: bool = False) -> An
         )
     members = nn.ModuleList(as_transform(t, f"{name}[{i}]") for i, t in enumerate(transforms))
     for i, member in enumerate(members):
+        if member.takes_video and not (videos or (events_first and i == 0)):
+            raise TypeError(
+                f"{name}[{i}] ({type(member).__name__}) turns a video into events and can stand only first in a "
+                "Compose, or in a OneOf whose every member takes a video"
+            )
         if member.takes_events and not events_first:
             raise TypeError(
                 f"{name}[{i}] ({type(member).__name__}) turns events into frames and can stand only in a "
@@ -123,6 +128,13 @@ class Compose(EventTransform):
     def takes_events(self) -> bool:
         return len(self.transforms) > 0 and self.transforms[0].takes_events
 
+    @property
+    def takes_video(self) -> bool:
+        return len(self.transforms) > 0 and self.transforms[0].takes_video
+
+    def video_shape(self, shape: Sequence[int]) -> torch.Size:
+        return self.transforms[0].video_shape(shape)
+
     def events_to_frames(self, events: Any) -> Tensor:
         return self.transforms[0].events_to_frames(events)
 
@@ -182,7 +194,14 @@ class OneOf(EventTransform):
         weights: Sequence[float] | None = None,
     ) -> None:
         super().__init__()
-        self.transforms: Sequence[EventTransform] = _members(transforms, "transforms")
+        self.transforms: Sequence[EventTransform] = _members(transforms, "transforms", videos=True)
+        videos = [m.takes_video for m in self.transforms]
+        if any(videos) and not all(videos):
+            raise TypeError(
+                f"transforms: every member of a OneOf takes the same input; members {[i for i, v in enumerate(videos) if v]} "
+                f"turn a video into events and members {[i for i, v in enumerate(videos) if not v]} do not"
+            )
+        self._takes_video = bool(videos) and all(videos)
         for i, member in enumerate(self.transforms):
             _refuse_coupled(member, f"transforms[{i}]", "OneOf")
         n = len(self.transforms)
@@ -216,11 +235,23 @@ class OneOf(EventTransform):
         spec.update({str(i): (t, shape) for i, t in enumerate(self.transforms)})
         return spec
 
+    @property
+    def takes_video(self) -> bool:
+        return self._takes_video
+
+    def video_shape(self, shape: Sequence[int]) -> torch.Size:
+        shapes = {tuple(t.video_shape(shape)) for t in self.transforms}
+        if len(shapes) > 1:
+            raise ValueError(f"transforms: the members read a video of shape {tuple(shape)} differently: {sorted(shapes)}")
+        return torch.Size(shapes.pop())
+
     def apply_transform(self, frames: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
         branches = [
             (lambda sub, index, t=t, i=i: t._run(sub, slice_params(params[str(i)], index)))
             for i, t in enumerate(self.transforms)
         ]
+        if self._takes_video and isinstance(frames, Tensor):
+            return _events_by_group(frames, params["index"], branches)
         return apply_by_group(frames, params["index"], branches)
 
 
@@ -253,6 +284,12 @@ class RandomApply(EventTransform):
     def __init__(self, transform: EventTransform | Callable[[Tensor], Tensor], p: float = 0.5) -> None:
         super().__init__(p=check_probability(p, "p"))
         self.transform = as_transform(transform)
+        if self.transform.takes_video:
+            raise TypeError(
+                f"transform ({type(self.transform).__name__}) turns a video into events, so RandomApply would give "
+                "events for some samples and the video for others; put it first in a Compose, or give a OneOf the "
+                "cameras to choose from"
+            )
         if self.transform.takes_events:
             raise TypeError(
                 f"transform ({type(self.transform).__name__}) turns events into frames and can stand only "

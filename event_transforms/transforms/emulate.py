@@ -34,8 +34,11 @@ class EmulateEvents(EventTransform):
     (``seed``: leak phases and noise events; ``camera_seed``: the per-pixel thresholds,
     noise rates and hot pixels); ``module(frames, params=tree)`` replays a draw exactly,
     and a sample alone equals the sample in a batch. Unlike the frame transforms it
-    changes the input's kind, so it is called directly (first, before event transforms),
-    takes no probability ``p`` and has no label hook.
+    changes the input's kind (:attr:`~EventTransform.takes_video`), so it stands alone, first in a
+    :class:`~event_transforms.Compose` (event transforms and
+    :class:`~event_transforms.EventsToFrames` after it), or in a :class:`~event_transforms.OneOf`
+    of cameras; :class:`~event_transforms.RandomApply` refuses it (some samples would stay a
+    video). It takes no probability ``p`` and has no label hook.
 
     Args:
         fps: the frames' rate (frames at ``k / fps`` s), or ``None`` and give
@@ -128,15 +131,12 @@ class EmulateEvents(EventTransform):
                                  else torch.full((batch,), self.camera_seed, dtype=torch.int64))
         return params
 
-    def make_params(self, shape: Sequence[int], *, generator: torch.Generator | None = None,
-                    metadata: Any = None) -> Params:
-        """Draw the cameras of a video batch of ``shape`` ``(B, T, H, W)`` (or ``(B, T, 3, H, W)``)."""
-        if generator is not None and not isinstance(generator, torch.Generator):
-            raise TypeError(f"EmulateEvents.make_params: generator must be a torch.Generator or None, got "
-                            f"{type(generator).__name__}")
-        return self.sample_params(torch.Size(self._video_shape(shape)), generator=generator)
+    @property
+    def takes_video(self) -> bool:
+        return True
 
-    def _video_shape(self, shape: Sequence[int]) -> tuple[int, ...]:
+    def video_shape(self, shape: Sequence[int]) -> torch.Size:
+        """The batched video shape ``(B, T, H, W)`` (``(B, T, 3, H, W)`` with ``channel``) of ``shape``."""
         rank = 5 if self.channel is not None else 4
         dims = tuple(int(s) for s in shape)
         if len(dims) == rank - 1:
@@ -144,34 +144,49 @@ class EmulateEvents(EventTransform):
         if len(dims) != rank or any(s < 0 for s in dims):
             kind = "(B, T, 3, H, W)" if self.channel is not None else "(B, T, H, W)"
             raise ValueError(f"EmulateEvents: expected a video shape {kind}, got {tuple(shape)!r}")
-        return dims
+        return torch.Size(dims)
 
-    def forward(  # type: ignore[override]  # a video in, not event frames (see below)
-        self, frames: Tensor, *, frame_times_us: Tensor | Sequence[float] | None = None,
-        generator: torch.Generator | None = None, params: Params | None = None,
-    ) -> EventBatch:
+    def output_shape(self, shape: torch.Size) -> torch.Size:
+        """The frame shape the events' transforms draw for: ``(B, 1, 2, H, W)`` (the events have no frame grid)."""
+        return torch.Size((shape[0], 1, 2, shape[-2], shape[-1]))
+
+    def forward(  # type: ignore[override]  # adds frame_times_us to the base call
+        self, frames: Tensor, *rest: Any, frame_times_us: Tensor | Sequence[float] | None = None,
+        generator: torch.Generator | None = None, params: Params | None = None, metadata: Any = None,
+    ) -> Any:
         """Emulate the events of ``frames`` (see the class docstring); ``params`` replays a draw.
 
-        A video is not event frames, so this module's call takes the frames, the frame
-        times and the parameters only (no labels or dicts pass through it).
+        The base class's call (a video in, an :class:`~event_transforms.EventBatch` out, other
+        inputs passed through), plus ``frame_times_us`` for a module made with ``fps=None``:
+        ``(T,)`` or ``(B, T)`` frame times in microseconds, for this call.
         """
+        if frame_times_us is None:
+            if self.fps is None:
+                raise TypeError("EmulateEvents(fps=None) needs frame_times_us= at each call")
+            return super().forward(frames, *rest, generator=generator, params=params, metadata=metadata)
         if not isinstance(frames, Tensor):
-            raise TypeError(f"EmulateEvents takes frames as a torch.Tensor, got {type(frames).__name__}")
-        shape = self._video_shape(frames.shape)
+            raise TypeError(f"EmulateEvents takes a video as a torch.Tensor, got {type(frames).__name__}")
+        shape = self.video_shape(frames.shape)
         if params is None:
-            params = self.make_params(shape, generator=generator)
+            params = self.make_params(shape, generator=generator, metadata=metadata)
         else:
-            params = check_tree(self, params, torch.Size(shape))
-        fps = self.fps if frame_times_us is None else None
-        if fps is None and frame_times_us is None:
-            raise TypeError("EmulateEvents(fps=None) needs frame_times_us= at each call")
-        return emulate_events(
-            frames, fps=fps, frame_times_us=frame_times_us, channel=self.channel, knee_dn=self.knee_dn,
+            params = check_tree(self, params, shape)
+        events = emulate_events(
+            frames, frame_times_us=frame_times_us, channel=self.channel, knee_dn=self.knee_dn,
             chunk_frames=self.chunk_frames, **{key: params[key] for key in EMULATE_EVENTS_SPEC},
         )
+        return (events, *rest) if rest else events
 
     def apply_transform(self, inputs: Tensor | EventBatch, params: Params) -> Tensor | EventBatch:
-        raise TypeError("EmulateEvents takes a video and is called directly, not inside a frame pipeline")
+        if isinstance(inputs, EventBatch):
+            raise TypeError("EmulateEvents takes a video, not an EventBatch: put it first in the pipeline")
+        if self.fps is None:
+            raise TypeError("EmulateEvents(fps=None) in a container: give the module fps= (frame times "
+                            "per call need the direct call, emulate(frames, frame_times_us=...))")
+        return emulate_events(
+            inputs, fps=self.fps, channel=self.channel, knee_dn=self.knee_dn,
+            chunk_frames=self.chunk_frames, **{key: params[key] for key in EMULATE_EVENTS_SPEC},
+        )
 
     def _settings(self) -> str:
         parts = [f"fps={self.fps}"]

@@ -11,6 +11,8 @@ import torch
 import event_transforms as et
 from event_transforms import functional as F
 from event_transforms.functional import emulate as E
+from event_transforms.authoring import slice_params
+from tests.support.event_data import same_events
 
 FPS = 30.0
 DT = 1e6 / FPS
@@ -287,3 +289,66 @@ class TestModule:
         rgb = torch.rand(2, 5, 3, 4, 6)
         events = emulate(rgb, frame_times_us=torch.arange(5) * 20_000, generator=torch.Generator().manual_seed(0))
         assert len(events) == 2 and events.sensor_size == (4, 6)
+
+
+class TestInContainers:
+    """EmulateEvents in each container: first in a Compose (event transforms and the binning after it),
+    in a OneOf of cameras, refused by RandomApply and anywhere it would be handed events."""
+
+    VIDEO = torch.rand(4, 6, 5, 7, generator=torch.Generator().manual_seed(3))
+
+    def _camera(self, threshold: float = 0.2) -> et.EmulateEvents:
+        return et.EmulateEvents(fps=FPS, threshold=threshold, mismatch=0.05, noise_hz=2.0)
+
+    def test_compose_replays_and_equals_its_members_chained(self):
+        emulate, flip = self._camera(), et.HorizontalFlip(p=0.5)
+        binning = et.EventsToFrames(sensor_size=(5, 7), frame_ms=1000.0 / FPS, n_frames=6, t_start=0)
+        pipeline = et.Compose([emulate, flip, binning])
+        assert pipeline.takes_video and not pipeline.takes_events
+        params = pipeline.make_params(self.VIDEO.shape, generator=torch.Generator().manual_seed(0))
+        assert params["1"]["apply"].shape == (4,)
+        frames = pipeline(self.VIDEO, params=params)
+        assert frames.shape == (4, 6, 2, 5, 7)
+        chained = binning(flip(emulate(self.VIDEO, params=params["0"]), params=params["1"]), params=params["2"])
+        assert torch.equal(frames, chained)
+        assert torch.equal(pipeline(self.VIDEO, generator=torch.Generator().manual_seed(0)), frames)
+        # a sample alone equals the sample in the batch, labels pass through
+        alone, label = pipeline(self.VIDEO[1], torch.tensor(7.0), params=slice_params(params, torch.tensor([1])))
+        assert torch.equal(alone[0], frames[1]) and label.item() == 7.0
+        # the counts are the events': the binning loses none inside the window
+        events = flip(emulate(self.VIDEO, params=params["0"]), params=params["1"])
+        assert frames.sum().item() == sum(int(((events[b].t >= 0) & (events[b].t < 6e6 / FPS)).sum()) for b in range(4))
+
+    def test_one_of_cameras_gives_each_sample_its_branch(self):
+        low, high = self._camera(0.1), self._camera(0.4)
+        either = et.OneOf([low, high])
+        assert either.takes_video
+        params = either.make_params(self.VIDEO.shape, generator=torch.Generator().manual_seed(5))
+        index = params["index"].tolist()
+        assert set(index) == {0, 1}, index  # the seed draws both branches
+        events = either(self.VIDEO, params=params)
+        assert len(events) == 4
+        for b, branch in enumerate(index):
+            member = (low, high)[branch]
+            own = member(self.VIDEO[b], params=slice_params(params[str(branch)], torch.tensor([b])))
+            assert same_events(events[b : b + 1], own), b
+        empty = either(self.VIDEO[:0], params=slice_params(params, torch.zeros(0, dtype=torch.int64)))
+        assert len(empty) == 0 and empty.num_events == 0
+        # one branch for the whole batch is not gathered
+        whole = et.OneOf([low, high], weights=[1.0, 0.0])
+        one = whole(self.VIDEO, generator=torch.Generator().manual_seed(1))
+        assert len(one) == 4
+
+    def test_refused_where_it_would_be_handed_events_or_leave_a_video(self):
+        with pytest.raises(TypeError, match=r"transform \(EmulateEvents\) turns a video into events, so RandomApply"):
+            et.RandomApply(self._camera(), p=0.5)
+        with pytest.raises(TypeError, match=r"transforms\[1\] \(EmulateEvents\) turns a video into events"):
+            et.Compose([et.HorizontalFlip(), self._camera()])
+        with pytest.raises(TypeError, match=r"members \[0\] turn a video into events and members \[1\] do not"):
+            et.OneOf([self._camera(), et.HorizontalFlip()])
+        with pytest.raises(TypeError, match="give the module fps="):
+            et.Compose([et.EmulateEvents(threshold=0.2)])(self.VIDEO)
+        with pytest.raises(TypeError, match="takes a video as a torch.Tensor"):
+            et.Compose([self._camera()])(self.VIDEO.numpy())
+        with pytest.raises(ValueError, match=r"expected a video shape \(B, T, H, W\)"):
+            et.Compose([self._camera()]).make_params((2, 3, 2, 5, 7, 1))
