@@ -23,6 +23,10 @@ run, as in ``reproduce``) runs under :func:`sys.setprofile`. What is counted, pr
   ``tactile/protocol/run.py``; *outside protocol*: the share of the walk's entries whose room
   is not in ``tactile/protocol/``.
 
+Two walks are counted: the *protocol's walk* (every call above) and the *stages' walk*, only the
+calls that ``run_protocol``'s own frame makes, its comprehensions' and lambdas' included (what a
+reader of ``run_protocol`` follows).
+
 Code moved out of ``tactile/protocol/`` would hide its calls from this count: the refactor
 this figure was taken for keeps every stage of the run in ``tactile/protocol/``.
 
@@ -67,6 +71,16 @@ def _room(filename: str, cache: dict[str, str | None]) -> str | None:
     return cache[filename]
 
 
+def _made_by_run_protocol(frame: FrameType | None) -> bool:
+    """Whether ``frame`` is ``run_protocol``'s, or a comprehension, generator expression or lambda
+    written in its body (their frames are functions of their own)."""
+    while frame is not None and frame.f_code.co_name.startswith("<") and frame.f_back is not None \
+            and frame.f_back.f_code.co_filename == frame.f_code.co_filename:
+        frame = frame.f_back
+    return frame is not None and frame.f_code.co_name == "run_protocol" and frame.f_code.co_filename.endswith(
+        "protocol/run.py")
+
+
 def walk_of(calls: Sequence[str]) -> dict[str, Any]:
     """The figures of a walk from its calls' rooms, in order (see the module docstring).
 
@@ -91,9 +105,11 @@ def walk_of(calls: Sequence[str]) -> dict[str, Any]:
 
 
 def measure(root: str | None, quick: bool = False, seeds: Sequence[int] = (0, 1)) -> dict[str, Any]:
-    """Run the tiny protocol under the profiler; the walk's figures (:func:`walk_of`)."""
+    """Run the tiny protocol under the profiler; the protocol's walk's figures (:func:`walk_of`),
+    the stages' walk's under ``"stages"``."""
     cache: dict[str, str | None] = {}
     calls: list[str] = []
+    top: list[str] = []
     started: set[int] = set()
     edges: set[tuple[Any, Any]] = set()
 
@@ -114,6 +130,8 @@ def measure(root: str | None, quick: bool = False, seeds: Sequence[int] = (0, 1)
             edge = (caller.f_code if caller is not None else None, code)
             if edge not in edges:  # the path through the code, not its loops
                 edges.add(edge)
+                if not calls or _made_by_run_protocol(caller):
+                    top.append(room)
                 calls.append(room)
 
     torch.set_num_threads(1)
@@ -126,7 +144,7 @@ def measure(root: str | None, quick: bool = False, seeds: Sequence[int] = (0, 1)
                          threads=1, **options)
         finally:
             sys.setprofile(None)
-    return walk_of(calls)
+    return {**walk_of(calls), "stages": walk_of(top)}
 
 
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
@@ -135,12 +153,14 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     args = parser.parse_args(argv)
     figures = measure(args.root, quick=args.quick)
     table = markdown_table(
-        ["rooms", "returns", "run.py entries", "entries", "outside tactile/protocol/", "calls counted"],
-        [[figures["rooms"], figures["returns"], figures["run_entries"], figures["entries"],
-          f"{100 * figures['outside_share']:.0f} %", figures["calls"]]],
+        ["walk", "rooms", "returns", "run.py entries", "entries", "outside tactile/protocol/", "calls counted"],
+        [[label, f["rooms"], f["returns"], f["run_entries"], f["entries"], f"{100 * f['outside_share']:.0f} %",
+          f["calls"]] for label, f in (("the protocol's (calls from tactile/protocol/)", figures),
+                                       ("the stages' (calls from run_protocol)", figures["stages"]))],
     )
     per_room = markdown_table(["room", "entries"], list(figures["per_room"].items()))
-    walk = " → ".join(room.removeprefix("tactile/").removesuffix(".py") for room in figures["walk"])
+    walk, stages = (" → ".join(room.removeprefix("tactile/").removesuffix(".py") for room in f["walk"])
+                    for f in (figures, figures["stages"]))
     configuration = ("one seed, no budget check, no time columns" if args.quick
                      else "seeds 0 and 1, the budget check, the time columns and the equal-cost phase")
     body = "\n\n".join([
@@ -153,6 +173,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         f"Command: `{command('tactile/protocol_walk.py', argv)}`.",
         "\n".join(environment_lines()),
         table,
+        f"The stages' walk: {stages}.",
         per_room,
         f"<details><summary>the walk, entry by entry</summary>\n\n{walk}\n\n</details>",
     ])

@@ -13,4 +13,6 @@ def test_quick_run(tmp_path):
     assert figures["rooms"] == len(figures["per_room"]) and sum(figures["per_room"].values()) == figures["entries"]
     assert figures["returns"] == figures["entries"] - figures["rooms"]
     assert 0.0 < figures["outside_share"] < 1.0
+    stages = figures["stages"]
+    assert stages["walk"][0] == protocol_walk.RUN and stages["entries"] <= figures["entries"]
     assert "run.py entries" in _section(path, "protocol-walk")
