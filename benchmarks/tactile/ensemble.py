@@ -31,8 +31,9 @@ from benchmarks._common import (
     synthetic_frames,
 )
 
-from event_transforms.tactile.ensemble import EnsembleForceRegressor, clip_grad_norm_per_member_
+from event_transforms.tactile.ensemble import EnsembleForceRegressor
 from event_transforms.tactile.models import ForceRegressor
+from event_transforms.tactile.training import clip_grad_norm_per_member_
 
 __all__ = ["loop_step", "ensemble_step", "run", "main"]
 

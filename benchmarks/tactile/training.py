@@ -30,13 +30,15 @@ import torch
 from benchmarks._common import apply_threads, base_parser, command, environment_lines, markdown_table, publish
 
 from event_transforms.tactile import protocol
+from event_transforms.tactile.copies import SceneData, load_scene_data
+from event_transforms.tactile.methods import PAPER_METHODS
 
 __all__ = ["run", "main"]
 
 SHARE_GOAL = 0.05
 
 
-def _tiny_data() -> protocol.SceneData:
+def _tiny_data() -> SceneData:
     """A few small random sequences standing in for the data set (smoke runs only)."""
     from torch.utils.data import Dataset
 
@@ -56,17 +58,17 @@ def _tiny_data() -> protocol.SceneData:
             return self.frames[index], self.force[index], {"diameter_mm": self.diameters[index]}
 
     bank = torch.poisson(torch.full((20, 2, 16, 16), 0.05))
-    return protocol.SceneData(get_scene("paper"), Items(4, (12.0, 18.0), 0), Items(2, (15.0,), 1),
+    return SceneData(get_scene("paper"), Items(4, (12.0, 18.0), 0), Items(2, (15.0,), 1),
                               Items(2, (15.0,), 2), bank)
 
 
 def run(
-    methods: Sequence[str] = protocol.PAPER_METHODS,
+    methods: Sequence[str] = PAPER_METHODS,
     *,
     steps: int = 12,
     quick: bool = False,
 ) -> dict[str, Any]:
-    data = _tiny_data() if quick else protocol.load_scene_data("paper")
+    data = _tiny_data() if quick else load_scene_data("paper")
     base = protocol.ProtocolConfig(steps=steps, eval_every=steps, hidden_channels=(8,), input_pool=10,
                                    resample="bootstrap")  # as its page was made
     if quick:
@@ -127,10 +129,10 @@ def table(result: dict[str, Any]) -> str:
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser = base_parser(__doc__.splitlines()[0], "training")
     parser.add_argument("--steps", type=int, default=None, help="optimiser steps per method and mode (default 24, quick 4)")
-    parser.add_argument("--methods", nargs="*", default=None, help=f"protocol method names (default: {' '.join(protocol.PAPER_METHODS)})")
+    parser.add_argument("--methods", nargs="*", default=None, help=f"protocol method names (default: {' '.join(PAPER_METHODS)})")
     args = parser.parse_args(argv)
     apply_threads(args.threads)
-    methods = args.methods or (["none", "fs-1", "tes-2:0.5", "noise"] if args.quick else list(protocol.PAPER_METHODS))
+    methods = args.methods or (["none", "fs-1", "tes-2:0.5", "noise"] if args.quick else list(PAPER_METHODS))
     steps = args.steps or (4 if args.quick else 24)
     result = run(methods, steps=steps, quick=args.quick)
     config = result["config"]

@@ -55,7 +55,7 @@ _SUBMODULES = (
 #: What a user calls, each the Python entry point of a command or what it reads and writes
 #: (``__all__``): name -> the module that defines it, loaded on first use. The protocol's
 #: internals (``paired_batches``, ``format_budget_check``, ...) are imported from their modules
-#: (:mod:`~event_transforms.tactile.protocol`, :mod:`~event_transforms.tactile.report`, ...).
+#: (:mod:`~event_transforms.tactile.copies`, :mod:`~event_transforms.tactile.report`, ...).
 _NAMES = {
     "main": "cli",  # the command line: main(["reproduce", "--plan"])
     "ForceRegressor": "models",  # the reference model; train's checkpoint (ForceRegressor.load)
@@ -66,7 +66,7 @@ _NAMES = {
     "convert_bag": "recordings",  # convert
     "ProtocolConfig": "protocol",
     "run_protocol": "protocol",  # reproduce
-    "load_scene_data": "protocol",  # a built-in scene's data (simulate)
+    "load_scene_data": "copies",  # a built-in scene's data (simulate)
     "get_scene": "scenes",  # show-scene
     "train_model": "deployment",  # train
     "predict_stream": "deployment",  # predict

@@ -294,7 +294,7 @@ def reproduce(args: argparse.Namespace) -> int:
         for scene, names in chosen.items():
             _print(f"  {scene}: {', '.join(names)}")
         from .copies import load_scene_data
-        from .protocol.run import count_phases, phase_units, plan_line
+        from .protocol.plan import count_phases, phase_units, plan_line
         from .protocol.shared import plan_sharing
 
         data = given or {s: load_scene_data(s, None if args.root is None else str(args.root)) for s in scenes}

@@ -18,7 +18,7 @@ This module is the model: the ensemble, its grouped ConvLSTM cells and
 :func:`~event_transforms.tactile.training.fit_ensemble`, the stopping rule, the batch order
 :func:`~event_transforms.tactile.training.shuffled_batches`, per-member clipping
 :func:`~event_transforms.tactile.training.clip_grad_norm_per_member_`, ``MemberRecord``,
-``EnsembleResult``); those names are still importable from here (re-exported on first use).
+``EnsembleResult``): import them from there.
 
 Measured cost of one optimiser step, ensemble / loop of M separate models (CPU, one
 thread, 2-core machine shared with other jobs; ``hidden_channels=(8,)``, batch 8 per
@@ -66,7 +66,6 @@ Example:
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Sequence
 from typing import Any, cast
 
@@ -87,18 +86,7 @@ from .models import (
     _pool_counts,
 )
 
-#: The trainer's names, which lived here before: they live in :mod:`~event_transforms.tactile.training`
-#: and are re-exported from here, loaded on first use.
-_TRAINER_NAMES = ("MemberRecord", "EnsembleResult", "clip_grad_norm_per_member_", "shuffled_batches", "fit_ensemble")
-
-__all__ = ["EnsembleForceRegressor", "predict_ensemble", *_TRAINER_NAMES]
-
-
-def __getattr__(name: str) -> Any:
-    # lazily, so that training (which imports this module) and this module form no import cycle
-    if name in _TRAINER_NAMES:
-        return getattr(importlib.import_module(f"{__package__}.training"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__all__ = ["EnsembleForceRegressor", "predict_ensemble"]
 
 
 def _grouped_conv(x: Tensor, weight: Tensor, groups: int) -> Tensor:

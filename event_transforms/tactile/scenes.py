@@ -232,7 +232,7 @@ class BenchmarkScene:
         train: the training session.
         deploy: the deployment session (validation and test data come from it).
         matched_methods: augmentation methods (names of
-            :func:`event_transforms.tactile.protocol.parse_method`) that simulate the gaps.
+            :func:`event_transforms.tactile.methods.parse_method`) that simulate the gaps.
 
     Example:
         >>> scene = get_scene("timing")

@@ -117,12 +117,16 @@ def test_authoring_names_have_their_own_namespace():
 
 def test_tactile_all_lists_what_a_user_calls():
     from event_transforms import tactile
-    from event_transforms.tactile import protocol, report
+    from event_transforms.tactile import copies, protocol, report
 
     assert set(tactile.__all__) == TACTILE
     for name in tactile.__all__:
         assert getattr(tactile, name) is not None
     assert tactile.ForceRegressor.__name__ == "ForceRegressor" and callable(tactile.main)
     # the protocol's internals stay importable from their modules, not from the application's namespace
-    assert callable(protocol.paired_batches) and callable(report.format_budget_check)
+    assert callable(copies.paired_batches) and callable(report.format_budget_check)
+    # the protocol's namespace is the protocol's: its neighbours' names are imported from their modules
+    assert set(protocol.__all__) == {"ProtocolConfig", "run_protocol", "plan_run", "check_run_limits", "run_unit",
+                                     "PROGRESS_LEGEND"}
+    assert not hasattr(protocol, "paired_batches") and not hasattr(protocol, "format_report")
     assert not {"paired_batches", "format_budget_check", "run_unit", "plan_run"} & set(tactile.__all__)

@@ -11,22 +11,14 @@ import torch
 
 import event_transforms as et
 from event_transforms.tactile import cli, figures, protocol
-from event_transforms.tactile.protocol import run as protocol_run
+from event_transforms.tactile.copies import DeviceAugment, MaterializedDataset, OnlineCopies, SceneData, build_training_set, paired_batches
+from event_transforms.tactile.methods import PAPER_METHODS, QUICK_METHODS, Method, methods_for, parse_method
+from event_transforms.tactile.protocol import ProtocolConfig, run_protocol, run_unit
+from event_transforms.tactile.protocol import config as protocol_config
+from event_transforms.tactile.protocol import phases as protocol_phases
+from event_transforms.tactile.protocol import plan as protocol_plan
 from event_transforms.tactile.protocol import timing
-from event_transforms.tactile.protocol import (
-    PAPER_METHODS,
-    QUICK_METHODS,
-    MaterializedDataset,
-    Method,
-    ProtocolConfig,
-    SceneData,
-    build_training_set,
-    format_scene_table,
-    methods_for,
-    parse_method,
-    run_protocol,
-    run_unit,
-)
+from event_transforms.tactile.report import format_scene_table
 from event_transforms.tactile.runs import folder_name
 from event_transforms.tactile.scenes import SCENES, get_scene
 from event_transforms.tactile.stats import holm, paired_t, student_t_quantile
@@ -388,13 +380,13 @@ class TestRunProtocol:
         assert any(line.startswith("plan: 2 units") for line in lines)
 
     def test_paired_batches_share_the_originals(self):
-        none = protocol.paired_batches(6, 0, 4, 30, seed=3)
+        none = paired_batches(6, 0, 4, 30, seed=3)
         for copies in (1, 2, 10):
-            batches = protocol.paired_batches(6, copies, 4, 30, seed=3)
+            batches = paired_batches(6, copies, 4, 30, seed=3)
             assert torch.equal(batches % 6, none)  # the same original at every step and slot
             variants = torch.bincount((batches // 6).flatten(), minlength=copies + 1)
             assert int(variants.max() - variants.min()) <= 6  # each variant read about equally often
-        assert not torch.equal(protocol.paired_batches(6, 1, 4, 30, seed=4) % 6, none)
+        assert not torch.equal(paired_batches(6, 1, 4, 30, seed=4) % 6, none)
 
     def test_paired_seeds_share_initial_weights(self, scene_data):
         """Seed s gives every method the same start: with no step taken, equal predictions."""
@@ -414,11 +406,11 @@ class TestRunProtocol:
                 raise KeyboardInterrupt
             return real(*args, **kwargs)
 
-        monkeypatch.setattr(protocol_run, "run_unit", killed_after_two)
+        monkeypatch.setattr(protocol_phases, "run_unit", killed_after_two)
         with pytest.raises(KeyboardInterrupt):
             run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods, data=scene_data,
                          group="method")
-        monkeypatch.setattr(protocol_run, "run_unit", real)
+        monkeypatch.setattr(protocol_phases, "run_unit", real)
         resumed = run_protocol(self.scenes, self.seeds, tmp_path, config=TINY, methods=self.methods,
                                data=scene_data, group="method")
         for scene in self.scenes:
@@ -473,10 +465,10 @@ class TestRunProtocol:
     def test_device_augment_transforms_only_copies(self):
         frames = torch.poisson(torch.full((4, 14, 2, 16, 12), 0.5))
         metas = [{"copy": c, "diameter_mm": 12.0} for c in (0, 1, 0, 2)]
-        out = protocol.DeviceAugment(et.FrameShift(1), seed=0)(frames, metas)
+        out = DeviceAugment(et.FrameShift(1), seed=0)(frames, metas)
         assert torch.equal(out[[0, 2]], frames[[0, 2]])
         assert torch.equal(out[[1, 3]], et.FrameShift(1)(frames[[1, 3]]))
-        copies = protocol.OnlineCopies(FakeGrasps(3, seed=1), 2)
+        copies = OnlineCopies(FakeGrasps(3, seed=1), 2)
         assert len(copies) == 9 and copies[7][2]["copy"] == 2 and torch.equal(copies[7][0], copies[1][0])
 
     def test_bad_arguments(self, scene_data, tmp_path):
@@ -500,7 +492,7 @@ class TestRunProtocol:
 
 class TestCommandLine:
     def test_reproduce_smoke(self, tmp_path, monkeypatch, capsys):
-        monkeypatch.setattr(protocol_run, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
+        monkeypatch.setattr(protocol_plan, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
         out = tmp_path / "res"
         code = cli.main([
             "reproduce", "--scenes", "control", "--methods", "none", "fs-1", "--seeds", "0,1", "--steps", "2",
@@ -533,7 +525,7 @@ class TestCommandLine:
                 parser.parse_args(bad)
 
     def test_plan_prints_the_cost_without_training(self, tmp_path, capsys, monkeypatch):
-        monkeypatch.setattr(protocol_run, "run_unit", lambda *a, **k: pytest.fail("--plan trained"))
+        monkeypatch.setattr(protocol_phases, "run_unit", lambda *a, **k: pytest.fail("--plan trained"))
         assert cli.main(["reproduce", "--plan", "--scenes", "control", "timing", "--seeds", "0-7",
                          "--steps", "100", "--group", "method", "--out", str(tmp_path)]) == 0
         printed = capsys.readouterr().out
@@ -609,7 +601,7 @@ class TestCommandLineErrors:
         blocker = tmp_path / "a-file"
         blocker.write_text("")
         called = []
-        monkeypatch.setattr(protocol_run, "load_scene_data", lambda *a, **k: called.append(a))
+        monkeypatch.setattr(protocol_plan, "load_scene_data", lambda *a, **k: called.append(a))
         argv = ["reproduce", "--scenes", "control", "--methods", "none", "--out", str(tmp_path / "out")]
         line = self._error([*argv, flag, str(blocker / "sub")], capsys)
         assert flag in line and "a-file" in line and not called
@@ -671,7 +663,8 @@ class TestCommandLineRealData:
         assert not (tmp_path / "cache").exists()  # refused before simulating anything
 
     def test_fit_ensemble_without_tqdm_names_the_extra(self, monkeypatch):
-        from event_transforms.tactile.ensemble import EnsembleForceRegressor, fit_ensemble
+        from event_transforms.tactile.ensemble import EnsembleForceRegressor
+        from event_transforms.tactile.training import fit_ensemble
 
         monkeypatch.setitem(sys.modules, "tqdm.auto", None)
         with pytest.raises(ImportError, match=r"event-transforms\[app\]") as info:
@@ -726,9 +719,9 @@ class TestEqualTime:
         timing = {"single_model_wall_s": {"median": 10.0, "min": 9.0, "max": 11.0, "repeats": 3},
                   "single_model_scene": "paper",
                   "online_aug_s_per_epoch": {"paper": {"none": None, "stretch": 123.0, "fs-1": 0.0}}}
-        monkeypatch.setattr(protocol_run, "measure_timing", lambda *a, **k: timing)
+        monkeypatch.setattr(protocol_phases, "measure_timing", lambda *a, **k: timing)
         commits = iter(["a" * 40, "b" * 40, "b" * 40])  # the checkout moves during the run
-        monkeypatch.setattr(protocol_run, "git_commit", lambda: next(commits))
+        monkeypatch.setattr(protocol_config, "git_commit", lambda: next(commits))
         costs = {"format": COST_TABLE_FORMAT, "config": cost_key(config),
                  "ratios": {"paper": {"none": 1.0, "stretch": 2.0, "fs-1": 1.0}}}
         results = run_protocol(["paper"], [0, 1], tmp_path, config=config, methods=["none", "stretch", "fs-1"],

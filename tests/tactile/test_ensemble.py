@@ -8,14 +8,10 @@ import pytest
 import torch
 from torch.utils.data import Dataset, TensorDataset
 
-from event_transforms.tactile.ensemble import (
-    EnsembleForceRegressor,
-    clip_grad_norm_per_member_,
-    fit_ensemble,
-    shuffled_batches,
-)
+from event_transforms.tactile.ensemble import EnsembleForceRegressor
 from event_transforms.tactile.models import ForceRegressor
 from event_transforms.tactile.stopwatch import Stopwatch
+from event_transforms.tactile.training import clip_grad_norm_per_member_, fit_ensemble, shuffled_batches
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # see conftest.py
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from event_transforms.tactile import cli
-from event_transforms.tactile.protocol import run as protocol_run
+from event_transforms.tactile.protocol import plan as protocol_plan
 from tests.tactile.test_cli import TINY, data, fake_data  # noqa: F401 (data: a fixture)
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # see conftest.py
@@ -69,7 +69,7 @@ class TestPrintedReport:
             "--no-plots", "--no-equal-time"]
 
     def test_plan_progress_and_report_agree(self, tmp_path, monkeypatch, capsys):
-        monkeypatch.setattr(protocol_run, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
+        monkeypatch.setattr(protocol_plan, "load_scene_data", lambda scene, root=None, **k: fake_data(scene))
         assert cli.main([*self.args, "--out", str(tmp_path / "res")]) == 0
         captured = capsys.readouterr()
         printed = captured.out
@@ -112,7 +112,7 @@ class TestPrintedReport:
         assert "pre-declared headline (its first matched method)" in help_text and "largest" not in help_text
         docs = (Path(__file__).resolve().parents[2] / "docs" / "benchmark.md").read_text()
         assert "pre-declared headline" in " ".join(docs.split())
-        assert "pre-declared headline" in protocol_run.headline.__doc__
+        assert "pre-declared headline" in protocol_plan.headline.__doc__
         from event_transforms.tactile.report import format_budget_check
 
         assert format_budget_check(None, skipped=True) == "budget check: not run (--no-budget-check, or budget_check=False)"

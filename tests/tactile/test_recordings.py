@@ -11,6 +11,7 @@ import torch
 
 from event_transforms.functional import events_to_frames
 from event_transforms.tactile import cli, protocol, recordings
+from event_transforms.tactile.methods import parse_method
 from event_transforms.tactile.recordings import (
     RecordingSet,
     RecordingSettings,
@@ -525,7 +526,7 @@ class TestProtocolOnRecordings:
         # deployment events come 20 ms later: a timing gap, a shift to later frames
         assert data.scene.gaps == ("timing",) and data.scene.inferred.lag_shifts[0] > 0
         assert deploy_forces  # (the test folder has labelled deployment recordings)
-        method = protocol.parse_method("inferred", scene=data.scene)
+        method = parse_method("inferred", scene=data.scene)
         assert type(method.build(data.noise_bank)).__name__ == "OneOf"
 
     def test_unlabeled_items_have_no_force(self, folder, cache):

@@ -92,7 +92,7 @@ class TestGroups:
 def test_resampled_baselines_average_the_seeds_resamples():
     from event_transforms.tactile.baselines import evaluate_baselines, stack_items
     from event_transforms.tactile.copies import SceneData
-    from event_transforms.tactile.protocol.run import _baselines
+    from event_transforms.tactile.protocol.statistics import _baselines
     from event_transforms.tactile.scenes import get_scene
 
     g = torch.Generator().manual_seed(0)

@@ -328,7 +328,7 @@ class TestBudgetCheck:
                 "borderline": False, "significant": significant, "not_converged": not_converged}
 
     def test_words(self):
-        from event_transforms.tactile.protocol.run import _budget_check
+        from event_transforms.tactile.protocol.statistics import _budget_check
         from event_transforms.tactile.report import budget_word, format_budget_check
 
         none = [4.0, 4.2, 3.9, 4.1, 4.0, 4.3, 3.8, 4.1]

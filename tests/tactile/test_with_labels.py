@@ -76,16 +76,16 @@ def test_the_findings_say_whether_inferring_beats_the_labels():
 
 
 def test_at_equal_cost_it_steps_like_none_without_a_ratio_in_the_cost_table(monkeypatch, tmp_path):
-    from event_transforms.tactile.protocol import run as protocol_run
+    from event_transforms.tactile.protocol import phases, run_protocol
     from event_transforms.tactile.protocol.costs import COST_TABLE_FORMAT, cost_key
 
     config = ProtocolConfig(**{**TINY.__dict__, "resample": "bootstrap"})
     timing = {"single_model_wall_s": {"median": 10.0, "min": 9.0, "max": 11.0, "repeats": 3},
               "single_model_scene": "timing",
               "online_aug_s_per_epoch": {"timing": {"none": None, "fs2": 0.0, "with-labels": None}}}
-    monkeypatch.setattr(protocol_run, "measure_timing", lambda *a, **k: timing)
+    monkeypatch.setattr(phases, "measure_timing", lambda *a, **k: timing)
     costs = {"format": COST_TABLE_FORMAT, "config": cost_key(config), "ratios": {"timing": {"none": 1.0, "fs2": 2.0}}}
-    results = protocol_run.run_protocol(["timing"], [0, 1], tmp_path, config=config,
+    results = run_protocol(["timing"], [0, 1], tmp_path, config=config,
                                         methods=["none", "fs2", "with-labels"], data={"timing": fake_data("timing")},
                                         budget_check=False, equal_time=True, cost_table=costs)
     row = results["scenes"]["timing"]["methods"]["with-labels"]

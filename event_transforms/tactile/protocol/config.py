@@ -1,16 +1,26 @@
-"""A protocol run's settings: :class:`ProtocolConfig` (the full configuration's are the defaults)."""
+"""A protocol run's settings, the first stage of a run: :class:`ProtocolConfig` (the full
+configuration's are the defaults) and :func:`read_settings`, the one place a run reads its
+seeds, scenes, configuration and options (:class:`RunSettings`)."""
 
 from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import asdict, dataclass
-from typing import Any
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from ..._validation import check_positive
 from ..resampling import check_resample
+from ..scenes import SCENES
+from .environment import git_commit
 
-__all__ = ["ProtocolConfig"]
+if TYPE_CHECKING:
+    from ..copies import SceneData
+
+__all__ = ["ProtocolConfig", "RunSettings", "read_settings"]
 
 
 @dataclass
@@ -91,3 +101,80 @@ class ProtocolConfig:
         return {name: getattr(self, name) for name in (
             "steps", "batch_size", "lr", "clip", "eval_every", "hidden_channels", "input_pool", "cumulative",
             "fixed", "copies", "paired", "resample")}
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """Everything one protocol run reads from its caller, read once (:func:`read_settings`):
+    the scenes, the seeds, the configuration, the options and the commit that trains.
+
+    Every later stage (:mod:`~event_transforms.tactile.protocol.plan`,
+    :mod:`~event_transforms.tactile.protocol.phases`,
+    :mod:`~event_transforms.tactile.protocol.statistics`,
+    :mod:`~event_transforms.tactile.protocol.results`) reads its seeds and settings from here.
+    """
+
+    scenes: list[str]
+    seeds: list[int]
+    out: Path
+    config: ProtocolConfig
+    methods: Mapping[str, Sequence[str]] | Sequence[str] | None
+    full: bool
+    root: str | None
+    jobs: int
+    device: str
+    threads: int | None
+    group: str
+    #: the given data (scene name -> ``SceneData``), ``None`` for the simulated scenes
+    given: dict[str, SceneData] | None
+    progress: bool | None
+    log: Callable[[str], None] | None
+    budget_check: bool
+    measure_time: bool
+    equal_time: bool
+    cost_table: str | Path | Mapping[str, Any] | None
+    cli: bool
+    #: the code that trains: read before the run, not after (the checkout may move)
+    commit: str | None
+    #: ``time.perf_counter()`` at the start of the run
+    start: float
+
+    @property
+    def fresh(self) -> bool:
+        """Each seed draws its own data set (``config.resample == "fresh"``)."""
+        return self.config.resample == "fresh"
+
+
+def read_settings(
+    scenes: Sequence[str] | None, seeds: Sequence[int], out: str | Path, *, config: ProtocolConfig | None = None,
+    methods: Mapping[str, Sequence[str]] | Sequence[str] | None = None, full: bool = False, root: str | None = None,
+    jobs: int = 1, device: str = "cpu", threads: int | None = 1, group: str = "scene",
+    data: dict[str, SceneData] | None = None, progress: bool | None = None, log: Callable[[str], None] | None = None,
+    budget_check: bool = True, measure_time: bool = True, equal_time: bool = False,
+    cost_table: str | Path | Mapping[str, Any] | None = None, cli: bool = False,
+) -> RunSettings:
+    """A run's settings from :func:`~event_transforms.tactile.protocol.run.run_protocol`'s
+    arguments, checked: ``group`` and ``jobs`` refused when invalid, the seeds as ints, the
+    scenes (default: every built-in scene), and on given data (where no new data can be drawn)
+    ``resample="fresh"`` read as ``"bootstrap"`` (said through ``log``).
+
+    Example:
+        >>> settings = read_settings(["control"], [0, 1.0], "out", config=ProtocolConfig(steps=10))
+        >>> settings.seeds, settings.config.steps, settings.fresh
+        ([0, 1], 10, True)
+    """
+    config = config or ProtocolConfig()
+    if data is not None and config.resample == "fresh":  # a folder cannot draw new data: resample it
+        config = replace(config, resample="bootstrap")
+        if log:
+            log("data per seed: the data are given (no new data can be drawn from them), so each seed reads its own "
+                "bootstrap resample by recording instead of fresh data (resample='bootstrap')")
+    if group not in ("scene", "method"):
+        raise ValueError(f"group must be 'scene' or 'method', got {group!r}")
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ValueError(f"jobs must be a positive int, got {jobs!r}")
+    return RunSettings(
+        scenes=list(scenes or SCENES), seeds=[int(s) for s in seeds], out=Path(out), config=config, methods=methods,
+        full=full, root=root, jobs=jobs, device=device, threads=threads, group=group, given=data, progress=progress,
+        log=log, budget_check=budget_check, measure_time=measure_time, equal_time=equal_time, cost_table=cost_table,
+        cli=cli, commit=git_commit(), start=time.perf_counter())

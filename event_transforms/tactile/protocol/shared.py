@@ -38,7 +38,8 @@ import torch
 from ..copies import SceneData
 from ..methods import parse_method
 
-__all__ = ["Sharing", "plan_sharing", "member_key", "training_key", "content_key", "collect", "SHARED_SEPARATOR"]
+__all__ = ["Sharing", "plan_sharing", "member_key", "training_key", "content_key", "collect", "records_by_method",
+           "seed_values", "SHARED_SEPARATOR"]
 
 #: Borrowed results live in the owner unit's file under ``"<scene>::<method>"``.
 SHARED_SEPARATOR = "::"
@@ -148,3 +149,22 @@ def collect(unit_scenes: Mapping[str, str], results: Mapping[str, Mapping[str, l
             elif unit_scene == scene:
                 per_method.setdefault(name, []).extend(records)
     return {m: sorted(per_method[m], key=lambda r: r["seed"]) for m in names if m in per_method}
+
+
+def records_by_method(units: Sequence[Any], results: Mapping[str, Mapping[str, list]], scene: str,
+                      names: Sequence[str]) -> dict[str, list[dict[str, Any]]]:
+    """Per method of ``scene``, its records by seed: trained by the scene's own ``units`` (each
+    with a ``slug`` and a ``scene``: :class:`~event_transforms.tactile.protocol.plan.Unit`), or
+    borrowed from the unit that trained the same member for another scene (:func:`collect`)."""
+    return collect({u.slug: u.scene for u in units}, results, scene, names)
+
+
+def seed_values(runs: Sequence[Mapping[str, Any]]) -> dict[str, list]:
+    """``{"seeds", "test_mse"}`` of one method's records, by seed.
+
+    Example:
+        >>> seed_values([{"seed": 1, "test_mse": 2.0}, {"seed": 0, "test_mse": 3.0}])
+        {'seeds': [0, 1], 'test_mse': [3.0, 2.0]}
+    """
+    runs = sorted(runs, key=lambda r: r["seed"])
+    return {"seeds": [r["seed"] for r in runs], "test_mse": [r["test_mse"] for r in runs]}

@@ -136,6 +136,6 @@ from .export import export_scene
 from .labels import frame_labels, read_force
 from .layout import DEFAULT_SENSOR_SIZE, SPLITS, RecordingEntry, RecordingSettings, read_table
 from .scan import EventScan, contact_crop, scan_events
-from .scene import RecordingScene, load_recording_data
+from .protocol_data import RecordingScene, load_recording_data
 
 _ = Path  # the module docstring's example uses Path

@@ -1,4 +1,5 @@
-"""The benchmark's data: a folder of recordings as the protocol's scene data and scene."""
+"""What the protocol reads from a folder of recordings: its scene data (:func:`load_recording_data`,
+a :class:`~event_transforms.tactile.copies.SceneData`) and its benchmark scene (:class:`RecordingScene`)."""
 
 from __future__ import annotations
 
