@@ -376,7 +376,7 @@ def emulate_events(
 def _signal(video: Tensor, times: Tensor, on: Tensor, off: Tensor, keys: Tensor, args: dict[str, Tensor],
             knee: float, chunk: int, channel: str | int | None, random_reference: bool | None
             ) -> list[tuple[Tensor, Tensor, Tensor, Tensor]]:
-    """The threshold crossings of every pixel, frame interval by frame interval (closed form)."""
+    """The threshold crossings of every pixel, ``chunk`` frame intervals at a time (:func:`_crossings`)."""
     device = video.device
     batch, steps = video.shape[:2]
     pixels = on.shape[1]
@@ -390,42 +390,60 @@ def _signal(video: Tensor, times: Tensor, on: Tensor, off: Tensor, keys: Tensor,
     leak_hz = args["leak_hz"].to(device=device, dtype=torch.float32).unsqueeze(1)
     leaks = bool((args["leak_hz"] > 0).any())  # CPU arguments: no device read
     ideal = not bool((args["refractory_us"] > 0).any())
-    leak = on * leak_hz * 1e-6  # reference decay, log units per µs
     refractory = args["refractory_us"].to(device=device, dtype=torch.float32).unsqueeze(1)
     index = torch.arange(pixels, dtype=torch.int32, device=device).unsqueeze(0)
     random = (leak_hz > 0) if random_reference is None else torch.full_like(leak_hz, float(random_reference)).bool()
     d = torch.where(random, sub_uniform32(keys.unsqueeze(1), index, _PHASE), 0.0).mul_(on)  # v2e's random reference
     blind = torch.zeros_like(d)
-    intervals = times.diff(dim=1).to(torch.float32)  # (B, T - 1)
     parts = []
-    previous = levels(0, 1)[:, 0]
+    previous = levels(0, 1)
     for start in range(0, steps - 1, chunk):
         stop = min(steps - 1, start + chunk)
-        block = levels(start + 1, stop + 1)
-        counts = torch.empty(stop - start, batch, pixels, dtype=torch.int32, device=device)
-        d_start = torch.empty(stop - start, batch, pixels, dtype=torch.float32, device=device)
-        rate = torch.empty_like(d_start)
-        blind_spent = None if ideal else torch.empty_like(d_start)
-        for k in range(start, stop):
-            level = block[:, k - start]
-            dt = intervals[:, k : k + 1]
-            slope = torch.sub(level, previous, out=rate[k - start]).div_(dt)
-            if leaks:
-                slope.add_(leak)
-            if ideal:  # no blind time: the dvs.py rule, trunc(change / threshold), in closed form
-                d_start[k - start] = d
-                change = torch.addcmul(d, slope, dt)
-                theta = torch.where(change > 0, on, off)
-                n = torch.div(change, theta).trunc_()
-                counts[k - start] = n
-                d = change.sub_(n.mul_(theta))
-            else:
-                assert blind_spent is not None
-                d, blind = _refractory_step(d, blind, slope, dt, on, off, refractory, counts[k - start],
-                                            d_start[k - start], blind_spent[k - start])
-            previous = level
-        parts.append(_chunk_events(counts, d_start, blind_spent, rate, times, start, on, off, refractory))
+        block = torch.cat([previous, levels(start + 1, stop + 1)], dim=1)
+        part, d, blind = _crossings(block, times[:, start : stop + 1], on, off, refractory, leak_hz, leaks, ideal,
+                                    d, blind)
+        parts.append(part)
+        previous = block[:, -1:]
     return parts
+
+
+def _crossings(levels: Tensor, times: Tensor, on: Tensor, off: Tensor, refractory: Tensor, leak_hz: Tensor,
+               leaks: bool, ideal: bool, d: Tensor, blind: Tensor
+               ) -> tuple[tuple[Tensor, Tensor, Tensor, Tensor], Tensor, Tensor]:
+    """The crossings of levels ``(B, C + 1, P)`` at ``times`` ``(B, C + 1)`` from the state ``(d, blind)``
+    (level minus reference, blind time left): the events ``(sample, pixel, t_us, p)`` and the new state.
+
+    ``refractory`` and ``leak_hz`` are ``(B, 1)`` float32; ``leaks`` and ``ideal`` say whether any
+    leak rate or refractory period is non-zero (read by the caller, no device read here)."""
+    device = levels.device
+    batch, steps, pixels = levels.shape
+    intervals = times.diff(dim=1).to(torch.float32)  # (B, C)
+    leak = on * leak_hz * 1e-6  # reference decay, log units per µs
+    count = steps - 1
+    counts = torch.empty(count, batch, pixels, dtype=torch.int32, device=device)
+    d_start = torch.empty(count, batch, pixels, dtype=torch.float32, device=device)
+    rate = torch.empty_like(d_start)
+    blind_spent = None if ideal else torch.empty_like(d_start)
+    previous = levels[:, 0]
+    for k in range(count):
+        level = levels[:, k + 1]
+        dt = intervals[:, k : k + 1]
+        slope = torch.sub(level, previous, out=rate[k]).div_(dt)
+        if leaks:
+            slope.add_(leak)
+        if ideal:  # no blind time: the rule trunc(change / threshold), in closed form
+            d_start[k] = d
+            change = torch.addcmul(d, slope, dt)
+            theta = torch.where(change > 0, on, off)
+            n = torch.div(change, theta).trunc_()
+            counts[k] = n
+            d = change.sub_(n.mul_(theta))
+        else:
+            assert blind_spent is not None
+            d, blind = _refractory_step(d, blind, slope, dt, on, off, refractory, counts[k], d_start[k],
+                                        blind_spent[k])
+        previous = level
+    return _chunk_events(counts, d_start, blind_spent, rate, times, 0, on, off, refractory), d, blind
 
 
 def _refractory_step(d: Tensor, blind: Tensor, slope: Tensor, dt: Tensor, on: Tensor, off: Tensor, refractory: Tensor,
