@@ -58,7 +58,7 @@ from .._validation import as_number, check_positive, describe, read_host
 from ..events.batch import EventBatch
 from ._random import draw_seeds, poisson_counts, sample_keys, sub_normal_pair, sub_uniform, sub_uniform32
 
-__all__ = ["emulate_events", "to_luminance"]
+__all__ = ["emulate_events", "threshold_crossings", "camera_pixels", "noise_events", "to_luminance", "LOG_QUANTUM"]
 
 #: The camera's per-sample arguments (one declaration for the function and the module).
 EMULATE_EVENTS_SPEC: dict[str, Param] = {
@@ -371,6 +371,234 @@ def emulate_events(
     duration = times[:, -1] - times[:, 0]
     parts.append(_noise_events(args["seed"], keys, rates, times[:, 0], duration, on_fraction))
     return _assemble(parts, batch, (height, width), device)
+
+
+def _per_sample(value: float | Tensor, name: str, batch: int, device: torch.device) -> tuple[Tensor, Tensor]:
+    """A non-negative number or ``(B,)`` tensor as a ``(B,)`` float64 CPU tensor and a ``(B, 1)`` float32 on ``device``."""
+    host = torch.as_tensor(value.detach().cpu() if isinstance(value, Tensor) else value, dtype=torch.float64)
+    if host.dim() == 0:
+        host = host.expand(batch)
+    if tuple(host.shape) != (batch,):
+        raise ValueError(f"{name} must be a number or a ({batch},) tensor, got {describe(value)}")
+    if not bool(host.isfinite().all()) or bool((host < 0).any()):
+        raise ValueError(f"{name} must be finite and >= 0, got {describe(value)}")
+    return host, host.to(device=device, dtype=torch.float32).unsqueeze(1)
+
+
+def _per_pixel(value: float | Tensor, name: str, batch: int, pixels: int, device: torch.device) -> Tensor:
+    """A positive threshold: a number, ``(P,)`` or ``(B, P)``, as a ``(B, P)`` float32 tensor on ``device``."""
+    tensor = torch.as_tensor(value, dtype=torch.float32, device=device)
+    if tensor.dim() > 2 or tuple(tensor.shape) not in ((), (pixels,), (batch, pixels)):
+        raise ValueError(f"{name} must be a number, ({pixels},) or ({batch}, {pixels}), got {describe(value)}")
+    if tensor.numel() and not bool((tensor > 0).all() & tensor.isfinite().all()):
+        raise ValueError(f"{name} must be positive and finite, got {describe(value)}")
+    return tensor.expand(batch, pixels)
+
+
+def threshold_crossings(
+    levels: Tensor,
+    times_us: Tensor | Sequence[float],
+    threshold_on: float | Tensor,
+    threshold_off: float | Tensor | None = None,
+    *,
+    refractory_us: float | Tensor = 0.0,
+    leak_hz: float | Tensor = 0.0,
+    state: tuple[Tensor, Tensor] | None = None,
+) -> tuple[tuple[Tensor, Tensor, Tensor, Tensor], tuple[Tensor, Tensor]]:
+    """The DVS pixel model on log levels of any set of pixels: the crossings and their times.
+
+    The core of :func:`emulate_events` (which calls it on every pixel of its frames, chunk by
+    chunk), for callers that render the log intensity of some pixels only: between two times
+    the level is interpolated linearly and the reference leaks linearly, so each crossing of
+    a threshold has a closed-form time; after an event the pixel is blind for
+    ``refractory_us`` and its reference follows the level (see the module docstring). Give
+    levels already rounded to :data:`LOG_QUANTUM` for machine-independent events. A long
+    recording can come in pieces: pass the returned state and the next piece, whose first
+    level and time are the previous piece's last.
+
+    Args:
+        levels: log intensity (lin-log levels) of P pixels at T times, per sample.
+        times_us: the times in microseconds, strictly increasing.
+        threshold_on: ON threshold(s), positive: a number, one per pixel, or per sample and pixel.
+        threshold_off: OFF threshold(s) (``None``: ``threshold_on``).
+        refractory_us: blind time after an event, a number or one per sample.
+        leak_hz: leak rate, a number or one per sample (the reference decays by
+            ``threshold_on · leak_hz`` per second).
+        state: ``(offset, blind_us)`` where the previous piece ended: the level minus the
+            reference and the blind time left per pixel (``None``: references at the first
+            level, no pixel blind).
+
+    Returns:
+        ``((sample, pixel, t_us, p), state)``: int64 sample and pixel indices, float64 times
+        (not rounded; inside the interval of their crossing), int8 polarity (1 ON, 0 OFF),
+        ordered by interval, then sample, pixel and time; and the state after the last level.
+
+    Shape:
+        - levels: ``(B, T, P)`` or ``(T, P)`` (one sample), float.
+        - times_us: ``(T,)`` or ``(B, T)``.
+        - threshold_on, threshold_off: a number, ``(P,)`` or ``(B, P)``.
+        - refractory_us, leak_hz: a number or ``(B,)``.
+        - state and the returned state: two ``(B, P)`` float32 tensors.
+        - output events: four ``(N,)`` tensors.
+
+    Raises:
+        TypeError: levels not a float tensor.
+        ValueError: shapes that do not match, times not increasing, a threshold not positive,
+            a negative refractory period or leak rate.
+
+    Example:
+        >>> levels = torch.tensor([[0.0], [0.5], [1.0]])  # one pixel rising 1.0 in 2048 µs
+        >>> (sample, pixel, t, p), state = threshold_crossings(levels, [0.0, 1024.0, 2048.0], 0.25)
+        >>> t.tolist(), p.tolist()  # floor(1.0 / 0.25) = 4 ON events, at the interpolated times
+        ([512.0, 1024.0, 1536.0, 2048.0], [1, 1, 1, 1])
+        >>> (_, _, t, _), _ = threshold_crossings(levels, [0.0, 1024.0, 2048.0], 0.25, refractory_us=600.0)
+        >>> t.tolist()  # blind 600 µs after each event: the change meanwhile is lost
+        [512.0, 1624.0]
+    """
+    if not isinstance(levels, Tensor) or not levels.is_floating_point():
+        raise TypeError(f"levels must be a float tensor, got {describe(levels)}")
+    if levels.dim() not in (2, 3):
+        raise ValueError(f"levels must be (T, P) or (B, T, P), got {tuple(levels.shape)}")
+    work = (levels if levels.dim() == 3 else levels.unsqueeze(0)).to(torch.float32)
+    batch, steps, pixels = work.shape
+    device = work.device
+    if not isinstance(times_us, (Tensor, Sequence)) or isinstance(times_us, (str, bytes)):
+        raise TypeError(f"times_us must be a (T,) or (B, T) tensor or sequence, got {describe(times_us)}")
+    times = torch.as_tensor(times_us).detach().to(device=device, dtype=torch.float64)
+    if times.dim() == 1:
+        times = times.expand(batch, -1)
+    if tuple(times.shape) != (batch, steps):
+        raise ValueError(f"times_us must be ({steps},) or ({batch}, {steps}) to match levels {tuple(levels.shape)}, "
+                         f"got {describe(times_us)}")
+    if steps > 1 and not bool((times.diff(dim=1) > 0).all() & times.isfinite().all()):
+        raise ValueError(f"times_us must be finite and increase strictly, got {describe(times_us)}")
+    on = _per_pixel(threshold_on, "threshold_on", batch, pixels, device)
+    off = on if threshold_off is None else _per_pixel(threshold_off, "threshold_off", batch, pixels, device)
+    refractory_host, refractory = _per_sample(refractory_us, "refractory_us", batch, device)
+    leak_host, leak = _per_sample(leak_hz, "leak_hz", batch, device)
+    if state is None:
+        d = torch.zeros(batch, pixels, dtype=torch.float32, device=device)
+        blind = torch.zeros_like(d)
+    else:
+        if not (isinstance(state, tuple) and len(state) == 2 and all(isinstance(s, Tensor) for s in state)):
+            raise TypeError(f"state must be the (offset, blind_us) pair of tensors returned before, got {describe(state)}")
+        if any(tuple(s.shape) != (batch, pixels) for s in state):
+            raise ValueError(f"state must be two ({batch}, {pixels}) tensors, got "
+                             f"{[tuple(s.shape) for s in state]}")
+        d, blind = (s.to(device=device, dtype=torch.float32) for s in state)
+    if steps < 2:
+        empty = torch.zeros(0, dtype=torch.int64, device=device)
+        return (empty, empty, empty.to(torch.float64), empty.to(torch.int8)), (d, blind)
+    events, d, blind = _crossings(work, times, on, off, refractory, leak, bool((leak_host > 0).any()),
+                                  not bool((refractory_host > 0).any()), d, blind)
+    return events, (d, blind)
+
+
+def camera_pixels(
+    pixels: int,
+    *,
+    camera_seed: int | Tensor,
+    threshold_on: float | Tensor = 0.2,
+    threshold_off: float | Tensor | None = None,
+    mismatch: float | Tensor = 0.0,
+    noise_hz: float | Tensor = 0.0,
+    hot_pixel_fraction: float | Tensor = 0.0,
+    hot_pixel_hz: float | Tensor = 100.0,
+    noise_spread: float = 10.0,
+    hot_pixel_spread: float = 2.0,
+    device: torch.device | str | None = None,
+) -> tuple[Tensor, Tensor, Tensor]:
+    """A camera's fixed pixel properties, the ones :func:`emulate_events` draws from ``camera_seed``.
+
+    Pixel ``i`` (row-major over ``(H, W)``) of camera ``camera_seed`` gets the same thresholds
+    and noise rate here as in :func:`emulate_events` with the same arguments; give them to
+    :func:`threshold_crossings` (thresholds of the pixels rendered) and :func:`noise_events`.
+
+    Args:
+        pixels: number of pixels P (``H · W``).
+        camera_seed: per-camera seed(s); B is its length (1 for a number).
+        threshold_on, threshold_off, mismatch, noise_hz, hot_pixel_fraction, hot_pixel_hz,
+            noise_spread, hot_pixel_spread: as in :func:`emulate_events` (a number or ``(B,)``).
+        device: where the tensors go (``None``: the CPU).
+
+    Returns:
+        ``(threshold_on, threshold_off, rate_hz)``: per-pixel thresholds (float32) and
+        noise rates, shot noise plus hot pixels (float64).
+
+    Shape:
+        - output: three ``(B, P)`` tensors.
+
+    Example:
+        >>> on, off, rate = camera_pixels(6, camera_seed=0, mismatch=0.03, noise_hz=1.0)
+        >>> on.shape, bool((rate >= 0.1).all() and (rate <= 10.0).all())
+        (torch.Size([1, 6]), True)
+    """
+    count = check_positive(pixels, "pixels", integer=True)
+    batch = camera_seed.numel() if isinstance(camera_seed, Tensor) and camera_seed.dim() > 0 else 1
+    spec = {name: EMULATE_EVENTS_SPEC[name] for name in ("threshold_on", "threshold_off", "mismatch", "noise_hz",
+                                                         "hot_pixel_fraction", "hot_pixel_hz", "camera_seed")}
+    args = check_args("camera_pixels", spec, batch, threshold_on=threshold_on,
+                      threshold_off=threshold_on if threshold_off is None else threshold_off, mismatch=mismatch,
+                      noise_hz=noise_hz, hot_pixel_fraction=hot_pixel_fraction, hot_pixel_hz=hot_pixel_hz,
+                      camera_seed=camera_seed)
+    for name, value in (("noise_spread", noise_spread), ("hot_pixel_spread", hot_pixel_spread)):
+        if as_number(value, name) < 1:
+            raise ValueError(f"{name} must be >= 1, got {value!r}")
+    where = torch.device("cpu") if device is None else torch.device(device)
+    keys = sample_keys(args["camera_seed"], where)
+    return _camera(keys, count, args, float(noise_spread), float(hot_pixel_spread), where)
+
+
+def noise_events(
+    rate_hz: Tensor,
+    duration_us: float | Tensor,
+    *,
+    seed: int | Tensor,
+    start_us: float | Tensor = 0.0,
+    on_fraction: float = 0.5,
+) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+    """Shot noise and hot pixels: Poisson events at per-pixel rates, the draws of :func:`emulate_events`.
+
+    Each sample's number of events is Poisson(Σ rates · duration), each event's pixel is drawn
+    in proportion to the rates, its time uniform in ``[start_us, start_us + duration_us)``, ON
+    with probability ``on_fraction``; every draw is named by (``seed``, event index), so a
+    sample alone equals the sample in a batch.
+
+    Args:
+        rate_hz: per-pixel rates (for example :func:`camera_pixels`' third output), >= 0.
+        duration_us: the recording's length in microseconds, a number or one per sample.
+        seed: per-recording seed(s).
+        start_us: the recording's start, a number or one per sample.
+        on_fraction: probability that an event is ON.
+
+    Returns:
+        ``(sample, pixel, t_us, p)``, unsorted: int64, int64, float64 (not rounded), int8.
+
+    Shape:
+        - rate_hz: ``(P,)`` (one sample) or ``(B, P)``; seed, duration_us, start_us: a number or ``(B,)``.
+        - output: four ``(N,)`` tensors.
+
+    Example:
+        >>> sample, pixel, t, p = noise_events(torch.tensor([[0.0, 1e4]]), 1000.0, seed=0)
+        >>> bool((pixel == 1).all()), bool((t < 1000.0).all()), len(t) > 0
+        (True, True, True)
+    """
+    if not isinstance(rate_hz, Tensor) or rate_hz.dim() not in (1, 2):
+        raise ValueError(f"rate_hz must be a (P,) or (B, P) tensor, got {describe(rate_hz)}")
+    rates = (rate_hz if rate_hz.dim() == 2 else rate_hz.unsqueeze(0)).to(torch.float64)
+    if rates.numel() and not bool((rates >= 0).all() & rates.isfinite().all()):
+        raise ValueError(f"rate_hz must be finite and >= 0, got {describe(rate_hz)}")
+    batch = rates.shape[0]
+    device = rates.device
+    fraction = as_number(on_fraction, "on_fraction", low=0.0, high=1.0)
+    args = check_args("noise_events", {"seed": SEED}, batch, seed=seed)
+    duration, _ = _per_sample(duration_us, "duration_us", batch, device)
+    start = torch.as_tensor(start_us.detach().cpu() if isinstance(start_us, Tensor) else start_us,
+                            dtype=torch.float64).expand(batch)
+    if not bool(start.isfinite().all()):
+        raise ValueError(f"start_us must be finite, got {describe(start_us)}")
+    keys = sample_keys(args["seed"], device)
+    return _noise_events(args["seed"], keys, rates, start.to(device), duration.to(device), fraction)
 
 
 def _signal(video: Tensor, times: Tensor, on: Tensor, off: Tensor, keys: Tensor, args: dict[str, Tensor],
