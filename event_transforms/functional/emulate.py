@@ -40,9 +40,18 @@ state are named by (``camera_seed``, pixel index), the leak phases and the noise
 (``seed``, pixel or event index). So a sample alone equals the sample in any batch, the same
 numbers come on the CPU and CUDA, and recordings of one camera share ``camera_seed``.
 
-**Memory and speed.** The frames are read ``chunk_frames`` at a time (one host read of the
-fired pixels per chunk, none per frame); the state is five ``(B, H·W)`` float32 arrays. Work
-is about 40 elementwise operations per pixel and frame, in float32.
+**Memory and speed.** The frames are read ``chunk_frames`` at a time (a few host reads per
+chunk: the fired pixels, the still ones; none per frame); the state is five ``(B, H·W)``
+float32 arrays. Work is about 40 elementwise operations per pixel and frame, in float32, on
+the pixels that can change in the chunk only: a pixel whose level stays the same in every
+sample, without leak or blind time, and whose state gives no event is left out (exactly: it
+would emit nothing and keep its state). Each noise event's pixel comes from a bucket table of
+the cumulative rates (the index ``searchsorted`` gives, without a binary search of the row).
+
+The parts are public for callers that render some pixels only: :func:`threshold_crossings`
+(the crossings of any set of pixels' levels), :func:`camera_pixels` (a camera's per-pixel
+draws) and :func:`noise_events` (shot noise and hot pixels); the built-in tactile simulator
+uses them.
 """
 
 from __future__ import annotations
@@ -192,14 +201,58 @@ def _noise_events(seeds: Tensor, keys: Tensor, rates: Tensor, start: Tensor, dur
     key = keys[sample]
     cumulative = rates.cumsum(1)
     target = sub_uniform(key, within, _NOISE_PIXEL, bits=53) * cumulative[:, -1][sample]
-    # one row per sample: searchsorted over each sample's own cumulative rates
-    widest = max(lengths)
-    padded = torch.zeros(batch, widest, dtype=torch.float64, device=device)
-    padded[sample, within] = target
-    pixel = torch.searchsorted(cumulative, padded)[sample, within].clamp_max_(pixels - 1)
+    pixel = _search_rows(cumulative, sample, target).clamp_max_(pixels - 1)
     t = start[sample] + sub_uniform(key, within, _NOISE_TIME, bits=53) * duration[sample]
     p = (sub_uniform(key, within, _NOISE_POLARITY) < on_fraction).to(torch.int8)
     return sample, pixel, t, p
+
+
+#: Buckets of the noise pixels' lookup table per pixel (:func:`_search_rows`).
+_BUCKETS_PER_PIXEL = 4
+
+
+def _search_rows(cumulative: Tensor, sample: Tensor, target: Tensor) -> Tensor:
+    """``torch.searchsorted(cumulative[sample], target)`` (the first index whose value is >= the
+    target) for every target, through a bucket table instead of a binary search of each row.
+
+    With ``step = total / K`` and ``q(v) = clamp(floor(v / step), 0, K)`` (monotone in ``v``,
+    rounding included), a target ``x`` in bucket ``g = q(x)`` has its answer between the number
+    of values in buckets before ``g`` and the number up to ``g`` inclusive: values with ``q < g``
+    are below ``x`` and values with ``q > g`` are not. A short binary search inside that range
+    (usually empty: most targets fall in buckets holding no value) gives the same index as
+    ``searchsorted``. Rows that are all equal (one camera for the batch) share one table."""
+    device = cumulative.device
+    rows, pixels = cumulative.shape
+    shared = rows > 1 and bool(read_host((cumulative == cumulative[:1]).all()))
+    table = cumulative[:1] if shared else cumulative
+    buckets = _BUCKETS_PER_PIXEL * pixels
+    total = table[:, -1:]
+    step = torch.where(total > 0, total / buckets, 1.0)  # a row without rate has no target
+    q = torch.div(table, step).floor_().clamp_(0, buckets).to(torch.int64)
+    width = buckets + 2
+    counts = torch.zeros(table.shape[0], width, dtype=torch.int64, device=device)
+    counts.scatter_add_(1, q, torch.ones_like(q))
+    guide = torch.cat([torch.zeros_like(counts[:, :1]), counts.cumsum(1)], dim=1).view(-1)  # values in buckets < j
+    row = torch.zeros_like(sample) if shared else sample
+    g = torch.div(target, step.view(-1)[row]).floor_().clamp_(0, buckets).to(torch.int64)
+    at = row * (width + 1) + g
+    lo = guide[at]
+    hi = guide[at + 1]
+    open_ = (lo < hi).nonzero().squeeze(1)
+    if open_.numel() == 0:
+        return lo
+    values = table.reshape(-1)
+    base = row[open_] * pixels
+    x = target[open_]
+    low, high = lo[open_], hi[open_]
+    while True:  # binary search in [low, high]; each round halves every range
+        mid = (low + high) >> 1
+        above = values[base + mid] >= x
+        high = torch.where(above, mid, high)
+        low = torch.where(above, low, mid + 1)
+        if not bool(read_host((low < high).any())):
+            break
+    return lo.index_copy_(0, open_, low)
 
 
 def _chunk_events(counts: Tensor, d_start: Tensor, blind: Tensor | None, rate: Tensor, times: Tensor, step0: int,
@@ -664,6 +717,8 @@ def _moving(levels: Tensor, on: Tensor, off: Tensor, leak_hz: Tensor, ideal: boo
     is exactly 0), its sample has no leak, it is not blind, and the step's own arithmetic on
     its state gives no event: then each step leaves its state as it was (up to the sign of a
     zero) and emits nothing, so leaving it out changes no output."""
+    if bool(read_host((leak_hz > 0).all())):  # every sample leaks: no pixel is still
+        return None
     static = (levels[:, 1:] == levels[:, :1]).all(dim=1) & (leak_hz == 0) & (blind == 0)
     if ideal:  # the ideal step with change = d: trunc(d / theta) == 0
         quiet = torch.div(d, torch.where(d > 0, on, off)).trunc_() == 0
@@ -764,7 +819,8 @@ def _assemble(parts: list[tuple[Tensor, Tensor, Tensor, Tensor]], batch: int, se
         order = order[torch.argsort(sample[order], stable=True)]
     lengths = torch.bincount(sample, minlength=batch).cpu()
     offsets = torch.cat([torch.zeros(1, dtype=torch.int64), lengths.cumsum(0)])
-    pixel = pixel[order]
+    pixel = pixel[order].to(torch.int32)  # < 2**30: int32 division is the faster
     width = sensor_size[1]
-    return EventBatch((pixel % width).to(torch.int16), (pixel // width).to(torch.int16), t[order], p[order],
-                      offsets, sensor_size)
+    y = torch.div(pixel, width, rounding_mode="floor")
+    x = pixel - y * width
+    return EventBatch(x.to(torch.int16), y.to(torch.int16), t[order], p[order], offsets, sensor_size)

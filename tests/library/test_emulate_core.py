@@ -111,3 +111,31 @@ class TestHandComputed:
             F.threshold_crossings(torch.zeros(3, 2, dtype=torch.int64), [0.0, 1.0, 2.0], 0.2)
         with pytest.raises(ValueError, match="rate_hz"):
             F.noise_events(torch.tensor([-1.0]), 10.0, seed=0)
+
+
+class TestNoisePixelSearch:
+    @pytest.mark.parametrize("case", ["log-uniform", "hot-only", "zeros-and-ties", "different-rows"])
+    def test_the_bucket_table_equals_searchsorted(self, case):
+        from event_transforms.functional import emulate as E
+
+        g = torch.Generator().manual_seed(0)
+        rows, pixels = 3, 500
+        rates = torch.exp(torch.rand(1, pixels, generator=g, dtype=torch.float64) * 4.6 - 2.3).expand(rows, -1)
+        if case == "hot-only":
+            rates = torch.zeros(rows, pixels, dtype=torch.float64)
+            rates[:, [7, 300, 499]] = 100.0
+        elif case == "zeros-and-ties":
+            rates = rates.clone()
+            rates[:, 100:400] = 0.0
+            rates[:, 50:60] = 0.25
+        elif case == "different-rows":
+            rates = torch.rand(rows, pixels, generator=g, dtype=torch.float64)
+            rates[1, :250] = 0.0
+        cumulative = rates.cumsum(1)
+        sample = torch.randint(0, rows, (20_000,), generator=g)
+        target = torch.rand(20_000, generator=g, dtype=torch.float64) * cumulative[sample, -1]
+        target[:200] = cumulative[sample[:200], torch.randint(0, pixels, (200,), generator=g)]  # exactly on values
+        expected = torch.stack([torch.searchsorted(cumulative[s], x) for s, x in zip(sample[:2000], target[:2000])])
+        assert torch.equal(E._search_rows(cumulative, sample[:2000], target[:2000]), expected)
+        padded = torch.searchsorted(cumulative, target.expand(rows, -1).contiguous())[sample, torch.arange(20_000)]
+        assert torch.equal(E._search_rows(cumulative, sample, target), padded)
