@@ -810,17 +810,27 @@ def _assemble(parts: list[tuple[Tensor, Tensor, Tensor, Tensor]], batch: int, se
         return _empty(batch, sensor_size, device)
     pixels = sensor_size[0] * sensor_size[1]
     low, high = (int(v) for v in read_host(torch.stack([t.min(), t.max()])))
-    if (high - low + 1) * pixels < 2**62:  # one sort by (time, pixel); ties keep their order
-        order = torch.argsort((t - low).mul_(pixels).add_(pixel), stable=True)
+    span = (high - low + 1) * pixels
+    lengths = torch.bincount(sample, minlength=batch).cpu()
+    offsets = torch.cat([torch.zeros(1, dtype=torch.int64), lengths.cumsum(0)])
+    width = sensor_size[1]
+    if span * batch < 2**62:  # one stable sort by (sample, time, pixel): ties keep their order
+        key = (t - low).mul_(pixels).add_(pixel)
+        if batch > 1:
+            key.add_(sample * span)
+        values, order = torch.sort(key, stable=True)
+        if batch > 1:
+            values = values.remainder_(span)
+        time = torch.div(values, pixels, rounding_mode="floor")
+        pixel = (values - time * pixels).to(torch.int32)
+        t = time.add_(low)
     else:
         order = torch.argsort(pixel, stable=True)
         order = order[torch.argsort(t[order], stable=True)]
-    if batch > 1:
-        order = order[torch.argsort(sample[order], stable=True)]
-    lengths = torch.bincount(sample, minlength=batch).cpu()
-    offsets = torch.cat([torch.zeros(1, dtype=torch.int64), lengths.cumsum(0)])
-    pixel = pixel[order].to(torch.int32)  # < 2**30: int32 division is the faster
-    width = sensor_size[1]
-    y = torch.div(pixel, width, rounding_mode="floor")
+        if batch > 1:
+            order = order[torch.argsort(sample[order], stable=True)]
+        pixel = pixel[order].to(torch.int32)
+        t = t[order]
+    y = torch.div(pixel, width, rounding_mode="floor")  # int32: pixel < 2**30, the faster division
     x = pixel - y * width
-    return EventBatch(x.to(torch.int16), y.to(torch.int16), t[order], p[order], offsets, sensor_size)
+    return EventBatch(x.to(torch.int16), y.to(torch.int16), t, p[order], offsets, sensor_size)

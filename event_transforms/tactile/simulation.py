@@ -661,15 +661,18 @@ def _contact_events(
     owner, pixel = np.concatenate(owners), np.concatenate(pixels)
     if not pixel.size:
         return [[] for _ in grasps]
-    across = np.concatenate(acrosses)[:, None] / edge
+    across = np.concatenate(acrosses) / edge
     # Darkening at full width: contrast, tapered over the edge at the strip's ends.
-    depth = (contrast[owner] * np.clip((half_length[owner] - np.concatenate(alongs)) / edge, 0, 1))[:, None]
-    b_edge = width_px[owner] / edge  # (P, S + 1)
+    depth = -contrast[owner] * np.clip((half_length[owner] - np.concatenate(alongs)) / edge, 0, 1)
+    b_edge = np.ascontiguousarray(width_px.T) / edge  # (S + 1, n grasps)
 
     def log_intensity(first: int, stop: int) -> Tensor:  # (stop - first, P) levels, rounded to LOG_QUANTUM
-        cover = np.clip(b_edge[:, first:stop] - across, 0.0, 1.0)
-        level = np.round(np.log1p(-depth * cover) / LOG_QUANTUM) * LOG_QUANTUM
-        return torch.from_numpy(np.ascontiguousarray(level.T, dtype=np.float32))
+        cover = b_edge[first:stop][:, owner]
+        cover -= across
+        np.clip(cover, 0.0, 1.0, out=cover)
+        level = np.log1p(np.multiply(depth, cover, out=cover), out=cover)
+        level *= 1.0 / LOG_QUANTUM
+        return torch.from_numpy(np.round(level, out=level)).to(torch.float32).mul_(LOG_QUANTUM)
 
     steps = width_px.shape[1]
     times = torch.arange(steps, dtype=torch.float64) * (config.substep_ms * 1000.0)
