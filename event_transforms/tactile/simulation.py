@@ -689,8 +689,8 @@ def _contact_events(
         columns.append(column)
         stamps.append(torch.floor(t).to(torch.int64))
         polarities.append(p)
-    column = torch.cat(columns).numpy()
-    return _by_owner(owner[column], pixel[column], torch.cat(stamps).numpy(), torch.cat(polarities).numpy(), len(grasps))
+    fired = torch.cat(columns).numpy()
+    return _by_owner(owner[fired], pixel[fired], torch.cat(stamps).numpy(), torch.cat(polarities).numpy(), len(grasps))
 
 
 def simulate_grasps(grasps: Sequence[Grasp], config: SimulatorConfig | None = None) -> list[Recording]:
