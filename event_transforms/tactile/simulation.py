@@ -634,8 +634,10 @@ def _contact_events(
     ``width_px`` is the half-width b of each grasp on the substep grid, (n, S + 1).
     The library's pixel model (:func:`~event_transforms.functional.threshold_crossings`) on
     the active pixels, the camera's thresholds and refractory period: the log intensity is
-    interpolated linearly between substeps, so each event has its crossing time. Returns per
-    grasp a list of (pixel, t_us, p) parts.
+    interpolated linearly between substeps, so each event has its crossing time (in
+    ``(k, k + 1]`` substeps for a crossing between substeps k and k + 1; one at the recording's
+    very end, ``t = duration``, lies after it and is not kept). Returns per grasp a list of
+    (pixel, t_us, p) parts.
     """
     height, width = config.sensor_size
     on, off, _ = _sensor(config)
@@ -690,7 +692,11 @@ def _contact_events(
         stamps.append(torch.floor(t).to(torch.int64))
         polarities.append(p)
     fired = torch.cat(columns).numpy()
-    return _by_owner(owner[fired], pixel[fired], torch.cat(stamps).numpy(), torch.cat(polarities).numpy(), len(grasps))
+    t_us = torch.cat(stamps).numpy()
+    # a crossing at the last substep's very end (t = duration) is after the recording [0, duration)
+    inside = t_us < int(round(config.duration_ms * 1000))
+    fired = fired[inside]
+    return _by_owner(owner[fired], pixel[fired], t_us[inside], torch.cat(polarities).numpy()[inside], len(grasps))
 
 
 def simulate_grasps(grasps: Sequence[Grasp], config: SimulatorConfig | None = None) -> list[Recording]:
