@@ -50,8 +50,7 @@ the cumulative rates (the index ``searchsorted`` gives, without a binary search 
 
 The parts are public for callers that render some pixels only: :func:`threshold_crossings`
 (the crossings of any set of pixels' levels), :func:`camera_pixels` (a camera's per-pixel
-draws) and :func:`noise_events` (shot noise and hot pixels); the built-in tactile simulator
-uses them.
+draws) and :func:`noise_events` (shot noise and hot pixels).
 """
 
 from __future__ import annotations
@@ -65,7 +64,7 @@ from torch import Tensor
 from .._params import SEED, Param, check_args
 from .._validation import as_number, check_positive, describe, read_host
 from ..events.batch import EventBatch
-from ._random import draw_seeds, poisson_counts, sample_keys, sub_normal_pair, sub_uniform, sub_uniform32
+from ._random import draw_seeds, poisson_counts, sample_keys, search_cumulative, sub_normal_pair, sub_uniform, sub_uniform32
 
 __all__ = ["emulate_events", "threshold_crossings", "camera_pixels", "noise_events", "to_luminance", "LOG_QUANTUM"]
 
@@ -201,58 +200,10 @@ def _noise_events(seeds: Tensor, keys: Tensor, rates: Tensor, start: Tensor, dur
     key = keys[sample]
     cumulative = rates.cumsum(1)
     target = sub_uniform(key, within, _NOISE_PIXEL, bits=53) * cumulative[:, -1][sample]
-    pixel = _search_rows(cumulative, sample, target).clamp_max_(pixels - 1)
+    pixel = search_cumulative(cumulative, sample, target).clamp_max_(pixels - 1)
     t = start[sample] + sub_uniform(key, within, _NOISE_TIME, bits=53) * duration[sample]
     p = (sub_uniform(key, within, _NOISE_POLARITY) < on_fraction).to(torch.int8)
     return sample, pixel, t, p
-
-
-#: Buckets of the noise pixels' lookup table per pixel (:func:`_search_rows`).
-_BUCKETS_PER_PIXEL = 4
-
-
-def _search_rows(cumulative: Tensor, sample: Tensor, target: Tensor) -> Tensor:
-    """``torch.searchsorted(cumulative[sample], target)`` (the first index whose value is >= the
-    target) for every target, through a bucket table instead of a binary search of each row.
-
-    With ``step = total / K`` and ``q(v) = clamp(floor(v / step), 0, K)`` (monotone in ``v``,
-    rounding included), a target ``x`` in bucket ``g = q(x)`` has its answer between the number
-    of values in buckets before ``g`` and the number up to ``g`` inclusive: values with ``q < g``
-    are below ``x`` and values with ``q > g`` are not. A short binary search inside that range
-    (usually empty: most targets fall in buckets holding no value) gives the same index as
-    ``searchsorted``. Rows that are all equal (one camera for the batch) share one table."""
-    device = cumulative.device
-    rows, pixels = cumulative.shape
-    shared = rows > 1 and bool(read_host((cumulative == cumulative[:1]).all()))
-    table = cumulative[:1] if shared else cumulative
-    buckets = _BUCKETS_PER_PIXEL * pixels
-    total = table[:, -1:]
-    step = torch.where(total > 0, total / buckets, 1.0)  # a row without rate has no target
-    q = torch.div(table, step).floor_().clamp_(0, buckets).to(torch.int64)
-    width = buckets + 2
-    counts = torch.zeros(table.shape[0], width, dtype=torch.int64, device=device)
-    counts.scatter_add_(1, q, torch.ones_like(q))
-    guide = torch.cat([torch.zeros_like(counts[:, :1]), counts.cumsum(1)], dim=1).view(-1)  # values in buckets < j
-    row = torch.zeros_like(sample) if shared else sample
-    g = torch.div(target, step.view(-1)[row]).floor_().clamp_(0, buckets).to(torch.int64)
-    at = row * (width + 1) + g
-    lo = guide[at]
-    hi = guide[at + 1]
-    open_ = (lo < hi).nonzero().squeeze(1)
-    if open_.numel() == 0:
-        return lo
-    values = table.reshape(-1)
-    base = row[open_] * pixels
-    x = target[open_]
-    low, high = lo[open_], hi[open_]
-    while True:  # binary search in [low, high]; each round halves every range
-        mid = (low + high) >> 1
-        above = values[base + mid] >= x
-        high = torch.where(above, mid, high)
-        low = torch.where(above, low, mid + 1)
-        if not bool(read_host((low < high).any())):
-            break
-    return lo.index_copy_(0, open_, low)
 
 
 def _chunk_events(counts: Tensor, d_start: Tensor, blind: Tensor | None, rate: Tensor, times: Tensor, step0: int,

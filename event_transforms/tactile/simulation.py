@@ -88,6 +88,7 @@ from ..functional import LOG_QUANTUM, camera_pixels, noise_events, threshold_cro
 
 #: Bumped whenever the model changes what a seed produces (keys the data-set cache).
 SIMULATOR_VERSION = 3
+_Parts = list[tuple[np.ndarray, np.ndarray, np.ndarray]]  # (pixel, t_us, p) parts of a recording
 #: Levels per call of the pixel model (pixels times substeps): bounds the memory of a batch of grasps.
 _CHUNK_LEVELS = 1 << 20
 
@@ -563,9 +564,7 @@ def _sensor(config: SimulatorConfig) -> tuple[Tensor, Tensor, Tensor]:
     )
 
 
-def _background(
-    seeds: Sequence[int], duration_us: int, config: SimulatorConfig
-) -> list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+def _background(seeds: Sequence[int], duration_us: int, config: SimulatorConfig) -> list[_Parts]:
     """Shot noise and hot pixels of recordings ``seeds`` (:func:`~event_transforms.functional.noise_events`
     with ``seed`` the recording's): per recording a list of ``(pixel, t_us, p)`` parts."""
     for seed in seeds:
@@ -573,16 +572,12 @@ def _background(
     if not seeds or not (config.shot_noise or config.hot_pixels):
         return [[] for _ in seeds]
     rates = _sensor(config)[2]
-    sample, pixel, t, p = noise_events(
-        rates.expand(len(seeds), -1), float(duration_us), seed=torch.tensor([int(v) for v in seeds]),
-        on_fraction=config.noise_on_fraction,
-    )
+    sample, pixel, t, p = noise_events(rates.expand(len(seeds), -1), float(duration_us), seed=torch.tensor([int(v) for v in seeds]),
+                                       on_fraction=config.noise_on_fraction)
     return _by_owner(sample.numpy(), pixel.numpy(), torch.floor(t).to(torch.int64).numpy(), p.numpy(), len(seeds))
 
 
-def _by_owner(
-    owner: np.ndarray, pixel: np.ndarray, t_us: np.ndarray, p: np.ndarray, count: int
-) -> list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+def _by_owner(owner: np.ndarray, pixel: np.ndarray, t_us: np.ndarray, p: np.ndarray, count: int) -> list[_Parts]:
     """Split ``(pixel, t_us, p)`` rows by their owner ``0 .. count - 1``: one part list each."""
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], np.arange(count + 1))
@@ -628,7 +623,7 @@ def _strip_shape(grasps: Sequence[Grasp], config: SimulatorConfig) -> tuple[np.n
 
 def _contact_events(
     grasps: Sequence[Grasp], width_px: np.ndarray, config: SimulatorConfig
-) -> list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+) -> list[_Parts]:
     """DVS events of the strips, vectorised over the active pixels of every grasp.
 
     ``width_px`` is the half-width b of each grasp on the substep grid, (n, S + 1).
