@@ -521,8 +521,14 @@ def camera_pixels(
     Args:
         pixels: number of pixels P (``H · W``).
         camera_seed: per-camera seed(s); B is its length (1 for a number).
-        threshold_on, threshold_off, mismatch, noise_hz, hot_pixel_fraction, hot_pixel_hz,
-            noise_spread, hot_pixel_spread: as in :func:`emulate_events` (a number or ``(B,)``).
+        threshold_on: as in :func:`emulate_events` (a number or ``(B,)``), likewise the next seven.
+        threshold_off: OFF threshold (``None``: ``threshold_on``).
+        mismatch: relative standard deviation of the thresholds.
+        noise_hz: geometric-mean shot-noise rate.
+        hot_pixel_fraction: probability that a pixel is hot.
+        hot_pixel_hz: geometric-mean rate of a hot pixel.
+        noise_spread: noise rates lie in ``[noise_hz / spread, noise_hz · spread]``.
+        hot_pixel_spread: likewise for the hot pixels.
         device: where the tensors go (``None``: the CPU).
 
     Returns:
