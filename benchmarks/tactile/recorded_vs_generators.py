@@ -97,9 +97,14 @@ def generated(generator: str, grasps: int, channel: str | int = "luma") -> list[
     return out
 
 
+def _lin_log(luminance: np.ndarray, knee_dn: float = 20.0) -> np.ndarray:
+    """v2e's lin-log response of ``functional.emulate_events`` to a luminance in [0, 1] (unrounded)."""
+    x = 255.0 * np.asarray(luminance, dtype=np.float64)
+    return np.where(x > knee_dn, np.log(np.maximum(x, knee_dn)), x * (np.log(knee_dn) / knee_dn))
+
+
 def _optical_largest(grasp, session, optical) -> float:
     """The optical render's largest change of lin-log luminance at the grasp's peak depth."""
-    from event_transforms.tactile.generators.dvs import lin_log
     from event_transforms.tactile.generators.optical import OpticalObject, press_depth, render_table
     from event_transforms.tactile.simulation import force_profile
 
@@ -110,7 +115,7 @@ def _optical_largest(grasp, session, optical) -> float:
     node = round(grasp.angle_deg / optical.angle_step_deg) * optical.angle_step_deg
     table = render_table(obj, node, config.sensor_size, optical)
     k = min(int(round(depth / optical.depth_step_mm)), table.shape[0] - 1)
-    return float(np.abs(lin_log(table[k]) - lin_log(table[0])).max())
+    return float(np.abs(_lin_log(table[k]) - _lin_log(table[0])).max())
 
 
 def _summary(rows: list[dict[str, float]]) -> list[str]:

@@ -23,12 +23,14 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from .._validation import read_host
+
 if TYPE_CHECKING:  # the batch imports functional; a runtime import here would be a cycle
     from ..events.batch import EventBatch
 
 __all__ = [
     "sample_salts", "uniform", "uniform53", "entry_keys", "sub_uniform", "sub_uniform32", "sub_normal_pair", "draw_seeds",
-    "sample_keys", "EventStream", "poisson_counts", "binomial_large", "poisson_cells",
+    "sample_keys", "EventStream", "poisson_counts", "binomial_large", "poisson_cells", "search_cumulative",
 ]
 
 _MULTIPLIER = 0x45D9F3B  # the 32-bit integer mix of Thomas Mueller's hash
@@ -441,3 +443,51 @@ def poisson_cells(keys: Tensor, lam: Tensor, cells: int, purpose: int) -> Tensor
     u = sub_uniform(keys.unsqueeze(1), within, purpose, bits=53)
     index = torch.searchsorted(cdf, u).clamp_max_(width - 1)
     return index.add_(low.to(device=device, dtype=torch.int64, non_blocking=True).unsqueeze(1))
+
+
+#: Buckets of the noise pixels' lookup table per pixel (:func:`search_cumulative`).
+_BUCKETS_PER_PIXEL = 4
+
+
+def search_cumulative(cumulative: Tensor, sample: Tensor, target: Tensor) -> Tensor:
+    """``torch.searchsorted(cumulative[sample], target)`` (the first index whose value is >= the
+    target) for every target, through a bucket table instead of a binary search of each row.
+
+    With ``step = total / K`` and ``q(v) = clamp(floor(v / step), 0, K)`` (monotone in ``v``,
+    rounding included), a target ``x`` in bucket ``g = q(x)`` has its answer between the number
+    of values in buckets before ``g`` and the number up to ``g`` inclusive: values with ``q < g``
+    are below ``x`` and values with ``q > g`` are not. A short binary search inside that range
+    (usually empty: most targets fall in buckets holding no value) gives the same index as
+    ``searchsorted``. Rows that are all equal (one camera for the batch) share one table."""
+    device = cumulative.device
+    rows, pixels = cumulative.shape
+    shared = rows > 1 and bool(read_host((cumulative == cumulative[:1]).all()))
+    table = cumulative[:1] if shared else cumulative
+    buckets = _BUCKETS_PER_PIXEL * pixels
+    total = table[:, -1:]
+    step = torch.where(total > 0, total / buckets, 1.0)  # a row without rate has no target
+    q = torch.div(table, step).floor_().clamp_(0, buckets).to(torch.int64)
+    width = buckets + 2
+    counts = torch.zeros(table.shape[0], width, dtype=torch.int64, device=device)
+    counts.scatter_add_(1, q, torch.ones_like(q))
+    guide = torch.cat([torch.zeros_like(counts[:, :1]), counts.cumsum(1)], dim=1).view(-1)  # values in buckets < j
+    row = torch.zeros_like(sample) if shared else sample
+    g = torch.div(target, step.view(-1)[row]).floor_().clamp_(0, buckets).to(torch.int64)
+    at = row * (width + 1) + g
+    lo = guide[at]
+    hi = guide[at + 1]
+    open_ = (lo < hi).nonzero().squeeze(1)
+    if open_.numel() == 0:
+        return lo
+    values = table.reshape(-1)
+    base = row[open_] * pixels
+    x = target[open_]
+    low, high = lo[open_], hi[open_]
+    while True:  # binary search in [low, high]; each round halves every range
+        mid = (low + high) >> 1
+        above = values[base + mid] >= x
+        high = torch.where(above, mid, high)
+        low = torch.where(above, low, mid + 1)
+        if not bool(read_host((low < high).any())):
+            break
+    return lo.index_copy_(0, open_, low)

@@ -40,9 +40,17 @@ state are named by (``camera_seed``, pixel index), the leak phases and the noise
 (``seed``, pixel or event index). So a sample alone equals the sample in any batch, the same
 numbers come on the CPU and CUDA, and recordings of one camera share ``camera_seed``.
 
-**Memory and speed.** The frames are read ``chunk_frames`` at a time (one host read of the
-fired pixels per chunk, none per frame); the state is five ``(B, H·W)`` float32 arrays. Work
-is about 40 elementwise operations per pixel and frame, in float32.
+**Memory and speed.** The frames are read ``chunk_frames`` at a time (a few host reads per
+chunk: the fired pixels, the still ones; none per frame); the state is five ``(B, H·W)``
+float32 arrays. Work is about 40 elementwise operations per pixel and frame, in float32, on
+the pixels that can change in the chunk only: a pixel whose level stays the same in every
+sample, without leak or blind time, and whose state gives no event is left out (exactly: it
+would emit nothing and keep its state). Each noise event's pixel comes from a bucket table of
+the cumulative rates (the index ``searchsorted`` gives, without a binary search of the row).
+
+The parts are public for callers that render some pixels only: :func:`threshold_crossings`
+(the crossings of any set of pixels' levels), :func:`camera_pixels` (a camera's per-pixel
+draws) and :func:`noise_events` (shot noise and hot pixels).
 """
 
 from __future__ import annotations
@@ -56,9 +64,9 @@ from torch import Tensor
 from .._params import SEED, Param, check_args
 from .._validation import as_number, check_positive, describe, read_host
 from ..events.batch import EventBatch
-from ._random import draw_seeds, poisson_counts, sample_keys, sub_normal_pair, sub_uniform, sub_uniform32
+from ._random import draw_seeds, poisson_counts, sample_keys, search_cumulative, sub_normal_pair, sub_uniform, sub_uniform32
 
-__all__ = ["emulate_events", "to_luminance"]
+__all__ = ["emulate_events", "threshold_crossings", "camera_pixels", "noise_events", "to_luminance", "LOG_QUANTUM"]
 
 #: The camera's per-sample arguments (one declaration for the function and the module).
 EMULATE_EVENTS_SPEC: dict[str, Param] = {
@@ -192,11 +200,7 @@ def _noise_events(seeds: Tensor, keys: Tensor, rates: Tensor, start: Tensor, dur
     key = keys[sample]
     cumulative = rates.cumsum(1)
     target = sub_uniform(key, within, _NOISE_PIXEL, bits=53) * cumulative[:, -1][sample]
-    # one row per sample: searchsorted over each sample's own cumulative rates
-    widest = max(lengths)
-    padded = torch.zeros(batch, widest, dtype=torch.float64, device=device)
-    padded[sample, within] = target
-    pixel = torch.searchsorted(cumulative, padded)[sample, within].clamp_max_(pixels - 1)
+    pixel = search_cumulative(cumulative, sample, target).clamp_max_(pixels - 1)
     t = start[sample] + sub_uniform(key, within, _NOISE_TIME, bits=53) * duration[sample]
     p = (sub_uniform(key, within, _NOISE_POLARITY) < on_fraction).to(torch.int8)
     return sample, pixel, t, p
@@ -373,10 +377,244 @@ def emulate_events(
     return _assemble(parts, batch, (height, width), device)
 
 
+def _per_sample(value: float | Tensor, name: str, batch: int, device: torch.device) -> tuple[Tensor, Tensor]:
+    """A non-negative number or ``(B,)`` tensor as a ``(B,)`` float64 CPU tensor and a ``(B, 1)`` float32 on ``device``."""
+    host = torch.as_tensor(value.detach().cpu() if isinstance(value, Tensor) else value, dtype=torch.float64)
+    if host.dim() == 0:
+        host = host.expand(batch)
+    if tuple(host.shape) != (batch,):
+        raise ValueError(f"{name} must be a number or a ({batch},) tensor, got {describe(value)}")
+    if not bool(host.isfinite().all()) or bool((host < 0).any()):
+        raise ValueError(f"{name} must be finite and >= 0, got {describe(value)}")
+    return host, host.to(device=device, dtype=torch.float32).unsqueeze(1)
+
+
+def _per_pixel(value: float | Tensor, name: str, batch: int, pixels: int, device: torch.device) -> Tensor:
+    """A positive threshold: a number, ``(P,)`` or ``(B, P)``, as a ``(B, P)`` float32 tensor on ``device``."""
+    tensor = torch.as_tensor(value, dtype=torch.float32, device=device)
+    if tensor.dim() > 2 or tuple(tensor.shape) not in ((), (pixels,), (batch, pixels)):
+        raise ValueError(f"{name} must be a number, ({pixels},) or ({batch}, {pixels}), got {describe(value)}")
+    if tensor.numel() and not bool((tensor > 0).all() & tensor.isfinite().all()):
+        raise ValueError(f"{name} must be positive and finite, got {describe(value)}")
+    return tensor.expand(batch, pixels)
+
+
+def threshold_crossings(
+    levels: Tensor,
+    times_us: Tensor | Sequence[float],
+    threshold_on: float | Tensor,
+    threshold_off: float | Tensor | None = None,
+    *,
+    refractory_us: float | Tensor = 0.0,
+    leak_hz: float | Tensor = 0.0,
+    state: tuple[Tensor, Tensor] | None = None,
+) -> tuple[tuple[Tensor, Tensor, Tensor, Tensor], tuple[Tensor, Tensor]]:
+    """The DVS pixel model on log levels of any set of pixels: the crossings and their times.
+
+    The core of :func:`emulate_events` (which calls it on every pixel of its frames, chunk by
+    chunk), for callers that render the log intensity of some pixels only: between two times
+    the level is interpolated linearly and the reference leaks linearly, so each crossing of
+    a threshold has a closed-form time; after an event the pixel is blind for
+    ``refractory_us`` and its reference follows the level (see the module docstring). Give
+    levels already rounded to :data:`LOG_QUANTUM` for machine-independent events. A long
+    recording can come in pieces: pass the returned state and the next piece, whose first
+    level and time are the previous piece's last.
+
+    Args:
+        levels: log intensity (lin-log levels) of P pixels at T times, per sample.
+        times_us: the times in microseconds, strictly increasing.
+        threshold_on: ON threshold(s), positive: a number, one per pixel, or per sample and pixel.
+        threshold_off: OFF threshold(s) (``None``: ``threshold_on``).
+        refractory_us: blind time after an event, a number or one per sample.
+        leak_hz: leak rate, a number or one per sample (the reference decays by
+            ``threshold_on · leak_hz`` per second).
+        state: ``(offset, blind_us)`` where the previous piece ended: the level minus the
+            reference and the blind time left per pixel (``None``: references at the first
+            level, no pixel blind).
+
+    Returns:
+        ``((sample, pixel, t_us, p), state)``: int64 sample and pixel indices, float64 times
+        (not rounded; inside the interval of their crossing), int8 polarity (1 ON, 0 OFF),
+        ordered by interval, then sample, pixel and time; and the state after the last level.
+
+    Shape:
+        - levels: ``(B, T, P)`` or ``(T, P)`` (one sample), float.
+        - times_us: ``(T,)`` or ``(B, T)``.
+        - threshold_on, threshold_off: a number, ``(P,)`` or ``(B, P)``.
+        - refractory_us, leak_hz: a number or ``(B,)``.
+        - state and the returned state: two ``(B, P)`` float32 tensors.
+        - output events: four ``(N,)`` tensors.
+
+    Raises:
+        TypeError: levels not a float tensor.
+        ValueError: shapes that do not match, times not increasing, a threshold not positive,
+            a negative refractory period or leak rate.
+
+    Example:
+        >>> levels = torch.tensor([[0.0], [0.5], [1.0]])  # one pixel rising 1.0 in 2048 µs
+        >>> (sample, pixel, t, p), state = threshold_crossings(levels, [0.0, 1024.0, 2048.0], 0.25)
+        >>> t.tolist(), p.tolist()  # floor(1.0 / 0.25) = 4 ON events, at the interpolated times
+        ([512.0, 1024.0, 1536.0, 2048.0], [1, 1, 1, 1])
+        >>> (_, _, t, _), _ = threshold_crossings(levels, [0.0, 1024.0, 2048.0], 0.25, refractory_us=600.0)
+        >>> t.tolist()  # blind 600 µs after each event: the change meanwhile is lost
+        [512.0, 1624.0]
+    """
+    if not isinstance(levels, Tensor) or not levels.is_floating_point():
+        raise TypeError(f"levels must be a float tensor, got {describe(levels)}")
+    if levels.dim() not in (2, 3):
+        raise ValueError(f"levels must be (T, P) or (B, T, P), got {tuple(levels.shape)}")
+    work = (levels if levels.dim() == 3 else levels.unsqueeze(0)).to(torch.float32)
+    batch, steps, pixels = work.shape
+    device = work.device
+    if not isinstance(times_us, (Tensor, Sequence)) or isinstance(times_us, (str, bytes)):
+        raise TypeError(f"times_us must be a (T,) or (B, T) tensor or sequence, got {describe(times_us)}")
+    times = torch.as_tensor(times_us).detach().to(device=device, dtype=torch.float64)
+    if times.dim() == 1:
+        times = times.expand(batch, -1)
+    if tuple(times.shape) != (batch, steps):
+        raise ValueError(f"times_us must be ({steps},) or ({batch}, {steps}) to match levels {tuple(levels.shape)}, "
+                         f"got {describe(times_us)}")
+    if steps > 1 and not bool((times.diff(dim=1) > 0).all() & times.isfinite().all()):
+        raise ValueError(f"times_us must be finite and increase strictly, got {describe(times_us)}")
+    on = _per_pixel(threshold_on, "threshold_on", batch, pixels, device)
+    off = on if threshold_off is None else _per_pixel(threshold_off, "threshold_off", batch, pixels, device)
+    refractory_host, refractory = _per_sample(refractory_us, "refractory_us", batch, device)
+    leak_host, leak = _per_sample(leak_hz, "leak_hz", batch, device)
+    if state is None:
+        d = torch.zeros(batch, pixels, dtype=torch.float32, device=device)
+        blind = torch.zeros_like(d)
+    else:
+        if not (isinstance(state, tuple) and len(state) == 2 and all(isinstance(s, Tensor) for s in state)):
+            raise TypeError(f"state must be the (offset, blind_us) pair of tensors returned before, got {describe(state)}")
+        if any(tuple(s.shape) != (batch, pixels) for s in state):
+            raise ValueError(f"state must be two ({batch}, {pixels}) tensors, got "
+                             f"{[tuple(s.shape) for s in state]}")
+        d, blind = (s.to(device=device, dtype=torch.float32) for s in state)
+    if steps < 2:
+        empty = torch.zeros(0, dtype=torch.int64, device=device)
+        return (empty, empty, empty.to(torch.float64), empty.to(torch.int8)), (d, blind)
+    events, d, blind = _crossings(work, times, on, off, refractory, leak, bool((leak_host > 0).any()),
+                                  not bool((refractory_host > 0).any()), d, blind)
+    return events, (d, blind)
+
+
+def camera_pixels(
+    pixels: int,
+    *,
+    camera_seed: int | Tensor,
+    threshold_on: float | Tensor = 0.2,
+    threshold_off: float | Tensor | None = None,
+    mismatch: float | Tensor = 0.0,
+    noise_hz: float | Tensor = 0.0,
+    hot_pixel_fraction: float | Tensor = 0.0,
+    hot_pixel_hz: float | Tensor = 100.0,
+    noise_spread: float = 10.0,
+    hot_pixel_spread: float = 2.0,
+    device: torch.device | str | None = None,
+) -> tuple[Tensor, Tensor, Tensor]:
+    """A camera's fixed pixel properties, the ones :func:`emulate_events` draws from ``camera_seed``.
+
+    Pixel ``i`` (row-major over ``(H, W)``) of camera ``camera_seed`` gets the same thresholds
+    and noise rate here as in :func:`emulate_events` with the same arguments; give them to
+    :func:`threshold_crossings` (thresholds of the pixels rendered) and :func:`noise_events`.
+
+    Args:
+        pixels: number of pixels P (``H · W``).
+        camera_seed: per-camera seed(s); B is its length (1 for a number).
+        threshold_on: as in :func:`emulate_events` (a number or ``(B,)``), likewise the next seven.
+        threshold_off: OFF threshold (``None``: ``threshold_on``).
+        mismatch: relative standard deviation of the thresholds.
+        noise_hz: geometric-mean shot-noise rate.
+        hot_pixel_fraction: probability that a pixel is hot.
+        hot_pixel_hz: geometric-mean rate of a hot pixel.
+        noise_spread: noise rates lie in ``[noise_hz / spread, noise_hz · spread]``.
+        hot_pixel_spread: likewise for the hot pixels.
+        device: where the tensors go (``None``: the CPU).
+
+    Returns:
+        ``(threshold_on, threshold_off, rate_hz)``: per-pixel thresholds (float32) and
+        noise rates, shot noise plus hot pixels (float64).
+
+    Shape:
+        - output: three ``(B, P)`` tensors.
+
+    Example:
+        >>> on, off, rate = camera_pixels(6, camera_seed=0, mismatch=0.03, noise_hz=1.0)
+        >>> on.shape, bool((rate >= 0.1).all() and (rate <= 10.0).all())
+        (torch.Size([1, 6]), True)
+    """
+    count = check_positive(pixels, "pixels", integer=True)
+    batch = camera_seed.numel() if isinstance(camera_seed, Tensor) and camera_seed.dim() > 0 else 1
+    spec = {name: EMULATE_EVENTS_SPEC[name] for name in ("threshold_on", "threshold_off", "mismatch", "noise_hz",
+                                                         "hot_pixel_fraction", "hot_pixel_hz", "camera_seed")}
+    args = check_args("camera_pixels", spec, batch, threshold_on=threshold_on,
+                      threshold_off=threshold_on if threshold_off is None else threshold_off, mismatch=mismatch,
+                      noise_hz=noise_hz, hot_pixel_fraction=hot_pixel_fraction, hot_pixel_hz=hot_pixel_hz,
+                      camera_seed=camera_seed)
+    for name, value in (("noise_spread", noise_spread), ("hot_pixel_spread", hot_pixel_spread)):
+        if as_number(value, name) < 1:
+            raise ValueError(f"{name} must be >= 1, got {value!r}")
+    where = torch.device("cpu") if device is None else torch.device(device)
+    keys = sample_keys(args["camera_seed"], where)
+    return _camera(keys, count, args, float(noise_spread), float(hot_pixel_spread), where)
+
+
+def noise_events(
+    rate_hz: Tensor,
+    duration_us: float | Tensor,
+    *,
+    seed: int | Tensor,
+    start_us: float | Tensor = 0.0,
+    on_fraction: float = 0.5,
+) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+    """Shot noise and hot pixels: Poisson events at per-pixel rates, the draws of :func:`emulate_events`.
+
+    Each sample's number of events is Poisson(Σ rates · duration), each event's pixel is drawn
+    in proportion to the rates, its time uniform in ``[start_us, start_us + duration_us)``, ON
+    with probability ``on_fraction``; every draw is named by (``seed``, event index), so a
+    sample alone equals the sample in a batch.
+
+    Args:
+        rate_hz: per-pixel rates (for example :func:`camera_pixels`' third output), >= 0.
+        duration_us: the recording's length in microseconds, a number or one per sample.
+        seed: per-recording seed(s).
+        start_us: the recording's start, a number or one per sample.
+        on_fraction: probability that an event is ON.
+
+    Returns:
+        ``(sample, pixel, t_us, p)``, unsorted: int64, int64, float64 (not rounded), int8.
+
+    Shape:
+        - rate_hz: ``(P,)`` (one sample) or ``(B, P)``; seed, duration_us, start_us: a number or ``(B,)``.
+        - output: four ``(N,)`` tensors.
+
+    Example:
+        >>> sample, pixel, t, p = noise_events(torch.tensor([[0.0, 1e4]]), 1000.0, seed=0)
+        >>> bool((pixel == 1).all()), bool((t < 1000.0).all()), len(t) > 0
+        (True, True, True)
+    """
+    if not isinstance(rate_hz, Tensor) or rate_hz.dim() not in (1, 2):
+        raise ValueError(f"rate_hz must be a (P,) or (B, P) tensor, got {describe(rate_hz)}")
+    rates = (rate_hz if rate_hz.dim() == 2 else rate_hz.unsqueeze(0)).to(torch.float64)
+    if rates.numel() and not bool((rates >= 0).all() & rates.isfinite().all()):
+        raise ValueError(f"rate_hz must be finite and >= 0, got {describe(rate_hz)}")
+    batch = rates.shape[0]
+    device = rates.device
+    fraction = as_number(on_fraction, "on_fraction", low=0.0, high=1.0)
+    args = check_args("noise_events", {"seed": SEED}, batch, seed=seed)
+    duration, _ = _per_sample(duration_us, "duration_us", batch, device)
+    start = torch.as_tensor(start_us.detach().cpu() if isinstance(start_us, Tensor) else start_us,
+                            dtype=torch.float64).expand(batch)
+    if not bool(start.isfinite().all()):
+        raise ValueError(f"start_us must be finite, got {describe(start_us)}")
+    keys = sample_keys(args["seed"], device)
+    return _noise_events(args["seed"], keys, rates, start.to(device), duration.to(device), fraction)
+
+
 def _signal(video: Tensor, times: Tensor, on: Tensor, off: Tensor, keys: Tensor, args: dict[str, Tensor],
             knee: float, chunk: int, channel: str | int | None, random_reference: bool | None
             ) -> list[tuple[Tensor, Tensor, Tensor, Tensor]]:
-    """The threshold crossings of every pixel, frame interval by frame interval (closed form)."""
+    """The threshold crossings of every pixel, ``chunk`` frame intervals at a time (:func:`_crossings`)."""
     device = video.device
     batch, steps = video.shape[:2]
     pixels = on.shape[1]
@@ -390,42 +628,97 @@ def _signal(video: Tensor, times: Tensor, on: Tensor, off: Tensor, keys: Tensor,
     leak_hz = args["leak_hz"].to(device=device, dtype=torch.float32).unsqueeze(1)
     leaks = bool((args["leak_hz"] > 0).any())  # CPU arguments: no device read
     ideal = not bool((args["refractory_us"] > 0).any())
-    leak = on * leak_hz * 1e-6  # reference decay, log units per µs
     refractory = args["refractory_us"].to(device=device, dtype=torch.float32).unsqueeze(1)
     index = torch.arange(pixels, dtype=torch.int32, device=device).unsqueeze(0)
     random = (leak_hz > 0) if random_reference is None else torch.full_like(leak_hz, float(random_reference)).bool()
     d = torch.where(random, sub_uniform32(keys.unsqueeze(1), index, _PHASE), 0.0).mul_(on)  # v2e's random reference
     blind = torch.zeros_like(d)
-    intervals = times.diff(dim=1).to(torch.float32)  # (B, T - 1)
     parts = []
-    previous = levels(0, 1)[:, 0]
+    previous = levels(0, 1)
     for start in range(0, steps - 1, chunk):
         stop = min(steps - 1, start + chunk)
-        block = levels(start + 1, stop + 1)
-        counts = torch.empty(stop - start, batch, pixels, dtype=torch.int32, device=device)
-        d_start = torch.empty(stop - start, batch, pixels, dtype=torch.float32, device=device)
-        rate = torch.empty_like(d_start)
-        blind_spent = None if ideal else torch.empty_like(d_start)
-        for k in range(start, stop):
-            level = block[:, k - start]
-            dt = intervals[:, k : k + 1]
-            slope = torch.sub(level, previous, out=rate[k - start]).div_(dt)
-            if leaks:
-                slope.add_(leak)
-            if ideal:  # no blind time: the dvs.py rule, trunc(change / threshold), in closed form
-                d_start[k - start] = d
-                change = torch.addcmul(d, slope, dt)
-                theta = torch.where(change > 0, on, off)
-                n = torch.div(change, theta).trunc_()
-                counts[k - start] = n
-                d = change.sub_(n.mul_(theta))
-            else:
-                assert blind_spent is not None
-                d, blind = _refractory_step(d, blind, slope, dt, on, off, refractory, counts[k - start],
-                                            d_start[k - start], blind_spent[k - start])
-            previous = level
-        parts.append(_chunk_events(counts, d_start, blind_spent, rate, times, start, on, off, refractory))
+        block = torch.cat([previous, levels(start + 1, stop + 1)], dim=1)
+        part, d, blind = _crossings(block, times[:, start : stop + 1], on, off, refractory, leak_hz, leaks, ideal,
+                                    d, blind)
+        parts.append(part)
+        previous = block[:, -1:]
     return parts
+
+
+def _crossings(levels: Tensor, times: Tensor, on: Tensor, off: Tensor, refractory: Tensor, leak_hz: Tensor,
+               leaks: bool, ideal: bool, d: Tensor, blind: Tensor
+               ) -> tuple[tuple[Tensor, Tensor, Tensor, Tensor], Tensor, Tensor]:
+    """The crossings of levels ``(B, C + 1, P)`` at ``times`` ``(B, C + 1)`` from the state ``(d, blind)``
+    (level minus reference, blind time left): the events ``(sample, pixel, t_us, p)`` and the new state.
+
+    ``refractory`` and ``leak_hz`` are ``(B, 1)`` float32; ``leaks`` and ``ideal`` say whether any
+    leak rate or refractory period is non-zero (read by the caller, no device read here).
+    Pixels that provably do nothing in the chunk (see :func:`_moving`) are left out of the loop."""
+    moving = _moving(levels, on, off, leak_hz, ideal, d, blind)
+    if moving is not None:
+        index = moving.nonzero().squeeze(1)
+        part, d_moving, blind_moving = _crossings_all(levels[:, :, index], times, on[:, index], off[:, index],
+                                                      refractory, leak_hz, leaks, ideal, d[:, index], blind[:, index])
+        sample, pixel, t, p = part
+        d = d.index_copy(1, index, d_moving)
+        blind = blind.index_copy(1, index, blind_moving)
+        return (sample, index[pixel], t, p), d, blind
+    return _crossings_all(levels, times, on, off, refractory, leak_hz, leaks, ideal, d, blind)
+
+
+def _moving(levels: Tensor, on: Tensor, off: Tensor, leak_hz: Tensor, ideal: bool, d: Tensor, blind: Tensor
+            ) -> Tensor | None:
+    """``(P,)`` the pixels the chunk must compute, or ``None`` to compute them all (few are still).
+
+    A pixel is still in every sample when its level does not change in the chunk (the slope
+    is exactly 0), its sample has no leak, it is not blind, and the step's own arithmetic on
+    its state gives no event: then each step leaves its state as it was (up to the sign of a
+    zero) and emits nothing, so leaving it out changes no output."""
+    if bool(read_host((leak_hz > 0).all())):  # every sample leaks: no pixel is still
+        return None
+    static = (levels[:, 1:] == levels[:, :1]).all(dim=1) & (leak_hz == 0) & (blind == 0)
+    if ideal:  # the ideal step with change = d: trunc(d / theta) == 0
+        quiet = torch.div(d, torch.where(d > 0, on, off)).trunc_() == 0
+    else:  # the refractory step with slope 0: beyond = 0 - (off + d), n = floor(beyond / off) + 1 <= 0
+        quiet = torch.div(0.0 - (off + d), off).floor_().add_(1.0) <= 0
+    moving = ~(static & quiet).all(dim=0)
+    count = int(read_host(moving.sum()))
+    return moving if count < 0.9 * moving.numel() else None
+
+
+def _crossings_all(levels: Tensor, times: Tensor, on: Tensor, off: Tensor, refractory: Tensor, leak_hz: Tensor,
+                   leaks: bool, ideal: bool, d: Tensor, blind: Tensor
+                   ) -> tuple[tuple[Tensor, Tensor, Tensor, Tensor], Tensor, Tensor]:
+    """:func:`_crossings` on every pixel given."""
+    device = levels.device
+    batch, steps, pixels = levels.shape
+    intervals = times.diff(dim=1).to(torch.float32)  # (B, C)
+    leak = on * leak_hz * 1e-6  # reference decay, log units per µs
+    count = steps - 1
+    counts = torch.empty(count, batch, pixels, dtype=torch.int32, device=device)
+    d_start = torch.empty(count, batch, pixels, dtype=torch.float32, device=device)
+    rate = torch.empty_like(d_start)
+    blind_spent = None if ideal else torch.empty_like(d_start)
+    previous = levels[:, 0]
+    for k in range(count):
+        level = levels[:, k + 1]
+        dt = intervals[:, k : k + 1]
+        slope = torch.sub(level, previous, out=rate[k]).div_(dt)
+        if leaks:
+            slope.add_(leak)
+        if ideal:  # no blind time: the rule trunc(change / threshold), in closed form
+            d_start[k] = d
+            change = torch.addcmul(d, slope, dt)
+            theta = torch.where(change > 0, on, off)
+            n = torch.div(change, theta).trunc_()
+            counts[k] = n
+            d = change.sub_(n.mul_(theta))
+        else:
+            assert blind_spent is not None
+            d, blind = _refractory_step(d, blind, slope, dt, on, off, refractory, counts[k], d_start[k],
+                                        blind_spent[k])
+        previous = level
+    return _chunk_events(counts, d_start, blind_spent, rate, times, 0, on, off, refractory), d, blind
 
 
 def _refractory_step(d: Tensor, blind: Tensor, slope: Tensor, dt: Tensor, on: Tensor, off: Tensor, refractory: Tensor,
@@ -474,16 +767,27 @@ def _assemble(parts: list[tuple[Tensor, Tensor, Tensor, Tensor]], batch: int, se
         return _empty(batch, sensor_size, device)
     pixels = sensor_size[0] * sensor_size[1]
     low, high = (int(v) for v in read_host(torch.stack([t.min(), t.max()])))
-    if (high - low + 1) * pixels < 2**62:  # one sort by (time, pixel); ties keep their order
-        order = torch.argsort((t - low).mul_(pixels).add_(pixel), stable=True)
+    span = (high - low + 1) * pixels
+    lengths = torch.bincount(sample, minlength=batch).cpu()
+    offsets = torch.cat([torch.zeros(1, dtype=torch.int64), lengths.cumsum(0)])
+    width = sensor_size[1]
+    if span * batch < 2**62:  # one stable sort by (sample, time, pixel): ties keep their order
+        key = (t - low).mul_(pixels).add_(pixel)
+        if batch > 1:
+            key.add_(sample * span)
+        values, order = torch.sort(key, stable=True)
+        if batch > 1:
+            values = values.remainder_(span)
+        time = torch.div(values, pixels, rounding_mode="floor")
+        pixel = (values - time * pixels).to(torch.int32)
+        t = time.add_(low)
     else:
         order = torch.argsort(pixel, stable=True)
         order = order[torch.argsort(t[order], stable=True)]
-    if batch > 1:
-        order = order[torch.argsort(sample[order], stable=True)]
-    lengths = torch.bincount(sample, minlength=batch).cpu()
-    offsets = torch.cat([torch.zeros(1, dtype=torch.int64), lengths.cumsum(0)])
-    pixel = pixel[order]
-    width = sensor_size[1]
-    return EventBatch((pixel % width).to(torch.int16), (pixel // width).to(torch.int16), t[order], p[order],
-                      offsets, sensor_size)
+        if batch > 1:
+            order = order[torch.argsort(sample[order], stable=True)]
+        pixel = pixel[order].to(torch.int32)
+        t = t[order]
+    y = torch.div(pixel, width, rounding_mode="floor")  # int32: pixel < 2**30, the faster division
+    x = pixel - y * width
+    return EventBatch(x.to(torch.int16), y.to(torch.int16), t, p[order], offsets, sensor_size)

@@ -24,19 +24,32 @@ them. One *grasp* is:
    along the pad, and its contrast as (D/D_ref)^½, a deeper indentation darkening more),
    via ``strip_length_exponent`` and ``contrast_exponent``.
 4. **DVS.** The camera sees the membrane's log intensity on a fine time grid (1 ms
-   substeps); each pixel emits an ON (OFF) event whenever its log intensity rose (fell) by
-   its threshold since its last event, v2e/ESIM style, with per-pixel threshold mismatch
-   and a refractory period. Background shot noise (0.1–10 Hz per pixel) and hot pixels
-   are added as Poisson processes.
+   substeps) on the pixels a strip can touch, through the library's pixel model
+   (:func:`~event_transforms.functional.threshold_crossings`, the core of
+   :func:`~event_transforms.functional.emulate_events`, which the optical generator uses):
+   each pixel emits an ON (OFF) event whenever its log intensity rose (fell) by its
+   threshold since its last event (v2e/ESIM), with per-pixel threshold mismatch and a
+   refractory period during which its reference follows the light; the log intensity is
+   interpolated linearly between substeps, so each event has its crossing time. Background
+   shot noise (0.1–10 Hz per pixel, log-uniform) and hot pixels (each pixel hot with
+   probability ``hot_pixel_fraction``, 50–200 Hz) are Poisson events
+   (:func:`~event_transforms.functional.noise_events`).
 
 Every effect has a switch in :class:`SimulatorConfig`, and an effect that is off is not
-computed. Randomness comes from ``numpy.random.Generator(PCG64)`` streams derived from the
-seed with ``SeedSequence`` (one stream per effect, so switching one effect off leaves the
-others' draws unchanged); nothing touches a global RNG. Fixed pixel properties (threshold
-mismatch, noise rates, hot pixels) belong to the camera and come from ``sensor_seed``, so
-every recording of one data set shares them, as recordings from one camera do. The log
-intensity is rounded to 2⁻²⁰ before thresholding so that last-bit differences between
-math libraries cannot change an event: same seed, same events on any machine.
+computed. The experiment's draws (:func:`draw_grasp`) come from a
+``numpy.random.Generator(PCG64)`` stream derived from the seed with ``SeedSequence``; the
+camera's draws are the library's counter-based ones (:mod:`event_transforms.functional`):
+fixed pixel properties (threshold mismatch, noise rates, hot pixels) come from
+``camera_seed = sensor_seed`` (:func:`~event_transforms.functional.camera_pixels`), so every
+recording of one data set shares them, as recordings from one camera do, and the noise
+events from ``seed`` = the grasp's seed, so a grasp simulated alone equals the same grasp in
+a batch. Shot noise and hot pixels are one Poisson process over the pixels' summed rates:
+switching hot pixels off changes the shot noise's realisation (never the contact events).
+Nothing touches a global RNG. The log intensity is rounded to 2⁻²⁰ before thresholding so
+that last-bit differences between math libraries cannot change an event: same seed, same
+events on any machine. ``SIMULATOR_VERSION`` 3 (this model) replaced version 2's numpy
+model (thresholds per step, events spread evenly inside a step, at most ``dt // refractory``
+events a step, numpy noise streams): a seed gives other events than before.
 
 Results obtained on this data are results on synthetic data, never the paper's.
 """
@@ -60,6 +73,7 @@ __all__ = [
 ]
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -70,10 +84,13 @@ import torch
 from torch import Tensor
 
 from ..events.binning import events_to_frames
-from .generators import dvs
+from ..functional import LOG_QUANTUM, camera_pixels, noise_events, threshold_crossings
 
 #: Bumped whenever the model changes what a seed produces (keys the data-set cache).
-SIMULATOR_VERSION = 2
+SIMULATOR_VERSION = 3
+_Parts = list[tuple[np.ndarray, np.ndarray, np.ndarray]]  # (pixel, t_us, p) parts of a recording
+#: Levels per call of the pixel model (pixels times substeps): bounds the memory of a batch of grasps.
+_CHUNK_LEVELS = 1 << 20
 
 #: Structured dtype of simulated event streams (tonic's field names; t in microseconds).
 EVENT_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
@@ -148,7 +165,7 @@ class SimulatorConfig:
         shot_noise_hz: range of the per-pixel noise rates (log-uniform per pixel).
         noise_on_fraction: probability that a noise event is ON.
         hot_pixels: add hot pixels.
-        hot_pixel_fraction: fraction of pixels that are hot.
+        hot_pixel_fraction: probability that a pixel is hot (drawn per pixel of the camera).
         hot_pixel_hz: range of the hot pixels' rates (log-uniform).
     """
 
@@ -346,10 +363,15 @@ class Recording:
 # --------------------------------------------------------------------------- experiment
 
 
-def _streams(seed: int) -> list[np.random.Generator]:
-    """Independent PCG64 streams: experiment, shot noise, hot-pixel noise."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+def _check_seed(seed: object) -> None:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+
+
+def _streams(seed: int) -> list[np.random.Generator]:
+    """PCG64 streams of the experiment's draws (the first; the other two drew the noise before
+    ``SIMULATOR_VERSION`` 3 and are kept so that the first stays the same)."""
+    _check_seed(seed)
     children = np.random.SeedSequence(int(seed)).spawn(3)
     return [np.random.Generator(np.random.PCG64(child)) for child in children]
 
@@ -525,31 +547,51 @@ def contact_half_width(
 # --------------------------------------------------------------------------- camera
 
 
-def _sensor(config: SimulatorConfig) -> dvs.Camera:
-    """The camera's fixed pixel properties, from ``config.sensor_seed`` (:func:`dvs.camera`)."""
-    return dvs.camera(
-        config.sensor_size, config.sensor_seed, config.threshold, config.threshold_mismatch,
-        config.shot_noise_hz, config.hot_pixel_fraction, config.hot_pixel_hz,
+@functools.lru_cache(maxsize=8)
+def _sensor(config: SimulatorConfig) -> tuple[Tensor, Tensor, Tensor]:
+    """The camera's fixed pixel properties, ``(1, H·W)`` each: ON and OFF thresholds and noise rates
+    (shot noise plus hot pixels), :func:`~event_transforms.functional.camera_pixels` of
+    ``camera_seed = config.sensor_seed``. The ranges ``(low, high)`` are the library's geometric
+    mean ``√(low·high)`` and spread ``√(high/low)``; an effect switched off has rate 0."""
+    (shot_low, shot_high), (hot_low, hot_high) = config.shot_noise_hz, config.hot_pixel_hz
+    return camera_pixels(
+        config.sensor_size[0] * config.sensor_size[1], camera_seed=config.sensor_seed,
+        threshold_on=config.threshold, mismatch=config.threshold_mismatch,
+        noise_hz=math.sqrt(shot_low * shot_high) if config.shot_noise else 0.0,
+        noise_spread=math.sqrt(shot_high / shot_low),
+        hot_pixel_fraction=config.hot_pixel_fraction if config.hot_pixels else 0.0,
+        hot_pixel_hz=math.sqrt(hot_low * hot_high), hot_pixel_spread=math.sqrt(hot_high / hot_low),
     )
 
 
-def _background(
-    seed: int, duration_us: int, config: SimulatorConfig
-) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Shot noise and hot pixels of one recording (its seed's noise streams)."""
-    _, rng_shot, rng_hot = _streams(seed)
-    return dvs.background_events(
-        _sensor(config), duration_us, config.noise_on_fraction,
-        rng_shot if config.shot_noise else None, rng_hot if config.hot_pixels else None,
-    )
+def _background(seeds: Sequence[int], duration_us: int, config: SimulatorConfig) -> list[_Parts]:
+    """Shot noise and hot pixels of recordings ``seeds`` (:func:`~event_transforms.functional.noise_events`
+    with ``seed`` the recording's): per recording a list of ``(pixel, t_us, p)`` parts."""
+    for seed in seeds:
+        _check_seed(seed)
+    if not seeds or not (config.shot_noise or config.hot_pixels):
+        return [[] for _ in seeds]
+    rates = _sensor(config)[2]
+    sample, pixel, t, p = noise_events(rates.expand(len(seeds), -1), float(duration_us), seed=torch.tensor([int(v) for v in seeds]),
+                                       on_fraction=config.noise_on_fraction)
+    return _by_owner(sample.numpy(), pixel.numpy(), torch.floor(t).to(torch.int64).numpy(), p.numpy(), len(seeds))
 
 
-def _to_events(parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], width: int) -> np.ndarray:
-    """Merge (pixel, t, p) parts into one time-sorted structured array."""
+def _by_owner(owner: np.ndarray, pixel: np.ndarray, t_us: np.ndarray, p: np.ndarray, count: int) -> list[_Parts]:
+    """Split ``(pixel, t_us, p)`` rows by their owner ``0 .. count - 1``: one part list each."""
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(count + 1))
+    return [[(pixel[order[lo:hi]], t_us[order[lo:hi]], p[order[lo:hi]])] for lo, hi in zip(bounds[:-1], bounds[1:])]
+
+
+def _to_events(parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], sensor_size: tuple[int, int]) -> np.ndarray:
+    """Merge (pixel, t, p) parts into one structured array sorted by time, ties by pixel, then
+    polarity (OFF first): rows equal in all three are identical, so the order is unique."""
     pixel = np.concatenate([part[0] for part in parts]) if parts else np.zeros(0, np.int64)
     t = np.concatenate([part[1] for part in parts]) if parts else np.zeros(0, np.int64)
     p = np.concatenate([part[2] for part in parts]) if parts else np.zeros(0, np.int8)
-    order = np.lexsort((pixel, t))  # by time, ties by pixel: deterministic
+    height, width = sensor_size
+    order = np.argsort((t * (height * width) + pixel) * 2 + p)  # a unique key up to identical rows
     events = np.empty(order.size, dtype=EVENT_DTYPE)
     events["x"] = pixel[order] % width
     events["y"] = pixel[order] // width
@@ -581,14 +623,19 @@ def _strip_shape(grasps: Sequence[Grasp], config: SimulatorConfig) -> tuple[np.n
 
 def _contact_events(
     grasps: Sequence[Grasp], width_px: np.ndarray, config: SimulatorConfig
-) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+) -> list[_Parts]:
     """DVS events of the strips, vectorised over the active pixels of every grasp.
 
     ``width_px`` is the half-width b of each grasp on the substep grid, (n, S + 1).
-    Returns per grasp (pixel, t_us, p).
+    The library's pixel model (:func:`~event_transforms.functional.threshold_crossings`) on
+    the active pixels, the camera's thresholds and refractory period: the log intensity is
+    interpolated linearly between substeps, so each event has its crossing time (in
+    ``(k, k + 1]`` substeps for a crossing between substeps k and k + 1; one at the recording's
+    very end, ``t = duration``, lies after it and is not kept). Returns per grasp a list of
+    (pixel, t_us, p) parts.
     """
     height, width = config.sensor_size
-    sensor = _sensor(config)
+    on, off, _ = _sensor(config)
     ys, xs = np.divmod(np.arange(height * width), width)
     edge = config.edge_px
     # Gather the pixels each strip can ever touch; every other pixel sees constant light.
@@ -609,31 +656,42 @@ def _contact_events(
         acrosses.append(u[active])
         alongs.append(v[active])
     owner, pixel = np.concatenate(owners), np.concatenate(pixels)
+    if not pixel.size:
+        return [[] for _ in grasps]
     across = np.concatenate(acrosses) / edge
     # Darkening at full width: contrast, tapered over the edge at the strip's ends.
-    depth = contrast[owner] * np.clip((half_length[owner] - np.concatenate(alongs)) / edge, 0, 1)
-    b_edge = width_px / edge
+    depth = -contrast[owner] * np.clip((half_length[owner] - np.concatenate(alongs)) / edge, 0, 1)
+    b_edge = np.ascontiguousarray(width_px.T) / edge  # (S + 1, n grasps)
 
-    def log_intensity(step: int) -> np.ndarray:
-        cover = np.clip(b_edge[owner, step] - across, 0.0, 1.0)
-        return dvs.quantize_log(np.log1p(-depth * cover))
+    def log_intensity(first: int, stop: int) -> Tensor:  # (stop - first, P) levels, rounded to LOG_QUANTUM
+        cover = b_edge[first:stop][:, owner]
+        cover -= across
+        np.clip(cover, 0.0, 1.0, out=cover)
+        level = np.log1p(np.multiply(depth, cover, out=cover), out=cover)
+        level *= 1.0 / LOG_QUANTUM
+        return torch.from_numpy(np.round(level, out=level)).to(torch.float32).mul_(LOG_QUANTUM)
 
-    dt_us = config.substep_ms * 1000.0
-    steps, indices, signed = dvs.threshold_crossings(
-        log_intensity, width_px.shape[1], sensor.threshold_on[pixel], sensor.threshold_off[pixel],
-        dt_us, config.refractory_us,
-    )
-    if not indices.size:
-        return [(np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.int8),) for _ in grasps]
-    repeat, t_us, polarity = dvs.spread_events(steps, signed, dt_us)
-    who = owner[indices[repeat]]
-    where = pixel[indices[repeat]]
-    order = np.argsort(who, kind="stable")
-    bounds = np.searchsorted(who[order], np.arange(len(grasps) + 1))
-    return [
-        (where[order[a:b]], t_us[order[a:b]], polarity[order[a:b]])
-        for a, b in zip(bounds[:-1], bounds[1:])
-    ]
+    steps = width_px.shape[1]
+    times = torch.arange(steps, dtype=torch.float64) * (config.substep_ms * 1000.0)
+    on_active, off_active = on[0, torch.from_numpy(pixel)], off[0, torch.from_numpy(pixel)]
+    chunk = max(1, _CHUNK_LEVELS // pixel.size)
+    state = None
+    columns, stamps, polarities = [], [], []
+    for first in range(0, steps - 1, chunk):  # pieces of `chunk` intervals (bounded memory)
+        stop = min(steps, first + chunk + 1)
+        (_, column, t, p), state = threshold_crossings(
+            log_intensity(first, stop), times[first:stop], on_active, off_active,
+            refractory_us=config.refractory_us, state=state,
+        )
+        columns.append(column)
+        stamps.append(torch.floor(t).to(torch.int64))
+        polarities.append(p)
+    fired = torch.cat(columns).numpy()
+    t_us = torch.cat(stamps).numpy()
+    # a crossing at the last substep's very end (t = duration) is after the recording [0, duration)
+    inside = t_us < int(round(config.duration_ms * 1000))
+    fired = fired[inside]
+    return _by_owner(owner[fired], pixel[fired], t_us[inside], torch.cat(polarities).numpy()[inside], len(grasps))
 
 
 def simulate_grasps(grasps: Sequence[Grasp], config: SimulatorConfig | None = None) -> list[Recording]:
@@ -673,11 +731,12 @@ def simulate_grasps(grasps: Sequence[Grasp], config: SimulatorConfig | None = No
         )
         diameter = np.array([g.diameter_mm for g in grasps])[:, None]
         b = contact_half_width(lagged, diameter, config)
-        contact = [[part] for part in _contact_events(grasps, b, config)]
+        contact = _contact_events(grasps, b, config)
     force_t_us = np.round(frame_times_ms * 1000).astype(np.int64)
+    background = _background([g.seed for g in grasps], duration_us, config)
     return [
         Recording(
-            events=_to_events(contact[i] + _background(g.seed, duration_us, config), width),
+            events=_to_events(contact[i] + background[i], config.sensor_size),
             force=force[i],
             force_t_us=force_t_us,
             grasp=g,
@@ -737,4 +796,4 @@ def simulate_static(
     if not (isinstance(duration_ms, (int, float)) and duration_ms > 0 and math.isfinite(duration_ms)):
         raise ValueError(f"duration_ms must be a positive number, got {duration_ms!r}")
     duration_us = int(round(duration_ms * 1000))
-    return _to_events(_background(seed, duration_us, config), config.sensor_size[1])
+    return _to_events(_background([seed], duration_us, config)[0], config.sensor_size)

@@ -119,7 +119,13 @@ class TestMeasuredGaps:
             events = simulate_static(500.0, seed=0, config=session.config.replace(shot_noise=False))
             pixels, counts = np.unique(events["y"].astype(int) * 240 + events["x"], return_counts=True)
             hot.append(int((counts >= 10).sum()))
-        assert hot[1] / max(hot[0], 1) == pytest.approx(10.0, rel=0.35)
+        # each pixel is hot with probability hot_pixel_fraction (10x in deployment): binomial counts
+        # around 4.3 and 43 on 180 x 240 pixels, exactly the cameras' hot pixels
+        from event_transforms.tactile import simulation
+
+        drawn = [int((simulation._sensor(s.config.replace(shot_noise=False))[2] > 0).sum()) for s in (scene.train, scene.deploy)]
+        assert hot == drawn and 1 <= hot[0] <= 10 and 25 <= hot[1] <= 65
+        assert scene.deploy.config.hot_pixel_fraction == pytest.approx(10 * scene.train.config.hot_pixel_fraction)
 
     def test_control_deployment_is_drawn_like_training(self):
         scene = get_scene("control")
@@ -172,8 +178,10 @@ class TestMeasuredGaps:
         (and fewer of them fall inside the recording, which ends soon after the release); the
         press's OFF events do not move."""
         scene = get_scene("paper-lag")
-        slow = _recordings(scene.deploy, 6, **QUIET)
-        fast = _recordings(scene.deploy, 6, release_lag_ratio=1.0, **QUIET)
+        # without the refractory period, which loses more events of the faster release (its
+        # brightening is steeper) and would hide the truncation by the recording's end
+        slow = _recordings(scene.deploy, 6, refractory_us=0.0, **QUIET)
+        fast = _recordings(scene.deploy, 6, release_lag_ratio=1.0, refractory_us=0.0, **QUIET)
         for a, b in zip(slow, fast):
             on_a, on_b = a.events["t"][a.events["p"] == 1], b.events["t"][b.events["p"] == 1]
             off_a, off_b = a.events["t"][a.events["p"] == 0], b.events["t"][b.events["p"] == 0]

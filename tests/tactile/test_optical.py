@@ -1,4 +1,4 @@
-"""The shared DVS pixel model and the optical generator (taxim tests skip without the extra)."""
+"""The optical generator and the camera it shares with the built-in one (taxim tests skip without the extra)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,10 @@ import warnings
 
 import numpy as np
 import pytest
+import torch
 
 from event_transforms.tactile import datasets
-from event_transforms.tactile.generators import dvs, optical
+from event_transforms.tactile.generators import optical
 from event_transforms.tactile.generators.optical import (
     OpticalConfig,
     OpticalObject,
@@ -29,84 +30,19 @@ from event_transforms.tactile.scenes import (
 )
 from event_transforms.tactile.simulation import SimulatorConfig, draw_grasp, force_profile
 
-ONE = np.array([1.0])
-
-
-def _crossings(levels, threshold_on=0.25, threshold_off=0.25, dt_us=1000.0, refractory_us=0.0, **kwargs):
-    levels = np.asarray(levels, dtype=np.float64)
-    return dvs.threshold_crossings(
-        lambda step: levels[step][None], len(levels), np.array([threshold_on]), np.array([threshold_off]),
-        dt_us, refractory_us, **kwargs,
-    )
-
-
-class TestDVSModel:
-    @pytest.mark.parametrize("rise", [0.1, 0.37, 1.0, 2.3, -0.6, -1.9, -0.125])
-    @pytest.mark.parametrize("n_steps", [2, 7, 50])
-    def test_a_ramp_gives_floor_of_rise_over_threshold(self, rise, n_steps):
-        threshold = 0.125  # dyadic, like the quantised levels: the arithmetic is exact
-        levels = dvs.quantize_log(np.linspace(0.0, rise, n_steps))
-        steps, _, counts = _crossings(levels, threshold, threshold)
-        # the reference moves by exactly one threshold per event: floor(|ΔL| / C) events
-        assert int(np.abs(counts).sum()) == math.floor(abs(float(levels[-1])) / threshold)
-        assert set(np.sign(counts).tolist()) <= {int(np.sign(rise))}
-
-    def test_polarity_follows_the_sign_with_separate_thresholds(self):
-        levels = [0.0, 0.5, 0.5, 0.0, -0.5]  # up 0.5, down 1.0
-        steps, _, counts = _crossings(levels, threshold_on=0.25, threshold_off=0.125)
-        assert steps.tolist() == [1, 3, 4]
-        # ON: 0.5 / 0.25 = 2; OFF: 0.5 / 0.125 = 4, then another 4
-        assert counts.tolist() == [2, -4, -4]
-        _, t_us, p = dvs.spread_events(steps, counts, 1000.0)
-        assert p.tolist() == [1, 1] + [0] * 8
-        assert (np.diff(t_us) >= 0).all() and t_us[0] == 250
-
-    def test_refractory_period_caps_and_blinds(self):
-        # A pixel firing at step 1 is blind for 1.5 steps: the change at step 2 is lost.
-        levels = [0.0, 0.25, 0.5, 0.5, 0.75]
-        steps, _, counts = _crossings(levels, refractory_us=1500.0)
-        assert steps.tolist() == [1, 4]
-        assert counts.tolist() == [1, 1]
-        # a jump of 4 thresholds in one step with a refractory of 1/3 step: at most 3 events
-        steps, _, counts = _crossings([0.0, 1.0], refractory_us=1000.0 / 3)
-        assert counts.tolist() == [3]
-        # no refractory: all 4
-        assert _crossings([0.0, 1.0])[2].tolist() == [4]
-
-    def test_events_of_one_pixel_are_never_closer_than_the_refractory_period_across_steps(self):
-        levels = dvs.quantize_log(np.linspace(0.0, 5.0, 41))
-        steps, _, counts = _crossings(levels, refractory_us=2500.0)
-        assert (np.diff(steps) * 1000.0 >= 2500.0).all()
-
-    def test_leak_under_constant_light_matches_the_closed_form(self):
-        rate, phase, duration_us = np.array([40.0, 7.0, 0.0]), np.array([0.3, 0.9, 0.5]), 200_000
-        pixel, t_us, p = dvs.leak_events(rate, phase, duration_us)
-        expected = [int(np.floor((duration_us * 1e-6 - (1 - ph) / r) * r)) + 1 if r > 0 and (1 - ph) / r < 0.2 else 0
-                    for r, ph in zip(rate, phase)]
-        assert np.bincount(pixel, minlength=3).tolist() == expected == [8, 2, 0]
-        assert (p == 1).all() and t_us[0] == round((1 - 0.3) / 40 * 1e6)
-        # the stepped model with the same leak gives the same number of ON events
-        threshold = np.array([0.2, 0.2, 0.2])
-        level = np.zeros(3)
-        steps, pixels, counts = dvs.threshold_crossings(
-            lambda step: level, 201, threshold, threshold, 1000.0, 0.0,
-            reference=level - phase * threshold, leak_per_step=threshold * rate * 1e-3,
-        )
-        assert np.bincount(pixels, weights=counts, minlength=3).astype(int).tolist() == expected
-
-    def test_builtin_camera_is_the_shared_one(self):
+class TestOneCamera:
+    def test_builtin_camera_is_the_library_one(self):
+        """The built-in simulator's camera is ``camera_pixels`` of its ``sensor_seed`` (the optical
+        generator's thresholds come from ``emulate_events``, the same draws)."""
+        from event_transforms.functional import camera_pixels
         from event_transforms.tactile import simulation
 
         config = SimulatorConfig(sensor_size=(20, 30), sensor_seed=4)
-        cam = simulation._sensor(config)
-        assert cam is dvs.camera((20, 30), 4, 0.2, 0.03, (0.1, 10.0), 1e-4, (50.0, 200.0))
-
-    def test_lin_log_is_increasing_and_continuous(self):
-        x = np.linspace(0.0, 1.0, 2001)
-        y = dvs.lin_log(x)
-        assert (np.diff(y) > 0).all()
-        knee = 20.0 / 255.0
-        assert abs(float(dvs.lin_log(np.array([knee - 1e-9]))[0]) - math.log(20.0)) < 1e-6
+        on, off, rate = simulation._sensor(config)
+        expected = camera_pixels(600, camera_seed=4, threshold_on=0.2, mismatch=0.03, noise_hz=1.0,
+                                 hot_pixel_fraction=1e-4, hot_pixel_hz=100.0, noise_spread=10.0, hot_pixel_spread=2.0)
+        assert all(torch.equal(a, b) for a, b in zip((on, off, rate), expected))
+        assert simulation._sensor(config) is simulation._sensor(config)  # cached
 
 
 class TestContactAndMembrane:
@@ -317,14 +253,14 @@ class TestOpticalScenes:
         with pytest.raises(ValueError, match="one generator"):
             BenchmarkScene("mixed", "", BASE_SESSION, BASE_SESSION.replace(generator="optical"))
 
-    def test_the_cache_key_names_the_generator_and_builtin_keys_are_unchanged(self):
+    def test_the_cache_key_names_the_generator_and_builtin_keys_are_pinned(self):
         seeds = range(0, 48)
         builtin = datasets._cache_name(BASE_SESSION, seeds, (140, 150), 2)
-        # the names of 4182d62, before sessions had a generator
-        assert builtin == "tactile-grasps-v2-8546bc2ef0553ea7.pt"
+        # SIMULATOR_VERSION 3 (version 2's were tactile-grasps-v2-8546bc2ef0553ea7.pt and -6dfbb10742bdecc4.pt)
+        assert builtin == "tactile-grasps-v3-aa9175b78a8051bc.pt"
         membrane = SCENES["paper-membrane"].deploy
         assert datasets._cache_name(membrane, range(10_000, 10_024), (140, 150), 2) == (
-            "tactile-grasps-v2-6dfbb10742bdecc4.pt"
+            "tactile-grasps-v3-d51e50dbae09aeb4.pt"
         )
         assert datasets._cache_name(BASE_SESSION.replace(generator="optical"), seeds, (140, 150), 2) != builtin
 
