@@ -448,7 +448,9 @@ SCENES: dict[str, BenchmarkScene] = _scenes()
 #: camera of contrast threshold 0.05 (chosen when its Rec. 601 luma render changed the log
 #: luminance by at most about 0.15 at full press, so the built-in's 0.2 would have seen almost
 #: nothing of it; the red-channel render of ``OPTICAL_VERSION`` 2 changes it by up to about 2).
-OPTICAL_BASE_SESSION = BASE_SESSION.replace(generator="optical", threshold=0.05)
+#: Its refractory period is 200 µs, as it has been since ``OPTICAL_VERSION`` 2 (the built-in
+#: sessions' 0: :class:`~event_transforms.tactile.simulation.SimulatorConfig`).
+OPTICAL_BASE_SESSION = BASE_SESSION.replace(generator="optical", threshold=0.05, refractory_us=200.0)
 
 
 def _optical_scenes() -> dict[str, BenchmarkScene]:

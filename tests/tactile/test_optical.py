@@ -256,11 +256,11 @@ class TestOpticalScenes:
     def test_the_cache_key_names_the_generator_and_builtin_keys_are_pinned(self):
         seeds = range(0, 48)
         builtin = datasets._cache_name(BASE_SESSION, seeds, (140, 150), 2)
-        # SIMULATOR_VERSION 3 (version 2's were tactile-grasps-v2-8546bc2ef0553ea7.pt and -6dfbb10742bdecc4.pt)
-        assert builtin == "tactile-grasps-v3-aa9175b78a8051bc.pt"
+        # SIMULATOR_VERSION 3, no refractory period (version 2's were tactile-grasps-v2-8546bc2ef0553ea7.pt and -6dfbb10742bdecc4.pt)
+        assert builtin == "tactile-grasps-v3-aa16a0ef0e944b38.pt"
         membrane = SCENES["paper-membrane"].deploy
         assert datasets._cache_name(membrane, range(10_000, 10_024), (140, 150), 2) == (
-            "tactile-grasps-v3-d51e50dbae09aeb4.pt"
+            "tactile-grasps-v3-17fcb75ff08f6c69.pt"
         )
         assert datasets._cache_name(BASE_SESSION.replace(generator="optical"), seeds, (140, 150), 2) != builtin
 

@@ -358,7 +358,7 @@ class TestResizeMatchesAnotherBolt:
         assert overshoot / medium == pytest.approx((15 / 12) ** 0.5, rel=0.04)
 
 
-PINNED = (42869, 119515, 5171023, 19169)  # SIMULATOR_VERSION 3 (the library's pixel model); 2: (42579, 174948, 5118963, 19002)
+PINNED = (42883, 60298, 5173491, 19152)  # SIMULATOR_VERSION 3 (the library's pixel model, no refractory period); 2: (42579, 174948, 5118963, 19002)
 
 
 class TestLagEffects:
