@@ -12,8 +12,15 @@
    ``--seeds``/``--steps`` for a reduced run) into ``--out``, whose ``results.json`` and
    ``report.md`` hold the optical verdict table.
 
-Run: ``EVENT_TRANSFORMS_CACHE=DIR python benchmarks/tactile/optical.py --out results-optical``
-(``pip install 'event-transforms[optical]'`` first). ``--skip-protocol`` stops after 1 and 2.
+4. **Side-by-side** (:func:`render`): each optical verdict beside the built-in generator's for the
+   same role, the built-in column read from the committed built-in quick run
+   (``benchmarks/tactile/reproduce_quick.md``, ``--builtin``), into ``--out/side_by_side.md``,
+   the ``optical-side-by-side`` section of ``docs/results.md`` and ``benchmarks/tactile/optical.md``.
+
+Run: ``EVENT_TRANSFORMS_CACHE=DIR python -m benchmarks.tactile.optical --out results-optical``
+(``pip install 'event-transforms[optical]'`` first). ``--skip-protocol`` stops after 1 and 2;
+``--render-only --out results-optical`` redoes 4 alone from a finished run (after the built-in
+run is regenerated), without data or training.
 """
 
 from __future__ import annotations
@@ -32,7 +39,7 @@ from event_transforms.tactile.generators.optical import OpticalConfig, OpticalOb
 from event_transforms.tactile.scenes import OPTICAL_SCENES, get_scene
 from event_transforms.tactile.simulation import draw_grasp
 
-__all__ = ["prepare", "fidelity_figures", "side_by_side", "main"]
+__all__ = ["prepare", "fidelity_figures", "side_by_side", "render", "main"]
 
 #: The optical scenes of the verdict table (each one a built-in scene's role).
 ROLES = {
@@ -158,6 +165,81 @@ def side_by_side(builtin_text: str, optical_text: str) -> tuple[str, dict[str, i
     return "\n".join(header + rows), counts
 
 
+ROOT = Path(__file__).resolve().parents[2]
+#: The built-in generator's committed quick run: the side-by-side's built-in column.
+BUILTIN_RUN = ROOT / "benchmarks" / "tactile" / "reproduce_quick.md"
+#: The page this script writes: the optical run's cost, fidelity, side-by-side and whole output.
+OPTICAL_PAGE = ROOT / "benchmarks" / "tactile" / "optical.md"
+#: The results page and its section that holds the side-by-side.
+RESULTS_PAGE = ROOT / "docs" / "results.md"
+SECTION = "optical-side-by-side"
+
+
+def produced_by(text: str) -> str:
+    """The commit a protocol output names (``Produced by commit `...```), or ``"unknown"``."""
+    import re
+
+    found = re.search(r"Produced by commit `([0-9a-f]{7,40})`", text)
+    return found.group(1) if found else "unknown"
+
+
+def machine(text: str) -> str:
+    """The protocol output's machine line (``One machine's numbers: ...``), its first sentence."""
+    for line in text.splitlines():
+        if line.startswith("One machine's numbers:"):
+            return line.removeprefix("One machine's numbers:").split(". ")[0].strip()
+    return "unknown"
+
+
+def counts_sentence(counts: dict[str, int]) -> str:
+    """The side-by-side's counts in words."""
+    total = sum(counts.values())
+    return (f"Of the {total} verdicts both runs have, **{counts['holds']} hold, {counts['flips']} flip, "
+            f"{counts['unresolved']} become unresolved and {counts['new']} are new**.")
+
+
+def render(out: Path, builtin_run: Path = BUILTIN_RUN, write_pages: bool = True) -> dict[str, int]:
+    """Rewrite the side-by-side (``out/side_by_side.md``, the ``optical-side-by-side`` section of
+    docs/results.md) and :data:`OPTICAL_PAGE` from a finished run in ``out`` (its ``results.md``
+    and ``optical_cost_fidelity.json``) and the built-in run ``builtin_run``, without training."""
+    from benchmarks._common import write_section
+
+    optical_text = (out / "results.md").read_text()
+    builtin_text = builtin_run.read_text()
+    run = json.loads((out / "optical_cost_fidelity.json").read_text())
+    table, counts = side_by_side(builtin_text, optical_text)
+    (out / "side_by_side.md").write_text(table + "\n\n" + json.dumps(counts) + "\n")
+    relative = builtin_run.resolve().relative_to(ROOT) if builtin_run.resolve().is_relative_to(ROOT) else builtin_run
+    protocol = run.get("protocol", {})
+    when = (f"{protocol['seconds'] / 60:.0f} min of protocol, load average {protocol['load_start']:.1f} at its start "
+            f"and {protocol['load_end']:.1f} at its end" if protocol else "protocol time not recorded")
+    body = "\n".join([
+        f"Built-in column: `{relative}` (the built-in generator's quick run, produced by commit "
+        f"`{produced_by(builtin_text)[:7]}`); optical column: `benchmarks/tactile/optical.md` (produced by commit "
+        f"`{produced_by(optical_text)[:7]}`, {machine(optical_text)}; {when}). Both judged by the decision rules "
+        "their pages state. Re-rendered without training by "
+        "`python -m benchmarks.tactile.optical --render-only --out DIR` (DIR: the optical run's output folder).",
+        "", table, "", counts_sentence(counts),
+    ])
+    if write_pages:
+        write_section(SECTION, body, RESULTS_PAGE)
+        fidelity_rows = [f"| {scene} | {subset} | " + " | ".join(f"{m} {v:.2f}" for m, v in scores.items()) + " |"
+                         for scene, subsets in run["fidelity"].items() for subset, scores in subsets.items()]
+        page = "\n\n".join([
+            "# The optical scenes' verdicts (`benchmarks/tactile/optical.py`)",
+            f"Command: `{run.get('command', 'python -m benchmarks.tactile.optical')}`.",
+            f"Protocol: {when}.",
+            "## Data cost (seconds; tables already on disk are not re-rendered)\n\n```json\n"
+            + json.dumps(run["cost"], indent=1) + "\n```",
+            "## Fidelity (physics least-squares model fitted on the deployment's test grasps, MSE N²)\n\n"
+            "| scene | training grasps | scores |\n|---|---|---|\n" + "\n".join(fidelity_rows),
+            f"## Built-in (`{relative}`) vs optical verdicts\n\n" + body,
+            "## The optical run's output (`results.md`)\n\n" + optical_text,
+        ])
+        OPTICAL_PAGE.write_text(page)
+    return counts
+
+
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results-optical"), help="the protocol's output folder")
@@ -168,7 +250,16 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--equal-time", action="store_true",
                         help="also the protocol's MSE at equal wall time (off here: it adds up to 57 %% to the run)")
     parser.add_argument("--skip-protocol", action="store_true", help="stop after the data and the fidelity figure")
+    parser.add_argument("--render-only", action="store_true",
+                        help="no data, no training: rewrite the side-by-side and the pages from the run in --out")
+    parser.add_argument("--builtin", type=Path, default=BUILTIN_RUN,
+                        help="the built-in run whose verdicts are the side-by-side's built-in column "
+                        "(default: benchmarks/tactile/reproduce_quick.md)")
     args = parser.parse_args(argv)
+    if args.render_only:
+        counts = render(args.out, args.builtin)
+        print((args.out / "side_by_side.md").read_text())
+        return {"counts": counts}
     args.out.mkdir(parents=True, exist_ok=True)
     cost = prepare(args.scenes, args.root)
     print(json.dumps(cost, indent=1), flush=True)
@@ -176,8 +267,13 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     for scene, subsets in figures.items():
         for subset, scores in subsets.items():
             print(scene, subset, {m: round(v, 2) for m, v in scores.items()}, flush=True)
-    (args.out / "optical_cost_fidelity.json").write_text(json.dumps({"cost": cost, "fidelity": figures}, indent=1))
+    run: dict[str, Any] = {"cost": cost, "fidelity": figures,
+                           "command": "python -m benchmarks.tactile.optical "
+                           + " ".join(argv if argv is not None else sys.argv[1:])}
+    (args.out / "optical_cost_fidelity.json").write_text(json.dumps(run, indent=1))
     if not args.skip_protocol:
+        import os
+
         from event_transforms.tactile.cli import main as cli_main
 
         command = ["reproduce", "--scenes", *args.scenes, "--out", str(args.out), "--no-plots",
@@ -188,24 +284,13 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             command += ["--seeds", args.seeds]
         if args.steps:
             command += ["--steps", args.steps]
+        load_start, start = os.getloadavg()[0], time.perf_counter()
         cli_main(command)
-        root_dir = Path(__file__).resolve().parents[2]
-        table, counts = side_by_side((root_dir / "docs" / "results.md").read_text(), (args.out / "results.md").read_text())
-        (args.out / "side_by_side.md").write_text(table + "\n\n" + json.dumps(counts) + "\n")
-        print(table, "\n", counts)
-        fidelity_rows = [f"| {scene} | {subset} | " + " | ".join(f"{m} {v:.2f}" for m, v in scores.items()) + " |"
-                         for scene, subsets in figures.items() for subset, scores in subsets.items()]
-        page = "\n\n".join([
-            "# The optical scenes' verdicts (`benchmarks/tactile/optical.py`)",
-            f"Command: `python benchmarks/tactile/optical.py {' '.join(argv if argv is not None else sys.argv[1:])}`.",
-            "## Data cost (seconds; tables already on disk are not re-rendered)\n\n```json\n"
-            + json.dumps(cost, indent=1) + "\n```",
-            "## Fidelity (physics least-squares model fitted on the deployment's test grasps, MSE N²)\n\n"
-            "| scene | training grasps | scores |\n|---|---|---|\n" + "\n".join(fidelity_rows),
-            "## Built-in (docs/results.md) vs optical verdicts\n\n" + table + "\n\n" + json.dumps(counts),
-            "## The optical run's output (`results.md`)\n\n" + (args.out / "results.md").read_text(),
-        ])
-        (root_dir / "benchmarks" / "tactile" / "optical.md").write_text(page)
+        run["protocol"] = {"seconds": time.perf_counter() - start, "load_start": load_start,
+                           "load_end": os.getloadavg()[0]}
+        (args.out / "optical_cost_fidelity.json").write_text(json.dumps(run, indent=1))
+        counts = render(args.out, args.builtin)
+        print((args.out / "side_by_side.md").read_text(), "\n", counts)
     return {"cost": cost, "fidelity": figures}
 
 
