@@ -14,13 +14,14 @@
 
 4. **Side-by-side** (:func:`render`): each optical verdict beside the built-in generator's for the
    same role, the built-in column read from the committed built-in quick run
-   (``benchmarks/tactile/reproduce_quick.md``, ``--builtin``), into ``--out/side_by_side.md``,
-   the ``optical-side-by-side`` section of ``docs/results.md`` and ``benchmarks/tactile/optical.md``.
+   (``benchmarks/tactile/reproduce_quick.md``, ``--builtin``), into ``--out/side_by_side.md`` and
+   the ``optical-side-by-side`` sections of ``docs/results.md`` and ``benchmarks/tactile/optical.md``.
 
 Run: ``EVENT_TRANSFORMS_CACHE=DIR python -m benchmarks.tactile.optical --out results-optical``
 (``pip install 'event-transforms[optical]'`` first). ``--skip-protocol`` stops after 1 and 2;
-``--render-only --out results-optical`` redoes 4 alone from a finished run (after the built-in
-run is regenerated), without data or training.
+``--render-only`` redoes 4 alone from the committed ``optical.md`` (after the built-in run is
+regenerated), without data or training; ``--render-only --out results-optical`` rewrites the
+whole optical page from that finished run first.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ from event_transforms.tactile.generators.optical import OpticalConfig, OpticalOb
 from event_transforms.tactile.scenes import OPTICAL_SCENES, get_scene
 from event_transforms.tactile.simulation import draw_grasp
 
-__all__ = ["prepare", "fidelity_figures", "side_by_side", "render", "main"]
+__all__ = ["prepare", "fidelity_figures", "side_by_side", "side_by_side_section", "render", "main"]
 
 #: The optical scenes of the verdict table (each one a built-in scene's role).
 ROLES = {
@@ -198,51 +199,67 @@ def counts_sentence(counts: dict[str, int]) -> str:
             f"{counts['unresolved']} become unresolved and {counts['new']} are new**.")
 
 
-def render(out: Path, builtin_run: Path = BUILTIN_RUN, write_pages: bool = True) -> dict[str, int]:
-    """Rewrite the side-by-side (``out/side_by_side.md``, the ``optical-side-by-side`` section of
-    docs/results.md) and :data:`OPTICAL_PAGE` from a finished run in ``out`` (its ``results.md``
-    and ``optical_cost_fidelity.json``) and the built-in run ``builtin_run``, without training."""
-    from benchmarks._common import write_section
+def optical_run_text(page: str) -> str:
+    """The optical run's whole ``results.md`` as :data:`OPTICAL_PAGE` quotes it."""
+    marker = "## The optical run's output (`results.md`)"
+    if marker not in page:
+        raise ValueError(f"the optical page has no section {marker!r}")
+    return page.split(marker, 1)[1].strip() + "\n"
 
-    optical_text = (out / "results.md").read_text()
-    builtin_text = builtin_run.read_text()
-    run = json.loads((out / "optical_cost_fidelity.json").read_text())
+
+def side_by_side_section(builtin_text: str, optical_text: str, builtin_name: str) -> tuple[str, dict[str, int]]:
+    """The ``optical-side-by-side`` section: where each column comes from, the table, the counts."""
     table, counts = side_by_side(builtin_text, optical_text)
-    (out / "side_by_side.md").write_text(table + "\n\n" + json.dumps(counts) + "\n")
-    relative = builtin_run.resolve().relative_to(ROOT) if builtin_run.resolve().is_relative_to(ROOT) else builtin_run
-    protocol = run.get("protocol", {})
-    when = (f"{protocol['seconds'] / 60:.0f} min of protocol, load average {protocol['load_start']:.1f} at its start "
-            f"and {protocol['load_end']:.1f} at its end" if protocol else "protocol time not recorded")
     body = "\n".join([
-        f"Built-in column: `{relative}` (the built-in generator's quick run, produced by commit "
+        f"Built-in column: `{builtin_name}` (the built-in generator's quick run, produced by commit "
         f"`{produced_by(builtin_text)[:7]}`); optical column: `benchmarks/tactile/optical.md` (produced by commit "
-        f"`{produced_by(optical_text)[:7]}`, {machine(optical_text)}; {when}). Both judged by the decision rules "
-        "their pages state. Re-rendered without training by "
-        "`python -m benchmarks.tactile.optical --render-only --out DIR` (DIR: the optical run's output folder).",
+        f"`{produced_by(optical_text)[:7]}`; {machine(optical_text)}). Each judged by the decision rules its page "
+        "states. Re-rendered without training by `python -m benchmarks.tactile.optical --render-only`.",
         "", table, "", counts_sentence(counts),
     ])
-    if write_pages:
-        write_section(SECTION, body, RESULTS_PAGE)
+    return body, counts
+
+
+def render(out: Path | None = None, builtin_run: Path = BUILTIN_RUN) -> dict[str, int]:
+    """Rewrite the side-by-side (the ``optical-side-by-side`` section of docs/results.md and of
+    :data:`OPTICAL_PAGE`) without training; with ``out`` (a finished run: its ``results.md`` and
+    ``optical_cost_fidelity.json``) the whole optical page first, else from the page's own copy
+    of the run. The built-in column is ``builtin_run``'s."""
+    from benchmarks._common import write_section
+
+    if out is not None:
+        run = json.loads((out / "optical_cost_fidelity.json").read_text())
+        optical_text = (out / "results.md").read_text()
+        protocol = run.get("protocol")
+        when = (f"{protocol['seconds'] / 60:.0f} min of protocol (its `reproduce` call); load average "
+                f"{protocol['load_start']:.1f} at its start and {protocol['load_end']:.1f} at its end on this "
+                "machine's 2 cores" if protocol else "protocol time not recorded")
         fidelity_rows = [f"| {scene} | {subset} | " + " | ".join(f"{m} {v:.2f}" for m, v in scores.items()) + " |"
                          for scene, subsets in run["fidelity"].items() for subset, scores in subsets.items()]
-        page = "\n\n".join([
+        OPTICAL_PAGE.write_text("\n\n".join([
             "# The optical scenes' verdicts (`benchmarks/tactile/optical.py`)",
-            f"Command: `{run.get('command', 'python -m benchmarks.tactile.optical')}`.",
-            f"Protocol: {when}.",
+            f"Command: `EVENT_TRANSFORMS_CACHE=DIR {run.get('command', 'python -m benchmarks.tactile.optical')}`; "
+            f"{when}.",
             "## Data cost (seconds; tables already on disk are not re-rendered)\n\n```json\n"
             + json.dumps(run["cost"], indent=1) + "\n```",
             "## Fidelity (physics least-squares model fitted on the deployment's test grasps, MSE N²)\n\n"
             "| scene | training grasps | scores |\n|---|---|---|\n" + "\n".join(fidelity_rows),
-            f"## Built-in (`{relative}`) vs optical verdicts\n\n" + body,
+            "## Built-in vs optical verdicts\n\n<!-- optical-side-by-side:start -->\n<!-- optical-side-by-side:end -->",
             "## The optical run's output (`results.md`)\n\n" + optical_text,
-        ])
-        OPTICAL_PAGE.write_text(page)
+        ]))
+    optical_text = optical_run_text(OPTICAL_PAGE.read_text())
+    name = str(builtin_run.resolve().relative_to(ROOT)) if builtin_run.resolve().is_relative_to(ROOT) else str(builtin_run)
+    body, counts = side_by_side_section(builtin_run.read_text(), optical_text, name)
+    write_section(SECTION, body, OPTICAL_PAGE)
+    write_section(SECTION, body, RESULTS_PAGE)
+    if out is not None:
+        (out / "side_by_side.md").write_text(body + "\n")
     return counts
 
 
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("results-optical"), help="the protocol's output folder")
+    parser.add_argument("--out", type=Path, default=None, help="the protocol's output folder (default results-optical)")
     parser.add_argument("--root", default=None, help="data-set cache folder (default: the package's)")
     parser.add_argument("--scenes", nargs="+", default=RUN_SCENES, choices=list(OPTICAL_SCENES))
     parser.add_argument("--seeds", default=None, help="the protocol's seeds (default: its quick configuration)")
@@ -251,15 +268,17 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
                         help="also the protocol's MSE at equal wall time (off here: it adds up to 57 %% to the run)")
     parser.add_argument("--skip-protocol", action="store_true", help="stop after the data and the fidelity figure")
     parser.add_argument("--render-only", action="store_true",
-                        help="no data, no training: rewrite the side-by-side and the pages from the run in --out")
+                        help="no data, no training: rewrite the side-by-side of docs/results.md and optical.md from "
+                        "the committed optical.md (or, with --out given, the whole optical page from that run)")
     parser.add_argument("--builtin", type=Path, default=BUILTIN_RUN,
                         help="the built-in run whose verdicts are the side-by-side's built-in column "
                         "(default: benchmarks/tactile/reproduce_quick.md)")
     args = parser.parse_args(argv)
     if args.render_only:
         counts = render(args.out, args.builtin)
-        print((args.out / "side_by_side.md").read_text())
+        print(json.dumps(counts))
         return {"counts": counts}
+    args.out = args.out or Path("results-optical")
     args.out.mkdir(parents=True, exist_ok=True)
     cost = prepare(args.scenes, args.root)
     print(json.dumps(cost, indent=1), flush=True)

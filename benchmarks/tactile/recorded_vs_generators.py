@@ -216,7 +216,10 @@ def main(argv: list[str] | None = None) -> None:
         markdown_table(["source", "recordings", "events ~ F", "events ~ abs(dF/dt)", "area ~ F", "area at peak",
                         "largest Δlog L at peak", "D"], rows),
         "", "D = abs(ln(peak Δlog L / recorded)) + abs(ln(area at peak / recorded)) + abs(r events~abs(dF/dt) − "
-        "recorded), on the medians; the optical camera is the row of the smallest D (rule in the script's docstring).",
+        "recorded), on the medians; the optical camera is the row of the smallest D (rule in the script's docstring)"
+        + (f": {chosen} (D {scores[chosen]:.2f}). Before this comparison (`OPTICAL_VERSION` 2) the camera was red, "
+           "threshold 0.05, shadows off; since version 3 it is red, threshold 0.07, shadows on (12 grasps a row: a "
+           "D within a few hundredths of another is no clear difference)." if chosen else "."),
     ]
     publish("\n".join(lines), args)
 
