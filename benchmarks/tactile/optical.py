@@ -204,17 +204,32 @@ def optical_run_text(page: str) -> str:
     marker = "## The optical run's output (`results.md`)"
     if marker not in page:
         raise ValueError(f"the optical page has no section {marker!r}")
-    return page.split(marker, 1)[1].strip() + "\n"
+    return page.split(marker, 1)[1].split(f"<!-- {SECTION}:start -->", 1)[0].strip() + "\n"
+
+
+def protocol_of(text: str) -> str:
+    """A protocol output's decision rules and data rule, in words (from its own header)."""
+    from event_transforms.tactile.report import rules_version
+
+    version = rules_version(text)
+    rules = f"decision rules version {version}" if version else "decision rules version 1 (the page names none)"
+    data = ("fresh data per seed" if "fresh per seed" in text or "new data sets from the simulator" in text
+            else "every seed on the same data" if "with the data fixed" in text else "data rule not stated")
+    return f"{rules}, {data}"
 
 
 def side_by_side_section(builtin_text: str, optical_text: str, builtin_name: str) -> tuple[str, dict[str, int]]:
     """The ``optical-side-by-side`` section: where each column comes from, the table, the counts."""
     table, counts = side_by_side(builtin_text, optical_text)
+    same = protocol_of(builtin_text) == protocol_of(optical_text)
     body = "\n".join([
         f"Built-in column: `{builtin_name}` (the built-in generator's quick run, produced by commit "
-        f"`{produced_by(builtin_text)[:7]}`); optical column: `benchmarks/tactile/optical.md` (produced by commit "
-        f"`{produced_by(optical_text)[:7]}`; {machine(optical_text)}). Each judged by the decision rules its page "
-        "states. Re-rendered without training by `python -m benchmarks.tactile.optical --render-only`.",
+        f"`{produced_by(builtin_text)[:7]}`: {protocol_of(builtin_text)}). Optical column: "
+        f"`benchmarks/tactile/optical.md` (produced by commit `{produced_by(optical_text)[:7]}`: "
+        f"{protocol_of(optical_text)}; {machine(optical_text)})."
+        + ("" if same else " **The two columns were judged under different protocols**: an outcome here compares "
+           "two rule sets as well as two generators.")
+        + " Re-rendered without training by `python -m benchmarks.tactile.optical --render-only`.",
         "", table, "", counts_sentence(counts),
     ])
     return body, counts
