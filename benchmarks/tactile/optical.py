@@ -230,9 +230,20 @@ def side_by_side_section(builtin_text: str, optical_text: str, builtin_name: str
         + ("" if same else " **The two columns were judged under different protocols**: an outcome here compares "
            "two rule sets as well as two generators.")
         + " Re-rendered without training by `python -m benchmarks.tactile.optical --render-only`.",
-        "", table, "", counts_sentence(counts),
+        "", table, "", counts_sentence(counts) + " " + resolved_sentence(optical_text),
     ])
     return body, counts
+
+
+def resolved_sentence(optical_text: str) -> str:
+    """Every verdict the optical run resolves (its family interval excludes 0), the hex scene's included."""
+    from event_transforms.tactile.report import summary_verdicts
+
+    resolved = [f"{scene} / {method} {column} {verdict.mean:+.2f}"
+                for (scene, method, column), verdict in sorted(summary_verdicts(optical_text).items())
+                if verdict.significant]
+    return ("Resolved on the optical generator (its own family intervals): " + "; ".join(resolved) + "."
+            if resolved else "The optical run resolves no verdict.")
 
 
 def render(out: Path | None = None, builtin_run: Path = BUILTIN_RUN) -> dict[str, int]:
