@@ -140,7 +140,7 @@ def _word(verdict: Any) -> str:
 
 def side_by_side(builtin_text: str, optical_text: str) -> tuple[str, dict[str, int]]:
     """A markdown table of every verdict both runs have: built-in, optical, and the outcome
-    (holds: same word; flips: significant both ways; unresolved: significant on the built-in
+    (holds: same word, or significant both times with the same sign; flips: significant with opposite signs; unresolved: significant on the built-in
     generator only; new: significant on the optical one only), and the counts."""
     from event_transforms.tactile.report import summary_verdicts
 
@@ -150,8 +150,8 @@ def side_by_side(builtin_text: str, optical_text: str) -> tuple[str, dict[str, i
     rows, counts = [], {"holds": 0, "flips": 0, "unresolved": 0, "new": 0}
     for key in sorted(set(builtin) & set(optical), key=lambda k: (list(ROLES.values()).index(k[0]), k[1], k[2])):
         a, b = builtin[key], optical[key]
-        if a.word == b.word:
-            outcome = "holds"
+        if a.word == b.word or (a.significant and b.significant and (a.mean > 0) == (b.mean > 0)):
+            outcome = "holds"  # the same word, or resolved the same way under two labels (robust / resolved at 2x)
         elif a.significant and b.significant:
             outcome = "flips"
         elif a.significant:
@@ -195,8 +195,12 @@ def machine(text: str) -> str:
 def counts_sentence(counts: dict[str, int]) -> str:
     """The side-by-side's counts in words."""
     total = sum(counts.values())
-    return (f"Of the {total} verdicts both runs have, **{counts['holds']} hold, {counts['flips']} flip, "
-            f"{counts['unresolved']} become unresolved and {counts['new']} are new**.")
+    def verb(n: int, one: str, many: str) -> str:
+        return f"{n} {one if n == 1 else many}"
+
+    return (f"Of the {total} verdicts both runs have, **{verb(counts['holds'], 'holds', 'hold')}, "
+            f"{verb(counts['flips'], 'flips', 'flip')}, {verb(counts['unresolved'], 'becomes', 'become')} unresolved "
+            f"and {verb(counts['new'], 'is', 'are')} new**.")
 
 
 def optical_run_text(page: str) -> str:

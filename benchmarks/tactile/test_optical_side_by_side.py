@@ -45,8 +45,14 @@ def test_outcomes_follow_the_two_verdicts():
     assert outcome == {"fs2": "holds", "stretch": "unresolved", "fs-1": "flips", "noise": "new", "resize": "holds"}
     assert counts == {"holds": 2, "flips": 1, "unresolved": 1, "new": 1}
     assert "**-0.90** (by construction)" in table  # the stretch undoes the size gap on the built-in generator
-    assert optical.counts_sentence(counts) == ("Of the 5 verdicts both runs have, **2 hold, 1 flip, 1 become "
-                                               "unresolved and 1 are new**.")
+    # resolved the same way under two labels of the budget check column: holds, not a flip
+    robust = "| " + " | ".join(SUMMARY_COLUMNS) + " |\n" + "|---" * len(SUMMARY_COLUMNS) + "|\n"
+    same = optical.side_by_side(robust + "| paper | fs1 | 1.00 | -0.10 [-0.50, +0.30] | — | — | — | robust: Δ -1.71 at 600 steps |",
+                                robust + "| optical-paper | fs1 | 1.00 | -0.10 [-0.50, +0.30] | — | — | — | resolved at 2×: Δ "
+                                "-0.59 [-1.14, -0.04] at 600 steps |")[1]
+    assert same["flips"] == 0 and same["holds"] == 2
+    assert optical.counts_sentence(counts) == ("Of the 5 verdicts both runs have, **2 hold, 1 flips, 1 becomes "
+                                               "unresolved and 1 is new**.")
 
 
 def test_the_committed_side_by_side_is_recomputed_from_the_committed_runs():
