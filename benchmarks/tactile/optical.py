@@ -37,7 +37,7 @@ from typing import Any
 
 from event_transforms.tactile import datasets
 from event_transforms.tactile.generators.optical import OpticalConfig, OpticalObject, render_table
-from event_transforms.tactile.scenes import OPTICAL_SCENES, get_scene
+from event_transforms.tactile.benchmark_scenes import OPTICAL_SCENES, get_scene
 from event_transforms.tactile.simulation import draw_grasp
 
 __all__ = ["prepare", "fidelity_figures", "side_by_side", "side_by_side_section", "render", "main"]

@@ -88,7 +88,7 @@ def recorded(root: Path, limit: int | None) -> list[dict[str, float]]:
 def generated(generator: str, grasps: int, channel: str | int = "luma", threshold: float | None = None,
               shadows: bool | None = None) -> list[dict[str, float]]:
     from event_transforms.tactile.generators.optical import OpticalConfig, simulate_optical
-    from event_transforms.tactile.scenes import BASE_SESSION, OPTICAL_BASE_SESSION
+    from event_transforms.tactile.benchmark_scenes import BASE_SESSION, OPTICAL_BASE_SESSION
     from event_transforms.tactile.simulation import _strip_shape
 
     session = BASE_SESSION if generator == "builtin" else OPTICAL_BASE_SESSION
@@ -191,7 +191,7 @@ def main(argv: list[str] | None = None) -> None:
     sources = {"recorded (GelSight Wedge)": recorded(args.data, limit), "built-in": generated("builtin", grasps)}
     if not args.no_optical:
         names = {"luma": "luma", "mean": "mean RGB", "0": "red", "1": "green", "2": "blue"}
-        from event_transforms.tactile.scenes import OPTICAL_BASE_SESSION
+        from event_transforms.tactile.benchmark_scenes import OPTICAL_BASE_SESSION
 
         for channel in args.optical_channels:
             value: str | int = int(channel) if channel in ("0", "1", "2") else channel

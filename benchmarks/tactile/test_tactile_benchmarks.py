@@ -134,7 +134,7 @@ class TestSizeModelNetwork:
 
     def test_variant_changes_the_size_model_of_both_sessions_only(self):
         from benchmarks.tactile import size_model_network
-        from event_transforms.tactile.scenes import SCENES
+        from event_transforms.tactile.benchmark_scenes import SCENES
 
         for name in size_model_network.METHODS:
             scene = SCENES[name]

@@ -20,7 +20,7 @@ from event_transforms.tactile.generators.optical import (
     render_table,
     simulate_optical,
 )
-from event_transforms.tactile.scenes import (
+from event_transforms.tactile.benchmark_scenes import (
     BASE_SESSION,
     OPTICAL_SCENES,
     SCENES,

@@ -53,7 +53,7 @@ built-in generator (same force, timing, delay, membrane time constant, angle, ce
    counter-based draws, crossing times by interpolation, a continuous refractory period,
    hot pixels drawn per pixel, the red channel) a seed gives other events than version 1's
    numpy model; version 3 (shadows) other events than version 2's. The optical scenes' camera has
-   the threshold 0.07 (:data:`~event_transforms.tactile.scenes.OPTICAL_BASE_SESSION`; 0.05 in
+   the threshold 0.07 (:data:`~event_transforms.tactile.benchmark_scenes.OPTICAL_BASE_SESSION`; 0.05 in
    versions 1 and 2), chosen with the shadows by the same comparison. taxim's own
    rendering artefacts (faint rings from its binned gradient lookup) are part of the image and
    fire events too.

@@ -21,7 +21,7 @@ import torch
 from ..copies import SceneData, load_scene_data
 from ..methods import methods_for, parse_method
 from ..runs import data_key
-from ..scenes import BenchmarkScene, get_scene
+from ..benchmark_scenes import BenchmarkScene, get_scene
 from .config import ProtocolConfig, RunSettings
 from .limits import check_run_limits
 from .rules import RULES
