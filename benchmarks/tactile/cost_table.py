@@ -22,7 +22,7 @@ from event_transforms.tactile.commands import QUICK, quick_config
 from event_transforms.tactile.copies import load_scene_data
 from event_transforms.tactile.protocol.costs import QUICK_COST_TABLE, measure_costs
 from event_transforms.tactile.protocol.plan import choose_methods
-from event_transforms.tactile.scenes import SCENES
+from event_transforms.tactile.benchmark_scenes import SCENES
 
 __all__ = ["main"]
 

@@ -42,7 +42,7 @@ from event_transforms.tactile.report import (
     interval_coverage,
     run_verdicts,
 )
-from event_transforms.tactile.scenes import get_scene
+from event_transforms.tactile.benchmark_scenes import get_scene
 
 __all__ = ["SCENES", "MODELS", "comparison_methods", "model_config", "run_model", "format_comparison", "main"]
 

@@ -27,7 +27,7 @@ from benchmarks._common import apply_threads, base_parser, command, environment_
 
 from event_transforms.inference import infer_scene
 from event_transforms.tactile.lags import infer_scene_with_lags
-from event_transforms.tactile.scenes import BASE_SESSION
+from event_transforms.tactile.benchmark_scenes import BASE_SESSION
 from event_transforms.tactile.simulation import simulate_grasps
 
 __all__ = ["POINTS", "run", "main"]

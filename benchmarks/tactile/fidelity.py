@@ -22,7 +22,7 @@ from benchmarks._common import apply_threads, base_parser, command, environment_
 import event_transforms as et
 from event_transforms.tactile.datasets import TactileGrasps
 from event_transforms.tactile.fidelity import SIZE_METHODS, TIME_METHODS, fidelity
-from event_transforms.tactile.scenes import get_scene
+from event_transforms.tactile.benchmark_scenes import get_scene
 
 __all__ = ["run", "main"]
 

@@ -74,7 +74,7 @@ def distinct_training_sets(data: Mapping[str, SceneData]) -> dict[str, list[str]
     that has it, in ``data``'s order.
 
     Example:
-        >>> from event_transforms.tactile.scenes import get_scene
+        >>> from event_transforms.tactile.benchmark_scenes import get_scene
         >>> g = torch.Generator().manual_seed(0)
         >>> def items(n):
         ...     frames = torch.poisson(torch.full((n, 12, 2, 6, 6), 0.5), generator=g)

@@ -12,8 +12,16 @@
    ``--seeds``/``--steps`` for a reduced run) into ``--out``, whose ``results.json`` and
    ``report.md`` hold the optical verdict table.
 
-Run: ``EVENT_TRANSFORMS_CACHE=DIR python benchmarks/tactile/optical.py --out results-optical``
-(``pip install 'event-transforms[optical]'`` first). ``--skip-protocol`` stops after 1 and 2.
+4. **Side-by-side** (:func:`render`): each optical verdict beside the built-in generator's for the
+   same role, the built-in column read from the committed built-in quick run
+   (``benchmarks/tactile/reproduce_quick.md``, ``--builtin``), into ``--out/side_by_side.md`` and
+   the ``optical-side-by-side`` sections of ``docs/results.md`` and ``benchmarks/tactile/optical.md``.
+
+Run: ``EVENT_TRANSFORMS_CACHE=DIR python -m benchmarks.tactile.optical --out results-optical``
+(``pip install 'event-transforms[optical]'`` first). ``--skip-protocol`` stops after 1 and 2;
+``--render-only`` redoes 4 alone from the committed ``optical.md`` (after the built-in run is
+regenerated), without data or training; ``--render-only --out results-optical`` rewrites the
+whole optical page from that finished run first.
 """
 
 from __future__ import annotations
@@ -29,10 +37,10 @@ from typing import Any
 
 from event_transforms.tactile import datasets
 from event_transforms.tactile.generators.optical import OpticalConfig, OpticalObject, render_table
-from event_transforms.tactile.scenes import OPTICAL_SCENES, get_scene
+from event_transforms.tactile.benchmark_scenes import OPTICAL_SCENES, get_scene
 from event_transforms.tactile.simulation import draw_grasp
 
-__all__ = ["prepare", "fidelity_figures", "side_by_side", "main"]
+__all__ = ["prepare", "fidelity_figures", "side_by_side", "side_by_side_section", "render", "main"]
 
 #: The optical scenes of the verdict table (each one a built-in scene's role).
 ROLES = {
@@ -132,7 +140,7 @@ def _word(verdict: Any) -> str:
 
 def side_by_side(builtin_text: str, optical_text: str) -> tuple[str, dict[str, int]]:
     """A markdown table of every verdict both runs have: built-in, optical, and the outcome
-    (holds: same word; flips: significant both ways; unresolved: significant on the built-in
+    (holds: same word, or significant both times with the same sign; flips: significant with opposite signs; unresolved: significant on the built-in
     generator only; new: significant on the optical one only), and the counts."""
     from event_transforms.tactile.report import summary_verdicts
 
@@ -142,8 +150,8 @@ def side_by_side(builtin_text: str, optical_text: str) -> tuple[str, dict[str, i
     rows, counts = [], {"holds": 0, "flips": 0, "unresolved": 0, "new": 0}
     for key in sorted(set(builtin) & set(optical), key=lambda k: (list(ROLES.values()).index(k[0]), k[1], k[2])):
         a, b = builtin[key], optical[key]
-        if a.word == b.word:
-            outcome = "holds"
+        if a.word == b.word or (a.significant and b.significant and (a.mean > 0) == (b.mean > 0)):
+            outcome = "holds"  # the same word, or resolved the same way under two labels (robust / resolved at 2x)
         elif a.significant and b.significant:
             outcome = "flips"
         elif a.significant:
@@ -158,9 +166,130 @@ def side_by_side(builtin_text: str, optical_text: str) -> tuple[str, dict[str, i
     return "\n".join(header + rows), counts
 
 
+ROOT = Path(__file__).resolve().parents[2]
+#: The built-in generator's committed quick run: the side-by-side's built-in column.
+BUILTIN_RUN = ROOT / "benchmarks" / "tactile" / "reproduce_quick.md"
+#: The page this script writes: the optical run's cost, fidelity, side-by-side and whole output.
+OPTICAL_PAGE = ROOT / "benchmarks" / "tactile" / "optical.md"
+#: The results page and its section that holds the side-by-side.
+RESULTS_PAGE = ROOT / "docs" / "results.md"
+SECTION = "optical-side-by-side"
+
+
+def produced_by(text: str) -> str:
+    """The commit a protocol output names (``Produced by commit `...```), or ``"unknown"``."""
+    import re
+
+    found = re.search(r"Produced by commit `([0-9a-f]{7,40})`", text)
+    return found.group(1) if found else "unknown"
+
+
+def machine(text: str) -> str:
+    """The protocol output's machine line (``One machine's numbers: ...``), its first sentence."""
+    for line in text.splitlines():
+        if line.startswith("One machine's numbers:"):
+            return line.removeprefix("One machine's numbers:").split(". ")[0].strip()
+    return "unknown"
+
+
+def counts_sentence(counts: dict[str, int]) -> str:
+    """The side-by-side's counts in words."""
+    total = sum(counts.values())
+    def verb(n: int, one: str, many: str) -> str:
+        return f"{n} {one if n == 1 else many}"
+
+    return (f"Of the {total} verdicts both runs have, **{verb(counts['holds'], 'holds', 'hold')}, "
+            f"{verb(counts['flips'], 'flips', 'flip')}, {verb(counts['unresolved'], 'becomes', 'become')} unresolved "
+            f"and {verb(counts['new'], 'is', 'are')} new**.")
+
+
+def optical_run_text(page: str) -> str:
+    """The optical run's whole ``results.md`` as :data:`OPTICAL_PAGE` quotes it."""
+    marker = "## The optical run's output (`results.md`)"
+    if marker not in page:
+        raise ValueError(f"the optical page has no section {marker!r}")
+    return page.split(marker, 1)[1].split(f"<!-- {SECTION}:start -->", 1)[0].strip() + "\n"
+
+
+def protocol_of(text: str) -> str:
+    """A protocol output's decision rules and data rule, in words (from its own header)."""
+    from event_transforms.tactile.report import rules_version
+
+    version = rules_version(text)
+    rules = f"decision rules version {version}" if version else "decision rules version 1 (the page names none)"
+    data = ("fresh data per seed" if "fresh per seed" in text or "new data sets from the simulator" in text
+            else "every seed on the same data" if "with the data fixed" in text else "data rule not stated")
+    return f"{rules}, {data}"
+
+
+def side_by_side_section(builtin_text: str, optical_text: str, builtin_name: str) -> tuple[str, dict[str, int]]:
+    """The ``optical-side-by-side`` section: where each column comes from, the table, the counts."""
+    table, counts = side_by_side(builtin_text, optical_text)
+    same = protocol_of(builtin_text) == protocol_of(optical_text)
+    body = "\n".join([
+        f"Built-in column: `{builtin_name}` (the built-in generator's quick run, produced by commit "
+        f"`{produced_by(builtin_text)[:7]}`: {protocol_of(builtin_text)}). Optical column: "
+        f"`benchmarks/tactile/optical.md` (produced by commit `{produced_by(optical_text)[:7]}`: "
+        f"{protocol_of(optical_text)}; {machine(optical_text)})."
+        + ("" if same else " **The two columns were judged under different protocols**: an outcome here compares "
+           "two rule sets as well as two generators.")
+        + " Re-rendered without training by `python -m benchmarks.tactile.optical --render-only`.",
+        "", table, "", counts_sentence(counts) + " " + resolved_sentence(optical_text),
+    ])
+    return body, counts
+
+
+def resolved_sentence(optical_text: str) -> str:
+    """Every verdict the optical run resolves (its family interval excludes 0), the hex scene's included."""
+    from event_transforms.tactile.report import summary_verdicts
+
+    resolved = [f"{scene} / {method} {column} {verdict.mean:+.2f}"
+                for (scene, method, column), verdict in sorted(summary_verdicts(optical_text).items())
+                if verdict.significant]
+    return ("Resolved on the optical generator (its own family intervals): " + "; ".join(resolved) + "."
+            if resolved else "The optical run resolves no verdict.")
+
+
+def render(out: Path | None = None, builtin_run: Path = BUILTIN_RUN) -> dict[str, int]:
+    """Rewrite the side-by-side (the ``optical-side-by-side`` section of docs/results.md and of
+    :data:`OPTICAL_PAGE`) without training; with ``out`` (a finished run: its ``results.md`` and
+    ``optical_cost_fidelity.json``) the whole optical page first, else from the page's own copy
+    of the run. The built-in column is ``builtin_run``'s."""
+    from benchmarks._common import write_section
+
+    if out is not None:
+        run = json.loads((out / "optical_cost_fidelity.json").read_text())
+        optical_text = (out / "results.md").read_text()
+        protocol = run.get("protocol")
+        when = (f"{protocol['seconds'] / 60:.0f} min of protocol (its `reproduce` call); load average "
+                f"{protocol['load_start']:.1f} at its start and {protocol['load_end']:.1f} at its end on this "
+                "machine's 2 cores" if protocol else "protocol time not recorded")
+        fidelity_rows = [f"| {scene} | {subset} | " + " | ".join(f"{m} {v:.2f}" for m, v in scores.items()) + " |"
+                         for scene, subsets in run["fidelity"].items() for subset, scores in subsets.items()]
+        OPTICAL_PAGE.write_text("\n\n".join([
+            "# The optical scenes' verdicts (`benchmarks/tactile/optical.py`)",
+            f"Command: `EVENT_TRANSFORMS_CACHE=DIR {run.get('command', 'python -m benchmarks.tactile.optical')}`; "
+            f"{when}.",
+            "## Data cost (seconds; tables already on disk are not re-rendered)\n\n```json\n"
+            + json.dumps(run["cost"], indent=1) + "\n```",
+            "## Fidelity (physics least-squares model fitted on the deployment's test grasps, MSE N²)\n\n"
+            "| scene | training grasps | scores |\n|---|---|---|\n" + "\n".join(fidelity_rows),
+            "## Built-in vs optical verdicts\n\n<!-- optical-side-by-side:start -->\n<!-- optical-side-by-side:end -->",
+            "## The optical run's output (`results.md`)\n\n" + optical_text,
+        ]))
+    optical_text = optical_run_text(OPTICAL_PAGE.read_text())
+    name = str(builtin_run.resolve().relative_to(ROOT)) if builtin_run.resolve().is_relative_to(ROOT) else str(builtin_run)
+    body, counts = side_by_side_section(builtin_run.read_text(), optical_text, name)
+    write_section(SECTION, body, OPTICAL_PAGE)
+    write_section(SECTION, body, RESULTS_PAGE)
+    if out is not None:
+        (out / "side_by_side.md").write_text(body + "\n")
+    return counts
+
+
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("results-optical"), help="the protocol's output folder")
+    parser.add_argument("--out", type=Path, default=None, help="the protocol's output folder (default results-optical)")
     parser.add_argument("--root", default=None, help="data-set cache folder (default: the package's)")
     parser.add_argument("--scenes", nargs="+", default=RUN_SCENES, choices=list(OPTICAL_SCENES))
     parser.add_argument("--seeds", default=None, help="the protocol's seeds (default: its quick configuration)")
@@ -168,7 +297,18 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--equal-time", action="store_true",
                         help="also the protocol's MSE at equal wall time (off here: it adds up to 57 %% to the run)")
     parser.add_argument("--skip-protocol", action="store_true", help="stop after the data and the fidelity figure")
+    parser.add_argument("--render-only", action="store_true",
+                        help="no data, no training: rewrite the side-by-side of docs/results.md and optical.md from "
+                        "the committed optical.md (or, with --out given, the whole optical page from that run)")
+    parser.add_argument("--builtin", type=Path, default=BUILTIN_RUN,
+                        help="the built-in run whose verdicts are the side-by-side's built-in column "
+                        "(default: benchmarks/tactile/reproduce_quick.md)")
     args = parser.parse_args(argv)
+    if args.render_only:
+        counts = render(args.out, args.builtin)
+        print(json.dumps(counts))
+        return {"counts": counts}
+    args.out = args.out or Path("results-optical")
     args.out.mkdir(parents=True, exist_ok=True)
     cost = prepare(args.scenes, args.root)
     print(json.dumps(cost, indent=1), flush=True)
@@ -176,8 +316,13 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     for scene, subsets in figures.items():
         for subset, scores in subsets.items():
             print(scene, subset, {m: round(v, 2) for m, v in scores.items()}, flush=True)
-    (args.out / "optical_cost_fidelity.json").write_text(json.dumps({"cost": cost, "fidelity": figures}, indent=1))
+    run: dict[str, Any] = {"cost": cost, "fidelity": figures,
+                           "command": "python -m benchmarks.tactile.optical "
+                           + " ".join(argv if argv is not None else sys.argv[1:])}
+    (args.out / "optical_cost_fidelity.json").write_text(json.dumps(run, indent=1))
     if not args.skip_protocol:
+        import os
+
         from event_transforms.tactile.cli import main as cli_main
 
         command = ["reproduce", "--scenes", *args.scenes, "--out", str(args.out), "--no-plots",
@@ -188,24 +333,13 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             command += ["--seeds", args.seeds]
         if args.steps:
             command += ["--steps", args.steps]
+        load_start, start = os.getloadavg()[0], time.perf_counter()
         cli_main(command)
-        root_dir = Path(__file__).resolve().parents[2]
-        table, counts = side_by_side((root_dir / "docs" / "results.md").read_text(), (args.out / "results.md").read_text())
-        (args.out / "side_by_side.md").write_text(table + "\n\n" + json.dumps(counts) + "\n")
-        print(table, "\n", counts)
-        fidelity_rows = [f"| {scene} | {subset} | " + " | ".join(f"{m} {v:.2f}" for m, v in scores.items()) + " |"
-                         for scene, subsets in figures.items() for subset, scores in subsets.items()]
-        page = "\n\n".join([
-            "# The optical scenes' verdicts (`benchmarks/tactile/optical.py`)",
-            f"Command: `python benchmarks/tactile/optical.py {' '.join(argv if argv is not None else sys.argv[1:])}`.",
-            "## Data cost (seconds; tables already on disk are not re-rendered)\n\n```json\n"
-            + json.dumps(cost, indent=1) + "\n```",
-            "## Fidelity (physics least-squares model fitted on the deployment's test grasps, MSE N²)\n\n"
-            "| scene | training grasps | scores |\n|---|---|---|\n" + "\n".join(fidelity_rows),
-            "## Built-in (docs/results.md) vs optical verdicts\n\n" + table + "\n\n" + json.dumps(counts),
-            "## The optical run's output (`results.md`)\n\n" + (args.out / "results.md").read_text(),
-        ])
-        (root_dir / "benchmarks" / "tactile" / "optical.md").write_text(page)
+        run["protocol"] = {"seconds": time.perf_counter() - start, "load_start": load_start,
+                           "load_end": os.getloadavg()[0]}
+        (args.out / "optical_cost_fidelity.json").write_text(json.dumps(run, indent=1))
+        counts = render(args.out, args.builtin)
+        print((args.out / "side_by_side.md").read_text(), "\n", counts)
     return {"cost": cost, "fidelity": figures}
 
 

@@ -27,7 +27,7 @@ import torch
 from benchmarks._common import apply_threads, base_parser, command, environment_lines, markdown_table, publish
 
 from event_transforms.tactile.fidelity import SIZE_METHODS, fidelity
-from event_transforms.tactile.scenes import BASE_SESSION
+from event_transforms.tactile.benchmark_scenes import BASE_SESSION
 from event_transforms.tactile.simulation import SIZE_MODELS, simulate_grasps
 
 __all__ = ["run", "main", "TRANSFORMS"]

@@ -333,6 +333,7 @@ def page(args: argparse.Namespace, scenes: dict[str, dict[str, Any]], bins: list
     commit = _commit()
     recorded = {name: _verdicts(s["results"]) for name, s in scenes.items()}
     builtin_rules = _rules_of((ROOT / "benchmarks" / "tactile" / "reproduce_quick.md").read_text())
+    optical_rules = _rules_of((ROOT / "benchmarks" / "tactile" / "optical.md").read_text())
     table, counts = comparison(recorded)
     out = [
         "## Recorded grasps: the protocol on a real GelSight Wedge",
@@ -380,8 +381,8 @@ def page(args: argparse.Namespace, scenes: dict[str, dict[str, Any]], bins: list
                "Δ vs none of each augmentation on the recorded scene, beside the built-in generator's verdict for the "
                f"same role (`benchmarks/tactile/reproduce_quick.md`, read when this section was generated: {builtin_rules}) "
                "and the "
-               "optical generator's (`benchmarks/tactile/optical.md`: **stale**, judged by decision rules version 1 "
-               "and an older protocol). The roles: `control` is the generators' `control` (no gap); the two hardness "
+               f"optical generator's (`benchmarks/tactile/optical.md`, read when this section was generated: "
+               f"{optical_rules}). The roles: `control` is the generators' `control` (no gap); the two hardness "
                "interpolations take the role of `paper` (train on the extremes, deploy the middle: there of size, here "
                "of hardness); `session` and `shape` have no counterpart. holds: resolved the same way on both; flips: "
                "resolved both ways; unresolved: resolved on the generator, not on the recorded grasps; new: resolved "

@@ -34,7 +34,7 @@ import time
 
 from event_transforms.tactile import cli
 from event_transforms.tactile.datasets import SPLIT_SIZES, TactileGrasps
-from event_transforms.tactile.scenes import SCENES, get_scene
+from event_transforms.tactile.benchmark_scenes import SCENES, get_scene
 from event_transforms.tactile.simulation import simulate_grasp, simulate_grasps
 from event_transforms.viz import save_event_grid
 

@@ -24,7 +24,7 @@ from benchmarks._common import apply_threads, base_parser, command, environment_
 
 from event_transforms.tactile.baselines import PhysicsLeastSquares
 from event_transforms.tactile.datasets import TactileGrasps
-from event_transforms.tactile.scenes import BASE_SESSION, BenchmarkScene
+from event_transforms.tactile.benchmark_scenes import BASE_SESSION, BenchmarkScene
 
 __all__ = ["fit_and_score", "main"]
 

@@ -33,7 +33,7 @@ from benchmarks._common import apply_threads, base_parser, command, environment_
 from event_transforms.tactile.cli import _seeds as parse_seeds
 from event_transforms.tactile.copies import load_scene_data
 from event_transforms.tactile.protocol import ProtocolConfig, run_protocol
-from event_transforms.tactile.scenes import SCENES, BenchmarkScene
+from event_transforms.tactile.benchmark_scenes import SCENES, BenchmarkScene
 from event_transforms.tactile.simulation import SIZE_MODELS
 from event_transforms.tactile.stats import paired_t, significant
 

@@ -10,7 +10,7 @@ import torch
 from benchmarks.tactile import default_model, model_sweep
 from event_transforms.tactile.copies import SceneData
 from event_transforms.tactile.report import run_verdicts
-from event_transforms.tactile.scenes import get_scene
+from event_transforms.tactile.benchmark_scenes import get_scene
 
 
 def _items(n: int, g: torch.Generator, t: int = 12, size: int = 28) -> list:

@@ -134,7 +134,7 @@ class TestSizeModelNetwork:
 
     def test_variant_changes_the_size_model_of_both_sessions_only(self):
         from benchmarks.tactile import size_model_network
-        from event_transforms.tactile.scenes import SCENES
+        from event_transforms.tactile.benchmark_scenes import SCENES
 
         for name in size_model_network.METHODS:
             scene = SCENES[name]
@@ -189,3 +189,23 @@ def test_the_recorded_vs_generators_benchmark_runs_quick(tmp_path):
     bench.main(["--quick", "--no-optical", "--data", str(DATA), "--results", str(path)])
     text = path.read_text()
     assert "| recorded (GelSight Wedge) |          3 |" in text and "| built-in " in text
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not DATA.is_dir(), reason=f"the recorded GelSight Wedge grasps are not at {DATA}")
+def test_the_recorded_vs_generators_sweep_marks_the_camera_of_the_smallest_distance(tmp_path):
+    """The optical cameras of a sweep each get their distance to the recorded medians; the smallest is marked."""
+    pytest.importorskip("taxim")
+    import re
+
+    from benchmarks.tactile import recorded_vs_generators as bench
+
+    path = tmp_path / "RESULTS.md"
+    bench.main(["--quick", "--data", str(DATA), "--results", str(path), "--optical-channels", "0",
+                "--optical-thresholds", "0.05", "0.2", "--optical-shadows", "off"])
+    text = path.read_text()
+    rows = re.findall(r"^\| (optical \(red, threshold [\d.]+, shadows off\))( \*\*\(closest\)\*\*)? .*\| +([\d.]+) \|$", text,
+                      re.MULTILINE)
+    assert len(rows) == 2 and sum(bool(mark) for _, mark, _ in rows) == 1
+    closest = min(rows, key=lambda row: float(row[2]))
+    assert closest[1] and f": {closest[0]} (D {closest[2]})" in text

@@ -42,7 +42,7 @@ def _tiny_data() -> SceneData:
     """A few small random sequences standing in for the data set (smoke runs only)."""
     from torch.utils.data import Dataset
 
-    from event_transforms.tactile.scenes import get_scene
+    from event_transforms.tactile.benchmark_scenes import get_scene
 
     class Items(Dataset):
         def __init__(self, n: int, diameters: Sequence[float], seed: int) -> None:

@@ -6,7 +6,7 @@ Submodules (imported when first used, so ``import event_transforms`` stays light
   silicone membrane watched by a DVS;
 - :mod:`~event_transforms.tactile.generators`: the DVS pixel model both generators share and the
   optical generator (taxim; ``pip install 'event-transforms[optical]'``);
-- :mod:`~event_transforms.tactile.scenes`: sessions and benchmark scenes (a gap and a control
+- :mod:`~event_transforms.tactile.benchmark_scenes`: sessions and benchmark scenes (a gap and a control
   for each augmentation);
 - :mod:`~event_transforms.tactile.datasets`: the simulated grasps as data sets, and noise banks;
 - :mod:`~event_transforms.tactile.models`: the reference ConvLSTM force regressor;
@@ -47,8 +47,8 @@ import importlib
 from typing import Any
 
 _SUBMODULES = (
-    "simulation", "generators", "scenes", "datasets", "models", "ensemble", "baselines", "training", "methods",
-    "copies", "experiment", "stats", "report", "distributed", "protocol", "cli", "commands", "figures", "recordings",
+    "simulation", "generators", "benchmark_scenes", "datasets", "models", "ensemble", "baselines", "training",
+    "methods", "copies", "stats", "report", "distributed", "protocol", "cli", "commands", "figures", "recordings",
     "deployment", "runs",
 )
 
@@ -67,7 +67,7 @@ _NAMES = {
     "ProtocolConfig": "protocol",
     "run_protocol": "protocol",  # reproduce
     "load_scene_data": "copies",  # a built-in scene's data (simulate)
-    "get_scene": "scenes",  # show-scene
+    "get_scene": "benchmark_scenes",  # show-scene
     "train_model": "deployment",  # train
     "predict_stream": "deployment",  # predict
     "run_verdicts": "report",  # compare

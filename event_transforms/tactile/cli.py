@@ -1,7 +1,7 @@
 """Command line: ``event-transforms reproduce | simulate | show | show-scene | infer-scene | train | predict | convert``.
 
 ``reproduce`` runs the benchmark protocol (:mod:`event_transforms.tactile.protocol`) on the
-simulated scenes (:mod:`event_transforms.tactile.scenes`). Without ``--full`` it runs a quick
+simulated scenes (:mod:`event_transforms.tactile.benchmark_scenes`). Without ``--full`` it runs a quick
 configuration (:data:`QUICK`: 8 paired seeds; the control, ``paper``, ``paper-offset``,
 ``paper-membrane``, ``timing`` and ``orientation``; ``none``, the matched methods, the paper's list on ``paper``
 and the policy rows ``stretch``/``inferred``/``prior``/``everything`` on gapped scenes; a

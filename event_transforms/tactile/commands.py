@@ -240,7 +240,7 @@ def reproduce(args: argparse.Namespace) -> int:
     from .protocol.run import run_protocol
     from .protocol.rules import RULES
     from .report import format_report
-    from .scenes import SCENES
+    from .benchmark_scenes import SCENES
 
     base = FULL if args.full else QUICK
     device = args.device
@@ -392,7 +392,7 @@ def reproduce(args: argparse.Namespace) -> int:
 def simulate(args: argparse.Namespace) -> int:
     writable(args.root, "--root")
     from .copies import load_scene_data
-    from .scenes import SCENES, get_scene
+    from .benchmark_scenes import SCENES, get_scene
 
     root = None if args.root is None else str(args.root)
     if args.export is not None:
@@ -427,7 +427,7 @@ def show_scene(args: argparse.Namespace) -> int:
     import torch
 
     from .. import viz
-    from .scenes import SCENES, get_scene
+    from .benchmark_scenes import SCENES, get_scene
 
     names = [get_scene(args.scene).name] if args.scene else list(SCENES)
     if args.rows > args.count:

@@ -24,7 +24,7 @@ from torch.utils.data import Dataset
 from .._validation import check_positive
 from ..data import AugmentedDataset, SizedDataset
 from .methods import Method
-from .scenes import BenchmarkScene, get_scene
+from .benchmark_scenes import BenchmarkScene, get_scene
 from .stopwatch import Stopwatch, TimedTransform
 
 __all__ = [

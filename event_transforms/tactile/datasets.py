@@ -1,6 +1,6 @@
 """Data sets: the synthetic tactile grasps of the benchmark scenes.
 
-:class:`TactileGrasps` gives one split of one :class:`~event_transforms.tactile.scenes.BenchmarkScene`:
+:class:`TactileGrasps` gives one split of one :class:`~event_transforms.tactile.benchmark_scenes.BenchmarkScene`:
 ``train`` (48 sequences) and ``holdout`` (24, for the stopping rule) from the training session,
 and ``val`` (24) and ``test`` (96) from the deployment session, each sequence 36 frames of 10 ms cropped to a fixed 140×150
 window centred on the sensor (not on the true contact: that would be an oracle) and pooled 2×2
@@ -40,7 +40,7 @@ from .._validation import check_seed
 from ..transforms.base import as_transform
 from ..events.binning import events_to_frames
 from ._files import atomic_write
-from .scenes import BenchmarkScene, Session, get_scene
+from .benchmark_scenes import BenchmarkScene, Session, get_scene
 from .simulation import (
     SIMULATOR_VERSION,
     Recording,
@@ -168,7 +168,7 @@ class TactileGrasps(Dataset):
     """Synthetic grasps of bolts on a DVS tactile sensor: one split of a benchmark scene.
 
     ``train`` and ``holdout`` come from the scene's training session, ``val`` and ``test`` from
-    its deployment session (see :mod:`event_transforms.tactile.scenes`). Items are
+    its deployment session (see :mod:`event_transforms.tactile.benchmark_scenes`). Items are
     ``frames, force, meta``: ``frames`` a float32 tensor ``(36, 2, 70, 75)`` of
     integer-valued event counts (channel 0 OFF, 1 ON), ``force`` float32 ``(36,)`` in
     newtons (the force/torque reading at each frame's centre), and ``meta`` a dict
@@ -189,8 +189,8 @@ class TactileGrasps(Dataset):
             the stopping rule's data), ``"val"`` (24) or ``"test"`` (96, seeds from 40,000: a
             block nobody tuned on).
         root: cache directory (default :func:`default_cache_dir`).
-        scene: a scene name of :data:`~event_transforms.tactile.scenes.SCENES` or a
-            :class:`~event_transforms.tactile.scenes.BenchmarkScene` (default ``"paper"``).
+        scene: a scene name of :data:`~event_transforms.tactile.benchmark_scenes.SCENES` or a
+            :class:`~event_transforms.tactile.benchmark_scenes.BenchmarkScene` (default ``"paper"``).
         paper_split: the paper's sizes, 48 / 6 / 6 (the first sequences of each split).
         seed: offset of every sequence seed (sequence ``k`` of split ``s`` uses
             ``seed + offset(s) + k``).

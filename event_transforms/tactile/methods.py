@@ -40,7 +40,7 @@ from torch import nn
 from ..scenes import ResizeToTarget, Scene
 from ..transforms import AddNoise, FrameShift, RandomRotation, TemporalEventShift
 from .policies import POLICY_METHODS, build_policy, stretch_policy
-from .scenes import SCENES, BenchmarkScene, get_scene
+from .benchmark_scenes import SCENES, BenchmarkScene, get_scene
 
 __all__ = [
     "PAPER_METHODS",

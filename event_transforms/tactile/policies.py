@@ -45,7 +45,7 @@ from typing import Any
 from torch import Tensor, nn
 
 from ..scenes import Scene, StretchToTarget
-from .scenes import BenchmarkScene, get_scene
+from .benchmark_scenes import BenchmarkScene, get_scene
 
 #: Method names whose policies this module builds.
 POLICY_METHODS = ("stretch", "inferred", "prior", "everything")

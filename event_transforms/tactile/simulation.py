@@ -160,13 +160,8 @@ class SimulatorConfig:
         threshold: nominal log-intensity contrast threshold (ON and OFF).
         threshold_mismatch: relative standard deviation of per-pixel thresholds.
         refractory_us: a pixel is blind this long after it fires (its reference follows
-            the light meanwhile, so changes during that time are lost). 0 for the built-in
-            sessions: version 2's numpy model named 200 µs but never applied it at 1 ms
-            substeps (its output was bit-identical with 200 and 0), so every built-in result
-            was made without one; applied continuously, 200 µs drops events on the strip's
-            fast edges and the signed running count drifts from the force (physics
-            least-squares 0.31 → 2.36 N² on 24 base-session grasps). The optical scenes use
-            200 µs (:data:`~event_transforms.tactile.scenes.OPTICAL_BASE_SESSION`).
+            the light meanwhile, so changes during that time are lost). 0 here: version 2's
+            200 µs never acted at 1 ms substeps (CHANGELOG); the optical scenes' is 200.
         shot_noise: add background shot noise.
         shot_noise_hz: range of the per-pixel noise rates (log-uniform per pixel).
         noise_on_fraction: probability that a noise event is ON.

@@ -50,7 +50,7 @@ from .distributions import _trigamma_inverse, digamma, student_t_cdf, student_t_
 
 if TYPE_CHECKING:
     from .protocol.rules import Rules
-    from .scenes import BenchmarkScene
+    from .benchmark_scenes import BenchmarkScene
 
 __all__ = [
     "student_t_cdf",

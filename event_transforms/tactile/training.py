@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from ..data import SizedDataset
     from .copies import DeviceAugment, SceneData
     from .methods import Method
-    from .scenes import BenchmarkScene
+    from .benchmark_scenes import BenchmarkScene
 
 __all__ = [
     "train",
@@ -164,7 +164,7 @@ def train(
 
     Example:
         >>> from event_transforms.tactile.copies import SceneData
-        >>> from event_transforms.tactile.scenes import get_scene
+        >>> from event_transforms.tactile.benchmark_scenes import get_scene
         >>> g = torch.Generator().manual_seed(0)
         >>> def items(n):
         ...     frames = torch.poisson(torch.full((n, 12, 2, 8, 8), 0.5), generator=g)

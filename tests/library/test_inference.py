@@ -14,7 +14,7 @@ import torch
 import event_transforms as et
 from event_transforms.inference import infer_scene, sequence_statistics
 from event_transforms.tactile.datasets import TactileGrasps
-from event_transforms.tactile.scenes import SCENES, get_scene
+from event_transforms.tactile.benchmark_scenes import SCENES, get_scene
 from event_transforms.tactile.simulation import draw_grasp
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from event_transforms.tactile.scenes import BASE_SESSION, FACTORS, SCENES, BenchmarkScene, Session, get_scene
+from event_transforms.tactile.benchmark_scenes import BASE_SESSION, FACTORS, SCENES, BenchmarkScene, Session, get_scene
 from event_transforms.tactile.simulation import simulate_grasps, simulate_static
 
 QUIET = {"shot_noise": False, "hot_pixels": False}

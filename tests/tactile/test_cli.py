@@ -20,7 +20,7 @@ from event_transforms.tactile.protocol import plan as protocol_plan
 from event_transforms.tactile.protocol import timing
 from event_transforms.tactile.report import format_scene_table
 from event_transforms.tactile.runs import folder_name
-from event_transforms.tactile.scenes import SCENES, get_scene
+from event_transforms.tactile.benchmark_scenes import SCENES, get_scene
 from event_transforms.tactile.stats import holm, paired_t, student_t_quantile
 from event_transforms.tactile.stopwatch import Stopwatch
 from tests.tactile.test_training import FakeGrasps

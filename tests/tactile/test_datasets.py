@@ -15,7 +15,7 @@ from event_transforms.data import AugmentedDataset
 from event_transforms.scenes import metadata_values
 from event_transforms.tactile.datasets import TactileGrasps, noise_bank
 from event_transforms.tactile._files import default_cache_dir
-from event_transforms.tactile.scenes import get_scene
+from event_transforms.tactile.benchmark_scenes import get_scene
 from event_transforms.tactile.simulation import SimulatorConfig
 
 

@@ -183,7 +183,7 @@ class TestBenchmarkScenes:
     def test_inferred_shift_is_the_matched_rows(self):
         from event_transforms.tactile.methods import parse_method
         from event_transforms.tactile.policies import inferred_scene
-        from event_transforms.tactile.scenes import get_scene
+        from event_transforms.tactile.benchmark_scenes import get_scene
         from event_transforms.transforms import RandomFrameShift
 
         for name, matched in (("paper-offset", "fs-1"), ("paper-membrane", "fs1"), ("timing", "fs2")):

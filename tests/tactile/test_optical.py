@@ -20,7 +20,7 @@ from event_transforms.tactile.generators.optical import (
     render_table,
     simulate_optical,
 )
-from event_transforms.tactile.scenes import (
+from event_transforms.tactile.benchmark_scenes import (
     BASE_SESSION,
     OPTICAL_SCENES,
     SCENES,
@@ -104,6 +104,26 @@ class TestContactAndMembrane:
             OpticalObject("sphere", 10.0)
         with pytest.raises(ValueError, match="channel"):
             OpticalConfig(channel="blue")
+        with pytest.raises(TypeError, match="shadows must be a bool, got 1"):
+            OpticalConfig(shadows=1)  # type: ignore[arg-type]
+
+    def test_shadows_key_the_table_and_reach_the_renderer(self, tmp_path):
+        seen = []
+
+        def fake(maps):
+            seen.append(maps.shape[0])
+            return np.repeat(np.clip(0.5 + maps, 0, 1)[..., None], 3, axis=-1)
+
+        small = dict(render_scale=8, depth_step_mm=0.4, max_depth_mm=0.8)
+        cylinder = OpticalObject("cylinder", 15.0)
+        render_table(cylinder, 0.0, (30, 40), OpticalConfig(**small), root=tmp_path, renderer=fake)
+        optical._MEMORY.tables.clear()
+        render_table(cylinder, 0.0, (30, 40), OpticalConfig(**small, shadows=False), root=tmp_path, renderer=fake)
+        assert len(seen) == 2 and len(list(tmp_path.glob("optical-table-v*.npz"))) == 2  # another key: rendered again
+        assert OpticalConfig().shadows  # on since version 3 (benchmarks/tactile/recorded_vs_generators.py)
+        # the key without shadows is the one tables had before the option existed
+        key = optical._table_key(cylinder, 0.0, OpticalConfig(shadows=False), (30, 40), "h")
+        assert "shadows" not in key and '"shadows": true' in optical._table_key(cylinder, 0.0, OpticalConfig(), (30, 40), "h")
 
     def test_the_luminance_rule_picks_the_channel(self):
         from event_transforms.tactile.generators.optical import _luminance
@@ -148,6 +168,14 @@ def _fresh_table_memory():
 @pytest.mark.slow  # taxim compiles its renderer once per grid (seconds)
 @pytest.mark.usefixtures("taxim_available")
 class TestRenderTables:
+    def test_the_renderer_draws_shadows_when_asked(self):
+        # at render_scale 8 (0.24 mm/px) taxim's shadows are too short to reach a pixel: 4 here
+        grid = OpticalConfig(render_scale=4)
+        pressed = height_map(OpticalObject("cylinder", 15.0), 0.0, grid)[None] - 0.4
+        with_shadows = optical.taxim_renderer(grid)(pressed)
+        without = optical.taxim_renderer(OpticalConfig(render_scale=4, shadows=False))(pressed)
+        assert with_shadows.shape == without.shape and float(np.abs(with_shadows - without).max()) > 0.01
+
     def test_cached_keyed_and_rebuilt_when_corrupt(self, tmp_path, monkeypatch):
         cylinder = OpticalObject("cylinder", 15.0)
         table = render_table(cylinder, 0.0, (30, 40), SMALL, root=tmp_path)

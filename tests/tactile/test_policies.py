@@ -8,7 +8,7 @@ import torch
 import event_transforms as et
 from event_transforms.tactile.policies import POLICY_METHODS, other_camera_bank, policy_rows, prior_scene
 from event_transforms.tactile.methods import parse_method
-from event_transforms.tactile.scenes import get_scene
+from event_transforms.tactile.benchmark_scenes import get_scene
 
 
 def _batch():

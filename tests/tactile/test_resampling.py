@@ -93,7 +93,7 @@ def test_resampled_baselines_average_the_seeds_resamples():
     from event_transforms.tactile.baselines import evaluate_baselines, stack_items
     from event_transforms.tactile.copies import SceneData
     from event_transforms.tactile.protocol.statistics import _baselines
-    from event_transforms.tactile.scenes import get_scene
+    from event_transforms.tactile.benchmark_scenes import get_scene
 
     g = torch.Generator().manual_seed(0)
 

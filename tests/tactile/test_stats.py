@@ -141,7 +141,7 @@ class TestFamilies:
         assert deltas["stretch"]["wilcoxon_floor"] == pytest.approx(3 * 2 / 256)
 
     def test_policy_rows_against_the_matched_row(self):
-        from event_transforms.tactile.scenes import get_scene
+        from event_transforms.tactile.benchmark_scenes import get_scene
         from event_transforms.tactile.stats import summarize_scene
 
         methods = self._methods()
@@ -166,7 +166,7 @@ def test_a_verdict_from_models_still_falling_at_the_cap_is_not_resolved():
     """Honest at small scale (issue 33, item 8): when most members' hold-out MSE was still falling
     at the step cap, the Δ keeps its interval but prints no resolved verdict, and says why."""
     from event_transforms.tactile.report import _ci_text
-    from event_transforms.tactile.scenes import get_scene
+    from event_transforms.tactile.benchmark_scenes import get_scene
     from event_transforms.tactile.stats import still_falling, summarize_scene
 
     def runs(test_mse, falling):
@@ -318,7 +318,7 @@ class TestConvergenceOfTheEnsemble:
 
     def test_half_the_members_falling_hard_is_not_converged(self):
         """The old rule (more than half the members still falling) called this converged."""
-        from event_transforms.tactile.scenes import get_scene
+        from event_transforms.tactile.benchmark_scenes import get_scene
         from event_transforms.tactile.stats import summarize_scene
 
         def runs(values, falling):
@@ -340,7 +340,7 @@ class TestConvergenceOfTheEnsemble:
 
     def test_only_the_side_behind_withholds_a_verdict(self):
         """``none`` still falling withholds "better" (it may catch up) but not "worse"."""
-        from event_transforms.tactile.scenes import get_scene
+        from event_transforms.tactile.benchmark_scenes import get_scene
         from event_transforms.tactile.stats import behind_unconverged, summarize_scene
 
         def runs(values, falling):

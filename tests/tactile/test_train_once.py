@@ -11,7 +11,7 @@ import torch
 from event_transforms.tactile.copies import SceneData
 from event_transforms.tactile.protocol import run_protocol
 from event_transforms.tactile.protocol.shared import member_key, plan_sharing, training_key
-from event_transforms.tactile.scenes import get_scene
+from event_transforms.tactile.benchmark_scenes import get_scene
 
 from tests.tactile.test_cli import TINY, FakeGrasps, fake_data
 
@@ -71,7 +71,7 @@ def test_a_borrowed_member_scores_what_training_it_again_scores(tmp_path):
 def test_the_datasets_docstring_names_the_scenes_that_share_training_data():
     """The docstring's groups are the built-in scenes' training sessions (the issue found it wrong)."""
     from event_transforms.tactile import datasets
-    from event_transforms.tactile.scenes import SCENES
+    from event_transforms.tactile.benchmark_scenes import SCENES
 
     groups: dict[str, list[str]] = {}
     for name in SCENES:

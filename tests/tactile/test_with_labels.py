@@ -11,7 +11,7 @@ from event_transforms.tactile.copies import SceneData, WithLabels
 from event_transforms.tactile.methods import methods_for, parse_method, reads_labels
 from event_transforms.tactile.protocol import ProtocolConfig, run_unit
 from event_transforms.tactile.protocol.shared import plan_sharing
-from event_transforms.tactile.scenes import get_scene
+from event_transforms.tactile.benchmark_scenes import get_scene
 from event_transforms.tactile.training import train
 from tests.tactile.test_cli import fake_data
 

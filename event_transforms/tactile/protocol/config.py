@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..._validation import check_positive
 from ..resampling import check_resample
-from ..scenes import SCENES
+from ..benchmark_scenes import SCENES
 from .environment import git_commit
 
 if TYPE_CHECKING:

@@ -13,7 +13,7 @@ name: ``inferred`` reads each scene's deployment frames and builds another polic
 Example:
     >>> import torch
     >>> from event_transforms.tactile.copies import SceneData
-    >>> from event_transforms.tactile.scenes import get_scene
+    >>> from event_transforms.tactile.benchmark_scenes import get_scene
     >>> g = torch.Generator().manual_seed(0)
     >>> def items(n):
     ...     frames = torch.poisson(torch.full((n, 4, 2, 6, 6), 0.5), generator=g)

@@ -18,7 +18,7 @@ import torch
 from ..._validation import check_positive
 from ..copies import DeviceAugment, OnlineCopies, SceneData
 from ..methods import parse_method
-from ..scenes import BenchmarkScene
+from ..benchmark_scenes import BenchmarkScene
 from .config import ProtocolConfig
 from .unit import run_unit
 

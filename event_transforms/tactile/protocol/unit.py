@@ -15,7 +15,7 @@ import torch
 
 from ..copies import SceneData
 from ..resampling import bootstrap_indices, item_groups
-from ..scenes import BenchmarkScene, get_scene
+from ..benchmark_scenes import BenchmarkScene, get_scene
 from ..training import evaluate, phase_mse, train
 from .config import ProtocolConfig
 from .shared import SHARED_SEPARATOR

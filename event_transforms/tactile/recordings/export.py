@@ -28,7 +28,7 @@ def export_scene(scene: Any, out: str | os.PathLike[str], *, root: str | None = 
         The path of ``recordings.csv``.
     """
     from ..datasets import _SPLIT_SEED, SPLIT_SIZES
-    from ..scenes import get_scene
+    from ..benchmark_scenes import get_scene
     from ..simulation import draw_grasp, simulate_grasps
 
     scene = get_scene(scene)

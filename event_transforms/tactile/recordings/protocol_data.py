@@ -14,7 +14,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from ..scenes import BenchmarkScene, Session
+from ..benchmark_scenes import BenchmarkScene, Session
 from .dataset import RecordingSet
 from .layout import SPLITS, RecordingSettings
 
