@@ -494,7 +494,8 @@ def threshold_crossings(
         empty = torch.zeros(0, dtype=torch.int64, device=device)
         return (empty, empty, empty.to(torch.float64), empty.to(torch.int8)), (d, blind)
     events, d, blind = _crossings(work, times, on, off, refractory, leak, bool((leak_host > 0).any()),
-                                  not bool((refractory_host > 0).any()), d, blind)
+                                  not bool((refractory_host > 0).any()), d, blind,
+                                  leaks_all=bool((leak_host > 0).all()))
     return events, (d, blind)
 
 
@@ -627,6 +628,7 @@ def _signal(video: Tensor, times: Tensor, on: Tensor, off: Tensor, keys: Tensor,
 
     leak_hz = args["leak_hz"].to(device=device, dtype=torch.float32).unsqueeze(1)
     leaks = bool((args["leak_hz"] > 0).any())  # CPU arguments: no device read
+    leaks_all = bool((args["leak_hz"] > 0).all())
     ideal = not bool((args["refractory_us"] > 0).any())
     refractory = args["refractory_us"].to(device=device, dtype=torch.float32).unsqueeze(1)
     index = torch.arange(pixels, dtype=torch.int32, device=device).unsqueeze(0)
@@ -639,22 +641,23 @@ def _signal(video: Tensor, times: Tensor, on: Tensor, off: Tensor, keys: Tensor,
         stop = min(steps - 1, start + chunk)
         block = torch.cat([previous, levels(start + 1, stop + 1)], dim=1)
         part, d, blind = _crossings(block, times[:, start : stop + 1], on, off, refractory, leak_hz, leaks, ideal,
-                                    d, blind)
+                                    d, blind, leaks_all=leaks_all)
         parts.append(part)
         previous = block[:, -1:]
     return parts
 
 
 def _crossings(levels: Tensor, times: Tensor, on: Tensor, off: Tensor, refractory: Tensor, leak_hz: Tensor,
-               leaks: bool, ideal: bool, d: Tensor, blind: Tensor
+               leaks: bool, ideal: bool, d: Tensor, blind: Tensor, *, leaks_all: bool
                ) -> tuple[tuple[Tensor, Tensor, Tensor, Tensor], Tensor, Tensor]:
     """The crossings of levels ``(B, C + 1, P)`` at ``times`` ``(B, C + 1)`` from the state ``(d, blind)``
     (level minus reference, blind time left): the events ``(sample, pixel, t_us, p)`` and the new state.
 
     ``refractory`` and ``leak_hz`` are ``(B, 1)`` float32; ``leaks`` and ``ideal`` say whether any
-    leak rate or refractory period is non-zero (read by the caller, no device read here).
+    leak rate or refractory period is non-zero, ``leaks_all`` whether every sample leaks (read by
+    the caller from its host arguments, no device read here).
     Pixels that provably do nothing in the chunk (see :func:`_moving`) are left out of the loop."""
-    moving = _moving(levels, on, off, leak_hz, ideal, d, blind)
+    moving = None if leaks_all else _moving(levels, on, off, leak_hz, ideal, d, blind)
     if moving is not None:
         index = moving.nonzero().squeeze(1)
         part, d_moving, blind_moving = _crossings_all(levels[:, :, index], times, on[:, index], off[:, index],
@@ -668,14 +671,13 @@ def _crossings(levels: Tensor, times: Tensor, on: Tensor, off: Tensor, refractor
 
 def _moving(levels: Tensor, on: Tensor, off: Tensor, leak_hz: Tensor, ideal: bool, d: Tensor, blind: Tensor
             ) -> Tensor | None:
-    """``(P,)`` the pixels the chunk must compute, or ``None`` to compute them all (few are still).
+    """``(P,)`` the pixels the chunk must compute, or ``None`` to compute them all (few are still;
+    the caller skips this where every sample leaks, when no pixel is still).
 
     A pixel is still in every sample when its level does not change in the chunk (the slope
     is exactly 0), its sample has no leak, it is not blind, and the step's own arithmetic on
     its state gives no event: then each step leaves its state as it was (up to the sign of a
     zero) and emits nothing, so leaving it out changes no output."""
-    if bool(read_host((leak_hz > 0).all())):  # every sample leaks: no pixel is still
-        return None
     static = (levels[:, 1:] == levels[:, :1]).all(dim=1) & (leak_hz == 0) & (blind == 0)
     if ideal:  # the ideal step with change = d: trunc(d / theta) == 0
         quiet = torch.div(d, torch.where(d > 0, on, off)).trunc_() == 0

@@ -113,6 +113,27 @@ class TestHandComputed:
             F.noise_events(torch.tensor([-1.0]), 10.0, seed=0)
 
 
+    def test_hard_cases(self):
+        """B = 0, no pixels, T = 1 (above), a pixel with a million crossings, half-precision levels, silent rates."""
+        times = [0.0, 1.0, 2.0]
+        for levels in (torch.zeros(0, 3, 4), torch.zeros(2, 3, 0)):
+            (sample, pixel, t, p), (d, blind) = F.threshold_crossings(levels, times, 0.2)
+            assert len(sample) == len(pixel) == len(t) == len(p) == 0 and d.shape == levels[:, 0].shape
+        jump, theta = torch.tensor([[0.0], [1e4]]), 0.01
+        (_, pixel, t, p), _ = F.threshold_crossings(jump, [0.0, 1e6], theta)
+        assert len(t) == int(torch.tensor(1e4) / torch.tensor(theta)) and bool((p == 1).all())
+        assert bool((t > 0).all() and (t <= 1e6).all() and (t.diff() >= 0).all())
+        ramp = torch.linspace(0.0, 1.0, 7).view(7, 1).expand(7, 3).contiguous()
+        exact = F.threshold_crossings(ramp, torch.arange(7.0) * 100, 0.1, refractory_us=5.0)[0]
+        for dtype in (torch.float16, torch.bfloat16):  # computed in float32 from the given levels
+            low = F.threshold_crossings(ramp.to(dtype), torch.arange(7.0) * 100, 0.1, refractory_us=5.0)[0]
+            again = F.threshold_crossings(ramp.to(dtype).float(), torch.arange(7.0) * 100, 0.1, refractory_us=5.0)[0]
+            assert all(torch.equal(a, b) for a, b in zip(low, again)) and abs(len(low[0]) - len(exact[0])) <= 3
+        assert all(len(v) == 0 for v in F.noise_events(torch.zeros(0, 5), 10.0, seed=torch.zeros(0, dtype=torch.int64)))
+        assert all(len(v) == 0 for v in F.noise_events(torch.zeros(2, 5), 1e6, seed=torch.tensor([1, 2])))
+        assert F.camera_pixels(4, camera_seed=torch.zeros(0, dtype=torch.int64))[0].shape == (0, 4)
+
+
 class TestNoisePixelSearch:
     @pytest.mark.parametrize("case", ["log-uniform", "hot-only", "zeros-and-ties", "different-rows"])
     def test_the_bucket_table_equals_searchsorted(self, case):
