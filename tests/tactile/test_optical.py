@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -202,7 +205,7 @@ class TestRenderTables:
         files[0].write_bytes(b"not a table")
         with pytest.warns(UserWarning, match=str(files[0].name)):
             rebuilt = render_table(cylinder, 0.0, (30, 40), SMALL, root=tmp_path)
-        np.testing.assert_allclose(rebuilt, table, atol=1e-6)
+        np.testing.assert_array_equal(rebuilt, table)  # the render is reproducible (REPRODUCIBLE_XLA_FLAGS)
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             optical._MEMORY.tables.clear()
@@ -225,6 +228,80 @@ class TestRenderTables:
         contact_turned = turned[-1] - turned[0]
         distance = np.linalg.norm(contact_turned - np.rot90(contact_upright, 2)) / np.linalg.norm(contact_upright)
         assert distance > 0.2, distance
+
+
+class TestReproducibleXlaFlags:
+    """taxim's render is reproducible only on XLA's single-threaded CPU kernels: set before JAX starts, else named."""
+
+    def test_added_to_the_users_flags_before_jax_starts(self, monkeypatch):
+        monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/nowhere")
+        monkeypatch.setattr(optical, "_jax_started", lambda: False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            optical._reproducible_xla()
+            optical._reproducible_xla()  # a second call adds nothing
+        assert os.environ["XLA_FLAGS"].split() == ["--xla_dump_to=/tmp/nowhere", *optical.REPRODUCIBLE_XLA_FLAGS]
+
+    def test_already_set_is_left_alone(self, monkeypatch):
+        monkeypatch.setenv("XLA_FLAGS", " ".join(reversed(optical.REPRODUCIBLE_XLA_FLAGS)))
+        monkeypatch.setattr(optical, "_jax_started", lambda: pytest.fail("no need to ask"))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            optical._reproducible_xla()
+        assert os.environ["XLA_FLAGS"] == " ".join(reversed(optical.REPRODUCIBLE_XLA_FLAGS))
+
+    def test_jax_started_without_them_is_named(self, monkeypatch):
+        monkeypatch.delenv("XLA_FLAGS", raising=False)
+        monkeypatch.setattr(optical, "_jax_started", lambda: True)
+        with pytest.warns(optical.RenderNotReproducibleWarning, match="JAX started before"):
+            optical._reproducible_xla()
+        assert "XLA_FLAGS" not in os.environ  # too late to matter: not touched
+
+    def test_a_users_other_value_is_kept_and_named(self, monkeypatch):
+        monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=true")
+        monkeypatch.setattr(optical, "_jax_started", lambda: False)
+        with pytest.warns(optical.RenderNotReproducibleWarning, match="sets --xla_cpu_multi_thread_eigen=true"):
+            optical._reproducible_xla()
+        assert os.environ["XLA_FLAGS"] == "--xla_cpu_multi_thread_eigen=true"
+
+    def test_jax_not_imported_has_not_started(self, monkeypatch):
+        monkeypatch.delitem(sys.modules, "jax", raising=False)
+        assert optical._jax_started() is False
+
+
+_RENDER_SIX_TIMES = """
+import hashlib, os, warnings
+import numpy as np
+warnings.simplefilter("error", UserWarning)
+from event_transforms.tactile.generators import optical
+config = optical.OpticalConfig()
+pressed = optical.height_map(optical.OpticalObject("cylinder", 15.0), 2.5, config)[None] - config.depths_mm[:, None, None]
+render = optical.taxim_renderer(config)
+print(os.environ["XLA_FLAGS"])
+for _ in range(6):
+    print(hashlib.sha256(np.ascontiguousarray(render(pressed)).tobytes()).hexdigest())
+"""
+
+
+@pytest.mark.slow  # six renders of a full 21-map table in a fresh process, the cores kept busy (about 20 s)
+@pytest.mark.usefixtures("taxim_available")
+def test_a_full_table_renders_the_same_on_every_call():
+    # Multi-threaded, XLA's kernels split their work by the threads' timing: on the loaded 2-core
+    # machine the same maps gave three different images in six calls (OPTICAL_VERSION 3), one in
+    # five with two busy processes beside it; on a quiet machine the same image every time. So the
+    # cores are kept busy while the table renders.
+    env = {key: value for key, value in os.environ.items() if key != "XLA_FLAGS"}
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
+    try:
+        out = subprocess.run([sys.executable, "-c", _RENDER_SIX_TIMES], capture_output=True, text=True, env=env,
+                             timeout=600, check=True).stdout.split("\n")
+    finally:
+        for process in busy:
+            process.kill()
+            process.wait()
+    assert out[0].split() == list(optical.REPRODUCIBLE_XLA_FLAGS)
+    hashes = [line for line in out[1:] if line]
+    assert len(hashes) == 6 and len(set(hashes)) == 1, hashes
 
 
 @pytest.mark.usefixtures("taxim_available")

@@ -52,7 +52,9 @@ built-in generator (same force, timing, delay, membrane time constant, angle, ce
    grasp has none unless ``random_reference``). Since ``OPTICAL_VERSION`` 2 (the library's
    counter-based draws, crossing times by interpolation, a continuous refractory period,
    hot pixels drawn per pixel, the red channel) a seed gives other events than version 1's
-   numpy model; version 3 (shadows) other events than version 2's. The optical scenes' camera has
+   numpy model; version 3 (shadows) other events than version 2's; version 4 renders on XLA's
+   single-threaded CPU kernels (:data:`REPRODUCIBLE_XLA_FLAGS`: version 3's multi-threaded render
+   gave another image on some calls, so its cached tables were not what their keys said). The optical scenes' camera has
    the threshold 0.07 (:data:`~event_transforms.tactile.benchmark_scenes.OPTICAL_BASE_SESSION`; 0.05 in
    versions 1 and 2), chosen with the shadows by the same comparison. taxim's own
    rendering artefacts (faint rings from its binned gradient lookup) are part of the image and
@@ -77,6 +79,8 @@ __all__ = [
     "render_table",
     "taxim_renderer",
     "simulate_optical",
+    "REPRODUCIBLE_XLA_FLAGS",
+    "RenderNotReproducibleWarning",
 ]
 
 import functools
@@ -98,8 +102,29 @@ from ..simulation import EVENT_DTYPE, Grasp, Recording, SimulatorConfig, force_p
 from .._files import atomic_write
 from ...functional.emulate import emulate_events
 
-#: Bumped whenever the generator changes what a seed produces (keys the caches).
-OPTICAL_VERSION = 3
+#: Bumped whenever the generator changes what a seed produces (keys the caches). Version 4:
+#: taxim's render on XLA's single-threaded CPU kernels (:data:`REPRODUCIBLE_XLA_FLAGS`), so that a
+#: table is what its key says; version 3's multi-threaded render gave another image on some calls.
+OPTICAL_VERSION = 4
+
+#: The XLA settings under which taxim's JAX render is reproducible on the CPU. With XLA's
+#: multi-threaded CPU kernels (Eigen's thread pool) the same height maps rendered six times in one
+#: process gave three different images (up to 0.06 of luminance apart, at up to 557,000 of a
+#: 21-map table's pixels): version 3's cached tables under one key differed between processes.
+#: Single-threaded, every call gives the same image, and on the 2-core machine no slower (1.9 s
+#: for a 21-map table either way). :func:`taxim_renderer` adds them to ``XLA_FLAGS`` when JAX has
+#: not started yet: JAX on the CPU then runs single-threaded in that process.
+REPRODUCIBLE_XLA_FLAGS = ("--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1")
+
+
+class RenderNotReproducibleWarning(UserWarning):
+    """taxim's render runs with XLA's multi-threaded CPU kernels, so a table may differ between calls.
+
+    Raised when JAX had started before the optical generator could set
+    :data:`REPRODUCIBLE_XLA_FLAGS`, or when ``XLA_FLAGS`` sets one of them to another value. Set
+    ``XLA_FLAGS="--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"`` before JAX
+    starts (before the process's first JAX computation).
+    """
 
 #: A renderer: (N, H, W) height maps in mm, already pressed (contact where <= 0) -> (N, H, W, 3) RGB in [0, 1].
 Renderer = Callable[[np.ndarray], np.ndarray]
@@ -317,7 +342,42 @@ def _calibration(name: str) -> tuple[Path, str]:
 
 
 @functools.lru_cache(maxsize=2)
+def _jax_started() -> bool:
+    """Whether JAX's backends exist in this process (``XLA_FLAGS`` is read when they start)."""
+    import sys
+
+    if "jax" not in sys.modules:
+        return False
+    try:
+        from jax._src import xla_bridge
+
+        return bool(xla_bridge.backends_are_initialized())
+    except (ImportError, AttributeError):  # another JAX: assume it started
+        return True
+
+
+def _reproducible_xla() -> None:
+    """Add :data:`REPRODUCIBLE_XLA_FLAGS` to ``XLA_FLAGS`` before JAX starts, else warn by name."""
+    flags = os.environ.get("XLA_FLAGS", "").split()
+    names = {flag.split("=", 1)[0]: flag for flag in flags}
+    missing = [flag for flag in REPRODUCIBLE_XLA_FLAGS if names.get(flag.split("=", 1)[0]) != flag]
+    if not missing:
+        return
+    conflicting = [names[flag.split("=", 1)[0]] for flag in missing if flag.split("=", 1)[0] in names]
+    if conflicting:
+        reason = f"XLA_FLAGS sets {' '.join(conflicting)}"
+    elif _jax_started():
+        reason = "JAX started before the optical generator could set XLA_FLAGS"
+    else:
+        os.environ["XLA_FLAGS"] = " ".join([*flags, *missing])
+        return
+    warnings.warn(RenderNotReproducibleWarning(
+        f"{reason}: taxim's render runs with XLA's multi-threaded CPU kernels and may give another table on "
+        f"another call; set XLA_FLAGS={' '.join(REPRODUCIBLE_XLA_FLAGS)!r} before JAX starts"), stacklevel=3)
+
+
 def _taxim(name: str, mm_per_px: float) -> object:
+    _reproducible_xla()
     from taxim import Taxim
 
     folder, _ = _calibration(name)
@@ -330,6 +390,12 @@ def taxim_renderer(config: OpticalConfig | None = None) -> Renderer:
     Args:
         config: the calibration and the render grid (its pixel size is handed to taxim).
 
+    Before JAX starts, adds :data:`REPRODUCIBLE_XLA_FLAGS` to ``XLA_FLAGS`` (XLA's single-threaded
+    CPU kernels: the same maps give the same image on every call); when JAX has started without
+    them, warns with :class:`RenderNotReproducibleWarning`. The maps are rendered in one batch:
+    taxim's image of a map depends on the batch it is rendered in (single-threaded too), so a table
+    is always rendered whole.
+
     Returns:
         ``pressed (N, H, W) mm -> RGB (N, H, W, 3)``: contact where the map is <= 0.
 
@@ -341,6 +407,9 @@ def taxim_renderer(config: OpticalConfig | None = None) -> Renderer:
 
     Raises:
         ImportError: taxim or jax is missing (``pip install 'event-transforms[optical]'``).
+
+    Warns:
+        RenderNotReproducibleWarning: JAX started without :data:`REPRODUCIBLE_XLA_FLAGS`.
     """
     config = config or OpticalConfig()
     simulator = _taxim(config.calibration, config.mm_per_px)
