@@ -171,6 +171,9 @@ def _fresh_table_memory():
 @pytest.mark.slow  # taxim compiles its renderer once per grid (seconds)
 @pytest.mark.usefixtures("taxim_available")
 class TestRenderTables:
+    def test_one_simulator_per_grid(self):
+        assert optical._taxim("gelsight_mini", 0.236) is optical._taxim("gelsight_mini", 0.236)
+
     def test_the_renderer_draws_shadows_when_asked(self):
         # at render_scale 8 (0.24 mm/px) taxim's shadows are too short to reach a pixel: 4 here
         grid = OpticalConfig(render_scale=4)
@@ -267,6 +270,11 @@ class TestReproducibleXlaFlags:
     def test_jax_not_imported_has_not_started(self, monkeypatch):
         monkeypatch.delitem(sys.modules, "jax", raising=False)
         assert optical._jax_started() is False
+
+    def test_asked_afresh_every_time_while_taxim_is_built_once(self):
+        # whether JAX started can change; taxim's simulator (and its compiled renderer) is kept per grid
+        assert not hasattr(optical._jax_started, "cache_info")
+        assert optical._taxim.cache_info().maxsize == 2  # type: ignore[attr-defined]
 
 
 _RENDER_SIX_TIMES = """

@@ -341,7 +341,6 @@ def _calibration(name: str) -> tuple[Path, str]:
     return folder, digest.hexdigest()[:16]
 
 
-@functools.lru_cache(maxsize=2)
 def _jax_started() -> bool:
     """Whether JAX's backends exist in this process (``XLA_FLAGS`` is read when they start)."""
     import sys
@@ -376,6 +375,7 @@ def _reproducible_xla() -> None:
         f"another call; set XLA_FLAGS={' '.join(REPRODUCIBLE_XLA_FLAGS)!r} before JAX starts"), stacklevel=3)
 
 
+@functools.lru_cache(maxsize=2)
 def _taxim(name: str, mm_per_px: float) -> object:
     _reproducible_xla()
     from taxim import Taxim
