@@ -4,6 +4,7 @@ configuration; nothing asserts on timing."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -209,3 +210,17 @@ def test_the_recorded_vs_generators_sweep_marks_the_camera_of_the_smallest_dista
     assert len(rows) == 2 and sum(bool(mark) for _, mark, _ in rows) == 1
     closest = min(rows, key=lambda row: float(row[2]))
     assert closest[1] and f": {closest[0]} (D {closest[2]})" in text
+
+
+@pytest.mark.slow  # two fresh processes each compile taxim's renderer
+def test_the_optical_render_benchmark_runs_quick(tmp_path):
+    pytest.importorskip("taxim")
+    pytest.importorskip("jax")
+    from benchmarks.tactile import optical_render
+
+    path = tmp_path / "RESULTS.md"
+    optical_render.main(["--quick", "--results", str(path)])
+    text = path.read_text()
+    assert "<!-- optical-render:start -->" in text
+    single = re.search(r"^\| single-threaded +\| +(\d+) of 2 \|", text, flags=re.M)
+    assert single and single.group(1) == "1", text  # single-threaded: one image

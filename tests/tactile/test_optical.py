@@ -295,7 +295,7 @@ for _ in range(6):
 @pytest.mark.usefixtures("taxim_available")
 def test_a_full_table_renders_the_same_on_every_call():
     # Multi-threaded, XLA's kernels split their work by the threads' timing: on the loaded 2-core
-    # machine the same maps gave three different images in six calls (OPTICAL_VERSION 3), one in
+    # machine the same maps gave 3 different images in six calls (benchmarks/tactile/optical_render.py), one in
     # five with two busy processes beside it; on a quiet machine the same image every time. So the
     # cores are kept busy while the table renders.
     env = {key: value for key, value in os.environ.items() if key != "XLA_FLAGS"}

@@ -88,6 +88,7 @@ import hashlib
 import json
 import math
 import os
+import sys
 import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
@@ -108,11 +109,10 @@ from ...functional.emulate import emulate_events
 OPTICAL_VERSION = 4
 
 #: The XLA settings under which taxim's JAX render is reproducible on the CPU. With XLA's
-#: multi-threaded CPU kernels (Eigen's thread pool) the same height maps rendered six times in one
-#: process gave three different images (up to 0.06 of luminance apart, at up to 557,000 of a
-#: 21-map table's pixels): version 3's cached tables under one key differed between processes.
-#: Single-threaded, every call gives the same image, and on the 2-core machine no slower (1.9 s
-#: for a 21-map table either way). :func:`taxim_renderer` adds them to ``XLA_FLAGS`` when JAX has
+#: multi-threaded CPU kernels (Eigen's thread pool) one 21-map table rendered six times in a fresh
+#: process beside two busy ones gave 3 distinct images, up to 0.061 apart: version 3's cached tables
+#: under one key differed between processes. Single-threaded, every call gives the same image, and on
+#: the 2-core machine no slower (3.54 s a render against 3.46; ``benchmarks/tactile/optical_render.py``). :func:`taxim_renderer` adds them to ``XLA_FLAGS`` when JAX has
 #: not started yet: JAX on the CPU then runs single-threaded in that process.
 REPRODUCIBLE_XLA_FLAGS = ("--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1")
 
@@ -343,8 +343,6 @@ def _calibration(name: str) -> tuple[Path, str]:
 
 def _jax_started() -> bool:
     """Whether JAX's backends exist in this process (``XLA_FLAGS`` is read when they start)."""
-    import sys
-
     if "jax" not in sys.modules:
         return False
     try:
@@ -358,11 +356,12 @@ def _jax_started() -> bool:
 def _reproducible_xla() -> None:
     """Add :data:`REPRODUCIBLE_XLA_FLAGS` to ``XLA_FLAGS`` before JAX starts, else warn by name."""
     flags = os.environ.get("XLA_FLAGS", "").split()
-    names = {flag.split("=", 1)[0]: flag for flag in flags}
-    missing = [flag for flag in REPRODUCIBLE_XLA_FLAGS if names.get(flag.split("=", 1)[0]) != flag]
+    given = {flag.split("=", 1)[0]: flag for flag in flags}
+    wanted = {flag.split("=", 1)[0]: flag for flag in REPRODUCIBLE_XLA_FLAGS}
+    missing = [flag for name, flag in wanted.items() if given.get(name) != flag]
     if not missing:
         return
-    conflicting = [names[flag.split("=", 1)[0]] for flag in missing if flag.split("=", 1)[0] in names]
+    conflicting = [given[name] for name, flag in wanted.items() if name in given and given[name] != flag]
     if conflicting:
         reason = f"XLA_FLAGS sets {' '.join(conflicting)}"
     elif _jax_started():
